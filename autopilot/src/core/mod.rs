@@ -1,0 +1,3 @@
+//! The pure vehicle core: no clocks, sockets, files or async runtime; time and randomness come in as inputs.
+
+pub mod control;

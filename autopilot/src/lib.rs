@@ -1,0 +1,4 @@
+//! ACO quadrotor autopilot: the deterministic vehicle core (`core`) that the tokio shell, the in-process
+//! scenario runner and the real airframe all drive identically.
+
+pub mod core;

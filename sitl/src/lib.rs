@@ -1,0 +1,4 @@
+//! The SITL side: the paper's quadrotor plant (`plant`), pure and deterministic, and the paper's
+//! experiments run against it.
+
+pub mod plant;
