@@ -69,11 +69,18 @@ pub fn apply_contact(state: &mut RigidBodyState, config: &GroundConfig) -> bool 
 }
 
 /// Whether a state that has not been stepped yet (the initial state) rests on the ground: on the plane,
-/// not moving up, and pressed down by its net force `acc_ned_mps2`.
+/// not moving up, and pressed down by its net force `acc_ned_mps2` by more than rounding (1e-9 m/s²), so
+/// a start at exactly hover lift on the plane does not count as resting.
 #[must_use]
 pub fn is_resting(state: &RigidBodyState, acc_ned_mps2: &Vector3<f64>, config: &GroundConfig) -> bool {
-    config.enabled && state.pos_ned_m.z >= config.ground_d_m && state.vel_ned_mps.z >= 0.0 && acc_ned_mps2.z > 0.0
+    config.enabled
+        && state.pos_ned_m.z >= config.ground_d_m
+        && state.vel_ned_mps.z >= 0.0
+        && acc_ned_mps2.z > RESTING_ACC_MPS2
 }
+
+/// Net downward acceleration (m/s²) above which an initial state on the plane counts as pressed into it.
+const RESTING_ACC_MPS2: f64 = 1e-9;
 
 /// The acceleration (m/s², NED) of a vehicle given its free acceleration: zero while it rests on the
 /// ground and is pressed into it, the free acceleration otherwise (including at lift-off).

@@ -356,6 +356,12 @@ impl Plant {
         &mut self.config.airframe
     }
 
+    /// The wind (e.g. its gust profile, for metrics relative to the gust onset).
+    #[must_use]
+    pub fn wind(&self) -> &Wind {
+        &self.wind
+    }
+
     /// The wind, for run-time changes (gust on demand, turbulence on/off).
     pub fn wind_mut(&mut self) -> &mut Wind {
         &mut self.wind

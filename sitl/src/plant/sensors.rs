@@ -258,10 +258,16 @@ pub fn ned_from_geodetic(home: &HomeConfig, geodetic: &Geodetic) -> Vector3<f64>
     )
 }
 
-/// ISA static pressure (hPa) at `alt_amsl_m` (troposphere).
+/// Altitude range (m AMSL) of the ISA troposphere model; outside it the altitude is clamped (the formula
+/// has no real value above 44 km).
+pub const ISA_ALT_RANGE_M: (f64, f64) = (-5000.0, 11_000.0);
+
+/// ISA static pressure (hPa) at `alt_amsl_m` (troposphere; the altitude is clamped to
+/// [`ISA_ALT_RANGE_M`]).
 #[must_use]
 pub fn isa_pressure_hpa(alt_amsl_m: f64) -> f64 {
-    ISA_P0_HPA * (1.0 - ISA_LAPSE_KPM * alt_amsl_m / ISA_T0_K).powf(ISA_EXPONENT)
+    let h = alt_amsl_m.clamp(ISA_ALT_RANGE_M.0, ISA_ALT_RANGE_M.1);
+    ISA_P0_HPA * (1.0 - ISA_LAPSE_KPM * h / ISA_T0_K).powf(ISA_EXPONENT)
 }
 
 /// ISA pressure altitude (m AMSL) of `pressure_hpa`; the inverse of [`isa_pressure_hpa`].
@@ -441,7 +447,9 @@ impl Sensors {
         &self.config
     }
 
-    /// Sample every sensor from `truth` at `truth.time_us`.
+    /// Sample every sensor from `truth` at `truth.time_us`. A GPS measurement is captured at the first
+    /// call at or after each point of the GPS grid (k·period from t = 0) and released `latency_s` after
+    /// its capture; if several are released by one call (sparse sampling), the newest is returned.
     pub fn sample(&mut self, truth: &Truth) -> SensorSample {
         let now_us = truth.time_us;
         let dt_s = self.last_sample_us.map_or(0.0, |last| now_us.saturating_sub(last) as f64 * 1e-6);
@@ -642,6 +650,9 @@ mod tests {
         assert!((isa_pressure_hpa(0.0) - 1013.25).abs() < 1e-12);
         assert!((isa_pressure_hpa(1000.0) - 898.75).abs() < 0.01);
         assert!((isa_temperature_degc(1000.0) - 8.5).abs() < 1e-12);
+        // Far outside the troposphere the pressure stays finite (clamped), never NaN.
+        assert_eq!(isa_pressure_hpa(1.0e6), isa_pressure_hpa(11_000.0));
+        assert!(isa_pressure_hpa(1.0e6).is_finite() && isa_pressure_hpa(-1.0e6).is_finite());
     }
 
     #[test]
