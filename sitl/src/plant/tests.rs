@@ -78,6 +78,23 @@ fn given_the_nominal_airframe_at_hover_pwm_when_flown_10_s_then_it_drifts_less_t
     assert!(t.euler_rad.norm() < 1e-9);
 }
 
+#[test]
+fn given_the_golden_translation_runs_first_second_when_replayed_open_loop_then_altitude_matches_the_prototype() {
+    // spec/golden/golden_ACO_paper_pos_nominal.csv: the controller holds all four rotors at
+    // 1837.572949 µs from t = 0 to beyond 1.1 s, climbing from D = 0 at hover lift; D printed to 1e-6 m.
+    let golden = [(0.2, -0.013480), (0.4, -0.065060), (0.6, -0.156248), (0.8, -0.286969), (1.0, -0.457101)];
+    let mut plant = nominal_plant(&InitialState::default());
+    let mut k = 0;
+    for (t_s, d_m) in golden {
+        while (k as f64) * 0.002 < t_s - 1e-9 {
+            plant.step([1837.572949; 4], 2000);
+            k += 1;
+        }
+        let d = plant.truth().pos_ned_m.z;
+        assert!((d - d_m).abs() < 1e-6, "t = {t_s}: D = {d} vs golden {d_m}");
+    }
+}
+
 /// Pose (position, Euler) after `seconds` of a sinusoidal differential manoeuvre.
 fn manoeuvre(integrator_step_s: f64, seconds: f64) -> (Vector3<f64>, Vector3<f64>) {
     // Nominal airframe: the mismatch plant's constant disturbance torque would tumble the open-loop
