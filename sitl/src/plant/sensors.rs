@@ -235,7 +235,7 @@ fn metres_per_radian(home: &HomeConfig) -> (f64, f64) {
 }
 
 /// Flat-earth (tangent plane at home) NED -> geodetic: lat = lat0 + N/(M + h0), lon = lon0 +
-/// E/((N_t + h0) cos lat0), alt = h0 - D, with the WGS-84 radii of [`metres_per_radian`]. The error
+/// E/((N_t + h0) cos lat0), alt = h0 - D, with the WGS-84 meridian radius M and transverse radius N_t at lat0. The error
 /// against the ellipsoid grows as (distance/R)²: about a centimetre at 10 km.
 #[must_use]
 pub fn geodetic_from_ned(home: &HomeConfig, pos_ned_m: &Vector3<f64>) -> Geodetic {
