@@ -7,8 +7,28 @@
 //! the paper (1 right, 2 rear, 3 front, 4 left). The inner loops (attitude, rate, LMS) run on every call;
 //! the position loop runs on every `inner_hz / position_hz`-th call, starting with the first.
 
+use std::fmt;
+use std::str::FromStr;
+
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+pub mod aco;
+pub mod distributor;
+pub mod filters;
+pub mod frames;
+pub mod lms;
+pub mod mrac;
+pub mod pid;
+
+#[cfg(test)]
+mod toy_plant;
+
+pub use aco::{AcoConfig, AcoController, AcoWeights};
+pub use distributor::ActuatorLimits;
+pub use mrac::{MracConfig, MracController};
+pub use pid::{PidConfig, PidController};
 
 /// The controller's view of the vehicle. Frames: NED earth, FRD body; Euler angles ZYX.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -40,13 +60,7 @@ impl Reference {
     /// Hold a position with a yaw, no feed-forward.
     #[must_use]
     pub fn position(pos_ned_m: Vector3<f64>, yaw_rad: f64) -> Self {
-        Self {
-            pos_ned_m,
-            vel_ned_mps: Vector3::zeros(),
-            acc_ned_mps2: Vector3::zeros(),
-            yaw_rad,
-            attitude_rad: None,
-        }
+        Self { pos_ned_m, vel_ned_mps: Vector3::zeros(), acc_ned_mps2: Vector3::zeros(), yaw_rad, attitude_rad: None }
     }
 
     /// Attitude-only mode: scripted attitude, altitude held at `pos_d_m`.
@@ -76,6 +90,50 @@ impl Default for LoopRates {
     }
 }
 
+/// Why a [`LoopRates`] is unusable.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Error)]
+pub enum LoopRatesError {
+    #[error("loop rates must be positive (inner {inner_hz} Hz, position {position_hz} Hz)")]
+    NotPositive { inner_hz: u32, position_hz: u32 },
+    #[error("the position rate {position_hz} Hz must divide the inner rate {inner_hz} Hz")]
+    NotDivisor { inner_hz: u32, position_hz: u32 },
+}
+
+impl LoopRates {
+    /// Check that both rates are positive and `position_hz` divides `inner_hz`.
+    ///
+    /// # Errors
+    /// [`LoopRatesError`] naming the offending rates.
+    pub fn validate(&self) -> Result<(), LoopRatesError> {
+        let (inner_hz, position_hz) = (self.inner_hz, self.position_hz);
+        if inner_hz == 0 || position_hz == 0 {
+            return Err(LoopRatesError::NotPositive { inner_hz, position_hz });
+        }
+        if !inner_hz.is_multiple_of(position_hz) {
+            return Err(LoopRatesError::NotDivisor { inner_hz, position_hz });
+        }
+        Ok(())
+    }
+
+    /// Inner ticks per position tick, `inner_hz / position_hz` (at least 1, whatever the rates).
+    #[must_use]
+    pub fn position_divider(&self) -> u64 {
+        u64::from((self.inner_hz / self.position_hz.max(1)).max(1))
+    }
+
+    /// Inner-loop period Δ (s).
+    #[must_use]
+    pub fn inner_dt_s(&self) -> f64 {
+        1.0 / f64::from(self.inner_hz.max(1))
+    }
+
+    /// Position-loop period (s): `position_divider()` inner periods.
+    #[must_use]
+    pub fn position_dt_s(&self) -> f64 {
+        self.inner_dt_s() * self.position_divider() as f64
+    }
+}
+
 /// Which controller. Parsed from `aco`, `ca`, `pid`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -83,4 +141,290 @@ pub enum ControllerKind {
     Aco,
     Ca,
     Pid,
+}
+
+impl ControllerKind {
+    /// Every kind, in the order the paper compares them.
+    pub const ALL: [Self; 3] = [Self::Aco, Self::Ca, Self::Pid];
+
+    /// The lowercase name used on the command line and in files.
+    #[must_use]
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Aco => "aco",
+            Self::Ca => "ca",
+            Self::Pid => "pid",
+        }
+    }
+}
+
+impl fmt::Display for ControllerKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// An unknown controller name.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+#[error("unknown controller `{0}` (expected aco, ca or pid)")]
+pub struct ParseControllerKindError(pub String);
+
+impl FromStr for ControllerKind {
+    type Err = ParseControllerKindError;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "aco" => Ok(Self::Aco),
+            "ca" | "mrac" => Ok(Self::Ca),
+            "pid" => Ok(Self::Pid),
+            _ => Err(ParseControllerKindError(s.to_owned())),
+        }
+    }
+}
+
+/// The nominal model the controllers are designed on (spec A.3): the paper's quadrotor.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Airframe {
+    /// Nominal mass m̄ (kg).
+    pub mass_kg: f64,
+    /// Nominal principal inertia Ī (kg·m²), FRD axes.
+    pub inertia_kgm2: [f64; 3],
+    /// Arm length l (m), rotor to centre.
+    pub arm_m: f64,
+    /// Yaw-moment coefficient λ (m): rotor yaw torque per newton of lift.
+    pub yaw_moment_m: f64,
+    /// Rotor first-order lag τ̄ (s).
+    pub rotor_tau_s: f64,
+    /// Gravity g (m/s²).
+    pub gravity_mps2: f64,
+}
+
+impl Default for Airframe {
+    fn default() -> Self {
+        Self {
+            mass_kg: 5.2,
+            inertia_kgm2: [0.08, 0.08, 0.12],
+            arm_m: 0.24,
+            yaw_moment_m: 0.02703,
+            rotor_tau_s: 0.04,
+            gravity_mps2: 9.81,
+        }
+    }
+}
+
+impl Airframe {
+    /// Ī as a vector (kg·m²).
+    #[must_use]
+    pub fn inertia(&self) -> Vector3<f64> {
+        Vector3::from(self.inertia_kgm2)
+    }
+
+    /// Lift per rotor in hover, m̄ g / 4 (N).
+    #[must_use]
+    pub fn hover_rotor_lift_n(&self) -> f64 {
+        self.mass_kg * self.gravity_mps2 / 4.0
+    }
+
+    /// PWM per rotor in hover (Eq 10), µs.
+    #[must_use]
+    pub fn hover_pwm_us(&self) -> f64 {
+        distributor::pwm_from_lift_us(self.hover_rotor_lift_n())
+    }
+
+    /// Nominal gyroscopic term γ(ω) = Ī⁻¹(-ω × Īω) (rad/s², Eq 7/9): `((Īy - Īz)/Īx qr,
+    /// (Īz - Īx)/Īy rp, (Īx - Īy)/Īz pq)`; the last is 0 for the paper's Īx = Īy (spec A.4 step 3).
+    #[must_use]
+    pub fn gyroscopic_radps2(&self, rate_frd_radps: &Vector3<f64>) -> Vector3<f64> {
+        let [ix, iy, iz] = self.inertia_kgm2;
+        let (p, q, r) = (rate_frd_radps.x, rate_frd_radps.y, rate_frd_radps.z);
+        Vector3::new((iy - iz) / ix * q * r, (iz - ix) / iy * r * p, (ix - iy) / iz * p * q)
+    }
+}
+
+/// A flight controller: one call per inner tick.
+pub trait Controller: Send {
+    /// One inner tick: the state sampled at this tick -> four PWM commands (µs), never NaN.
+    fn update(&mut self, input: &ControlInput, reference: &Reference) -> [f64; 4];
+    fn kind(&self) -> ControllerKind;
+    /// Named internal values for telemetry/logging (adaptive weights, mass estimate, integrators).
+    fn telemetry(&self) -> Vec<(&'static str, f64)>;
+    /// True if any adaptive weight/gain has ever been clipped by its projection bound (sticky).
+    fn weights_at_bounds(&self) -> bool;
+    /// The last desired attitude (phi, theta, psi) the position loop produced (for logging/plots).
+    fn attitude_setpoint_rad(&self) -> Vector3<f64>;
+}
+
+/// Everything needed to build any of the three controllers.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default)]
+pub struct ControllerConfig {
+    pub rates: LoopRates,
+    pub aco: AcoConfig,
+    pub mrac: MracConfig,
+    pub pid: PidConfig,
+}
+
+/// Why a [`ControllerConfig`] cannot be used.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum ConfigError {
+    #[error(transparent)]
+    LoopRates(#[from] LoopRatesError),
+    #[error("{name} = {value_hz} Hz must lie in (0, {max_hz}) Hz at an inner rate of {inner_hz} Hz")]
+    FilterCutoff { name: &'static str, value_hz: f64, max_hz: f64, inner_hz: u32 },
+    #[error("{name}.{field} = {value} must be finite and positive")]
+    NotPositive { name: &'static str, field: &'static str, value: f64 },
+}
+
+impl ControllerConfig {
+    /// Check the loop rates, the LMS filter cutoffs against the inner rate and the nominal model.
+    ///
+    /// # Errors
+    /// The first [`ConfigError`] found.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        self.rates.validate()?;
+        let max_hz = 0.45 * f64::from(self.rates.inner_hz);
+        for (name, value_hz) in
+            [("aco.lpf_translation_hz", self.aco.lpf_translation_hz), ("aco.lpf_rotation_hz", self.aco.lpf_rotation_hz)]
+        {
+            if !(value_hz > 0.0 && value_hz < max_hz) {
+                return Err(ConfigError::FilterCutoff { name, value_hz, max_hz, inner_hz: self.rates.inner_hz });
+            }
+        }
+        for (name, airframe) in [
+            ("aco.airframe", &self.aco.airframe),
+            ("mrac.airframe", &self.mrac.airframe),
+            ("pid.airframe", &self.pid.airframe),
+        ] {
+            let [ix, iy, iz] = airframe.inertia_kgm2;
+            for (what, value) in [
+                ("mass_kg", airframe.mass_kg),
+                ("inertia_kgm2", ix.min(iy).min(iz)),
+                ("arm_m", airframe.arm_m),
+                ("yaw_moment_m", airframe.yaw_moment_m),
+                ("rotor_tau_s", airframe.rotor_tau_s),
+                ("gravity_mps2", airframe.gravity_mps2),
+            ] {
+                if !(value.is_finite() && value > 0.0) {
+                    return Err(ConfigError::NotPositive { name, field: what, value });
+                }
+            }
+        }
+        if !(self.aco.alpha_ref_radps2.is_finite() && self.aco.alpha_ref_radps2 > 0.0) {
+            return Err(ConfigError::NotPositive {
+                name: "aco",
+                field: "alpha_ref_radps2",
+                value: self.aco.alpha_ref_radps2,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Build a controller after validating `config`.
+///
+/// # Errors
+/// [`ConfigError`] when the configuration is unusable (see [`ControllerConfig::validate`]).
+pub fn try_new_controller(kind: ControllerKind, config: &ControllerConfig) -> Result<Box<dyn Controller>, ConfigError> {
+    config.validate()?;
+    Ok(match kind {
+        ControllerKind::Aco => Box::new(AcoController::new(&config.aco, config.rates)),
+        ControllerKind::Ca => Box::new(MracController::new(&config.mrac, config.rates)),
+        ControllerKind::Pid => Box::new(PidController::new(&config.pid, config.rates)),
+    })
+}
+
+/// Build a controller.
+///
+/// # Panics
+/// If `config` fails [`ControllerConfig::validate`]; validate first, or use [`try_new_controller`].
+#[must_use]
+pub fn new_controller(kind: ControllerKind, config: &ControllerConfig) -> Box<dyn Controller> {
+    match try_new_controller(kind, config) {
+        Ok(c) => c,
+        Err(e) => panic!("invalid controller configuration: {e}"),
+    }
+}
+
+/// True when every number the controller reads this tick is finite (the sanitising gate).
+#[must_use]
+pub(crate) fn inputs_finite(input: &ControlInput, reference: &Reference) -> bool {
+    let vecs_finite = [
+        &input.pos_ned_m,
+        &input.vel_ned_mps,
+        &input.euler_rad,
+        &input.rate_frd_radps,
+        &input.specific_force_frd_mps2,
+        &reference.pos_ned_m,
+        &reference.vel_ned_mps,
+        &reference.acc_ned_mps2,
+    ]
+    .iter()
+    .all(|v| v.iter().all(|x| x.is_finite()));
+    vecs_finite
+        && reference.yaw_rad.is_finite()
+        && reference.attitude_rad.is_none_or(|a| a.iter().all(|x| x.is_finite()))
+}
+
+/// Clip each component of `v` to `[-limit_i, limit_i]`.
+#[must_use]
+pub(crate) fn clip_abs(v: &Vector3<f64>, limit: &[f64; 3]) -> Vector3<f64> {
+    Vector3::new(v.x.clamp(-limit[0], limit[0]), v.y.clamp(-limit[1], limit[1]), v.z.clamp(-limit[2], limit[2]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn given_kind_names_when_parsed_and_displayed_then_round_trip() {
+        for k in ControllerKind::ALL {
+            assert_eq!(k.to_string().parse::<ControllerKind>(), Ok(k));
+        }
+        assert_eq!("ACO".parse::<ControllerKind>(), Ok(ControllerKind::Aco));
+        assert!("lqr".parse::<ControllerKind>().is_err());
+    }
+
+    #[test]
+    fn given_loop_rates_when_validated_then_divisor_and_positivity_enforced() {
+        assert_eq!(LoopRates::default().validate(), Ok(()));
+        assert_eq!(LoopRates { inner_hz: 1000, position_hz: 100 }.validate(), Ok(()));
+        assert_eq!(LoopRates { inner_hz: 250, position_hz: 50 }.validate(), Ok(()));
+        assert_eq!(
+            LoopRates { inner_hz: 500, position_hz: 300 }.validate(),
+            Err(LoopRatesError::NotDivisor { inner_hz: 500, position_hz: 300 })
+        );
+        assert!(matches!(
+            LoopRates { inner_hz: 0, position_hz: 100 }.validate(),
+            Err(LoopRatesError::NotPositive { .. })
+        ));
+        let cfg =
+            ControllerConfig { rates: LoopRates { inner_hz: 500, position_hz: 7 }, ..ControllerConfig::default() };
+        assert!(matches!(try_new_controller(ControllerKind::Aco, &cfg), Err(ConfigError::LoopRates(_))));
+    }
+
+    #[test]
+    fn given_low_inner_rate_when_validated_then_filter_cutoff_rejected() {
+        let cfg = ControllerConfig { rates: LoopRates { inner_hz: 25, position_hz: 5 }, ..ControllerConfig::default() };
+        assert!(matches!(cfg.validate(), Err(ConfigError::FilterCutoff { .. })));
+    }
+
+    #[test]
+    fn given_each_kind_when_built_then_reports_its_kind() {
+        let cfg = ControllerConfig::default();
+        for k in ControllerKind::ALL {
+            assert_eq!(new_controller(k, &cfg).kind(), k);
+        }
+    }
+
+    #[test]
+    fn given_hover_when_gyroscopic_term_then_zero_and_sign_matches_euler_equation() {
+        let a = Airframe::default();
+        assert_eq!(a.gyroscopic_radps2(&Vector3::zeros()), Vector3::zeros());
+        let g = a.gyroscopic_radps2(&Vector3::new(1.0, 2.0, 3.0));
+        let i = a.inertia();
+        let w = Vector3::new(1.0, 2.0, 3.0);
+        let expected = -w.cross(&i.component_mul(&w)).component_div(&i);
+        assert!((g - expected).abs().max() < 1e-12);
+    }
 }

@@ -1,0 +1,387 @@
+//! The "CA" (common adaptive) baseline: six SISO Lyapunov MRAC channels (spec (c)).
+//!
+//! In: a [`ControlInput`] and a [`Reference`] once per inner tick. Out: four rotor PWM commands (µs).
+//! Attitude channels (roll, pitch, yaw) run every inner tick with state `(eta_j, (N omega)_j)` and output
+//! `M_j = Ī_j v_j` (N·m), with no kinematic or gyroscopic compensation. Position channels (N, E, D) run
+//! every `inner_hz / position_hz`-th tick with state `(p_i, v_i)` and output `a_d = v` (m/s²), then
+//! `u = m̄ (a_d - g e3)` through the shared limiter and attitude extraction, `T = U / cos phi cos theta`
+//! (cosine floored at 0.5), and the shared distributor (Eqs 26-27) and lift curve (Eq 10).
+//!
+//! Per channel: reference model `x_m'' = wn² (r - x_m) - 2 zeta wn x_m'` (semi-implicit Euler,
+//! `x_m(0) = x(0)`), control `v = k1 x1 + k2 x2 + kr r + theta`, error `s = p12 e1 + p22 e2` from
+//! `A_mᵀP + P A_m = -I`, gradient laws with projection, and the adaptation frozen while that channel's
+//! actuator was saturated at the previous output.
+
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+
+use super::distributor::{
+    self, ActuatorLimits, LimitedThrust, MixerSaturation, attitude_from_thrust, collective_thrust_n,
+    limit_thrust_vector,
+};
+use super::frames::{body_to_euler_rates, wrap_pi};
+use super::{Airframe, ControlInput, Controller, ControllerKind, LoopRates, Reference, inputs_finite};
+
+/// MRAC baseline settings (spec (c)). Default = "CA"; `freeze_on_saturation = false` gives "CA-raw",
+/// `gamma_theta_pos = 3` gives "CA-fast".
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct MracConfig {
+    /// Nominal model m̄, Ī, l, λ, g.
+    pub airframe: Airframe,
+    /// Rotor and thrust limits.
+    pub limits: ActuatorLimits,
+    /// Reference-model natural frequencies (rad/s), roll, pitch, yaw.
+    pub wn_att_radps: [f64; 3],
+    /// Reference-model damping, roll, pitch, yaw.
+    pub zeta_att: [f64; 3],
+    /// Reference-model natural frequency of the position channels (rad/s).
+    pub wn_pos_radps: f64,
+    /// Reference-model damping of the position channels.
+    pub zeta_pos: f64,
+    /// Attitude gain adaptation rate Γk.
+    pub gamma_k_att: f64,
+    /// Attitude offset adaptation rate Γθ.
+    pub gamma_theta_att: f64,
+    /// Position gain adaptation rate Γk.
+    pub gamma_k_pos: f64,
+    /// Position offset adaptation rate Γθ ("CA-fast": 3).
+    pub gamma_theta_pos: f64,
+    /// Each gain stays within `[lo, hi]` times its initial value.
+    pub gain_projection: [f64; 2],
+    /// `|theta|` bound of the attitude channels (rad/s²).
+    pub theta_max_att: f64,
+    /// `|theta|` bound of the position channels (m/s²).
+    pub theta_max_pos: f64,
+    /// Stop adapting a channel while its actuator is saturated (false: "CA-raw").
+    pub freeze_on_saturation: bool,
+}
+
+impl Default for MracConfig {
+    fn default() -> Self {
+        Self {
+            airframe: Airframe::default(),
+            limits: ActuatorLimits::default(),
+            wn_att_radps: [5.0, 5.0, 2.5],
+            zeta_att: [0.9, 0.9, 0.9],
+            wn_pos_radps: 1.2,
+            zeta_pos: 0.9,
+            gamma_k_att: 1000.0,
+            gamma_theta_att: 1000.0,
+            gamma_k_pos: 0.3,
+            gamma_theta_pos: 1.0,
+            gain_projection: [0.2, 5.0],
+            theta_max_att: 8.0,
+            theta_max_pos: 4.0,
+            freeze_on_saturation: true,
+        }
+    }
+}
+
+/// One SISO MRAC channel.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MracChannel {
+    /// `[k1, k2, kr]`.
+    gains: [f64; 3],
+    theta: f64,
+    gain_bounds: [[f64; 2]; 3],
+    theta_max: f64,
+    wn: f64,
+    zeta: f64,
+    p12: f64,
+    p22: f64,
+    gamma_k: f64,
+    gamma_theta: f64,
+    xm: f64,
+    xm_dot: f64,
+    active: bool,
+    hit_bound: bool,
+}
+
+impl MracChannel {
+    /// A channel with reference model `(wn, zeta)`, at the nominal matching gains
+    /// `k1 = -wn², k2 = -2 zeta wn, kr = wn², theta = 0`.
+    #[must_use]
+    pub fn new(wn: f64, zeta: f64, gamma_k: f64, gamma_theta: f64, theta_max: f64, projection: [f64; 2]) -> Self {
+        let gains = [-wn * wn, -2.0 * zeta * wn, wn * wn];
+        let bound = |g0: f64| {
+            let (a, b) = (projection[0] * g0, projection[1] * g0);
+            [a.min(b), a.max(b)]
+        };
+        let p12 = 1.0 / (2.0 * wn * wn);
+        Self {
+            gains,
+            theta: 0.0,
+            gain_bounds: [bound(gains[0]), bound(gains[1]), bound(gains[2])],
+            theta_max,
+            wn,
+            zeta,
+            p12,
+            p22: (p12 + 0.5) / (2.0 * zeta * wn),
+            gamma_k,
+            gamma_theta,
+            xm: 0.0,
+            xm_dot: 0.0,
+            active: false,
+            hit_bound: false,
+        }
+    }
+
+    /// `(p12, p22)` of the Lyapunov matrix.
+    #[must_use]
+    pub fn lyapunov_weights(&self) -> (f64, f64) {
+        (self.p12, self.p22)
+    }
+
+    /// `[k1, k2, kr, theta]`.
+    #[must_use]
+    pub fn parameters(&self) -> [f64; 4] {
+        [self.gains[0], self.gains[1], self.gains[2], self.theta]
+    }
+
+    /// The reference model state `(x_m, x_m')`.
+    #[must_use]
+    pub fn reference_state(&self) -> (f64, f64) {
+        (self.xm, self.xm_dot)
+    }
+
+    /// True once a projection has clipped a parameter (sticky).
+    #[must_use]
+    pub fn hit_bound(&self) -> bool {
+        self.hit_bound
+    }
+
+    /// Switch the channel off; the next [`MracChannel::step`] restarts the reference model at the state.
+    pub fn deactivate(&mut self) {
+        self.active = false;
+    }
+
+    /// One step of period `dt_s` with state `(x1, x2)` and reference `r`: returns the control
+    /// `v = k1 x1 + k2 x2 + kr r + theta` computed with the current parameters, then adapts (unless
+    /// `frozen`) and advances the reference model.
+    pub fn step(&mut self, x1: f64, x2: f64, r: f64, dt_s: f64, frozen: bool) -> f64 {
+        if !self.active {
+            self.xm = x1;
+            self.xm_dot = x2;
+            self.active = true;
+        }
+        let e1 = x1 - self.xm;
+        let e2 = x2 - self.xm_dot;
+        let s = self.p12 * e1 + self.p22 * e2;
+        let [k1, k2, kr] = self.gains;
+        let v = k1 * x1 + k2 * x2 + kr * r + self.theta;
+        if !frozen {
+            let raw = [
+                k1 - self.gamma_k * x1 * s * dt_s,
+                k2 - self.gamma_k * x2 * s * dt_s,
+                kr - self.gamma_k * r * s * dt_s,
+            ];
+            for (i, value) in raw.iter().enumerate() {
+                let [lo, hi] = self.gain_bounds[i];
+                let clipped = value.clamp(lo, hi);
+                self.hit_bound |= clipped != *value;
+                self.gains[i] = clipped;
+            }
+            let theta_raw = self.theta - self.gamma_theta * s * dt_s;
+            self.theta = theta_raw.clamp(-self.theta_max, self.theta_max);
+            self.hit_bound |= self.theta != theta_raw;
+        }
+        let xm_ddot = self.wn * self.wn * (r - self.xm) - 2.0 * self.zeta * self.wn * self.xm_dot;
+        self.xm_dot += dt_s * xm_ddot;
+        self.xm += dt_s * self.xm_dot;
+        v
+    }
+}
+
+/// The CA baseline controller.
+#[derive(Debug, Clone)]
+pub struct MracController {
+    cfg: MracConfig,
+    dt_s: f64,
+    pos_dt_s: f64,
+    pos_divider: u64,
+    tick: u64,
+    position_loop_ran: bool,
+    /// Roll, pitch, yaw.
+    att: [MracChannel; 3],
+    /// N, E, D.
+    pos: [MracChannel; 3],
+    /// Continuous (unwrapped) yaw, so the yaw channel sees no ±pi jump.
+    yaw_unwrapped_rad: Option<f64>,
+    vertical_thrust_n: f64,
+    attitude_sp_rad: Vector3<f64>,
+    last_limit: Option<LimitedThrust>,
+    last_saturation: MixerSaturation,
+    collective_n: f64,
+    moment_cmd_nm: Vector3<f64>,
+    last_pwm_us: [f64; 4],
+}
+
+impl MracController {
+    /// A controller at hover with the nominal matching gains, running at `rates`.
+    #[must_use]
+    pub fn new(config: &MracConfig, rates: LoopRates) -> Self {
+        let c = config.clone();
+        let att = std::array::from_fn(|j| {
+            MracChannel::new(
+                c.wn_att_radps[j],
+                c.zeta_att[j],
+                c.gamma_k_att,
+                c.gamma_theta_att,
+                c.theta_max_att,
+                c.gain_projection,
+            )
+        });
+        let pos = [MracChannel::new(
+            c.wn_pos_radps,
+            c.zeta_pos,
+            c.gamma_k_pos,
+            c.gamma_theta_pos,
+            c.theta_max_pos,
+            c.gain_projection,
+        ); 3];
+        let mg = c.airframe.mass_kg * c.airframe.gravity_mps2;
+        Self {
+            dt_s: rates.inner_dt_s(),
+            pos_dt_s: rates.position_dt_s(),
+            pos_divider: rates.position_divider(),
+            tick: 0,
+            position_loop_ran: false,
+            att,
+            pos,
+            yaw_unwrapped_rad: None,
+            vertical_thrust_n: mg,
+            attitude_sp_rad: Vector3::zeros(),
+            last_limit: None,
+            last_saturation: MixerSaturation { roll_pitch_scale: 1.0, yaw_factor: 1.0, ..Default::default() },
+            collective_n: mg,
+            moment_cmd_nm: Vector3::zeros(),
+            last_pwm_us: [c.airframe.hover_pwm_us(); 4],
+            cfg: c,
+        }
+    }
+
+    /// The attitude channels (roll, pitch, yaw).
+    #[must_use]
+    pub fn attitude_channels(&self) -> &[MracChannel; 3] {
+        &self.att
+    }
+
+    /// The position channels (N, E, D).
+    #[must_use]
+    pub fn position_channels(&self) -> &[MracChannel; 3] {
+        &self.pos
+    }
+
+    fn step_position_loop(&mut self, input: &ControlInput, reference: &Reference) {
+        let c = &self.cfg;
+        let freeze = c.freeze_on_saturation;
+        let limit = self.last_limit;
+        let freeze_ne = freeze && limit.is_some_and(|l| l.horizontal_limited);
+        let freeze_d = freeze && (limit.is_some_and(|l| l.vertical_clamped) || self.last_saturation.collective);
+        let attitude_only = reference.attitude_rad.is_some();
+        let mut a_d = Vector3::zeros();
+        for i in 0..3 {
+            if attitude_only && i < 2 {
+                self.pos[i].deactivate();
+                continue;
+            }
+            let frozen = if i < 2 { freeze_ne } else { freeze_d };
+            a_d[i] = self.pos[i].step(
+                input.pos_ned_m[i],
+                input.vel_ned_mps[i],
+                reference.pos_ned_m[i],
+                self.pos_dt_s,
+                frozen,
+            );
+        }
+        let g = c.airframe.gravity_mps2;
+        let u = c.airframe.mass_kg * (a_d - Vector3::new(0.0, 0.0, g));
+        let limited = limit_thrust_vector(&u, &c.limits);
+        self.vertical_thrust_n = limited.vertical_n;
+        self.attitude_sp_rad = match reference.attitude_rad {
+            Some(att) => att,
+            None => attitude_from_thrust(&limited, reference.yaw_rad),
+        };
+        self.last_limit = Some(limited);
+        self.position_loop_ran = true;
+    }
+}
+
+impl Controller for MracController {
+    fn update(&mut self, input: &ControlInput, reference: &Reference) -> [f64; 4] {
+        if !inputs_finite(input, reference) {
+            self.tick += 1;
+            return self.last_pwm_us;
+        }
+        let eta = input.euler_rad;
+        let yaw = match self.yaw_unwrapped_rad {
+            Some(prev) => prev + wrap_pi(eta.z - prev),
+            None => eta.z,
+        };
+        self.yaw_unwrapped_rad = Some(yaw);
+
+        if self.tick.is_multiple_of(self.pos_divider) || !self.position_loop_ran {
+            self.step_position_loop(input, reference);
+        }
+        if let Some(att) = reference.attitude_rad {
+            self.attitude_sp_rad = att;
+        }
+
+        // Attitude channels: x = (eta_j, eta_dot_j), eta_dot = N(eta) omega.
+        let eta_dot = body_to_euler_rates(&eta) * input.rate_frd_radps;
+        let x1 = [eta.x, eta.y, yaw];
+        let sp = self.attitude_sp_rad;
+        let r = [sp.x, sp.y, yaw + wrap_pi(sp.z - yaw)];
+        let sat = self.last_saturation;
+        let freeze = self.cfg.freeze_on_saturation;
+        let frozen = [freeze && sat.roll, freeze && sat.pitch, freeze && sat.yaw];
+        let inertia = self.cfg.airframe.inertia();
+        for j in 0..3 {
+            let v = self.att[j].step(x1[j], eta_dot[j], r[j], self.dt_s, frozen[j]);
+            self.moment_cmd_nm[j] = inertia[j] * v;
+        }
+
+        self.collective_n = collective_thrust_n(self.vertical_thrust_n, &eta, &self.cfg.limits);
+        let d = distributor::distribute(self.collective_n, &self.moment_cmd_nm, &self.cfg.airframe, &self.cfg.limits);
+        self.tick += 1;
+        if d.pwm_us.iter().all(|p| p.is_finite()) {
+            self.last_saturation = d.saturation;
+            self.last_pwm_us = d.pwm_us;
+        }
+        self.last_pwm_us
+    }
+
+    fn kind(&self) -> ControllerKind {
+        ControllerKind::Ca
+    }
+
+    fn telemetry(&self) -> Vec<(&'static str, f64)> {
+        const NAMES: [[&str; 4]; 6] = [
+            ["ca.roll.k1", "ca.roll.k2", "ca.roll.kr", "ca.roll.theta"],
+            ["ca.pitch.k1", "ca.pitch.k2", "ca.pitch.kr", "ca.pitch.theta"],
+            ["ca.yaw.k1", "ca.yaw.k2", "ca.yaw.kr", "ca.yaw.theta"],
+            ["ca.n.k1", "ca.n.k2", "ca.n.kr", "ca.n.theta"],
+            ["ca.e.k1", "ca.e.k2", "ca.e.kr", "ca.e.theta"],
+            ["ca.d.k1", "ca.d.k2", "ca.d.kr", "ca.d.theta"],
+        ];
+        let mut out = Vec::with_capacity(28);
+        for (names, ch) in NAMES.iter().zip(self.att.iter().chain(self.pos.iter())) {
+            for (name, value) in names.iter().zip(ch.parameters()) {
+                out.push((*name, value));
+            }
+        }
+        out.push(("ca.vertical_thrust_n", self.vertical_thrust_n));
+        out.push(("ca.collective_n", self.collective_n));
+        out.push(("ca.yaw_factor", self.last_saturation.yaw_factor));
+        out
+    }
+
+    fn weights_at_bounds(&self) -> bool {
+        self.att.iter().chain(self.pos.iter()).any(MracChannel::hit_bound)
+    }
+
+    fn attitude_setpoint_rad(&self) -> Vector3<f64> {
+        self.attitude_sp_rad
+    }
+}

@@ -1,0 +1,253 @@
+//! The PID baseline: a PX4-style cascade with the same proportional poles as ACO (spec (c)).
+//!
+//! In: a [`ControlInput`] and a [`Reference`] once per inner tick. Out: four rotor PWM commands (µs).
+//! Every `inner_hz / position_hz`-th tick: position P (`v_c = Kp e_p + v_ref`, limited per axis), velocity
+//! PI (`a = Kv e_v + Kvi ∫e_v + a_ref`, conditional integration, |I| ≤ 3 m/s²), `u = m̄ (a - g e3)`
+//! through the shared limiter, `T = ‖u‖`, attitude extraction. Every tick: quaternion attitude P
+//! (`omega_d = 2 Kη ⊙ q_e,xyz`, `q_e = q⁻¹ ⊗ q_d`, `q_e,w ≥ 0`), the rate clip, rate PI
+//! (`M = Ī ⊙ (Kω e_ω + Kri ∫e_ω)`, |I torque| ≤ 0.3 N·m, frozen per saturated axis), and the shared
+//! distributor (Eqs 26-27) and lift curve (Eq 10). The derivative gains Kvd and Krd are 0 in the spec
+//! and are not implemented.
+
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+
+use super::distributor::{
+    self, ActuatorLimits, LimitedThrust, MixerSaturation, attitude_from_thrust, limit_thrust_vector,
+};
+use super::frames::quaternion_from_euler;
+use super::{Airframe, ControlInput, Controller, ControllerKind, LoopRates, Reference, clip_abs, inputs_finite};
+
+/// PID baseline gains and limits (spec (c)). Default = the spec's values.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct PidConfig {
+    /// Nominal model m̄, Ī, l, λ, g.
+    pub airframe: Airframe,
+    /// Rotor and thrust limits.
+    pub limits: ActuatorLimits,
+    /// Position gain Kp (1/s).
+    pub kp_pos_per_s: f64,
+    /// Velocity gain Kv (1/s).
+    pub kv_vel_per_s: f64,
+    /// Velocity integral gains Kvi (1/s²), N, E, D.
+    pub kvi_vel_per_s2: [f64; 3],
+    /// Limit on each velocity integral term (m/s²).
+    pub vel_integral_max_mps2: f64,
+    /// Velocity-command limit on N and E (m/s).
+    pub vel_limit_ne_mps: f64,
+    /// Velocity-command limit on D (m/s).
+    pub vel_limit_d_mps: f64,
+    /// Attitude gains Kη (1/s), FRD.
+    pub k_att_per_s: [f64; 3],
+    /// Rate gains Kω (1/s), FRD.
+    pub k_rate_per_s: [f64; 3],
+    /// Rate integral gains Kri (1/s²), FRD.
+    pub kri_rate_per_s2: [f64; 3],
+    /// Limit on each integral torque (N·m).
+    pub rate_integral_max_nm: f64,
+    /// Desired body-rate limits (rad/s), FRD.
+    pub rate_limit_radps: [f64; 3],
+}
+
+impl Default for PidConfig {
+    fn default() -> Self {
+        Self {
+            airframe: Airframe::default(),
+            limits: ActuatorLimits::default(),
+            kp_pos_per_s: 0.6667,
+            kv_vel_per_s: 2.16,
+            kvi_vel_per_s2: [0.4, 0.4, 2.0],
+            vel_integral_max_mps2: 3.0,
+            vel_limit_ne_mps: 3.0,
+            vel_limit_d_mps: 2.0,
+            k_att_per_s: [2.778, 2.778, 1.389],
+            k_rate_per_s: [9.0, 9.0, 4.5],
+            kri_rate_per_s2: [12.0, 12.0, 2.25],
+            rate_integral_max_nm: 0.3,
+            rate_limit_radps: [3.5, 3.5, 1.5],
+        }
+    }
+}
+
+/// The PID cascade.
+#[derive(Debug, Clone)]
+pub struct PidController {
+    cfg: PidConfig,
+    dt_s: f64,
+    pos_dt_s: f64,
+    pos_divider: u64,
+    tick: u64,
+    position_loop_ran: bool,
+    /// Velocity integral terms `Kvi ∫e_v` (m/s²), NED.
+    vel_integral_mps2: Vector3<f64>,
+    /// Rate integral torques `Ī Kri ∫e_ω` (N·m), FRD.
+    rate_integral_nm: Vector3<f64>,
+    collective_n: f64,
+    attitude_sp_rad: Vector3<f64>,
+    rate_sp_radps: Vector3<f64>,
+    moment_cmd_nm: Vector3<f64>,
+    last_limit: Option<LimitedThrust>,
+    last_saturation: MixerSaturation,
+    last_pwm_us: [f64; 4],
+}
+
+impl PidController {
+    /// A controller at hover with empty integrators, running at `rates`.
+    #[must_use]
+    pub fn new(config: &PidConfig, rates: LoopRates) -> Self {
+        let mg = config.airframe.mass_kg * config.airframe.gravity_mps2;
+        Self {
+            dt_s: rates.inner_dt_s(),
+            pos_dt_s: rates.position_dt_s(),
+            pos_divider: rates.position_divider(),
+            tick: 0,
+            position_loop_ran: false,
+            vel_integral_mps2: Vector3::zeros(),
+            rate_integral_nm: Vector3::zeros(),
+            collective_n: mg,
+            attitude_sp_rad: Vector3::zeros(),
+            rate_sp_radps: Vector3::zeros(),
+            moment_cmd_nm: Vector3::zeros(),
+            last_limit: None,
+            last_saturation: MixerSaturation { roll_pitch_scale: 1.0, yaw_factor: 1.0, ..Default::default() },
+            last_pwm_us: [config.airframe.hover_pwm_us(); 4],
+            cfg: config.clone(),
+        }
+    }
+
+    /// Velocity integral terms (m/s²), NED.
+    #[must_use]
+    pub fn velocity_integral_mps2(&self) -> Vector3<f64> {
+        self.vel_integral_mps2
+    }
+
+    /// Rate integral torques (N·m), FRD.
+    #[must_use]
+    pub fn rate_integral_nm(&self) -> Vector3<f64> {
+        self.rate_integral_nm
+    }
+
+    fn step_position_loop(&mut self, input: &ControlInput, reference: &Reference) {
+        let c = &self.cfg;
+        let attitude_only = reference.attitude_rad.is_some();
+        let e_p = reference.pos_ned_m - input.pos_ned_m;
+        let v_lim = [c.vel_limit_ne_mps, c.vel_limit_ne_mps, c.vel_limit_d_mps];
+        let v_c = clip_abs(&(c.kp_pos_per_s * e_p + reference.vel_ned_mps), &v_lim);
+        let mut e_v = v_c - input.vel_ned_mps;
+        if attitude_only {
+            e_v.x = 0.0;
+            e_v.y = 0.0;
+            self.vel_integral_mps2.x = 0.0;
+            self.vel_integral_mps2.y = 0.0;
+        }
+        let mut a = c.kv_vel_per_s * e_v + self.vel_integral_mps2 + reference.acc_ned_mps2;
+        if attitude_only {
+            a.x = 0.0;
+            a.y = 0.0;
+        }
+        let g = c.airframe.gravity_mps2;
+        let u = c.airframe.mass_kg * (a - Vector3::new(0.0, 0.0, g));
+        let limited = limit_thrust_vector(&u, &c.limits);
+
+        // Conditional integration: an axis does not integrate while the limiter cut its demand and the
+        // velocity error points the same way as the part that was cut.
+        let excess = u - limited.force_ned_n;
+        for i in 0..3 {
+            let saturated = excess[i].abs() > 1e-9 * (1.0 + u[i].abs());
+            if saturated && e_v[i] * excess[i] > 0.0 {
+                continue;
+            }
+            self.vel_integral_mps2[i] = (self.vel_integral_mps2[i] + c.kvi_vel_per_s2[i] * e_v[i] * self.pos_dt_s)
+                .clamp(-c.vel_integral_max_mps2, c.vel_integral_max_mps2);
+        }
+
+        self.collective_n = limited.force_ned_n.norm();
+        self.attitude_sp_rad = match reference.attitude_rad {
+            Some(att) => att,
+            None => attitude_from_thrust(&limited, reference.yaw_rad),
+        };
+        self.last_limit = Some(limited);
+        self.position_loop_ran = true;
+    }
+}
+
+impl Controller for PidController {
+    fn update(&mut self, input: &ControlInput, reference: &Reference) -> [f64; 4] {
+        if !inputs_finite(input, reference) {
+            self.tick += 1;
+            return self.last_pwm_us;
+        }
+        if self.tick.is_multiple_of(self.pos_divider) || !self.position_loop_ran {
+            self.step_position_loop(input, reference);
+        }
+        if let Some(att) = reference.attitude_rad {
+            self.attitude_sp_rad = att;
+        }
+        let c = &self.cfg;
+
+        // Attitude P, quaternion form.
+        let q = quaternion_from_euler(&input.euler_rad);
+        let q_d = quaternion_from_euler(&self.attitude_sp_rad);
+        let mut q_e = (q.inverse() * q_d).into_inner();
+        if q_e.w < 0.0 {
+            q_e = -q_e;
+        }
+        let rate_sp = 2.0 * Vector3::from(c.k_att_per_s).component_mul(&q_e.imag());
+        self.rate_sp_radps = clip_abs(&rate_sp, &c.rate_limit_radps);
+
+        // Rate PI; the integrator of an axis the distributor saturated at the last output is frozen.
+        let inertia = c.airframe.inertia();
+        let e_w = self.rate_sp_radps - input.rate_frd_radps;
+        self.moment_cmd_nm =
+            inertia.component_mul(&Vector3::from(c.k_rate_per_s).component_mul(&e_w)) + self.rate_integral_nm;
+        let sat = self.last_saturation;
+        for (j, saturated) in [sat.roll, sat.pitch, sat.yaw].into_iter().enumerate() {
+            if !saturated {
+                self.rate_integral_nm[j] = (self.rate_integral_nm[j]
+                    + inertia[j] * c.kri_rate_per_s2[j] * e_w[j] * self.dt_s)
+                    .clamp(-c.rate_integral_max_nm, c.rate_integral_max_nm);
+            }
+        }
+
+        let d = distributor::distribute(self.collective_n, &self.moment_cmd_nm, &c.airframe, &c.limits);
+        self.tick += 1;
+        if d.pwm_us.iter().all(|p| p.is_finite()) {
+            self.last_saturation = d.saturation;
+            self.last_pwm_us = d.pwm_us;
+        }
+        self.last_pwm_us
+    }
+
+    fn kind(&self) -> ControllerKind {
+        ControllerKind::Pid
+    }
+
+    fn telemetry(&self) -> Vec<(&'static str, f64)> {
+        let limit = self.last_limit;
+        vec![
+            ("pid.vel_int_n_mps2", self.vel_integral_mps2.x),
+            ("pid.vel_int_e_mps2", self.vel_integral_mps2.y),
+            ("pid.vel_int_d_mps2", self.vel_integral_mps2.z),
+            ("pid.rate_int_x_nm", self.rate_integral_nm.x),
+            ("pid.rate_int_y_nm", self.rate_integral_nm.y),
+            ("pid.rate_int_z_nm", self.rate_integral_nm.z),
+            ("pid.collective_n", self.collective_n),
+            ("pid.moment_x_nm", self.moment_cmd_nm.x),
+            ("pid.moment_y_nm", self.moment_cmd_nm.y),
+            ("pid.moment_z_nm", self.moment_cmd_nm.z),
+            ("pid.yaw_factor", self.last_saturation.yaw_factor),
+            ("pid.vertical_clamped", f64::from(u8::from(limit.is_some_and(|l| l.vertical_clamped)))),
+            ("pid.horizontal_limited", f64::from(u8::from(limit.is_some_and(|l| l.horizontal_limited)))),
+        ]
+    }
+
+    /// The PID has no adaptive weights; its integrators are clamped by design, not projected.
+    fn weights_at_bounds(&self) -> bool {
+        false
+    }
+
+    fn attitude_setpoint_rad(&self) -> Vector3<f64> {
+        self.attitude_sp_rad
+    }
+}
