@@ -385,3 +385,152 @@ impl Controller for MracController {
         self.attitude_sp_rad
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::control::toy_plant::{ToyPlant, at, fly, hover_input, max_after, poisoned_inputs};
+
+    fn ca() -> MracController {
+        MracController::new(&MracConfig::default(), LoopRates::default())
+    }
+
+    #[test]
+    fn given_spec_poles_when_channels_built_then_lyapunov_weights_match_spec() {
+        let c = ca();
+        let close = |a: (f64, f64), b: (f64, f64)| (a.0 - b.0).abs() < 5e-4 && (a.1 - b.1).abs() < 5e-4;
+        assert!(close(c.att[0].lyapunov_weights(), (0.02, 0.0578)), "{:?}", c.att[0].lyapunov_weights());
+        assert!(close(c.att[1].lyapunov_weights(), (0.02, 0.0578)));
+        assert!(close(c.att[2].lyapunov_weights(), (0.08, 0.129)), "{:?}", c.att[2].lyapunov_weights());
+        assert!(close(c.pos[0].lyapunov_weights(), (0.347, 0.392)), "{:?}", c.pos[0].lyapunov_weights());
+        assert_eq!(c.att[0].parameters(), [-25.0, -9.0, 25.0, 0.0]);
+    }
+
+    #[test]
+    fn given_first_step_when_channel_starts_then_reference_model_starts_at_state_and_nothing_adapts() {
+        let mut ch = MracChannel::new(5.0, 0.9, 1000.0, 1000.0, 8.0, [0.2, 5.0]);
+        let p0 = ch.parameters();
+        let v = ch.step(0.3, 0.1, 0.0, 0.002, false);
+        assert_eq!(ch.parameters(), p0, "e = 0 at the first step, so s = 0");
+        assert!((v - (-25.0 * 0.3 - 9.0 * 0.1)).abs() < 1e-12);
+        let (xm, xm_dot) = ch.reference_state();
+        let xm_ddot = 25.0 * (0.0 - 0.3) - 9.0 * 0.1;
+        assert!((xm_dot - (0.1 + 0.002 * xm_ddot)).abs() < 1e-12);
+        assert!((xm - (0.3 + 0.002 * xm_dot)).abs() < 1e-12, "semi-implicit Euler");
+    }
+
+    #[test]
+    fn given_frozen_channel_when_stepped_then_parameters_hold_while_reference_model_runs() {
+        let mut ch = MracChannel::new(5.0, 0.9, 1000.0, 1000.0, 8.0, [0.2, 5.0]);
+        ch.step(0.0, 0.0, 0.0, 0.002, false);
+        let p0 = ch.parameters();
+        let xm0 = ch.reference_state();
+        for _ in 0..50 {
+            ch.step(0.2, 0.5, 0.3, 0.002, true);
+        }
+        assert_eq!(ch.parameters(), p0);
+        assert_ne!(ch.reference_state(), xm0);
+        ch.step(0.2, 0.5, 0.3, 0.002, false);
+        assert_ne!(ch.parameters(), p0);
+    }
+
+    #[test]
+    fn given_huge_errors_when_adapting_then_projection_holds_bounds_and_flag_is_sticky() {
+        let mut ch = MracChannel::new(1.2, 0.9, 0.3, 1.0, 4.0, [0.2, 5.0]);
+        ch.step(0.0, 0.0, 0.0, 0.01, false);
+        for _ in 0..20_000 {
+            ch.step(50.0, 20.0, -50.0, 0.01, false);
+        }
+        let [k1, k2, kr, theta] = ch.parameters();
+        let (k10, k20, kr0) = (-1.44, -2.16, 1.44);
+        assert!(k1 <= 0.2 * k10 + 1e-12 && k1 >= 5.0 * k10 - 1e-12, "k1 {k1}");
+        assert!(k2 <= 0.2 * k20 + 1e-12 && k2 >= 5.0 * k20 - 1e-12, "k2 {k2}");
+        assert!(kr >= 0.2 * kr0 - 1e-12 && kr <= 5.0 * kr0 + 1e-12, "kr {kr}");
+        assert!(theta.abs() <= 4.0);
+        assert!(ch.hit_bound());
+    }
+
+    #[test]
+    fn given_saturation_report_when_ticking_then_only_the_saturated_channel_freezes() {
+        let mut c = ca();
+        let p = Vector3::new(0.0, 0.0, -2.0);
+        let mut input = hover_input(p, 0.0);
+        let r = Reference::attitude(Vector3::new(0.1, 0.1, 0.1), -2.0);
+        c.update(&input, &r);
+        input.rate_frd_radps = Vector3::new(0.3, 0.3, 0.3);
+        input.euler_rad = Vector3::new(0.02, 0.02, 0.02);
+        c.last_saturation = MixerSaturation { yaw: true, ..c.last_saturation };
+        let before = c.att.map(|ch| ch.parameters());
+        c.update(&input, &r);
+        assert_eq!(c.att[2].parameters(), before[2], "yaw frozen");
+        assert_ne!(c.att[0].parameters(), before[0], "roll adapts");
+        // CA-raw never freezes.
+        let mut raw = MracController::new(
+            &MracConfig { freeze_on_saturation: false, ..MracConfig::default() },
+            LoopRates::default(),
+        );
+        raw.update(&hover_input(p, 0.0), &r);
+        raw.last_saturation = MixerSaturation { yaw: true, ..raw.last_saturation };
+        let before = raw.att[2].parameters();
+        raw.update(&input, &r);
+        assert_ne!(raw.att[2].parameters(), before);
+    }
+
+    #[test]
+    fn given_hover_input_at_hover_reference_when_ticked_then_hover_pwm() {
+        let mut c = ca();
+        let p = Vector3::new(3.0, -2.0, -5.0);
+        let hover = Airframe::default().hover_pwm_us();
+        for _ in 0..2000 {
+            let pwm = c.update(&hover_input(p, 0.3), &Reference::position(p, 0.3));
+            for x in pwm {
+                assert!((x - hover).abs() < 1.0, "{pwm:?} vs {hover}");
+            }
+        }
+        assert!(!c.weights_at_bounds());
+    }
+
+    #[test]
+    fn given_non_finite_input_when_ticked_then_never_nan_and_parameters_untouched() {
+        let p = Vector3::new(0.0, 0.0, -2.0);
+        let good = hover_input(p, 0.0);
+        let r = Reference::position(Vector3::new(0.5, 0.0, -2.0), 0.0);
+        let hover = Airframe::default().hover_pwm_us();
+        for bad in poisoned_inputs(&good) {
+            let mut c = ca();
+            assert_eq!(c.update(&bad, &r), [hover; 4]);
+            let held = c.update(&good, &r);
+            let params = c.telemetry();
+            for _ in 0..7 {
+                assert_eq!(c.update(&bad, &r), held);
+            }
+            assert_eq!(c.telemetry(), params);
+            assert!(c.update(&good, &r).iter().all(|x| x.is_finite()));
+        }
+    }
+
+    #[test]
+    fn given_1_m_step_when_flown_on_toy_plant_then_settles() {
+        let mut plant = ToyPlant::new(Vector3::new(0.0, 0.0, -2.0), Vector3::zeros());
+        let mut c = ca();
+        let target = Vector3::new(1.0, 0.0, -3.0);
+        let tr = fly(&mut c, &mut plant, 500, 20.0, |_| Reference::position(target, 0.0));
+        let last = at(&tr, 20.0).input;
+        assert!((last.pos_ned_m - target).norm() < 0.02, "{}", last.pos_ned_m);
+        assert!(max_after(&tr, 0.0, |s| s.input.pos_ned_m.x) < 1.15, "N overshoot");
+        assert!(max_after(&tr, 0.0, |s| s.input.euler_rad.x.abs().max(s.input.euler_rad.y.abs())) < 0.55);
+    }
+
+    #[test]
+    fn given_0_2_rad_attitude_step_when_flown_then_tracks() {
+        let mut plant = ToyPlant::new(Vector3::new(0.0, 0.0, -2.0), Vector3::zeros());
+        let mut c = ca();
+        let sp = Vector3::new(0.2, -0.2, 0.2);
+        let tr = fly(&mut c, &mut plant, 500, 8.0, |_| Reference::attitude(sp, -2.0));
+        let last = at(&tr, 8.0).input;
+        assert!((last.euler_rad - sp).abs().max() < 0.01, "{}", last.euler_rad);
+        assert!(max_after(&tr, 0.0, |s| s.input.euler_rad.x) < 0.2 * 1.1, "roll overshoot");
+        assert!((last.pos_ned_m.z + 2.0).abs() < 0.1, "altitude {}", last.pos_ned_m.z);
+        assert_eq!(c.attitude_setpoint_rad(), sp);
+    }
+}

@@ -251,3 +251,139 @@ impl Controller for PidController {
         self.attitude_sp_rad
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::control::toy_plant::{ToyPlant, at, fly, hover_input, max_after, poisoned_inputs};
+
+    fn pid() -> PidController {
+        PidController::new(&PidConfig::default(), LoopRates::default())
+    }
+
+    #[test]
+    fn given_hover_input_at_hover_reference_when_ticked_then_hover_pwm() {
+        let mut c = pid();
+        let p = Vector3::new(3.0, -2.0, -5.0);
+        let hover = Airframe::default().hover_pwm_us();
+        for _ in 0..2000 {
+            let pwm = c.update(&hover_input(p, 0.3), &Reference::position(p, 0.3));
+            for x in pwm {
+                assert!((x - hover).abs() < 1.0, "{pwm:?} vs {hover}");
+            }
+        }
+    }
+
+    #[test]
+    fn given_non_finite_input_when_ticked_then_never_nan_and_integrators_untouched() {
+        let p = Vector3::new(0.0, 0.0, -2.0);
+        let good = hover_input(p, 0.0);
+        let r = Reference::position(Vector3::new(0.5, 0.0, -2.0), 0.0);
+        let hover = Airframe::default().hover_pwm_us();
+        for bad in poisoned_inputs(&good) {
+            let mut c = pid();
+            assert_eq!(c.update(&bad, &r), [hover; 4]);
+            let held = c.update(&good, &r);
+            let state = c.telemetry();
+            for _ in 0..7 {
+                assert_eq!(c.update(&bad, &r), held);
+            }
+            assert_eq!(c.telemetry(), state);
+            assert!(c.update(&good, &r).iter().all(|x| x.is_finite()));
+        }
+    }
+
+    #[test]
+    fn given_attitude_error_when_quaternion_p_then_rate_follows_shortest_path() {
+        let mut c = pid();
+        let p = Vector3::new(0.0, 0.0, -2.0);
+        c.update(&hover_input(p, 0.0), &Reference::attitude(Vector3::new(0.1, 0.0, 0.0), -2.0));
+        let expected = 2.0 * 2.778 * (0.05_f64).sin();
+        assert!((c.rate_sp_radps.x - expected).abs() < 1e-9, "{}", c.rate_sp_radps);
+        let mut c = pid();
+        let pi = std::f64::consts::PI;
+        c.update(&hover_input(p, -pi + 0.05), &Reference::attitude(Vector3::new(0.0, 0.0, pi - 0.05), -2.0));
+        assert!(c.rate_sp_radps.z < 0.0 && c.rate_sp_radps.z > -0.2, "{}", c.rate_sp_radps);
+    }
+
+    #[test]
+    fn given_persistent_rate_error_when_unsaturated_then_integral_torque_limited_to_0_3_nm() {
+        let mut c = pid();
+        let p = Vector3::new(0.0, 0.0, -2.0);
+        let mut input = hover_input(p, 0.0);
+        input.rate_frd_radps.x = -0.1;
+        for _ in 0..5000 {
+            c.update(&input, &Reference::position(p, 0.0));
+        }
+        assert!((c.rate_integral_nm().x - 0.3).abs() < 1e-12, "{}", c.rate_integral_nm());
+        assert!(!c.last_saturation.roll);
+    }
+
+    #[test]
+    fn given_saturating_rate_error_when_ticking_then_rate_integrator_frozen() {
+        let mut c = pid();
+        let p = Vector3::new(0.0, 0.0, -2.0);
+        let mut input = hover_input(p, 0.0);
+        input.rate_frd_radps.x = -10.0;
+        c.update(&input, &Reference::position(p, 0.0));
+        let after_first = c.rate_integral_nm();
+        assert!(c.last_saturation.roll);
+        for _ in 0..100 {
+            c.update(&input, &Reference::position(p, 0.0));
+        }
+        assert_eq!(c.rate_integral_nm().x, after_first.x);
+    }
+
+    #[test]
+    fn given_vertical_clamp_in_error_direction_when_ticking_then_velocity_integral_held() {
+        let p = Vector3::new(0.0, 0.0, -2.0);
+        for target_d in [-10.0, 10.0] {
+            let mut c = pid();
+            for _ in 0..500 {
+                c.update(&hover_input(p, 0.0), &Reference::position(Vector3::new(0.0, 0.0, target_d), 0.0));
+            }
+            assert_eq!(c.velocity_integral_mps2().z, 0.0, "target {target_d}");
+        }
+        // A small step is not clamped and integrates.
+        let mut c = pid();
+        for _ in 0..500 {
+            c.update(&hover_input(p, 0.0), &Reference::position(Vector3::new(0.0, 0.0, -2.1), 0.0));
+        }
+        assert!(c.velocity_integral_mps2().z < -0.1, "{}", c.velocity_integral_mps2());
+    }
+
+    #[test]
+    fn given_persistent_velocity_error_when_unsaturated_then_integral_limited_to_3() {
+        let mut c = pid();
+        let p = Vector3::new(0.0, 0.0, -2.0);
+        let mut input = hover_input(p, 0.0);
+        input.vel_ned_mps.x = -0.5;
+        for _ in 0..20_000 {
+            c.update(&input, &Reference::position(p, 0.0));
+        }
+        assert!((c.velocity_integral_mps2().x - 3.0).abs() < 1e-12, "{}", c.velocity_integral_mps2());
+    }
+
+    #[test]
+    fn given_1_m_step_when_flown_on_toy_plant_then_settles() {
+        let mut plant = ToyPlant::new(Vector3::new(0.0, 0.0, -2.0), Vector3::zeros());
+        let mut c = pid();
+        let target = Vector3::new(1.0, 0.0, -3.0);
+        let tr = fly(&mut c, &mut plant, 500, 20.0, |_| Reference::position(target, 0.0));
+        let last = at(&tr, 20.0).input;
+        assert!((last.pos_ned_m - target).norm() < 0.02, "{}", last.pos_ned_m);
+        assert!(max_after(&tr, 0.0, |s| s.input.pos_ned_m.x) < 1.1, "N overshoot");
+    }
+
+    #[test]
+    fn given_0_2_rad_attitude_step_when_flown_then_tracks() {
+        let mut plant = ToyPlant::new(Vector3::new(0.0, 0.0, -2.0), Vector3::zeros());
+        let mut c = pid();
+        let sp = Vector3::new(0.2, -0.2, 0.2);
+        let tr = fly(&mut c, &mut plant, 500, 8.0, |_| Reference::attitude(sp, -2.0));
+        let last = at(&tr, 8.0).input;
+        assert!((last.euler_rad - sp).abs().max() < 0.01, "{}", last.euler_rad);
+        assert!(max_after(&tr, 0.0, |s| s.input.euler_rad.x) < 0.2 * 1.15, "roll overshoot");
+        assert!((last.pos_ned_m.z + 2.0).abs() < 0.2, "altitude {}", last.pos_ned_m.z);
+    }
+}
