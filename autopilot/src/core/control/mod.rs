@@ -410,6 +410,33 @@ mod tests {
     }
 
     #[test]
+    fn given_partial_json_when_deserialised_then_missing_fields_take_spec_defaults() {
+        let cfg: ControllerConfig = serde_json::from_str(
+            r#"{"rates": {"inner_hz": 1000, "position_hz": 100},
+                "aco": {"adaptation_enabled": false, "gamma_w_t_per_s": 1.0},
+                "mrac": {"gamma_theta_pos": 3.0, "freeze_on_saturation": false}}"#,
+        )
+        .expect("valid config");
+        assert_eq!(cfg.rates, LoopRates { inner_hz: 1000, position_hz: 100 });
+        assert!(!cfg.aco.adaptation_enabled);
+        assert_eq!(cfg.aco.gamma_w_t_per_s, 1.0);
+        assert_eq!(cfg.aco.gamma_c_r_per_s, 20.0);
+        assert_eq!(cfg.mrac.gamma_theta_pos, 3.0);
+        assert_eq!(cfg.mrac.gamma_k_att, 1000.0);
+        assert_eq!(cfg.pid, PidConfig::default());
+        assert_eq!(cfg.validate(), Ok(()));
+        let back: ControllerConfig =
+            serde_json::from_str(&serde_json::to_string(&cfg).expect("serialise")).expect("round trip");
+        // serde_json's default float parser may be off by one ulp, so compare with a tolerance there.
+        assert_eq!(
+            (back.rates, back.aco.adaptation_enabled, back.mrac.freeze_on_saturation),
+            (cfg.rates, false, false)
+        );
+        assert!((back.pid.limits.rotor_min_n - cfg.pid.limits.rotor_min_n).abs() < 1e-12);
+        assert_eq!(serde_json::to_string(&ControllerKind::Ca).expect("kind"), "\"ca\"");
+    }
+
+    #[test]
     fn given_each_kind_when_built_then_reports_its_kind() {
         let cfg = ControllerConfig::default();
         for k in ControllerKind::ALL {
