@@ -2,3 +2,4 @@
 //! experiments run against it.
 
 pub mod plant;
+pub mod scenario;

@@ -1,0 +1,283 @@
+//! `sitl`: the simulator's command line. `sitl scenario` runs the paper's experiments in-process in
+//! lockstep (headless, faster than real time) and writes metrics JSON, CSV traces and PNG plots.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use autopilot::core::control::{ControllerKind, LoopRates};
+use clap::{Args, Parser, Subcommand};
+use sitl::scenario::plot::{self, Panel, Run};
+use sitl::scenario::reference::{ReferenceMode, ReferenceSpec, SplinePath};
+use sitl::scenario::runner::{self, RunOptions, RunOutput};
+use sitl::scenario::{BUILT_INS, MetricKind, Scenario};
+
+#[derive(Parser)]
+#[command(name = "sitl", version, about = "SITL plant of the paper's quadrotor and its experiments")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run scenarios in-process (plant + controller in lockstep on simulated time) and report metrics.
+    Scenario(ScenarioArgs),
+}
+
+#[derive(Args)]
+struct ScenarioArgs {
+    /// Built-in scenario names or scenario TOML files; `all` runs every built-in.
+    #[arg(required_unless_present = "list")]
+    scenarios: Vec<String>,
+    /// List the built-in scenarios and exit.
+    #[arg(long)]
+    list: bool,
+    /// Controllers, comma-separated (aco, ca, pid); default: the scenario's own list.
+    #[arg(long, value_delimiter = ',')]
+    controller: Vec<ControllerKind>,
+    /// Airframe preset (nominal, mismatch); default: the scenario's.
+    #[arg(long)]
+    plant: Option<String>,
+    /// Seeds: `7`, `1,2,3` or `1-5`.
+    #[arg(long, default_value = "1")]
+    seed: String,
+    /// Inner loop rate (rate, attitude, LMS), Hz; must divide 1 MHz.
+    #[arg(long, default_value_t = 500)]
+    rate_hz: u32,
+    /// Position loop rate, Hz; default inner rate / 5 (100 Hz at 500 Hz).
+    #[arg(long)]
+    position_hz: Option<u32>,
+    /// Output directory for CSV traces and PNG plots.
+    #[arg(long, default_value = "out")]
+    out: PathBuf,
+    /// Print one metrics JSON object per run (one per line) instead of a summary.
+    #[arg(long)]
+    json: bool,
+    /// Trace rows per simulated second in the CSV.
+    #[arg(long, default_value_t = 50)]
+    trace_hz: u32,
+    /// Skip the PNG plots.
+    #[arg(long)]
+    no_plots: bool,
+}
+
+fn parse_seeds(text: &str) -> Result<Vec<u64>> {
+    let mut seeds = Vec::new();
+    for part in text.split(',') {
+        if let Some((a, b)) = part.split_once('-') {
+            let (a, b): (u64, u64) = (a.trim().parse()?, b.trim().parse()?);
+            if b < a || b - a > 10_000 {
+                bail!("seed range {part} must be ascending and at most 10000 long");
+            }
+            seeds.extend(a..=b);
+        } else {
+            seeds.push(part.trim().parse().with_context(|| format!("seed `{part}` is not a whole number"))?);
+        }
+    }
+    Ok(seeds)
+}
+
+fn main() -> Result<()> {
+    tracing_subscriber::fmt()
+        .with_env_filter(tracing_subscriber::EnvFilter::from_default_env())
+        .with_writer(std::io::stderr)
+        .init();
+    match Cli::parse().command {
+        Command::Scenario(args) => scenario(&args),
+    }
+}
+
+fn scenario(args: &ScenarioArgs) -> Result<()> {
+    if args.list {
+        for (name, _) in BUILT_INS {
+            let s = Scenario::load(name)?;
+            println!("{name:20} {}", s.description.split_whitespace().collect::<Vec<_>>().join(" "));
+        }
+        return Ok(());
+    }
+    let names: Vec<String> = if args.scenarios.iter().any(|s| s == "all") {
+        BUILT_INS.iter().map(|b| b.0.to_owned()).collect()
+    } else {
+        args.scenarios.clone()
+    };
+    let seeds = parse_seeds(&args.seed)?;
+    let position_hz = args.position_hz.unwrap_or(args.rate_hz / 5);
+    let rates = LoopRates { inner_hz: args.rate_hz, position_hz };
+    rates.validate().context("loop rates")?;
+    let stdout = std::io::stdout();
+    for name in &names {
+        let scenario = Scenario::load(name)?;
+        let controllers =
+            if args.controller.is_empty() { scenario.controllers.clone() } else { args.controller.clone() };
+        let dir = args.out.join(&scenario.name);
+        std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+        for &seed in &seeds {
+            for mode in scenario.reference_modes() {
+                let mut outputs = Vec::new();
+                for &controller in &controllers {
+                    let opts = RunOptions {
+                        controller,
+                        plant: args.plant.clone(),
+                        seed,
+                        rates,
+                        mode,
+                        trace_hz: args.trace_hz,
+                    };
+                    let out = runner::run(&scenario, &opts)?;
+                    let stem = run_stem(&out, mode, &scenario);
+                    write_atomically(&dir.join(format!("{stem}.csv")), out.trace.to_csv().as_bytes())?;
+                    let mut lock = stdout.lock();
+                    if args.json {
+                        writeln!(lock, "{}", serde_json::to_string(&out.metrics)?)?;
+                    } else {
+                        writeln!(lock, "{}", summary(&out))?;
+                    }
+                    outputs.push(out);
+                }
+                if !args.no_plots {
+                    plots(&scenario, &dir, &outputs, mode)?;
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+fn run_stem(out: &RunOutput, mode: ReferenceMode, scenario: &Scenario) -> String {
+    let m = &out.metrics;
+    let mode = if scenario.reference_modes().len() > 1 { format!("_{mode}") } else { String::new() };
+    format!("{}_{}{}_seed{}_{}hz", m.controller, m.plant, mode, m.seed, m.rate_hz)
+}
+
+/// Writes via a temporary file and a rename, so a reader never sees a half-written file.
+fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
+    let tmp = path.with_extension("tmp");
+    std::fs::write(&tmp, bytes).with_context(|| format!("writing {}", tmp.display()))?;
+    std::fs::rename(&tmp, path).with_context(|| format!("renaming to {}", path.display()))?;
+    Ok(())
+}
+
+fn fmt_opt(v: Option<f64>) -> String {
+    v.map_or_else(|| "never".to_owned(), |x| format!("{x:.2}"))
+}
+
+fn summary(out: &RunOutput) -> String {
+    let m = &out.metrics;
+    let mut s = format!("{} {} {} seed {} {} Hz", m.scenario, m.controller, m.plant, m.seed, m.rate_hz);
+    if let Some(mode) = &m.reference_mode {
+        s += &format!(" ({mode})");
+    }
+    for seg in m.segments.iter().flatten() {
+        s += &format!(
+            "\n  {:5} t0 {:5.1} s: overshoot {:5.2} %  settling {:>5} s  sse {:.1e}",
+            seg.axis,
+            seg.t0_s,
+            seg.overshoot_pct,
+            fmt_opt(seg.settling_s),
+            seg.sse
+        );
+    }
+    if let Some(rms) = &m.rms {
+        s += "\n  rms:";
+        for (axis, v) in rms {
+            s += &format!(" {axis} {v:.4}");
+        }
+    }
+    if let Some(g) = &m.gust {
+        s += &format!(
+            "\n  gust: recovery {} / {} s  peak {:.3} m  steady {:.3} m  rms xy {:.3} m  rms z {:.4} m",
+            fmt_opt(g.recovery_onset_s),
+            fmt_opt(g.recovery_release_s),
+            g.peak_m,
+            g.steady_err_m,
+            g.rms_xy_m,
+            g.rms_z_m
+        );
+    }
+    if let Some(t) = &m.track {
+        s += &format!(
+            "\n  track: cross-track rms {:.3} m  max {:.3} m  alt rms {:.4} m",
+            t.cross_track_rms_m, t.cross_track_max_m, t.alt_rms_m
+        );
+    }
+    s += &format!(
+        "\n  weights at bounds: {}  non-finite: {}  pwm activity {:.2} us/tick  {:.1} sim s in {:.3} s wall ({:.0}x real time)",
+        m.weights_at_bounds, m.non_finite, m.pwm_activity_us, m.sim_s, m.wall_s, m.realtime_factor
+    );
+    s
+}
+
+fn plots(scenario: &Scenario, dir: &Path, outputs: &[RunOutput], mode: ReferenceMode) -> Result<()> {
+    let Some(first) = outputs.first() else { return Ok(()) };
+    let labels: Vec<String> = outputs.iter().map(|o| o.metrics.controller.to_uppercase()).collect();
+    let m = &first.metrics;
+    let suffix = if scenario.reference_modes().len() > 1 { format!("_{mode}") } else { String::new() };
+    let file = |kind: &str| dir.join(format!("{kind}_{}{suffix}_seed{}_{}hz.png", m.plant, m.seed, m.rate_hz));
+    let title = |what: &str| format!("{what}: {} plant, {}", m.plant, labels.join(" vs "));
+    match &scenario.reference {
+        ReferenceSpec::Attitude { .. } => {
+            let runs: Vec<Run<'_>> =
+                outputs.iter().zip(&labels).map(|(o, l)| Run { label: l, trace: &o.trace }).collect();
+            let panels = [
+                Panel::new("roll (rad)", "roll", Some("ref_roll"), 1.0),
+                Panel::new("pitch (rad)", "pitch", Some("ref_pitch"), 1.0),
+                Panel::new("yaw (rad)", "yaw", Some("ref_yaw"), 1.0),
+            ];
+            plot::time_panels(&file("attitude"), &title("Attitude (paper Fig. 5)"), &panels, &runs)?;
+        }
+        ReferenceSpec::Position { .. } if scenario.metrics.contains(&MetricKind::Gust) => {
+            let traces: Vec<_> = outputs.iter().map(|o| with_horizontal_error(&o.trace)).collect();
+            let runs: Vec<Run<'_>> = traces.iter().zip(&labels).map(|(t, l)| Run { label: l, trace: t }).collect();
+            let panels = [
+                Panel::new("horizontal error (m)", "err_xy", None, 1.0),
+                Panel::new("altitude error (m)", "err_alt", None, 1.0),
+                Panel::new("wind east (m/s)", "windE", None, 1.0),
+            ];
+            plot::time_panels(&file("gust"), &title("Hover under a Beaufort-4 gust"), &panels, &runs)?;
+        }
+        ReferenceSpec::Position { .. } => {
+            let runs: Vec<Run<'_>> =
+                outputs.iter().zip(&labels).map(|(o, l)| Run { label: l, trace: &o.trace }).collect();
+            let panels = [
+                Panel::new("north (m)", "pN", Some("refN"), 1.0),
+                Panel::new("east (m)", "pE", Some("refE"), 1.0),
+                Panel::new("altitude (m)", "pD", Some("refD"), -1.0),
+            ];
+            plot::time_panels(&file("translation"), &title("Translation (paper Fig. 6)"), &panels, &runs)?;
+        }
+        ReferenceSpec::Track(track) => {
+            let path = SplinePath::new(&track.waypoints_ne_m);
+            let samples = 600;
+            let pts: Vec<(f64, f64)> = (0..=samples)
+                .map(|k| path.eval(path.length_m() * f64::from(k) / f64::from(samples)).0)
+                .map(|p| (p.x, p.y))
+                .collect();
+            let runs: Vec<Run<'_>> =
+                outputs.iter().zip(&labels).map(|(o, l)| Run { label: l, trace: &o.trace }).collect();
+            plot::track(
+                &file("figure8"),
+                &title(&format!("Figure-8 at {} m/s, {mode}", track.speed_mps)),
+                &pts,
+                &runs,
+            )?;
+        }
+    }
+    Ok(())
+}
+
+/// The trace with `err_xy` (horizontal distance to the reference) and `err_alt` (altitude error) added.
+fn with_horizontal_error(trace: &runner::Trace) -> runner::Trace {
+    let mut t = trace.clone();
+    let idx = |name: &str| t.columns.iter().position(|c| c == name).expect("core column");
+    let (n, e, d, rn, re, rd) = (idx("pN"), idx("pE"), idx("pD"), idx("refN"), idx("refE"), idx("refD"));
+    t.columns.push("err_xy".into());
+    t.columns.push("err_alt".into());
+    for row in &mut t.rows {
+        let exy = (row[n] - row[rn]).hypot(row[e] - row[re]);
+        let ealt = row[rd] - row[d];
+        row.push(exy);
+        row.push(ealt);
+    }
+    t
+}

@@ -1,0 +1,231 @@
+//! Scenario metrics over recorded truth: step response (overshoot, 2 % settling, steady-state error, RMS),
+//! gust recovery and cross-track error.
+//!
+//! In: sample times (s) and truth series (m, rad). Out: serialisable metric records. Definitions, checked
+//! against the reference prototype's golden traces (they reproduce its table to its printed precision):
+//! - overshoot: largest excursion past the target in the direction of the step, in % of the step;
+//! - settling: time from the step until the error stays within 2 % of the step (`None`: never settles);
+//! - sse: largest |error| over the last 0.5 s of the segment;
+//! - rms: root mean square of the error against the active setpoint;
+//! - gust recovery: time from onset (or release) until the horizontal error stays below 0.10 m.
+
+use serde::Serialize;
+
+/// Settling band as a fraction of the step.
+pub const SETTLING_BAND: f64 = 0.02;
+/// The window at a segment's end over which the steady-state error is taken (s).
+pub const SSE_WINDOW_S: f64 = 0.5;
+/// Gust recovery band on the horizontal error (m).
+pub const RECOVERY_BAND_M: f64 = 0.10;
+/// The window before release over which the steady error during a gust is averaged (s).
+pub const GUST_STEADY_WINDOW_S: f64 = 3.0;
+
+/// A step on one axis: from `start` to `target`, over `[t0_s, t1_s)`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StepSegment {
+    pub axis: &'static str,
+    pub t0_s: f64,
+    pub t1_s: f64,
+    pub start: f64,
+    pub target: f64,
+    /// Angles about a full turn (yaw): errors are wrapped to (-pi, pi].
+    pub wrap: bool,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SegmentMetrics {
+    pub axis: &'static str,
+    pub t0_s: f64,
+    pub step: f64,
+    pub overshoot_pct: f64,
+    pub settling_s: Option<f64>,
+    pub sse: f64,
+    pub rms: f64,
+}
+
+/// Wraps an angle to (-pi, pi].
+#[must_use]
+pub fn wrap_pi(a: f64) -> f64 {
+    let w = a.rem_euclid(std::f64::consts::TAU);
+    if w > std::f64::consts::PI { w - std::f64::consts::TAU } else { w }
+}
+
+fn in_window(t: &[f64], t0: f64, t1: f64) -> std::ops::Range<usize> {
+    // Sample times are tick multiples; 1e-9 s absorbs their rounding.
+    let lo = t.partition_point(|&x| x < t0 - 1e-9);
+    let hi = t.partition_point(|&x| x < t1 - 1e-9);
+    lo..hi.max(lo)
+}
+
+fn rms(values: impl Iterator<Item = f64>) -> f64 {
+    let (sum, n) = values.fold((0.0, 0usize), |(s, n), v| (s + v * v, n + 1));
+    if n == 0 { 0.0 } else { (sum / n as f64).sqrt() }
+}
+
+/// The time from `t0` until `|e|` stays within `band` for the rest of the window: `Some(0)` if it never
+/// leaves, `None` if it is still outside at the window's last sample.
+fn time_to_stay_within(t: &[f64], abs_err: &[f64], t0: f64, band: f64) -> Option<f64> {
+    match abs_err.iter().rposition(|&e| e > band || !e.is_finite()) {
+        None => Some(0.0),
+        Some(last) if last + 1 < abs_err.len() => Some(t[last + 1] - t0),
+        Some(_) => None,
+    }
+}
+
+/// Metrics of one step. `t` and `y` are the whole run; the segment selects its window.
+#[must_use]
+pub fn step_metrics(t: &[f64], y: &[f64], seg: &StepSegment) -> SegmentMetrics {
+    let r = in_window(t, seg.t0_s, seg.t1_s);
+    let err = |v: f64| if seg.wrap { wrap_pi(v - seg.target) } else { v - seg.target };
+    let step = if seg.wrap { wrap_pi(seg.target - seg.start) } else { seg.target - seg.start };
+    let (tt, yy) = (&t[r.clone()], &y[r]);
+    let errors: Vec<f64> = yy.iter().map(|&v| err(v)).collect();
+    let past = errors.iter().map(|e| e * step.signum()).fold(0.0_f64, f64::max);
+    let abs_err: Vec<f64> = errors.iter().map(|e| e.abs()).collect();
+    let sse_from = in_window(tt, seg.t1_s - SSE_WINDOW_S, seg.t1_s).start;
+    SegmentMetrics {
+        axis: seg.axis,
+        t0_s: seg.t0_s,
+        step,
+        overshoot_pct: if step == 0.0 { 0.0 } else { 100.0 * past / step.abs() },
+        settling_s: time_to_stay_within(tt, &abs_err, seg.t0_s, SETTLING_BAND * step.abs()),
+        sse: abs_err[sse_from..].iter().copied().fold(0.0, f64::max),
+        rms: rms(errors.into_iter()),
+    }
+}
+
+/// RMS of `y - reference` over the whole run (wrapped for angles).
+#[must_use]
+pub fn tracking_rms(y: &[f64], reference: &[f64], wrap: bool) -> f64 {
+    rms(y.iter().zip(reference).map(|(&v, &r)| if wrap { wrap_pi(v - r) } else { v - r }))
+}
+
+/// Gust-hover metrics (see the module doc).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GustMetrics {
+    pub recovery_onset_s: Option<f64>,
+    pub recovery_release_s: Option<f64>,
+    pub peak_m: f64,
+    pub rms_xy_m: f64,
+    pub steady_err_m: f64,
+    pub rms_z_m: f64,
+}
+
+/// `err_xy_m` is the horizontal distance to the hover point, `err_z_m` the vertical error, both from
+/// truth; the gust starts at `onset_s` and is released at `release_s`.
+#[must_use]
+pub fn gust_metrics(t: &[f64], err_xy_m: &[f64], err_z_m: &[f64], onset_s: f64, release_s: f64) -> GustMetrics {
+    let end = t.last().copied().unwrap_or(0.0) + 1.0;
+    let during = in_window(t, onset_s, release_s);
+    let after = in_window(t, release_s, end);
+    let steady = in_window(t, release_s - GUST_STEADY_WINDOW_S, release_s);
+    let mean = |r: std::ops::Range<usize>| {
+        let n = r.len();
+        if n == 0 { 0.0 } else { err_xy_m[r].iter().sum::<f64>() / n as f64 }
+    };
+    GustMetrics {
+        recovery_onset_s: time_to_stay_within(&t[during.clone()], &err_xy_m[during], onset_s, RECOVERY_BAND_M),
+        recovery_release_s: time_to_stay_within(&t[after.clone()], &err_xy_m[after], release_s, RECOVERY_BAND_M),
+        peak_m: err_xy_m.iter().copied().fold(0.0, f64::max),
+        rms_xy_m: rms(err_xy_m.iter().copied()),
+        steady_err_m: mean(steady),
+        rms_z_m: rms(err_z_m.iter().copied()),
+    }
+}
+
+/// Track-following metrics over the track's active window.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TrackMetrics {
+    pub cross_track_rms_m: f64,
+    pub cross_track_max_m: f64,
+    pub alt_rms_m: f64,
+}
+
+/// `cross_track_m` and `alt_err_m` are per-sample errors already restricted to the active window.
+#[must_use]
+pub fn track_metrics(cross_track_m: &[f64], alt_err_m: &[f64]) -> TrackMetrics {
+    TrackMetrics {
+        cross_track_rms_m: rms(cross_track_m.iter().copied()),
+        cross_track_max_m: cross_track_m.iter().copied().fold(0.0, f64::max),
+        alt_rms_m: rms(alt_err_m.iter().copied()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn times(n: usize, dt: f64) -> Vec<f64> {
+        (0..n).map(|k| k as f64 * dt).collect()
+    }
+
+    #[test]
+    fn given_a_first_order_step_then_settling_is_four_time_constants_and_no_overshoot() {
+        let t = times(10_001, 1e-3);
+        let y: Vec<f64> = t.iter().map(|&x| 1.0 - (-x).exp()).collect();
+        let m = step_metrics(
+            &t,
+            &y,
+            &StepSegment { axis: "x", t0_s: 0.0, t1_s: 10.0, start: 0.0, target: 1.0, wrap: false },
+        );
+        assert_eq!(m.overshoot_pct, 0.0);
+        // e^-t = 0.02 at t = ln 50 = 3.912 s.
+        assert!((m.settling_s.unwrap() - 50f64.ln()).abs() < 2e-3, "{:?}", m.settling_s);
+        assert!(m.sse < 1e-4);
+    }
+
+    #[test]
+    fn given_an_underdamped_step_down_then_overshoot_is_measured_past_the_target() {
+        let t = times(20_001, 1e-3);
+        // From 3 to 2, overshooting by 10 % of the step (to 1.9) and ringing out.
+        let y: Vec<f64> =
+            t.iter().map(|&x| 2.0 + (-x * 2.0).exp() * (1.0 - 1.1 * (x * 3.0).sin().powi(2).min(1.0))).collect();
+        let m = step_metrics(
+            &t,
+            &y,
+            &StepSegment { axis: "z", t0_s: 0.0, t1_s: 20.0, start: 3.0, target: 2.0, wrap: false },
+        );
+        let lowest = y.iter().copied().fold(f64::INFINITY, f64::min);
+        assert!((m.overshoot_pct - 100.0 * (2.0 - lowest)).abs() < 1e-9);
+        assert!(m.overshoot_pct > 1.0);
+    }
+
+    #[test]
+    fn given_a_response_that_never_settles_then_settling_is_none() {
+        let t = times(1001, 1e-3);
+        let y = vec![0.5; 1001];
+        let m = step_metrics(
+            &t,
+            &y,
+            &StepSegment { axis: "x", t0_s: 0.0, t1_s: 1.0, start: 0.0, target: 1.0, wrap: false },
+        );
+        assert_eq!(m.settling_s, None);
+        assert!((m.rms - 0.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn given_yaw_across_pi_then_errors_wrap() {
+        let t = times(3, 1.0);
+        let y = [3.1, -3.1, std::f64::consts::PI];
+        let m = step_metrics(
+            &t,
+            &y,
+            &StepSegment { axis: "yaw", t0_s: 0.0, t1_s: 3.0, start: 2.9, target: std::f64::consts::PI, wrap: true },
+        );
+        assert!(m.rms < 0.05, "{}", m.rms);
+        assert!(m.overshoot_pct > 0.0);
+    }
+
+    #[test]
+    fn given_a_gust_excursion_then_recovery_counts_from_onset_and_release() {
+        let t = times(3001, 0.01);
+        let err: Vec<f64> =
+            t.iter().map(|&x| if (5.0..7.5).contains(&x) || (17.0..19.0).contains(&x) { 0.2 } else { 0.01 }).collect();
+        let z = vec![0.0; t.len()];
+        let g = gust_metrics(&t, &err, &z, 5.0, 17.0);
+        assert!((g.recovery_onset_s.unwrap() - 2.5).abs() < 1e-9);
+        assert!((g.recovery_release_s.unwrap() - 2.0).abs() < 1e-9);
+        assert_eq!(g.peak_m, 0.2);
+        assert!((g.steady_err_m - 0.01).abs() < 1e-12);
+    }
+}
