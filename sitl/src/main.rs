@@ -127,11 +127,11 @@ fn scenario(args: &ScenarioArgs) -> Result<()> {
                     let out = runner::run(&scenario, &opts)?;
                     let stem = run_stem(&out, mode, &scenario);
                     write_atomically(&dir.join(format!("{stem}.csv")), out.trace.to_csv().as_bytes())?;
-                    let mut lock = stdout.lock();
-                    if args.json {
-                        writeln!(lock, "{}", serde_json::to_string(&out.metrics)?)?;
-                    } else {
-                        writeln!(lock, "{}", summary(&out))?;
+                    let line = if args.json { serde_json::to_string(&out.metrics)? } else { summary(&out) };
+                    match writeln!(stdout.lock(), "{line}") {
+                        // A reader that has seen enough (`| head`) is not an error.
+                        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => return Ok(()),
+                        result => result?,
                     }
                     outputs.push(out);
                 }

@@ -328,7 +328,14 @@ impl Plant {
     /// The paper's truth-fed state with `noise` (its own random stream).
     pub fn sample_state(&mut self, noise: &StateNoise) -> NoisyState {
         let truth = self.truth();
-        sensors::noisy_state(&truth, noise, &mut self.state_noise_rng)
+        self.sample_state_of(&truth, noise)
+    }
+
+    /// As [`Plant::sample_state`], from a [`Truth`] the caller already took at the current time (saves
+    /// evaluating the dynamics twice per tick).
+    pub fn sample_state_of(&mut self, truth: &Truth, noise: &StateNoise) -> NoisyState {
+        debug_assert_eq!(truth.time_us, self.time_us, "truth must be the current one");
+        sensors::noisy_state(truth, noise, &mut self.state_noise_rng)
     }
 
     /// The integrated state (with the raw quaternion).

@@ -210,7 +210,7 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
         let t_s = (k * dt_us) as f64 * 1e-6;
         let r = reference.at(t_s);
         let truth = plant.truth();
-        let state = plant.sample_state(&noise);
+        let state = plant.sample_state_of(&truth, &noise);
         let input = ControlInput {
             pos_ned_m: state.pos_ned_m,
             vel_ned_mps: state.vel_ned_mps,
