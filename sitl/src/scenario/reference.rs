@@ -286,7 +286,11 @@ pub struct SplinePath {
     closed: bool,
     /// Arc length at u = j / SAMPLES_PER_SEGMENT.
     arc_m: Vec<f64>,
+    /// Points every `POLYLINE_STEP_M` of arc length, for distance queries.
+    polyline: Vec<Vector2<f64>>,
 }
+
+const POLYLINE_STEP_M: f64 = 0.005;
 
 const SAMPLES_PER_SEGMENT: usize = 400;
 
@@ -322,7 +326,7 @@ impl SplinePath {
         let mx = lu.solve(&rhs[0]).expect("spline system is diagonally dominant");
         let my = lu.solve(&rhs[1]).expect("spline system is diagonally dominant");
         let second = (0..n).map(|i| Vector2::new(mx[i], my[i])).collect();
-        let mut path = Self { points, second, closed, arc_m: Vec::new() };
+        let mut path = Self { points, second, closed, arc_m: Vec::new(), polyline: Vec::new() };
         let samples = path.segments() * SAMPLES_PER_SEGMENT;
         let mut arc = Vec::with_capacity(samples + 1);
         arc.push(0.0);
@@ -333,6 +337,9 @@ impl SplinePath {
             prev = p;
         }
         path.arc_m = arc;
+        let count = (path.length_m() / POLYLINE_STEP_M).ceil() as usize;
+        let step = path.length_m() / count as f64;
+        path.polyline = (0..=count).map(|k| path.eval(k as f64 * step).0).collect();
         path
     }
 
@@ -390,26 +397,18 @@ impl SplinePath {
         (p, t, k)
     }
 
-    /// Distance (m) from `p_ne_m` to the path within `window_m` of arc length around `s_m`.
+    /// Distance (m) from `p_ne_m` to the path within `window_m` of arc length around `s_m` (so a point
+    /// near a crossing is measured against its own branch), on a polyline of 5 mm segments.
     #[must_use]
     pub fn distance_near(&self, p_ne_m: Vector2<f64>, s_m: f64, window_m: f64) -> f64 {
-        const STEP_M: f64 = 0.005;
-        let len = self.length_m();
-        let (lo, hi) = if self.closed {
-            (s_m - window_m, s_m + window_m)
-        } else {
-            ((s_m - window_m).max(0.0), (s_m + window_m).min(len))
-        };
-        let count = ((hi - lo) / STEP_M).ceil().max(1.0) as usize;
-        let at = |s: f64| self.eval(if self.closed { s.rem_euclid(len) } else { s }).0;
-        let mut best = f64::INFINITY;
-        let mut a = at(lo);
-        for k in 1..=count {
-            let b = at(lo + (hi - lo) * k as f64 / count as f64);
-            best = best.min(point_segment_distance(p_ne_m, a, b));
-            a = b;
-        }
-        best
+        let segments = self.polyline.len() - 1;
+        let step = self.length_m() / segments as f64;
+        let lo = ((s_m - window_m) / step).floor() as i64;
+        let hi = ((s_m + window_m) / step).ceil() as i64;
+        let (lo, hi) = if self.closed { (lo, hi) } else { (lo.max(0), hi.min(segments as i64)) };
+        let n = segments as i64;
+        let point = |k: i64| self.polyline[usize::try_from(k.rem_euclid(n)).expect("rem_euclid is non-negative")];
+        (lo..hi).map(|k| point_segment_distance(p_ne_m, point(k), point(k + 1))).fold(f64::INFINITY, f64::min)
     }
 }
 

@@ -202,6 +202,11 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
         rows: Vec::new(),
     };
     let mut series = Series::default();
+    let n = usize::try_from(ticks).unwrap_or(0);
+    series.t.reserve(n);
+    for v in series.pos.iter_mut().chain(&mut series.euler).chain(&mut series.ref_pos).chain(&mut series.ref_euler) {
+        v.reserve(n);
+    }
     let mut non_finite = false;
     let mut last_pwm: Option<[f64; 4]> = None;
     let mut pwm_change_sum = 0.0;
