@@ -1,3 +1,4 @@
 //! The pure vehicle core: no clocks, sockets, files or async runtime; time and randomness come in as inputs.
 
 pub mod control;
+pub mod estimator;
