@@ -1,0 +1,636 @@
+//! The fused estimator's sensor policy around the [`Eskf`]: alignment, GPS origin and latency handling,
+//! barometer offset, magnetometer heading, no-aiding fallback, sensor health and the validity /
+//! convergence flags. In: sanitised samples (see `Estimator`); time is the IMU/GPS `time_us` (µs), samples
+//! without a time stamp (mag, baro) are taken at the latest time seen. Out: an [`EstimatorState`] after
+//! every sample. Rate: the IMU rate; the other sensors at their own rates.
+
+use nalgebra::{UnitQuaternion, Vector3};
+
+use super::eskf::{ErrVec, Eskf, Nominal, Outcome, ProcessNoise, ScalarObs, euler_zyx_rad, idx};
+use super::history::History;
+use super::{BaroSample, EstimatorConfig, EstimatorFlags, EstimatorState, GeoOrigin, GpsSample, ImuSample, MagSample};
+
+/// Period of the no-aiding pseudo-measurement (µs of vehicle time).
+const FAKE_POS_PERIOD_US: u64 = 100_000;
+/// A magnetometer whose heading innovations fail the gate this long gets its yaw reset to it (µs).
+const MAG_RESET_AFTER_US: u64 = 5_000_000;
+/// The magnetometer heading needs a horizontal field of at least this fraction of the total.
+const MIN_HORIZONTAL_FIELD_FRACTION: f64 = 0.1;
+/// Time constant of the low-passed GPS velocity innovation used by the attitude-settled check (µs).
+const VEL_NIS_TAU_US: f64 = 2.0e6;
+/// Largest variances kept (the filter stays numerically sane through long sensor outages).
+const MAX_POS_VAR_M2: f64 = 1.0e6;
+const MAX_VEL_VAR_M2PS2: f64 = 1.0e4;
+const MAX_ATT_VAR_RAD2: f64 = 1.0;
+const MAX_BARO_VAR_M2: f64 = 1.0e6;
+
+/// Seconds (config) to microseconds; negative and non-finite map to 0.
+fn us(seconds: f64) -> u64 {
+    if seconds > 0.0 { (seconds * 1e6).round() as u64 } else { 0 }
+}
+
+/// Wraps an angle into [-pi, pi).
+fn wrap_pi(angle_rad: f64) -> f64 {
+    (angle_rad + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
+}
+
+/// Sums of the samples seen while the vehicle is assumed still, for the initial attitude.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Alignment {
+    start_us: u64,
+    accel_sum_frd_mps2: Vector3<f64>,
+    accel_count: u32,
+    mag_sum_frd_gauss: Vector3<f64>,
+    mag_count: u32,
+}
+
+/// Either aligning (no attitude yet) or running the filter.
+#[derive(Debug, Clone, PartialEq)]
+enum Stage {
+    Aligning(Option<Alignment>),
+    Running(Box<Eskf>),
+}
+
+/// The fused estimator.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fusion {
+    config: EstimatorConfig,
+    noise: ProcessNoise,
+    stage: Stage,
+    history: History,
+    origin: Option<GeoOrigin>,
+    /// `tan(inclination)` of the earth field, measured when the heading was aligned to the magnetometer.
+    field_tan_incl: f64,
+    yaw_aligned: bool,
+    /// Latest time seen (µs).
+    now_us: Option<u64>,
+    last_imu_us: Option<u64>,
+    last_imu: Option<ImuSample>,
+    last_gps_fused_us: Option<u64>,
+    last_baro_fused_us: Option<u64>,
+    last_mag_fused_us: Option<u64>,
+    gps_aiding_since_us: Option<u64>,
+    mag_rejected_since_us: Option<u64>,
+    last_vel_nis_us: Option<u64>,
+    vel_nis_lp: f64,
+    attitude_settled_since_us: Option<u64>,
+    /// Where the no-aiding pseudo-measurement holds the horizontal position, while it is active.
+    fake_pos_hold_ne_m: Option<(f64, f64)>,
+    last_fake_pos_us: Option<u64>,
+    /// Measurements rejected by the innovation gate.
+    gated: u64,
+    state: EstimatorState,
+}
+
+/// Why a sample was refused after sanitising (the caller counts these as rejected).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Refused {
+    /// IMU time not after the previous IMU time.
+    NonMonotonicTime,
+    /// GPS valid before the history begins: it cannot be compared with the state of its time.
+    TooOld,
+}
+
+impl Fusion {
+    pub fn new(config: &EstimatorConfig) -> Self {
+        let noise = ProcessNoise {
+            accel_mps2: config.accel_noise_mps2,
+            gyro_radps: config.gyro_noise_radps,
+            accel_bias_walk: config.accel_bias_walk_mps2_per_sqrt_s,
+            gyro_bias_walk: config.gyro_bias_walk_radps_per_sqrt_s,
+            baro_offset_walk: config.baro_offset_walk_m_per_sqrt_s,
+        };
+        Self {
+            config: config.clone(),
+            noise,
+            stage: Stage::Aligning(None),
+            history: History::default(),
+            origin: None,
+            field_tan_incl: 0.0,
+            yaw_aligned: false,
+            now_us: None,
+            last_imu_us: None,
+            last_imu: None,
+            last_gps_fused_us: None,
+            last_baro_fused_us: None,
+            last_mag_fused_us: None,
+            gps_aiding_since_us: None,
+            mag_rejected_since_us: None,
+            last_vel_nis_us: None,
+            vel_nis_lp: 0.0,
+            attitude_settled_since_us: None,
+            fake_pos_hold_ne_m: None,
+            last_fake_pos_us: None,
+            gated: 0,
+            state: EstimatorState::default(),
+        }
+    }
+
+    pub fn state(&self) -> &EstimatorState {
+        &self.state
+    }
+
+    pub fn gated_measurements(&self) -> u64 {
+        self.gated
+    }
+
+    fn advance(&mut self, time_us: u64) {
+        self.now_us = Some(self.now_us.map_or(time_us, |now| now.max(time_us)));
+    }
+
+    fn age_us(&self, then_us: Option<u64>) -> Option<u64> {
+        match (self.now_us, then_us) {
+            (Some(now), Some(then)) => Some(now.saturating_sub(then)),
+            _ => None,
+        }
+    }
+
+    fn fresh(&self, then_us: Option<u64>, timeout_s: f64) -> bool {
+        self.age_us(then_us).is_some_and(|age| age <= us(timeout_s))
+    }
+
+    fn imu_ok(&self) -> bool {
+        self.fresh(self.last_imu_us, self.config.imu_timeout_s)
+    }
+
+    fn gps_ok(&self) -> bool {
+        self.fresh(self.last_gps_fused_us, self.config.gps_timeout_s)
+    }
+
+    fn baro_ok(&self) -> bool {
+        self.fresh(self.last_baro_fused_us, self.config.baro_timeout_s)
+    }
+
+    fn mag_ok(&self) -> bool {
+        self.fresh(self.last_mag_fused_us, self.config.mag_timeout_s)
+    }
+
+    /// Advances the clock without a sample (timeouts only).
+    pub fn update_clock(&mut self, now_us: u64) {
+        self.advance(now_us);
+        self.refresh();
+    }
+
+    // ---------------------------------------------------------------------------------------------
+    // IMU: alignment, prediction, no-aiding fallback
+    // ---------------------------------------------------------------------------------------------
+
+    pub fn update_imu(&mut self, imu: &ImuSample) -> Result<(), Refused> {
+        if self.last_imu_us.is_some_and(|last| imu.time_us <= last) {
+            return Err(Refused::NonMonotonicTime);
+        }
+        let gap_us = self.last_imu_us.map(|last| imu.time_us - last);
+        self.advance(imu.time_us);
+        self.last_imu_us = Some(imu.time_us);
+        self.last_imu = Some(*imu);
+        let imu_timeout_us = us(self.config.imu_timeout_s);
+
+        match &mut self.stage {
+            Stage::Aligning(alignment) => {
+                let restart = gap_us.is_some_and(|gap| gap > imu_timeout_us);
+                let a = match alignment {
+                    Some(a) if !restart => a,
+                    _ => alignment.insert(Alignment {
+                        start_us: imu.time_us,
+                        accel_sum_frd_mps2: Vector3::zeros(),
+                        accel_count: 0,
+                        mag_sum_frd_gauss: Vector3::zeros(),
+                        mag_count: 0,
+                    }),
+                };
+                a.accel_sum_frd_mps2 += imu.accel_frd_mps2;
+                a.accel_count += 1;
+                if imu.time_us - a.start_us >= us(self.config.align_time_s) {
+                    let a = *a;
+                    self.finish_alignment(&a);
+                }
+            }
+            Stage::Running(f) => {
+                let gap_us = gap_us.unwrap_or(0);
+                let dt_s = gap_us as f64 * 1e-6;
+                if gap_us > imu_timeout_us {
+                    // The IMU was lost: coast (constant velocity and attitude) and let the covariance grow.
+                    let hover_frd = f.x.q_ned_frd.inverse() * Vector3::new(0.0, 0.0, -super::eskf::GRAVITY_MPS2);
+                    let (gyro, accel) = (f.x.gyro_bias_frd_radps, hover_frd + f.x.accel_bias_frd_mps2);
+                    f.predict(dt_s, &gyro, &accel, &self.noise);
+                } else {
+                    f.predict(dt_s, &imu.gyro_frd_radps, &imu.accel_frd_mps2, &self.noise);
+                }
+                for i in 0..3 {
+                    f.cap_variance(idx::POS + i, MAX_POS_VAR_M2);
+                    f.cap_variance(idx::VEL + i, MAX_VEL_VAR_M2PS2);
+                    f.cap_variance(idx::ATT + i, MAX_ATT_VAR_RAD2);
+                    f.cap_variance(idx::ACC_BIAS + i, self.config.init_accel_bias_std_mps2.powi(2));
+                    f.cap_variance(idx::GYRO_BIAS + i, self.config.init_gyro_bias_std_radps.powi(2));
+                }
+                f.cap_variance(idx::BARO, MAX_BARO_VAR_M2);
+                self.history.push(imu.time_us, &f.x.pos_ned_m, &f.x.vel_ned_mps);
+                self.fuse_fake_position();
+            }
+        }
+        self.refresh();
+        Ok(())
+    }
+
+    /// Roll and pitch from the mean specific force (the vehicle is assumed still while aligning), yaw
+    /// from the mean magnetic field when there is one.
+    fn finish_alignment(&mut self, a: &Alignment) {
+        let mean_force_frd = a.accel_sum_frd_mps2 / f64::from(a.accel_count);
+        let norm = mean_force_frd.norm();
+        let g = super::eskf::GRAVITY_MPS2;
+        if !(norm > 0.5 * g && norm < 1.5 * g) {
+            // Not still (or in free fall): start again.
+            self.stage = Stage::Aligning(None);
+            return;
+        }
+        let down_frd = -mean_force_frd / norm;
+        let roll_rad = down_frd.y.atan2(down_frd.z);
+        let pitch_rad = (-down_frd.x).atan2(down_frd.y.hypot(down_frd.z));
+        let mut q = UnitQuaternion::from_euler_angles(roll_rad, pitch_rad, 0.0);
+        let mut yaw_var = std::f64::consts::PI.powi(2);
+        if a.mag_count > 0 {
+            let mean_mag_frd = a.mag_sum_frd_gauss / f64::from(a.mag_count);
+            if let Some(yaw_rad) = self.mag_heading_rad(&q, &mean_mag_frd) {
+                q = UnitQuaternion::from_euler_angles(roll_rad, pitch_rad, yaw_rad);
+                self.learn_inclination(&q, &mean_mag_frd);
+                self.yaw_aligned = true;
+                self.last_mag_fused_us = self.now_us;
+                yaw_var = self.config.init_yaw_std_rad.powi(2);
+            }
+        }
+        let x = Nominal {
+            pos_ned_m: Vector3::zeros(),
+            vel_ned_mps: Vector3::zeros(),
+            q_ned_frd: q,
+            accel_bias_frd_mps2: Vector3::zeros(),
+            gyro_bias_frd_radps: Vector3::zeros(),
+            baro_offset_m: 0.0,
+        };
+        let c = &self.config;
+        let mut var = ErrVec::zeros();
+        for i in 0..3 {
+            var[idx::POS + i] = c.init_pos_std_m.powi(2);
+            var[idx::VEL + i] = c.init_vel_std_mps.powi(2);
+            var[idx::ATT + i] = c.init_tilt_std_rad.powi(2);
+            var[idx::ACC_BIAS + i] = c.init_accel_bias_std_mps2.powi(2);
+            var[idx::GYRO_BIAS + i] = c.init_gyro_bias_std_radps.powi(2);
+        }
+        var[idx::ATT + 2] = yaw_var;
+        var[idx::BARO] = MAX_BARO_VAR_M2;
+        self.stage = Stage::Running(Box::new(Eskf::new(x, &var)));
+        self.history.clear();
+        self.history.push(self.last_imu_us.unwrap_or(a.start_us), &x.pos_ned_m, &x.vel_ned_mps);
+    }
+
+    /// Holds the horizontal position while there is no horizontal aiding: before the first GPS fix (the
+    /// vehicle is assumed on the ground, so tightly), and after `no_aid_timeout_s` without GPS in flight
+    /// (loosely: it bounds the covariance and keeps the attitude observable without claiming a position).
+    fn fuse_fake_position(&mut self) {
+        let now = self.now_us.unwrap_or(0);
+        let std_m = if self.gps_ok() {
+            None
+        } else if self.origin.is_none() {
+            Some(self.config.align_pos_noise_m)
+        } else if self.last_gps_fused_us.is_none_or(|t| now.saturating_sub(t) > us(self.config.no_aid_timeout_s)) {
+            Some(self.config.no_aid_pos_noise_m)
+        } else {
+            None
+        };
+        let Some(std_m) = std_m else {
+            self.fake_pos_hold_ne_m = None;
+            return;
+        };
+        if self.last_fake_pos_us.is_some_and(|t| now.saturating_sub(t) < FAKE_POS_PERIOD_US) {
+            return;
+        }
+        let Stage::Running(f) = &mut self.stage else { return };
+        self.last_fake_pos_us = Some(now);
+        let (hold_n, hold_e) = *self.fake_pos_hold_ne_m.get_or_insert((f.x.pos_ned_m.x, f.x.pos_ned_m.y));
+        let obs = [
+            ScalarObs::direct(idx::POS, hold_n - f.x.pos_ned_m.x, std_m * std_m),
+            ScalarObs::direct(idx::POS + 1, hold_e - f.x.pos_ned_m.y, std_m * std_m),
+        ];
+        if let Outcome::Fused { correction, .. } = f.fuse(&obs, f64::INFINITY) {
+            Self::note_correction(&mut self.history, &correction);
+        }
+    }
+
+    fn note_correction(history: &mut History, dx: &ErrVec) {
+        history
+            .add_correction(&Vector3::from(dx.fixed_rows::<3>(idx::POS)), &Vector3::from(dx.fixed_rows::<3>(idx::VEL)));
+    }
+
+    // ---------------------------------------------------------------------------------------------
+    // Magnetometer: heading
+    // ---------------------------------------------------------------------------------------------
+
+    /// Heading (rad) of the tilt-compensated field plus the declination; `None` when the field is
+    /// nearly vertical in the level frame.
+    fn mag_heading_rad(&self, q_ned_frd: &UnitQuaternion<f64>, field_frd_gauss: &Vector3<f64>) -> Option<f64> {
+        let euler = euler_zyx_rad(q_ned_frd);
+        let level = UnitQuaternion::from_euler_angles(euler.x, euler.y, 0.0) * field_frd_gauss;
+        let horizontal = level.x.hypot(level.y);
+        (horizontal >= MIN_HORIZONTAL_FIELD_FRACTION * level.norm())
+            .then(|| wrap_pi(self.config.mag_declination_deg.to_radians() - level.y.atan2(level.x)))
+    }
+
+    fn learn_inclination(&mut self, q_ned_frd: &UnitQuaternion<f64>, field_frd_gauss: &Vector3<f64>) {
+        let field_ned = q_ned_frd * field_frd_gauss;
+        self.field_tan_incl = field_ned.z / field_ned.x.hypot(field_ned.y);
+    }
+
+    pub fn update_mag(&mut self, mag: &MagSample) {
+        let now = self.now_us.unwrap_or(0);
+        let mag_was_ok = self.mag_ok();
+        let q_ned_frd = match &mut self.stage {
+            Stage::Aligning(alignment) => {
+                if let Some(a) = alignment {
+                    a.mag_sum_frd_gauss += mag.field_frd_gauss;
+                    a.mag_count += 1;
+                }
+                return;
+            }
+            Stage::Running(f) => f.x.q_ned_frd,
+        };
+        let Some(heading_rad) = self.mag_heading_rad(&q_ned_frd, &mag.field_frd_gauss) else {
+            self.refresh();
+            return;
+        };
+        let residual_rad = wrap_pi(heading_rad - euler_zyx_rad(&q_ned_frd).z);
+        if !self.yaw_aligned {
+            self.reset_yaw(residual_rad, &mag.field_frd_gauss);
+            self.refresh();
+            return;
+        }
+        // residual ≈ dtheta_d - tan(I) (cos D dtheta_n + sin D dtheta_e): the tilt error used to level the
+        // field leaks into the measured heading in proportion to the tangent of the field's dip I.
+        let decl_rad = self.config.mag_declination_deg.to_radians();
+        let mut h = ErrVec::zeros();
+        h[idx::ATT] = -self.field_tan_incl * decl_rad.cos();
+        h[idx::ATT + 1] = -self.field_tan_incl * decl_rad.sin();
+        h[idx::ATT + 2] = 1.0;
+        let obs = ScalarObs { h, residual: residual_rad, variance: self.config.mag_heading_noise_rad.powi(2) };
+        let Stage::Running(f) = &mut self.stage else { return };
+        match f.fuse(&[obs], self.config.innovation_gate_sigma) {
+            Outcome::Fused { correction, .. } => {
+                Self::note_correction(&mut self.history, &correction);
+                self.last_mag_fused_us = Some(now);
+                self.mag_rejected_since_us = None;
+            }
+            Outcome::Rejected { .. } => {
+                self.gated += 1;
+                let since = *self.mag_rejected_since_us.get_or_insert(now);
+                // Back after an outage, or persistently inconsistent: trust the magnetometer's heading.
+                if !mag_was_ok || now.saturating_sub(since) >= MAG_RESET_AFTER_US {
+                    self.reset_yaw(residual_rad, &mag.field_frd_gauss);
+                }
+            }
+        }
+        self.refresh();
+    }
+
+    /// Rotates the estimate by `dyaw_rad` about NED down and restarts the yaw uncertainty.
+    fn reset_yaw(&mut self, dyaw_rad: f64, field_frd_gauss: &Vector3<f64>) {
+        let Stage::Running(f) = &mut self.stage else { return };
+        let mut q = (UnitQuaternion::from_euler_angles(0.0, 0.0, dyaw_rad) * f.x.q_ned_frd).into_inner();
+        q.normalize_mut();
+        f.x.q_ned_frd = UnitQuaternion::new_unchecked(q);
+        f.reset_component(idx::ATT + 2, self.config.init_yaw_std_rad.powi(2));
+        let q = f.x.q_ned_frd;
+        self.learn_inclination(&q, field_frd_gauss);
+        self.yaw_aligned = true;
+        self.mag_rejected_since_us = None;
+        self.last_mag_fused_us = self.now_us;
+    }
+
+    // ---------------------------------------------------------------------------------------------
+    // Barometer: height with an estimated offset
+    // ---------------------------------------------------------------------------------------------
+
+    pub fn update_baro(&mut self, baro: &BaroSample) {
+        let now = self.now_us.unwrap_or(0);
+        let baro_was_ok = self.baro_ok();
+        let Stage::Running(f) = &mut self.stage else { return };
+        let r = self.config.baro_noise_m.powi(2);
+        if !baro_was_ok {
+            // First sample, or back after an outage: the offset is whatever makes the baro agree with the
+            // current height, `offset = z + pos_d`, so it inherits pos_d's correlations plus the noise.
+            f.x.baro_offset_m = baro.pressure_alt_m + f.x.pos_ned_m.z;
+            let row = f.p.row(idx::POS + 2).clone_owned();
+            f.p.row_mut(idx::BARO).copy_from(&row);
+            f.p.column_mut(idx::BARO).copy_from(&row.transpose());
+            f.p[(idx::BARO, idx::BARO)] = f.p[(idx::POS + 2, idx::POS + 2)] + r;
+            self.last_baro_fused_us = Some(now);
+        } else {
+            let mut h = ErrVec::zeros();
+            h[idx::POS + 2] = -1.0;
+            h[idx::BARO] = 1.0;
+            let residual = baro.pressure_alt_m - (f.x.baro_offset_m - f.x.pos_ned_m.z);
+            match f.fuse(&[ScalarObs { h, residual, variance: r }], self.config.innovation_gate_sigma) {
+                Outcome::Fused { correction, .. } => {
+                    Self::note_correction(&mut self.history, &correction);
+                    self.last_baro_fused_us = Some(now);
+                }
+                Outcome::Rejected { .. } => self.gated += 1,
+            }
+        }
+        self.refresh();
+    }
+
+    // ---------------------------------------------------------------------------------------------
+    // GPS: origin, latency, aiding start and fusion
+    // ---------------------------------------------------------------------------------------------
+
+    fn gps_quality_ok(&self, gps: &GpsSample) -> bool {
+        gps.satellites >= self.config.gps_min_satellites
+            && gps.eph_m <= self.config.gps_max_eph_m
+            && gps.epv_m <= self.config.gps_max_epv_m
+    }
+
+    pub fn update_gps(&mut self, gps: &GpsSample) -> Result<(), Refused> {
+        self.advance(gps.time_us);
+        let now = self.now_us.unwrap_or(gps.time_us);
+        if !matches!(self.stage, Stage::Running(_)) || !self.imu_ok() || !self.gps_quality_ok(gps) {
+            self.refresh();
+            return Ok(());
+        }
+        // The delayed state: at the time the fix was valid, or (compensation off) the current one.
+        let valid_us = gps.time_us.saturating_sub(self.config.gps_delay_us).min(now);
+        let lookup_us = if self.config.latency_compensation { valid_us } else { u64::MAX };
+        let Some((pos_then_ned_m, vel_then_ned_mps)) = self.history.state_at(lookup_us) else {
+            self.refresh();
+            return Err(Refused::TooOld);
+        };
+        let first_fix = self.origin.is_none();
+        let origin = *self.origin.get_or_insert(GeoOrigin {
+            lat_deg: gps.lat_deg,
+            lon_deg: gps.lon_deg,
+            alt_amsl_m: gps.alt_amsl_m,
+        });
+        let gps_pos_ned_m = origin.ned_from_geodetic(gps.lat_deg, gps.lon_deg, gps.alt_amsl_m);
+        let c = &self.config;
+        let pos_var_m2 = [
+            gps.eph_m.max(c.gps_pos_noise_m).powi(2),
+            gps.eph_m.max(c.gps_pos_noise_m).powi(2),
+            gps.epv_m.max(c.gps_hgt_noise_m).powi(2),
+        ];
+        let vel_var_m2ps2 = c.gps_vel_noise_mps.powi(2);
+        let gate = c.innovation_gate_sigma;
+        let gps_was_ok = self.gps_ok();
+        let Stage::Running(f) = &mut self.stage else { return Ok(()) };
+
+        if !gps_was_ok {
+            // Aiding (re)starts: take the GPS position and velocity, moved to now by what the state did
+            // since the fix was valid. The height is taken only at the first fix; afterwards the baro kept it.
+            let mut dx = ErrVec::zeros();
+            for i in 0..3 {
+                dx[idx::VEL + i] = gps.vel_ned_mps[i] - vel_then_ned_mps[i];
+                f.reset_component(idx::VEL + i, vel_var_m2ps2);
+            }
+            for i in 0..(if first_fix { 3 } else { 2 }) {
+                dx[idx::POS + i] = gps_pos_ned_m[i] - pos_then_ned_m[i];
+                f.reset_component(idx::POS + i, pos_var_m2[i]);
+            }
+            // The barometer keeps agreeing with the moved height.
+            dx[idx::BARO] = dx[idx::POS + 2];
+            f.inject(&dx);
+            Self::note_correction(&mut self.history, &dx);
+            self.gps_aiding_since_us = Some(now);
+            self.last_gps_fused_us = Some(now);
+            self.vel_nis_lp = 1.0;
+            self.last_vel_nis_us = Some(now);
+            self.fake_pos_hold_ne_m = None;
+            self.refresh();
+            return Ok(());
+        }
+
+        let vel_obs: [ScalarObs; 3] = std::array::from_fn(|i| {
+            ScalarObs::direct(idx::VEL + i, gps.vel_ned_mps[i] - vel_then_ned_mps[i], vel_var_m2ps2)
+        });
+        // Horizontal velocity innovation, normalised by its predicted variance: a tilt error shows up here
+        // first (it accelerates the estimate at g * tilt), so it is the attitude-consistency check.
+        let vel_nis = (0..2)
+            .map(|i| vel_obs[i].residual.powi(2) / (f.p[(idx::VEL + i, idx::VEL + i)] + vel_var_m2ps2))
+            .sum::<f64>()
+            / 2.0;
+        match f.fuse(&vel_obs, gate) {
+            Outcome::Fused { correction, .. } => Self::note_correction(&mut self.history, &correction),
+            Outcome::Rejected { .. } => self.gated += 1,
+        }
+        // Sequential: the position residual sees what the velocity update did to the delayed state.
+        let pos_then_ned_m = self.history.state_at(lookup_us).map_or(pos_then_ned_m, |(p, _)| p);
+        let pos_obs: [ScalarObs; 3] = std::array::from_fn(|i| {
+            ScalarObs::direct(idx::POS + i, gps_pos_ned_m[i] - pos_then_ned_m[i], pos_var_m2[i])
+        });
+        match f.fuse(&pos_obs, gate) {
+            Outcome::Fused { correction, .. } => {
+                Self::note_correction(&mut self.history, &correction);
+                self.last_gps_fused_us = Some(now);
+            }
+            Outcome::Rejected { .. } => self.gated += 1,
+        }
+        let dt_us = self.last_vel_nis_us.map_or(0, |t| now.saturating_sub(t)) as f64;
+        self.vel_nis_lp += dt_us / (VEL_NIS_TAU_US + dt_us) * (vel_nis - self.vel_nis_lp);
+        self.last_vel_nis_us = Some(now);
+        self.refresh();
+        Ok(())
+    }
+
+    // ---------------------------------------------------------------------------------------------
+    // Flags and output
+    // ---------------------------------------------------------------------------------------------
+
+    /// Recomputes the health timers, the flags and the published state.
+    fn refresh(&mut self) {
+        let now = self.now_us.unwrap_or(0);
+        let (imu_ok, gps_ok, baro_ok, mag_ok) = (self.imu_ok(), self.gps_ok(), self.baro_ok(), self.mag_ok());
+        if !gps_ok {
+            self.gps_aiding_since_us = None;
+        }
+        let Stage::Running(f) = &self.stage else {
+            self.attitude_settled_since_us = None;
+            self.state = EstimatorState {
+                time_us: now,
+                origin: self.origin,
+                flags: EstimatorFlags { gps_ok, baro_ok, mag_ok, ..EstimatorFlags::default() },
+                ..EstimatorState::default()
+            };
+            return;
+        };
+        let c = &self.config;
+        let tilt_std_rad = f.std(idx::ATT).max(f.std(idx::ATT + 1));
+        let yaw_std_rad = f.std(idx::ATT + 2);
+        let pos_std_m = (0..3).map(|i| f.std(idx::POS + i)).fold(0.0, f64::max);
+        let vel_std_mps = (0..3).map(|i| f.std(idx::VEL + i)).fold(0.0, f64::max);
+
+        let attitude_valid =
+            imu_ok && self.yaw_aligned && tilt_std_rad <= c.valid_tilt_std_rad && yaw_std_rad <= c.valid_yaw_std_rad;
+        let velocity_valid = attitude_valid && gps_ok && vel_std_mps <= c.valid_vel_std_mps;
+        let position_valid = velocity_valid && self.origin.is_some() && pos_std_m <= c.valid_pos_std_m;
+
+        let settled = attitude_valid
+            && gps_ok
+            && tilt_std_rad <= c.converge_tilt_std_rad
+            && yaw_std_rad <= c.converge_yaw_std_rad
+            && self.vel_nis_lp <= c.converge_vel_nis_max;
+        self.attitude_settled_since_us =
+            if settled { Some(self.attitude_settled_since_us.unwrap_or(now)) } else { None };
+        let held = |since: Option<u64>, seconds: f64| since.is_some_and(|t| now.saturating_sub(t) >= us(seconds));
+        let converged = position_valid
+            && held(self.attitude_settled_since_us, c.converge_settle_s)
+            && held(self.gps_aiding_since_us, c.converge_gps_s)
+            && pos_std_m <= c.converge_pos_std_m
+            && vel_std_mps <= c.converge_vel_std_mps;
+
+        let x = &f.x;
+        let (rate_frd_radps, specific_force_frd_mps2) =
+            self.last_imu.map_or((Vector3::zeros(), Vector3::zeros()), |imu| {
+                (imu.gyro_frd_radps - x.gyro_bias_frd_radps, imu.accel_frd_mps2 - x.accel_bias_frd_mps2)
+            });
+        self.state = EstimatorState {
+            time_us: now,
+            pos_ned_m: x.pos_ned_m,
+            vel_ned_mps: x.vel_ned_mps,
+            q_ned_frd: x.q_ned_frd,
+            euler_rad: euler_zyx_rad(&x.q_ned_frd),
+            rate_frd_radps,
+            specific_force_frd_mps2,
+            accel_bias_frd_mps2: x.accel_bias_frd_mps2,
+            gyro_bias_frd_radps: x.gyro_bias_frd_radps,
+            origin: self.origin,
+            flags: EstimatorFlags {
+                attitude_valid,
+                velocity_valid,
+                position_valid,
+                converged,
+                gps_ok,
+                baro_ok,
+                mag_ok,
+            },
+        };
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn given_a_small_attitude_error_when_the_heading_is_levelled_with_it_then_the_residual_matches_the_observation_row()
+    {
+        let fusion = Fusion::new(&EstimatorConfig::default());
+        let (decl, incl) = (3.3_f64.to_radians(), 63.6_f64.to_radians());
+        let field_ned = Vector3::new(incl.cos() * decl.cos(), incl.cos() * decl.sin(), incl.sin()) * 0.48;
+        let q_true = UnitQuaternion::from_euler_angles(0.2, -0.1, 1.0);
+        let field_frd = q_true.inverse() * field_ned;
+        // The estimate is off by dtheta (NED axes): q_true = exp(dtheta) q_est.
+        let dtheta = Vector3::new(0.004, -0.006, 0.005);
+        let q_est = UnitQuaternion::from_scaled_axis(-dtheta) * q_true;
+        let heading = fusion.mag_heading_rad(&q_est, &field_frd).unwrap();
+        let residual = wrap_pi(heading - euler_zyx_rad(&q_est).z);
+        let h = Vector3::new(-incl.tan() * decl.cos(), -incl.tan() * decl.sin(), 1.0);
+        assert!((residual - h.dot(&dtheta)).abs() < 1e-4, "residual {residual} vs h.dtheta {}", h.dot(&dtheta));
+        // Ignoring the leak of the tilt error into the heading would be wrong by about twice the tilt error.
+        assert!((residual - dtheta.z).abs() > 0.005);
+    }
+}
