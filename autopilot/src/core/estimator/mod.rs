@@ -63,6 +63,10 @@ mod fusion;
 pub mod geo;
 mod history;
 
+#[cfg(test)]
+mod sim;
+#[cfg(test)]
+mod tests;
 
 pub use geo::GeoOrigin;
 
