@@ -142,7 +142,11 @@ impl ReferenceSpec {
                 if !(track.prefilter_wn_radps > 0.0 && track.prefilter_wn_radps.is_finite()) {
                     return Err(invalid("track prefilter_wn_radps must be > 0"));
                 }
-                if !(track.start_s >= 0.0) || !track.pos_d_m.is_finite() || !track.yaw_rad.is_finite() {
+                if !track.start_s.is_finite()
+                    || track.start_s < 0.0
+                    || !track.pos_d_m.is_finite()
+                    || !track.yaw_rad.is_finite()
+                {
                     return Err(invalid("track start_s must be >= 0 and pos_d_m, yaw_rad finite"));
                 }
                 if track.laps == 0 || track.reference_modes.is_empty() {
@@ -206,10 +210,10 @@ pub struct TrackGen {
     pub path: SplinePath,
     spec: TrackSpec,
     mode: ReferenceMode,
-    /// Prefilter state: progress (m) and its rate (m/s), at `filter_t_s`.
+    /// Prefilter state: progress (m) and its rate (m/s), after `filter_steps` steps.
     s_m: f64,
     s_dot_mps: f64,
-    filter_t_s: f64,
+    filter_steps: u64,
 }
 
 /// The prefilter is integrated at this fixed step, whatever the control rate, so the reference is the
@@ -225,7 +229,7 @@ impl TrackGen {
             mode,
             s_m: 0.0,
             s_dot_mps: 0.0,
-            filter_t_s: 0.0,
+            filter_steps: 0,
         }
     }
 
@@ -248,22 +252,28 @@ impl TrackGen {
     /// Progress along the path (m) of the prefiltered reference at `t_s`.
     pub fn progress_m(&mut self, t_s: f64) -> f64 {
         let wf = self.spec.prefilter_wn_radps;
-        while self.filter_t_s + PREFILTER_STEP_S <= t_s + 1e-12 {
+        // Steps are counted, not summed as time, so every tick integrates exactly its share.
+        let target_steps = (t_s / PREFILTER_STEP_S + 1e-6).floor().max(0.0) as u64;
+        while self.filter_steps < target_steps {
             // Semi-implicit Euler at 0.1 ms on s_ddot = wf^2 (r - s) - 2 wf s_dot: error far below
             // anything a metric resolves.
-            let r = self.raw_progress_m(self.filter_t_s);
+            let r = self.raw_progress_m(self.filter_time_s());
             let s_ddot = wf * wf * (r - self.s_m) - 2.0 * wf * self.s_dot_mps;
             self.s_dot_mps += s_ddot * PREFILTER_STEP_S;
             self.s_m += self.s_dot_mps * PREFILTER_STEP_S;
-            self.filter_t_s += PREFILTER_STEP_S;
+            self.filter_steps += 1;
         }
         self.s_m
+    }
+
+    fn filter_time_s(&self) -> f64 {
+        self.filter_steps as f64 * PREFILTER_STEP_S
     }
 
     pub fn at(&mut self, t_s: f64) -> Reference {
         let s = self.progress_m(t_s);
         let wf = self.spec.prefilter_wn_radps;
-        let s_ddot = wf * wf * (self.raw_progress_m(self.filter_t_s) - s) - 2.0 * wf * self.s_dot_mps;
+        let s_ddot = wf * wf * (self.raw_progress_m(self.filter_time_s()) - s) - 2.0 * wf * self.s_dot_mps;
         let (p, dp_ds, d2p_ds2) = self.path.eval(s);
         let d = self.spec.pos_d_m;
         let mut reference = Reference::position(Vector3::new(p.x, p.y, d), self.spec.yaw_rad);
