@@ -78,6 +78,8 @@ pub const ATTITUDE_TABLE: &[ReferenceRow] = &[
 ];
 
 /// Spec (d), "Paper translation scenario".
+// The nominal CA row's RMS of 0.318 m is a measurement that happens to look like 1/pi.
+#[allow(clippy::approx_constant)]
 pub const TRANSLATION_TABLE: &[ReferenceRow] = &[
     ReferenceRow {
         plant: "mismatch",

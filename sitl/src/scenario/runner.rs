@@ -318,32 +318,37 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
     Ok(RunOutput { metrics: m, trace })
 }
 
+/// The three axes a step schedule moves: their names, recorded values and references, initial values,
+/// and the schedule as (time, targets).
+struct StepAxes<'a> {
+    names: [&'static str; 3],
+    values: &'a [Vec<f64>; 3],
+    refs: &'a [Vec<f64>; 3],
+    starts: [f64; 3],
+    schedule: Vec<(f64, [f64; 3])>,
+}
+
 /// Step segments of every axis that the schedule moves, and whole-run RMS per axis.
 fn step_metrics(scenario: &Scenario, s: &Series) -> (Vec<SegmentMetrics>, BTreeMap<&'static str, f64>) {
     let end = scenario.duration_s;
-    let (names, values, refs, starts, schedule): (
-        [&'static str; 3],
-        &[Vec<f64>; 3],
-        &[Vec<f64>; 3],
-        [f64; 3],
-        Vec<(f64, [f64; 3])>,
-    ) = match &scenario.reference {
-        ReferenceSpec::Attitude { steps, .. } => (
-            ["roll", "pitch", "yaw"],
-            &s.euler,
-            &s.ref_euler,
-            scenario.initial.euler_rad,
-            steps.iter().map(|st| (st.t_s, st.euler_rad)).collect(),
-        ),
-        ReferenceSpec::Position { steps } => (
-            ["n", "e", "d"],
-            &s.pos,
-            &s.ref_pos,
-            scenario.initial.pos_ned_m,
-            steps.iter().map(|st| (st.t_s, st.pos_ned_m)).collect(),
-        ),
+    let axes = match &scenario.reference {
+        ReferenceSpec::Attitude { steps, .. } => StepAxes {
+            names: ["roll", "pitch", "yaw"],
+            values: &s.euler,
+            refs: &s.ref_euler,
+            starts: scenario.initial.euler_rad,
+            schedule: steps.iter().map(|st| (st.t_s, st.euler_rad)).collect(),
+        },
+        ReferenceSpec::Position { steps } => StepAxes {
+            names: ["n", "e", "d"],
+            values: &s.pos,
+            refs: &s.ref_pos,
+            starts: scenario.initial.pos_ned_m,
+            schedule: steps.iter().map(|st| (st.t_s, st.pos_ned_m)).collect(),
+        },
         ReferenceSpec::Track(_) => return (Vec::new(), BTreeMap::new()),
     };
+    let StepAxes { names, values, refs, starts, schedule } = axes;
     let mut segments = Vec::new();
     let mut previous = starts;
     for (i, (t0, target)) in schedule.iter().enumerate() {

@@ -12,8 +12,9 @@
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
-use super::distributor::{collective_thrust_n, 
-    self, ActuatorLimits, LimitedThrust, MixerSaturation, attitude_from_thrust, limit_thrust_vector,
+use super::distributor::{
+    self, ActuatorLimits, LimitedThrust, MixerSaturation, attitude_from_thrust, collective_thrust_n,
+    limit_thrust_vector,
 };
 use super::frames::quaternion_from_euler;
 use super::{Airframe, ControlInput, Controller, ControllerKind, LoopRates, Reference, clip_abs, inputs_finite};
