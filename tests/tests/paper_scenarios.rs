@@ -31,29 +31,10 @@ fn later_worst_overshoot(out: &RunOutput) -> f64 {
     out.metrics.segments.iter().flatten().filter(|s| s.t0_s > 0.0).map(|s| s.overshoot_pct).fold(0.0, f64::max)
 }
 
-/// Initial-step metrics of the baselines that do not reproduce the prototype's, as
-/// (plant, controller, axis). The spec does not pin down every detail of the baselines, and these depend on
-/// one it leaves open (for CA on the mismatch plant, something in its saturation freeze: with the freeze
-/// off, roll/pitch settle in exactly the table's 1.10/1.11 s but yaw overshoots 37 %; for PID, the geometry
-/// of its quaternion attitude error from the large initial attitude). Each is reported with our figure
-/// in the README. Every other metric of these rows is still checked.
-const KNOWN_DEVIATIONS: &[(&str, ControllerKind, &str)] = &[
-    ("mismatch", Ca, "roll"),
-    ("mismatch", Ca, "pitch"),
-    ("mismatch", Ca, "yaw"),
-    ("nominal", Pid, "roll"),
-    ("nominal", Pid, "pitch"),
-    ("mismatch", Pid, "roll"),
-    ("mismatch", Pid, "pitch"),
-];
-
 fn check_equivalence(row: &ReferenceRow, out: &RunOutput, attitude: bool) -> Vec<String> {
     let mut bad = Vec::new();
     let who = format!("{} {} {:?}", out.metrics.scenario, row.plant, row.controller);
     for (seg, want) in table_segments(out, attitude).iter().zip(row.steps) {
-        if attitude && KNOWN_DEVIATIONS.contains(&(row.plant, row.controller, seg.axis)) {
-            continue;
-        }
         if (seg.overshoot_pct - want.overshoot_pct).abs() > 1.0 {
             bad.push(format!(
                 "{who} {} t0 {}: overshoot {:.2} % vs {:.1} %",
@@ -103,7 +84,7 @@ fn baselines_match_the_reference_translation_results_on_both_plants() {
 }
 
 #[test]
-fn baselines_match_the_reference_attitude_results_but_for_the_known_deviations() {
+fn baselines_match_the_reference_attitude_results_on_both_plants() {
     let mut bad = Vec::new();
     for row in ATTITUDE_TABLE.iter().filter(|r| r.controller != Aco) {
         bad.extend(check_equivalence(row, &att(row.controller, row.plant), true));
@@ -221,8 +202,8 @@ fn baselines_are_the_specified_ones_on_the_mismatch_plant() {
         let os = segment(&trans(Ca, "mismatch"), axis, 0.0).overshoot_pct;
         assert!((2.0..=8.0).contains(&os), "CA {axis} overshoot {os:.2} % outside 2-8 %");
     }
-    // The spec's third sanity range, PID pitch overshoot 5-9 % in the attitude scenario, falls under
-    // KNOWN_DEVIATIONS (mismatch, Pid, pitch): ours is 0 %, see the README.
+    let os = segment(&att(Pid, "mismatch"), "pitch", 0.0).overshoot_pct;
+    assert!((5.0..=9.0).contains(&os), "PID pitch overshoot {os:.2} % outside 5-9 %");
 }
 
 /// "Every metric within 10 % or 0.2 s of its 500 Hz value": times within max(10 %, 0.2 s), overshoot within

@@ -10,7 +10,8 @@
 //! Per channel: reference model `x_m'' = wn² (r - x_m) - 2 zeta wn x_m'` (semi-implicit Euler,
 //! `x_m(0) = x(0)`), control `v = k1 x1 + k2 x2 + kr r + theta`, error `s = p12 e1 + p22 e2` from
 //! `A_mᵀP + P A_m = -I`, gradient laws with projection, and the adaptation frozen while that channel's
-//! actuator was saturated at the previous output.
+//! actuator was saturated at the previous output (yaw, N/E, D; roll and pitch only with
+//! `MracConfig::freeze_roll_pitch`, which the reference prototype's results show it did not do).
 
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
@@ -22,7 +23,8 @@ use super::distributor::{
 use super::frames::{body_to_euler_rates, wrap_pi};
 use super::{Airframe, ControlInput, Controller, ControllerKind, LoopRates, Reference, inputs_finite};
 
-/// MRAC baseline settings (spec (c)). Default = "CA"; `freeze_on_saturation = false` gives "CA-raw",
+/// MRAC baseline settings (spec (c)). Default = "CA" as the reference prototype flew it (see
+/// `freeze_roll_pitch`); `freeze_on_saturation = false` gives "CA-raw",
 /// `gamma_theta_pos = 3` gives "CA-fast".
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -55,6 +57,9 @@ pub struct MracConfig {
     pub theta_max_pos: f64,
     /// Stop adapting a channel while its actuator is saturated (false: "CA-raw").
     pub freeze_on_saturation: bool,
+    /// Also freeze roll and pitch while the distributor scales or clips them, as the spec's text says.
+    /// Off by default, as the reference prototype flew (see [`MixerSaturation::freeze_axes`]).
+    pub freeze_roll_pitch: bool,
 }
 
 impl Default for MracConfig {
@@ -74,6 +79,7 @@ impl Default for MracConfig {
             theta_max_att: 8.0,
             theta_max_pos: 4.0,
             freeze_on_saturation: true,
+            freeze_roll_pitch: false,
         }
     }
 }
@@ -335,7 +341,7 @@ impl Controller for MracController {
         let r = [sp.x, sp.y, yaw + wrap_pi(sp.z - yaw)];
         let sat = self.last_saturation;
         let freeze = self.cfg.freeze_on_saturation;
-        let frozen = [freeze && sat.roll, freeze && sat.pitch, freeze && sat.yaw];
+        let frozen = sat.freeze_axes(self.cfg.freeze_roll_pitch).map(|saturated| freeze && saturated);
         let inertia = self.cfg.airframe.inertia();
         for j in 0..3 {
             let v = self.att[j].step(x1[j], eta_dot[j], r[j], self.dt_s, frozen[j]);
@@ -474,6 +480,30 @@ mod tests {
         let before = raw.att[2].parameters();
         raw.update(&input, &r);
         assert_ne!(raw.att[2].parameters(), before);
+    }
+
+    #[test]
+    fn given_roll_pitch_saturation_when_ticking_then_roll_pitch_freeze_only_if_configured() {
+        let p = Vector3::new(0.0, 0.0, -2.0);
+        let r = Reference::attitude(Vector3::new(0.1, 0.1, 0.1), -2.0);
+        let mut input = hover_input(p, 0.0);
+        input.rate_frd_radps = Vector3::new(0.3, 0.3, 0.3);
+        input.euler_rad = Vector3::new(0.02, 0.02, 0.02);
+        for (freeze_roll_pitch, frozen) in [(false, false), (true, true)] {
+            let mut c =
+                MracController::new(&MracConfig { freeze_roll_pitch, ..MracConfig::default() }, LoopRates::default());
+            c.update(&hover_input(p, 0.0), &r);
+            c.last_saturation = MixerSaturation { roll: true, pitch: true, ..c.last_saturation };
+            let before = c.att.map(|ch| ch.parameters());
+            c.update(&input, &r);
+            for j in 0..2 {
+                assert_eq!(
+                    c.att[j].parameters() == before[j],
+                    frozen,
+                    "axis {j}, freeze_roll_pitch {freeze_roll_pitch}"
+                );
+            }
+        }
     }
 
     #[test]

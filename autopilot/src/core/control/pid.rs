@@ -49,6 +49,10 @@ pub struct PidConfig {
     pub rate_integral_max_nm: f64,
     /// Desired body-rate limits (rad/s), FRD.
     pub rate_limit_radps: [f64; 3],
+    /// Also freeze the roll and pitch rate integrators while the distributor saturates those axes, as
+    /// the spec's text says. Off by default, as the reference prototype flew (see
+    /// [`MixerSaturation::freeze_axes`]); the yaw integrator is always frozen under saturation.
+    pub freeze_roll_pitch: bool,
 }
 
 impl Default for PidConfig {
@@ -67,6 +71,7 @@ impl Default for PidConfig {
             kri_rate_per_s2: [12.0, 12.0, 2.25],
             rate_integral_max_nm: 0.3,
             rate_limit_radps: [3.5, 3.5, 1.5],
+            freeze_roll_pitch: false,
         }
     }
 }
@@ -203,7 +208,7 @@ impl Controller for PidController {
         self.moment_cmd_nm =
             inertia.component_mul(&Vector3::from(c.k_rate_per_s).component_mul(&e_w)) + self.rate_integral_nm;
         let sat = self.last_saturation;
-        for (j, saturated) in [sat.roll, sat.pitch, sat.yaw].into_iter().enumerate() {
+        for (j, saturated) in sat.freeze_axes(c.freeze_roll_pitch).into_iter().enumerate() {
             if !saturated {
                 self.rate_integral_nm[j] = (self.rate_integral_nm[j]
                     + inertia[j] * c.kri_rate_per_s2[j] * e_w[j] * self.dt_s)
@@ -330,7 +335,9 @@ mod tests {
 
     #[test]
     fn given_saturating_rate_error_when_ticking_then_rate_integrator_frozen() {
-        let mut c = pid();
+        // The spec's literal reading; by default roll/pitch integrate through saturation (the prototype).
+        let mut c =
+            PidController::new(&PidConfig { freeze_roll_pitch: true, ..PidConfig::default() }, LoopRates::default());
         let p = Vector3::new(0.0, 0.0, -2.0);
         let mut input = hover_input(p, 0.0);
         input.rate_frd_radps.x = -10.0;
@@ -341,6 +348,12 @@ mod tests {
             c.update(&input, &Reference::position(p, 0.0));
         }
         assert_eq!(c.rate_integral_nm().x, after_first.x);
+        let mut default = pid();
+        default.update(&input, &Reference::position(p, 0.0));
+        let first = default.rate_integral_nm();
+        assert!(default.last_saturation.roll);
+        default.update(&input, &Reference::position(p, 0.0));
+        assert_ne!(default.rate_integral_nm().x, first.x, "by default roll integrates through saturation");
     }
 
     #[test]
