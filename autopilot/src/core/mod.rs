@@ -1,4 +1,5 @@
 //! The pure vehicle core: no clocks, sockets, files or async runtime; time and randomness come in as inputs.
 
+pub mod commander;
 pub mod control;
 pub mod estimator;

@@ -1,0 +1,670 @@
+//! The commander: arming, flight modes and landing detection. In, once per control step (any rate, ~50-250
+//! Hz): [`CommanderInputs`] (vehicle time `now_us` in µs, the estimate in NED m and m/s with its health
+//! flags, whether the thrust is at its minimum, home). In, whenever a ground station asks: a [`Request`]
+//! (arm, disarm, kill, takeoff, land, hold, set mode), answered at once with `Ok` or a [`Refusal`] whose
+//! text fits a STATUSTEXT; a refused request changes nothing. Out, per step: a [`CommanderOutput`] with the
+//! [`State`], the PX4 identity (`custom_mode`, `base_mode`, `system_status`, `landed_state`), the
+//! [`Setpoint`] the controller should fly, and the [`Event`]s since the last step (for an immediate
+//! HEARTBEAT and a STATUSTEXT).
+//!
+//! Decisions are made by the transition table of [`state_machine`] (`next(state, conditions)`); this
+//! module computes the conditions, runs entry actions (latching the takeoff target, the hold point, the
+//! landing spot) and keeps the flight mode alongside the state. All delays are measured on `now_us`, so they
+//! hold at any simulation speed-up. Semantics follow PX4: takeoff may be asked for before arming and starts
+//! once armed; takeoff ends in Hold at the takeoff point; a landing disarms `disarm_land_s` after touchdown;
+//! an armed vehicle that has not taken off disarms after `disarm_preflight_s`; disarming in the air needs
+//! force; kill stops the motors from any state and stays until a disarm.
+
+use std::fmt;
+
+use nalgebra::{Vector2, Vector3};
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+pub mod land_detector;
+pub mod mode;
+pub mod state_machine;
+
+#[cfg(test)]
+mod tests;
+
+pub use land_detector::{LandDetector, LandDetectorConfig, LandedState};
+pub use mode::{FlightMode, Px4Mode};
+pub use state_machine::{Conditions, State};
+
+use land_detector::{LandDetectorSample, Phase, seconds_to_us};
+use mode::system_status;
+
+/// The commander's parameters (PX4 names in the field docs).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CommanderConfig {
+    /// Takeoff altitude above home when the request names none (m; MIS_TAKEOFF_ALT).
+    pub takeoff_alt_m: f64,
+    /// Descent speed when landing (m/s; MPC_LAND_SPEED).
+    pub land_speed_mps: f64,
+    /// Disarm this long after touchdown (s; COM_DISARM_LAND; negative: never).
+    pub disarm_land_s: f64,
+    /// Disarm when armed this long without taking off (s; COM_DISARM_PRFLT; negative: never).
+    pub disarm_preflight_s: f64,
+    /// The takeoff is complete within this distance of its altitude (m).
+    pub takeoff_acceptance_m: f64,
+    pub land_detector: LandDetectorConfig,
+}
+
+impl Default for CommanderConfig {
+    fn default() -> Self {
+        Self {
+            takeoff_alt_m: 2.5,
+            land_speed_mps: 0.7,
+            disarm_land_s: 2.0,
+            disarm_preflight_s: 10.0,
+            takeoff_acceptance_m: 0.1,
+            land_detector: LandDetectorConfig::default(),
+        }
+    }
+}
+
+/// A configuration value out of range.
+#[derive(Debug, Clone, PartialEq, Error)]
+#[error("commander config: {field} = {value} must be {must}")]
+pub struct ConfigError {
+    pub field: &'static str,
+    pub value: f64,
+    pub must: &'static str,
+}
+
+impl CommanderConfig {
+    /// # Errors
+    /// [`ConfigError`] naming the first field out of range (non-finite, or not positive where it must be).
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let ld = &self.land_detector;
+        let positive = [
+            ("takeoff_alt_m", self.takeoff_alt_m),
+            ("land_speed_mps", self.land_speed_mps),
+            ("takeoff_acceptance_m", self.takeoff_acceptance_m),
+            ("land_detector.max_vel_d_mps", ld.max_vel_d_mps),
+            ("land_detector.max_vel_ne_mps", ld.max_vel_ne_mps),
+            ("land_detector.ground_height_m", ld.ground_height_m),
+        ];
+        for (field, value) in positive {
+            if !(value.is_finite() && value > 0.0) {
+                return Err(ConfigError { field, value, must: "finite and positive" });
+            }
+        }
+        let finite = [
+            ("disarm_land_s", self.disarm_land_s),
+            ("disarm_preflight_s", self.disarm_preflight_s),
+            ("land_detector.dwell_s", ld.dwell_s),
+        ];
+        for (field, value) in finite {
+            if !value.is_finite() {
+                return Err(ConfigError { field, value, must: "finite" });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The estimate as the commander needs it (NED about the estimator's origin).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Estimate {
+    pub pos_ned_m: Vector3<f64>,
+    pub vel_ned_mps: Vector3<f64>,
+    pub yaw_rad: f64,
+    /// Position (and velocity) usable for control.
+    pub position_valid: bool,
+    /// The estimator's converged flag: the arming check.
+    pub converged: bool,
+}
+
+impl Default for Estimate {
+    fn default() -> Self {
+        Self {
+            pos_ned_m: Vector3::zeros(),
+            vel_ned_mps: Vector3::zeros(),
+            yaw_rad: 0.0,
+            position_valid: false,
+            converged: false,
+        }
+    }
+}
+
+/// One step's inputs.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct CommanderInputs {
+    /// Vehicle time (µs).
+    pub now_us: u64,
+    pub estimate: Estimate,
+    /// The controller's collective thrust is at its minimum.
+    pub throttle_low: bool,
+    /// Home (m, NED); its down coordinate is the ground. None: the ground is where the vehicle armed.
+    pub home_ned_m: Option<Vector3<f64>>,
+}
+
+/// What a ground station (through the MAVLink handlers) asks of the commander.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Request {
+    /// ARM_DISARM param1 1; `force` is param2 = 21196.
+    Arm { force: bool },
+    /// ARM_DISARM param1 0; `force` disarms in the air. (param1 0 with force from MAVSDK is a [`Request::Kill`]
+    /// when the MAVLink layer wants PX4's lockdown semantics.)
+    Disarm { force: bool },
+    /// Stop the motors now, from any state; stays killed until a disarm.
+    Kill,
+    /// NAV_TAKEOFF, to `alt_rel_m` above home (None: `takeoff_alt_m`). Accepted while disarmed: remembered
+    /// and started on arming.
+    Takeoff { alt_rel_m: Option<f64> },
+    /// NAV_LAND here.
+    Land,
+    /// Hold here (AUTO LOITER).
+    Hold,
+    /// DO_SET_MODE / SET_MODE with PX4's (main, sub).
+    SetMode { main: u8, sub: u8 },
+    /// NAV_RETURN_TO_LAUNCH (refused for now).
+    ReturnToLaunch,
+}
+
+/// What was refused, for the words of a [`Refusal`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Action {
+    Arm,
+    Disarm,
+    Takeoff,
+    Land,
+    Hold,
+}
+
+impl fmt::Display for Action {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Self::Arm => "Arming",
+            Self::Disarm => "Disarming",
+            Self::Takeoff => "Takeoff",
+            Self::Land => "Land",
+            Self::Hold => "Hold",
+        })
+    }
+}
+
+/// Why a request was refused; `Display` is a STATUSTEXT (under 50 characters).
+#[derive(Debug, Clone, Copy, PartialEq, Error)]
+pub enum Refusal {
+    #[error("{0} denied: estimator not converged")]
+    EstimatorNotConverged(Action),
+    #[error("{0} denied: in air (use force)")]
+    InAir(Action),
+    #[error("{action} denied: {state}")]
+    NotInState { action: Action, state: State },
+    #[error("Takeoff denied: altitude {0} m invalid")]
+    InvalidAltitude(f64),
+    #[error("Mode not supported: {name} {reason}")]
+    ModeNotSupported { name: &'static str, reason: &'static str },
+    #[error("Mode not supported: main {main} sub {sub}")]
+    UnknownMode { main: u8, sub: u8 },
+}
+
+/// What the controller should fly (NED, m, rad, m/s). The vehicle core turns it into a controller
+/// `Reference`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Setpoint {
+    /// Motors at minimum (armed on the ground) or off (disarmed, killed).
+    Idle,
+    /// Hold this position and yaw.
+    Hold { pos_ned_m: Vector3<f64>, yaw_rad: f64 },
+    /// Climb (or descend) to this position and yaw: the takeoff target.
+    Climb { pos_ned_m: Vector3<f64>, yaw_rad: f64 },
+    /// Hold north/east and yaw, descend at `speed_mps` until on the ground.
+    Descend { pos_ne_m: Vector2<f64>, yaw_rad: f64, speed_mps: f64 },
+}
+
+/// Why the vehicle disarmed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DisarmReason {
+    /// A disarm request on the ground.
+    Requested,
+    /// A forced disarm request (possibly in the air).
+    Forced,
+    /// `disarm_land_s` after touchdown.
+    AutoLanded,
+    /// `disarm_preflight_s` armed without taking off.
+    AutoPreflight,
+    /// A kill.
+    Kill,
+}
+
+/// Something the MAVLink layer reports: arm and mode changes want a HEARTBEAT at once, all a STATUSTEXT.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Event {
+    Armed { forced: bool },
+    Disarmed { reason: DisarmReason },
+    Killed,
+    ModeChanged { mode: FlightMode, custom_mode: u32 },
+    Landed,
+    TakeoffComplete,
+}
+
+impl Event {
+    /// The STATUSTEXT for this event.
+    #[must_use]
+    pub fn text(&self) -> String {
+        match self {
+            Self::Armed { forced: false } => "Armed".into(),
+            Self::Armed { forced: true } => "Armed (forced)".into(),
+            Self::Disarmed { reason } => match reason {
+                DisarmReason::Requested => "Disarmed".into(),
+                DisarmReason::Forced => "Disarmed (forced)".into(),
+                DisarmReason::AutoLanded => "Disarmed after landing".into(),
+                DisarmReason::AutoPreflight => "Disarmed: no takeoff".into(),
+                DisarmReason::Kill => "Disarmed by kill".into(),
+            },
+            Self::Killed => "Kill switch engaged".into(),
+            Self::ModeChanged { mode, .. } => format!("Mode: {mode}"),
+            Self::Landed => "Landing detected".into(),
+            Self::TakeoffComplete => "Takeoff complete".into(),
+        }
+    }
+
+    /// Whether the HEARTBEAT changed (armed flag, mode or status): send one at once.
+    #[must_use]
+    pub const fn changes_heartbeat(&self) -> bool {
+        matches!(self, Self::Armed { .. } | Self::Disarmed { .. } | Self::Killed | Self::ModeChanged { .. })
+    }
+}
+
+/// One step's outputs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CommanderOutput {
+    pub state: State,
+    pub mode: FlightMode,
+    /// HEARTBEAT custom_mode (PX4 main/sub).
+    pub custom_mode: u32,
+    /// HEARTBEAT base_mode (MAV_MODE_FLAG bits).
+    pub base_mode: u8,
+    /// HEARTBEAT system_status (MAV_STATE).
+    pub system_status: u8,
+    /// EXTENDED_SYS_STATE landed_state (MAV_LANDED_STATE).
+    pub landed_state: u8,
+    pub armed: bool,
+    pub motors_enabled: bool,
+    pub setpoint: Setpoint,
+    /// What happened since the previous step (requests included), in order.
+    pub events: Vec<Event>,
+}
+
+/// The commander. See the module docs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Commander {
+    config: CommanderConfig,
+    state: State,
+    mode: FlightMode,
+    /// The hold-like mode a Hold state shows (AUTO LOITER, POSCTL or ALTCTL).
+    hold_mode: FlightMode,
+    pending_takeoff_alt_m: Option<f64>,
+    land_detector: LandDetector,
+    /// The latest finite estimate.
+    est: Estimate,
+    est_ok: bool,
+    home_ned_m: Option<Vector3<f64>>,
+    /// The ground's down coordinate when there is no home: where the vehicle was while disarmed.
+    arm_ground_d_m: f64,
+    takeoff_target_ned_m: Vector3<f64>,
+    hold_ned_m: Vector3<f64>,
+    land_ne_m: Vector2<f64>,
+    yaw_sp_rad: f64,
+    armed_idle_since_us: u64,
+    touchdown_us: Option<u64>,
+    events: Vec<Event>,
+}
+
+impl Commander {
+    /// A disarmed commander in Hold mode, on the ground.
+    ///
+    /// # Errors
+    /// [`ConfigError`] when the configuration is out of range.
+    pub fn new(config: CommanderConfig) -> Result<Self, ConfigError> {
+        config.validate()?;
+        Ok(Self {
+            config,
+            state: State::Disarmed,
+            mode: FlightMode::Hold,
+            hold_mode: FlightMode::Hold,
+            pending_takeoff_alt_m: None,
+            land_detector: LandDetector::new(config.land_detector),
+            est: Estimate::default(),
+            est_ok: false,
+            home_ned_m: None,
+            arm_ground_d_m: 0.0,
+            takeoff_target_ned_m: Vector3::zeros(),
+            hold_ned_m: Vector3::zeros(),
+            land_ne_m: Vector2::zeros(),
+            yaw_sp_rad: 0.0,
+            armed_idle_since_us: 0,
+            touchdown_us: None,
+            events: Vec::new(),
+        })
+    }
+
+    #[must_use]
+    pub fn config(&self) -> &CommanderConfig {
+        &self.config
+    }
+
+    #[must_use]
+    pub fn state(&self) -> State {
+        self.state
+    }
+
+    #[must_use]
+    pub fn mode(&self) -> FlightMode {
+        self.mode
+    }
+
+    /// The altitude (m above home) of a takeoff asked for while disarmed, if any.
+    #[must_use]
+    pub fn pending_takeoff_alt_m(&self) -> Option<f64> {
+        self.pending_takeoff_alt_m
+    }
+
+    #[must_use]
+    pub fn armed(&self) -> bool {
+        self.state.is_armed()
+    }
+
+    #[must_use]
+    pub fn custom_mode(&self) -> u32 {
+        self.mode.custom_mode()
+    }
+
+    #[must_use]
+    pub fn base_mode(&self) -> u8 {
+        self.mode.base_mode(self.armed())
+    }
+
+    /// STANDBY disarmed, ACTIVE armed, CRITICAL armed without a usable position, EMERGENCY killed.
+    #[must_use]
+    pub fn system_status(&self) -> u8 {
+        match self.state {
+            State::Killed => system_status::EMERGENCY,
+            State::Disarmed => system_status::STANDBY,
+            _ if !self.est.position_valid => system_status::CRITICAL,
+            _ => system_status::ACTIVE,
+        }
+    }
+
+    /// EXTENDED_SYS_STATE landed_state.
+    #[must_use]
+    pub fn landed_state(&self) -> LandedState {
+        let phase = match self.state {
+            State::Takeoff => Phase::Takeoff,
+            State::Land => Phase::Landing,
+            _ => Phase::Other,
+        };
+        if self.state == State::Disarmed { LandedState::OnGround } else { self.land_detector.landed_state(phase) }
+    }
+
+    /// The setpoint for the controller.
+    #[must_use]
+    pub fn setpoint(&self) -> Setpoint {
+        let yaw_rad = self.yaw_sp_rad;
+        match self.state {
+            State::Disarmed | State::ArmedIdle | State::Killed => Setpoint::Idle,
+            State::Takeoff => Setpoint::Climb { pos_ned_m: self.takeoff_target_ned_m, yaw_rad },
+            State::Hold => Setpoint::Hold { pos_ned_m: self.hold_ned_m, yaw_rad },
+            State::Land if self.land_detector.landed() => Setpoint::Idle,
+            State::Land => {
+                Setpoint::Descend { pos_ne_m: self.land_ne_m, yaw_rad, speed_mps: self.config.land_speed_mps }
+            }
+        }
+    }
+
+    /// Handles a request at `now_us`, at once.
+    ///
+    /// # Errors
+    /// [`Refusal`] saying why; the commander is then exactly as before.
+    pub fn request(&mut self, now_us: u64, req: Request) -> Result<(), Refusal> {
+        let mut next = self.clone();
+        next.apply(now_us, req)?;
+        *self = next;
+        Ok(())
+    }
+
+    /// Takes one step's inputs, runs the automatic transitions and returns the outputs.
+    pub fn step(&mut self, inputs: &CommanderInputs) -> CommanderOutput {
+        let now = inputs.now_us;
+        self.take_estimate(inputs);
+        let was_landed = self.land_detector.landed();
+        let sample = LandDetectorSample {
+            vel_ned_mps: self.est.vel_ned_mps,
+            pos_d_m: self.est.pos_ned_m.z,
+            ground_d_m: Some(self.ground_d_m()),
+            throttle_low: inputs.throttle_low,
+            armed: self.state != State::Disarmed,
+        };
+        let landed = self.land_detector.update(now, &sample);
+        if landed && !was_landed && self.state != State::Disarmed {
+            self.events.push(Event::Landed);
+        }
+        self.touchdown_us = match (self.state, landed) {
+            (State::Land, true) => Some(self.touchdown_us.unwrap_or(now)),
+            _ => None,
+        };
+        // A few rounds at most: arming with a pending takeoff goes ArmedIdle -> Takeoff on the next step.
+        for _ in 0..State::ALL.len() {
+            let c = self.conditions(now);
+            match state_machine::fire(self.state, c) {
+                Some(t) if t.to != self.state => self.enter(t.to, c, now),
+                _ => break,
+            }
+        }
+        CommanderOutput {
+            state: self.state,
+            mode: self.mode,
+            custom_mode: self.custom_mode(),
+            base_mode: self.base_mode(),
+            system_status: self.system_status(),
+            landed_state: self.landed_state().mavlink(),
+            armed: self.armed(),
+            motors_enabled: self.armed(),
+            setpoint: self.setpoint(),
+            events: std::mem::take(&mut self.events),
+        }
+    }
+
+    fn take_estimate(&mut self, inputs: &CommanderInputs) {
+        let e = &inputs.estimate;
+        let finite = e.pos_ned_m.iter().chain(e.vel_ned_mps.iter()).all(|x| x.is_finite());
+        if finite {
+            self.est.pos_ned_m = e.pos_ned_m;
+            self.est.vel_ned_mps = e.vel_ned_mps;
+        }
+        if e.yaw_rad.is_finite() {
+            self.est.yaw_rad = e.yaw_rad;
+        }
+        self.est.position_valid = e.position_valid && finite;
+        self.est.converged = e.converged && finite;
+        self.est_ok = self.est.position_valid && self.est.converged;
+        self.home_ned_m = inputs.home_ned_m.filter(|h| h.iter().all(|x| x.is_finite()));
+        if self.state == State::Disarmed {
+            self.arm_ground_d_m = self.est.pos_ned_m.z;
+        }
+    }
+
+    fn ground_d_m(&self) -> f64 {
+        self.home_ned_m.map_or(self.arm_ground_d_m, |h| h.z)
+    }
+
+    /// The level conditions at `now_us` (no request bits except a pending takeoff).
+    fn conditions(&self, now_us: u64) -> Conditions {
+        use Conditions as C;
+        let expired = |delay_s: f64, since: Option<u64>| {
+            delay_s >= 0.0 && since.is_some_and(|t| now_us.saturating_sub(t) >= seconds_to_us(delay_s))
+        };
+        let auto_disarm = match self.state {
+            State::ArmedIdle => expired(self.config.disarm_preflight_s, Some(self.armed_idle_since_us)),
+            State::Land => expired(self.config.disarm_land_s, self.touchdown_us),
+            _ => false,
+        };
+        let alt_reached = self.state == State::Takeoff
+            && (self.est.pos_ned_m.z - self.takeoff_target_ned_m.z).abs() <= self.config.takeoff_acceptance_m;
+        C::NONE
+            .with(C::TAKEOFF_REQUESTED, self.pending_takeoff_alt_m.is_some())
+            .with(C::LANDED, self.land_detector.landed())
+            .with(C::TAKEOFF_ALT_REACHED, alt_reached)
+            .with(C::ESTIMATOR_OK, self.est_ok)
+            .with(C::AUTO_DISARM_EXPIRED, auto_disarm)
+    }
+
+    fn apply(&mut self, now: u64, req: Request) -> Result<(), Refusal> {
+        use Conditions as C;
+        let state = self.state;
+        match req {
+            Request::Arm { force } => match state {
+                State::Disarmed => self.transition(now, C::ARM_REQUESTED.with(C::FORCE, force), Action::Arm),
+                State::Killed => Err(Refusal::NotInState { action: Action::Arm, state }),
+                _ => Ok(()),
+            },
+            Request::Disarm { force } => match state {
+                State::Disarmed => Ok(()),
+                _ => self.transition(now, C::DISARM_REQUESTED.with(C::FORCE, force), Action::Disarm),
+            },
+            Request::Kill => match state {
+                State::Killed => Ok(()),
+                _ => self.transition(now, C::KILL, Action::Disarm),
+            },
+            Request::Takeoff { alt_rel_m } => {
+                let alt = alt_rel_m.unwrap_or(self.config.takeoff_alt_m);
+                if !(alt.is_finite() && alt > 0.0) {
+                    return Err(Refusal::InvalidAltitude(alt));
+                }
+                self.pending_takeoff_alt_m = Some(alt);
+                match state {
+                    State::Killed => Err(Refusal::NotInState { action: Action::Takeoff, state }),
+                    State::Disarmed => {
+                        self.set_mode(FlightMode::Takeoff);
+                        Ok(())
+                    }
+                    _ => self.transition(now, C::TAKEOFF_REQUESTED, Action::Takeoff),
+                }
+            }
+            Request::Land => match state {
+                State::Disarmed | State::Killed => Err(Refusal::NotInState { action: Action::Land, state }),
+                State::Land => Ok(()),
+                _ => self.transition(now, C::LAND_REQUESTED, Action::Land),
+            },
+            Request::Hold => self.hold_like(now, FlightMode::Hold),
+            Request::SetMode { main, sub } => match Px4Mode::decode(main, sub) {
+                Px4Mode::Supported(FlightMode::Takeoff) => self.apply(now, Request::Takeoff { alt_rel_m: None }),
+                Px4Mode::Supported(FlightMode::Land) => self.apply(now, Request::Land),
+                Px4Mode::Supported(m) => self.hold_like(now, m),
+                Px4Mode::ReturnToLaunch => self.apply(now, Request::ReturnToLaunch),
+                Px4Mode::Unsupported { name, reason } => Err(Refusal::ModeNotSupported { name, reason }),
+                Px4Mode::Unknown => Err(Refusal::UnknownMode { main, sub }),
+            },
+            Request::ReturnToLaunch => Err(Refusal::ModeNotSupported { name: "RTL", reason: "not implemented yet" }),
+        }
+    }
+
+    /// Hold, POSCTL or ALTCTL: a mode change on the ground or in Hold; a Hold where the vehicle is when
+    /// taking off or landing.
+    fn hold_like(&mut self, now: u64, mode: FlightMode) -> Result<(), Refusal> {
+        self.hold_mode = mode;
+        match self.state {
+            State::Killed => Err(Refusal::NotInState { action: Action::Hold, state: self.state }),
+            State::Disarmed | State::ArmedIdle | State::Hold => {
+                self.pending_takeoff_alt_m = None;
+                self.set_mode(mode);
+                Ok(())
+            }
+            State::Takeoff | State::Land => self.transition(now, Conditions::HOLD_REQUESTED, Action::Hold),
+        }
+    }
+
+    /// Runs the table once with the request bits; refuses, in words, when no row fires.
+    fn transition(&mut self, now: u64, request: Conditions, action: Action) -> Result<(), Refusal> {
+        let c = self.conditions(now) | request;
+        if let Some(t) = state_machine::fire(self.state, c) {
+            self.enter(t.to, c, now);
+            return Ok(());
+        }
+        let blocked = state_machine::blocked_by(self.state, c);
+        Err(if blocked.contains(Conditions::ESTIMATOR_OK) {
+            Refusal::EstimatorNotConverged(action)
+        } else if blocked.contains(Conditions::LANDED) {
+            Refusal::InAir(action)
+        } else {
+            Refusal::NotInState { action, state: self.state }
+        })
+    }
+
+    fn set_mode(&mut self, mode: FlightMode) {
+        if mode != self.mode {
+            self.mode = mode;
+            self.events.push(Event::ModeChanged { mode, custom_mode: mode.custom_mode() });
+        }
+    }
+
+    /// Entry actions of `to` (also for a row back into the same state: a new takeoff altitude).
+    fn enter(&mut self, to: State, c: Conditions, now: u64) {
+        use Conditions as C;
+        let from = self.state;
+        let pos = self.est.pos_ned_m;
+        if !from.is_armed() || from == State::ArmedIdle {
+            self.yaw_sp_rad = self.est.yaw_rad;
+        }
+        if to != State::ArmedIdle && to != State::Takeoff {
+            self.pending_takeoff_alt_m = None;
+        }
+        self.state = to;
+        match to {
+            State::Disarmed => {
+                let reason = if c.contains(C::DISARM_REQUESTED) {
+                    if c.contains(C::FORCE) && !c.contains(C::LANDED) {
+                        DisarmReason::Forced
+                    } else {
+                        DisarmReason::Requested
+                    }
+                } else if from == State::Land {
+                    DisarmReason::AutoLanded
+                } else {
+                    DisarmReason::AutoPreflight
+                };
+                self.events.push(Event::Disarmed { reason });
+                if !self.mode.is_hold_like() {
+                    self.set_mode(self.hold_mode);
+                }
+            }
+            State::ArmedIdle => {
+                self.armed_idle_since_us = now;
+                self.events.push(Event::Armed { forced: c.contains(C::FORCE) });
+            }
+            State::Takeoff => {
+                let alt = self.pending_takeoff_alt_m.take().unwrap_or(self.config.takeoff_alt_m);
+                let ne = if from == State::Takeoff { self.takeoff_target_ned_m.xy() } else { pos.xy() };
+                self.takeoff_target_ned_m = Vector3::new(ne.x, ne.y, self.ground_d_m() - alt);
+                self.set_mode(FlightMode::Takeoff);
+            }
+            State::Hold => {
+                if from == State::Takeoff && !c.contains(C::HOLD_REQUESTED) {
+                    self.hold_ned_m = self.takeoff_target_ned_m;
+                    self.hold_mode = FlightMode::Hold;
+                    self.events.push(Event::TakeoffComplete);
+                } else {
+                    self.hold_ned_m = pos;
+                }
+                self.set_mode(self.hold_mode);
+            }
+            State::Land => {
+                self.land_ne_m = pos.xy();
+                self.touchdown_us = self.land_detector.landed().then_some(now);
+                self.set_mode(FlightMode::Land);
+            }
+            State::Killed => {
+                if from.is_armed() {
+                    self.events.push(Event::Disarmed { reason: DisarmReason::Kill });
+                }
+                self.events.push(Event::Killed);
+            }
+        }
+    }
+}

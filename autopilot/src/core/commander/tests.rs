@@ -1,0 +1,481 @@
+//! Commander tests: requests and refusals, the PX4 identity it reports, and whole flights against a tiny
+//! vertical point-mass model (100 Hz, ground at D = 0) on simulated time.
+
+use nalgebra::Vector3;
+
+use super::mode::{base_mode_flag, system_status};
+use super::*;
+
+const STEP_US: u64 = 10_000;
+const G: f64 = 9.81;
+
+/// A vertical point mass whose "controller" tracks the setpoint's vertical speed with a first-order lag;
+/// idle or motors off, it falls; the ground at D = 0 stops it.
+#[derive(Debug, Clone)]
+struct Sim {
+    now_us: u64,
+    pos_d_m: f64,
+    vel_d_mps: f64,
+    converged: bool,
+    throttle_low: bool,
+}
+
+impl Sim {
+    fn new() -> Self {
+        Self { now_us: 0, pos_d_m: 0.0, vel_d_mps: 0.0, converged: true, throttle_low: true }
+    }
+
+    fn inputs(&self) -> CommanderInputs {
+        CommanderInputs {
+            now_us: self.now_us,
+            estimate: Estimate {
+                pos_ned_m: Vector3::new(1.0, -2.0, self.pos_d_m),
+                vel_ned_mps: Vector3::new(0.0, 0.0, self.vel_d_mps),
+                yaw_rad: 0.3,
+                position_valid: self.converged,
+                converged: self.converged,
+            },
+            throttle_low: self.throttle_low,
+            home_ned_m: Some(Vector3::new(1.0, -2.0, 0.0)),
+        }
+    }
+
+    /// Advances one step under `out`.
+    fn advance(&mut self, out: &CommanderOutput) {
+        let dt = STEP_US as f64 * 1e-6;
+        let vel_cmd = match out.setpoint {
+            Setpoint::Hold { pos_ned_m, .. } | Setpoint::Climb { pos_ned_m, .. } => {
+                Some((1.5 * (pos_ned_m.z - self.pos_d_m)).clamp(-1.5, 1.5))
+            }
+            Setpoint::Descend { speed_mps, .. } => Some(speed_mps),
+            Setpoint::Idle => None,
+        };
+        let acc = match vel_cmd {
+            Some(v) if out.motors_enabled => (4.0 * (v - self.vel_d_mps)).clamp(-G, G),
+            _ => G,
+        };
+        self.vel_d_mps += acc * dt;
+        self.pos_d_m += self.vel_d_mps * dt;
+        let on_ground = self.pos_d_m >= 0.0;
+        if on_ground {
+            self.pos_d_m = 0.0;
+            self.vel_d_mps = self.vel_d_mps.min(0.0);
+        }
+        // Thrust at its minimum: idle, off, or pushing down on the ground.
+        self.throttle_low = vel_cmd.is_none() || !out.motors_enabled || (on_ground && acc >= 0.0);
+        self.now_us += STEP_US;
+    }
+
+    /// Steps commander and model `n` times; returns every output.
+    fn run(&mut self, c: &mut Commander, n: usize) -> Vec<CommanderOutput> {
+        (0..n)
+            .map(|_| {
+                let out = c.step(&self.inputs());
+                self.advance(&out);
+                out
+            })
+            .collect()
+    }
+
+    /// Steps until `until` holds for an output, at most `max_s` seconds; returns the outputs up to and
+    /// including that one.
+    fn run_until(
+        &mut self,
+        c: &mut Commander,
+        max_s: f64,
+        until: impl Fn(&CommanderOutput) -> bool,
+    ) -> Vec<CommanderOutput> {
+        let steps = (max_s * 1e6 / STEP_US as f64) as usize;
+        let mut outs = Vec::new();
+        for _ in 0..steps {
+            let out = c.step(&self.inputs());
+            self.advance(&out);
+            let done = until(&out);
+            outs.push(out);
+            if done {
+                return outs;
+            }
+        }
+        panic!("not reached within {max_s} s: {:?} at D {}", c.state(), self.pos_d_m);
+    }
+}
+
+fn commander() -> Commander {
+    Commander::new(CommanderConfig::default()).expect("default config is valid")
+}
+
+/// A commander armed (not taking off) after one step with a converged estimate.
+fn armed_on_ground(sim: &mut Sim) -> Commander {
+    let mut c = commander();
+    sim.run(&mut c, 1);
+    c.request(sim.now_us, Request::Arm { force: false }).expect("arm");
+    c
+}
+
+/// A commander holding at the takeoff altitude.
+fn holding(sim: &mut Sim) -> Commander {
+    let mut c = armed_on_ground(sim);
+    c.request(sim.now_us, Request::Takeoff { alt_rel_m: None }).expect("takeoff");
+    sim.run_until(&mut c, 20.0, |o| o.state == State::Hold);
+    c
+}
+
+const AUTO_LOITER: u32 = 0x0304_0000;
+const AUTO_TAKEOFF: u32 = 0x0204_0000;
+const AUTO_LAND: u32 = 0x0604_0000;
+
+#[test]
+fn given_an_unconverged_estimator_when_arming_then_refused_in_words_and_nothing_changes() {
+    let mut sim = Sim::new();
+    sim.converged = false;
+    let mut c = commander();
+    sim.run(&mut c, 10);
+    let before = c.clone();
+    let err = c.request(sim.now_us, Request::Arm { force: false }).unwrap_err();
+    assert_eq!(err.to_string(), "Arming denied: estimator not converged");
+    assert_eq!(c, before);
+    assert!(!c.armed());
+
+    sim.converged = true;
+    sim.run(&mut c, 1);
+    c.request(sim.now_us, Request::Arm { force: false }).expect("arm once converged");
+    let out = sim.run(&mut c, 1).remove(0);
+    assert_eq!(out.state, State::ArmedIdle);
+    assert!(out.armed && out.motors_enabled);
+    assert_eq!(out.events, vec![Event::Armed { forced: false }]);
+    assert_eq!(out.setpoint, Setpoint::Idle);
+    assert_eq!(out.system_status, system_status::ACTIVE);
+    assert_ne!(out.base_mode & base_mode_flag::SAFETY_ARMED, 0);
+}
+
+#[test]
+fn given_an_unconverged_estimator_when_arming_with_force_then_armed() {
+    let mut sim = Sim::new();
+    sim.converged = false;
+    let mut c = commander();
+    sim.run(&mut c, 1);
+    c.request(sim.now_us, Request::Arm { force: true }).expect("forced arm");
+    let out = sim.run(&mut c, 1).remove(0);
+    assert_eq!(out.state, State::ArmedIdle);
+    assert_eq!(out.events, vec![Event::Armed { forced: true }]);
+    // Armed without a usable position: CRITICAL.
+    assert_eq!(out.system_status, system_status::CRITICAL);
+}
+
+#[test]
+fn given_hold_in_the_air_when_disarming_then_refused_unless_forced() {
+    let mut sim = Sim::new();
+    let mut c = holding(&mut sim);
+    let before = c.clone();
+    let err = c.request(sim.now_us, Request::Disarm { force: false }).unwrap_err();
+    assert_eq!(err.to_string(), "Disarming denied: in air (use force)");
+    assert_eq!(c, before);
+    c.request(sim.now_us, Request::Disarm { force: true }).expect("forced disarm");
+    let out = sim.run(&mut c, 1).remove(0);
+    assert_eq!(out.state, State::Disarmed);
+    assert!(!out.motors_enabled);
+    assert_eq!(out.events, vec![Event::Disarmed { reason: DisarmReason::Forced }]);
+}
+
+#[test]
+fn given_armed_on_the_ground_when_disarming_then_accepted() {
+    let mut sim = Sim::new();
+    let mut c = armed_on_ground(&mut sim);
+    sim.run(&mut c, 50);
+    c.request(sim.now_us, Request::Disarm { force: false }).expect("disarm on the ground");
+    let out = sim.run(&mut c, 1).remove(0);
+    assert_eq!(out.state, State::Disarmed);
+    assert_eq!(out.events, vec![Event::Disarmed { reason: DisarmReason::Requested }]);
+    assert_eq!(out.system_status, system_status::STANDBY);
+}
+
+#[test]
+fn given_each_state_when_killed_then_motors_stop_at_once_and_only_a_disarm_resets() {
+    let mut sim_takeoff = Sim::new();
+    let mut taking_off = armed_on_ground(&mut sim_takeoff);
+    taking_off.request(sim_takeoff.now_us, Request::Takeoff { alt_rel_m: None }).expect("takeoff");
+    sim_takeoff.run(&mut taking_off, 50);
+    let mut sim_land = Sim::new();
+    let mut landing = holding(&mut sim_land);
+    landing.request(sim_land.now_us, Request::Land).expect("land");
+    sim_land.run(&mut landing, 10);
+    let mut sim_hold = Sim::new();
+    let mut sim_idle = Sim::new();
+    let mut sim_dis = Sim::new();
+    let mut disarmed = commander();
+    sim_dis.run(&mut disarmed, 1);
+    let cases = [
+        (sim_dis, disarmed),
+        (sim_idle.clone(), armed_on_ground(&mut sim_idle)),
+        (sim_takeoff, taking_off),
+        (sim_hold.clone(), holding(&mut sim_hold)),
+        (sim_land, landing),
+    ];
+    let mut seen = Vec::new();
+    for (_, mut c) in cases {
+        seen.push(c.state());
+        c.request(0, Request::Kill).expect("kill is never refused");
+        assert_eq!(c.state(), State::Killed);
+        assert!(!c.armed());
+        assert_eq!(c.setpoint(), Setpoint::Idle);
+        assert_eq!(c.system_status(), system_status::EMERGENCY);
+        assert_eq!(c.base_mode() & base_mode_flag::SAFETY_ARMED, 0);
+        let err = c.request(0, Request::Arm { force: true }).unwrap_err();
+        assert_eq!(err.to_string(), "Arming denied: kill engaged (disarm to reset)");
+        c.request(0, Request::Disarm { force: false }).expect("disarm resets a kill");
+        assert_eq!(c.state(), State::Disarmed);
+    }
+    assert_eq!(seen, [State::Disarmed, State::ArmedIdle, State::Takeoff, State::Hold, State::Land]);
+}
+
+#[test]
+fn given_a_kill_in_the_air_then_the_vehicle_falls_with_motors_off() {
+    let mut sim = Sim::new();
+    let mut c = holding(&mut sim);
+    c.request(sim.now_us, Request::Kill).expect("kill");
+    let outs = sim.run(&mut c, 10);
+    assert_eq!(outs[0].events, vec![Event::Disarmed { reason: DisarmReason::Kill }, Event::Killed]);
+    assert!(outs.iter().all(|o| !o.motors_enabled && o.state == State::Killed));
+    assert!(sim.vel_d_mps > 0.5, "falling at {} m/s", sim.vel_d_mps);
+}
+
+#[test]
+fn given_takeoff_requested_while_disarmed_when_armed_then_climbs_and_holds_at_the_takeoff_point() {
+    let mut sim = Sim::new();
+    let mut c = commander();
+    sim.run(&mut c, 1);
+    c.request(sim.now_us, Request::Takeoff { alt_rel_m: None }).expect("takeoff accepted while disarmed");
+    assert_eq!(c.state(), State::Disarmed);
+    assert_eq!(c.pending_takeoff_alt_m(), Some(2.5));
+    let out = sim.run(&mut c, 1).remove(0);
+    assert_eq!(out.custom_mode, AUTO_TAKEOFF);
+    assert_eq!(out.events, vec![Event::ModeChanged { mode: FlightMode::Takeoff, custom_mode: AUTO_TAKEOFF }]);
+    assert_eq!(out.setpoint, Setpoint::Idle, "nothing moves before arming");
+
+    c.request(sim.now_us, Request::Arm { force: false }).expect("arm");
+    let out = sim.run(&mut c, 1).remove(0);
+    assert_eq!(out.state, State::Takeoff);
+    assert_eq!(out.custom_mode, AUTO_TAKEOFF);
+    assert_eq!(out.landed_state, 3);
+    let target = Vector3::new(1.0, -2.0, -2.5);
+    assert_eq!(out.setpoint, Setpoint::Climb { pos_ned_m: target, yaw_rad: 0.3 });
+
+    let outs = sim.run(&mut c, 1000);
+    let first_hold = outs.iter().position(|o| o.state == State::Hold).expect("takeoff completes");
+    assert!(outs[..first_hold].iter().all(|o| o.landed_state == 3 && o.custom_mode == AUTO_TAKEOFF));
+    let done = &outs[first_hold];
+    assert_eq!(done.custom_mode, AUTO_LOITER);
+    assert_eq!(done.landed_state, 2);
+    assert_eq!(
+        done.events,
+        vec![Event::TakeoffComplete, Event::ModeChanged { mode: FlightMode::Hold, custom_mode: AUTO_LOITER }]
+    );
+    assert_eq!(done.setpoint, Setpoint::Hold { pos_ned_m: target, yaw_rad: 0.3 });
+    assert!((sim.pos_d_m + 2.5).abs() < 0.05, "holding at D {}", sim.pos_d_m);
+    assert!(outs[first_hold..].iter().all(|o| o.state == State::Hold && o.landed_state == 2));
+}
+
+#[test]
+fn given_a_takeoff_altitude_when_requested_then_it_is_the_target_and_a_bad_one_is_refused() {
+    let mut sim = Sim::new();
+    let mut c = armed_on_ground(&mut sim);
+    let before = c.clone();
+    for bad in [0.0, -1.0, f64::NAN] {
+        let err = c.request(sim.now_us, Request::Takeoff { alt_rel_m: Some(bad) }).unwrap_err();
+        assert!(matches!(err, Refusal::InvalidAltitude(_)), "{bad}");
+        assert_eq!(c, before);
+    }
+    c.request(sim.now_us, Request::Takeoff { alt_rel_m: Some(5.0) }).expect("takeoff");
+    assert!(matches!(c.setpoint(), Setpoint::Climb { pos_ned_m, .. } if pos_ned_m.z == -5.0));
+}
+
+#[test]
+fn given_hold_when_landing_then_descends_detects_touchdown_and_disarms_exactly_after_com_disarm_land() {
+    let mut sim = Sim::new();
+    let mut c = holding(&mut sim);
+    sim.run(&mut c, 100);
+    c.request(sim.now_us, Request::Land).expect("land");
+    let out = sim.run(&mut c, 1).remove(0);
+    assert_eq!(out.custom_mode, AUTO_LAND);
+    assert_eq!(out.landed_state, 4);
+    assert_eq!(out.setpoint, Setpoint::Descend { pos_ne_m: Vector2::new(1.0, -2.0), yaw_rad: 0.3, speed_mps: 0.7 });
+    sim.run(&mut c, 300);
+    assert!((sim.vel_d_mps - 0.7).abs() < 0.05, "descending at {} m/s", sim.vel_d_mps);
+
+    let touchdown_sim_us = {
+        let mut probe = sim.clone();
+        let mut cp = c.clone();
+        while probe.pos_d_m < 0.0 {
+            probe.run(&mut cp, 1);
+        }
+        probe.now_us
+    };
+    let landed = sim.run_until(&mut c, 10.0, |o| o.events.contains(&Event::Landed)).pop().unwrap();
+    let landed_at_us = sim.now_us - STEP_US;
+    assert_eq!(landed.landed_state, 1);
+    assert!(landed.armed);
+    assert_eq!(landed.setpoint, Setpoint::Idle);
+    assert_eq!(landed_at_us, touchdown_sim_us + 500_000, "landed after the 0.5 s dwell on the ground");
+
+    // Armed for exactly COM_DISARM_LAND (2 s = 200 steps) after the detection, then disarmed.
+    let outs = sim.run(&mut c, 201);
+    assert!(outs[..199].iter().all(|o| o.armed && o.state == State::Land));
+    let disarm = &outs[199];
+    assert_eq!(sim.now_us - 2 * STEP_US, landed_at_us + 2_000_000);
+    assert!(!disarm.armed);
+    assert_eq!(disarm.state, State::Disarmed);
+    assert_eq!(disarm.events[0], Event::Disarmed { reason: DisarmReason::AutoLanded });
+    assert_eq!(disarm.base_mode & base_mode_flag::SAFETY_ARMED, 0);
+    assert_ne!(outs[198].base_mode & base_mode_flag::SAFETY_ARMED, 0);
+    assert_eq!(disarm.system_status, system_status::STANDBY);
+    assert_eq!(disarm.landed_state, 1);
+    assert_eq!(disarm.custom_mode, AUTO_LOITER, "back to Hold after landing");
+}
+
+#[test]
+fn given_armed_without_takeoff_when_com_disarm_prflt_passes_then_auto_disarmed_not_before() {
+    let mut sim = Sim::new();
+    let mut c = armed_on_ground(&mut sim);
+    let armed_at = sim.now_us;
+    let outs = sim.run(&mut c, 1001);
+    let first_disarmed = outs.iter().position(|o| !o.armed).expect("auto-disarm");
+    assert_eq!(armed_at + first_disarmed as u64 * STEP_US, armed_at + 10_000_000);
+    assert_eq!(outs[first_disarmed].events, vec![Event::Disarmed { reason: DisarmReason::AutoPreflight }]);
+}
+
+#[test]
+fn given_set_mode_requests_then_supported_modes_switch_and_others_are_refused_in_words() {
+    let mut sim = Sim::new();
+    let mut c = armed_on_ground(&mut sim);
+    let before = c.clone();
+    let cases = [
+        (6, 0, "Mode not supported: OFFBOARD needs setpoints"),
+        (4, 4, "Mode not supported: MISSION not implemented yet"),
+        (4, 5, "Mode not supported: RTL not implemented yet"),
+        (1, 0, "Mode not supported: MANUAL needs RC sticks"),
+        (9, 9, "Mode not supported: main 9 sub 9"),
+    ];
+    for (main, sub, text) in cases {
+        let err = c.request(sim.now_us, Request::SetMode { main, sub }).unwrap_err();
+        assert_eq!(err.to_string(), text);
+        assert!(text.len() <= 50);
+        assert_eq!(c, before);
+    }
+    assert!(c.request(sim.now_us, Request::ReturnToLaunch).is_err());
+
+    c.request(sim.now_us, Request::SetMode { main: 3, sub: 0 }).expect("POSCTL on the ground");
+    assert_eq!((c.state(), c.custom_mode()), (State::ArmedIdle, 0x0003_0000));
+    c.request(sim.now_us, Request::SetMode { main: 4, sub: 2 }).expect("AUTO TAKEOFF");
+    assert_eq!((c.state(), c.custom_mode()), (State::Takeoff, AUTO_TAKEOFF));
+    sim.run(&mut c, 60);
+    c.request(sim.now_us, Request::SetMode { main: 2, sub: 0 }).expect("ALTCTL during takeoff");
+    assert_eq!((c.state(), c.custom_mode()), (State::Hold, 0x0002_0000));
+    let Setpoint::Hold { pos_ned_m, .. } = c.setpoint() else { panic!("{:?}", c.setpoint()) };
+    assert!(pos_ned_m.z < -0.2 && pos_ned_m.z > -2.4, "held where it was: {}", pos_ned_m.z);
+    c.request(sim.now_us, Request::SetMode { main: 4, sub: 3 }).expect("AUTO LOITER");
+    assert_eq!((c.state(), c.custom_mode()), (State::Hold, AUTO_LOITER));
+    c.request(sim.now_us, Request::SetMode { main: 4, sub: 6 }).expect("AUTO LAND");
+    assert_eq!((c.state(), c.custom_mode()), (State::Land, AUTO_LAND));
+    c.request(sim.now_us, Request::Hold).expect("hold aborts the landing");
+    assert_eq!((c.state(), c.custom_mode()), (State::Hold, AUTO_LOITER));
+}
+
+#[test]
+fn given_a_disarmed_vehicle_when_asked_to_land_then_refused_and_a_later_hold_cancels_a_pending_takeoff() {
+    let mut sim = Sim::new();
+    let mut c = commander();
+    sim.run(&mut c, 1);
+    assert_eq!(c.request(0, Request::Land).unwrap_err().to_string(), "Land denied: vehicle disarmed");
+    c.request(0, Request::Takeoff { alt_rel_m: Some(3.0) }).expect("takeoff");
+    c.request(0, Request::Hold).expect("hold");
+    assert_eq!(c.pending_takeoff_alt_m(), None);
+    c.request(sim.now_us, Request::Arm { force: false }).expect("arm");
+    let outs = sim.run(&mut c, 10);
+    assert!(outs.iter().all(|o| o.state == State::ArmedIdle));
+}
+
+#[test]
+fn given_config_when_serialised_then_round_trips_and_unknown_or_bad_fields_are_refused() {
+    let cfg = CommanderConfig::default();
+    assert_eq!(cfg.takeoff_alt_m, 2.5);
+    assert_eq!(cfg.land_speed_mps, 0.7);
+    assert_eq!(cfg.disarm_land_s, 2.0);
+    assert_eq!(cfg.disarm_preflight_s, 10.0);
+    assert_eq!(cfg.takeoff_acceptance_m, 0.1);
+    let json = serde_json::to_string(&cfg).expect("serialise");
+    assert_eq!(serde_json::from_str::<CommanderConfig>(&json).expect("parse"), cfg);
+    assert_eq!(serde_json::from_str::<CommanderConfig>("{}").expect("defaults"), cfg);
+    assert!(serde_json::from_str::<CommanderConfig>(r#"{"takeof_alt_m": 3}"#).is_err());
+    let bad = CommanderConfig { land_speed_mps: 0.0, ..cfg };
+    assert_eq!(Commander::new(bad).unwrap_err().field, "land_speed_mps");
+}
+
+#[test]
+fn given_the_preflight_delay_disabled_when_armed_long_then_stays_armed() {
+    let mut sim = Sim::new();
+    let mut c = Commander::new(CommanderConfig { disarm_preflight_s: -1.0, ..CommanderConfig::default() }).unwrap();
+    sim.run(&mut c, 1);
+    c.request(sim.now_us, Request::Arm { force: false }).unwrap();
+    assert!(sim.run(&mut c, 2000).iter().all(|o| o.armed));
+}
+
+/// Arm, take off, hold 20 s, land, auto-disarm on simulated time; returns every output.
+fn whole_flight() -> (Vec<CommanderOutput>, Sim) {
+    let mut sim = Sim::new();
+    let mut c = commander();
+    let mut outs = sim.run(&mut c, 100);
+    c.request(sim.now_us, Request::Arm { force: false }).expect("arm");
+    outs.extend(sim.run(&mut c, 100));
+    c.request(sim.now_us, Request::Takeoff { alt_rel_m: None }).expect("takeoff");
+    outs.extend(sim.run_until(&mut c, 20.0, |o| o.events.contains(&Event::TakeoffComplete)));
+    outs.extend(sim.run(&mut c, 2000));
+    c.request(sim.now_us, Request::Land).expect("land");
+    outs.extend(sim.run_until(&mut c, 30.0, |o| !o.armed));
+    (outs, sim)
+}
+
+#[test]
+fn given_a_whole_flight_on_simulated_time_then_it_arms_climbs_holds_lands_and_disarms_in_order() {
+    let (outs, sim) = whole_flight();
+    let events: Vec<Event> = outs.iter().flat_map(|o| o.events.iter().copied()).collect();
+    assert_eq!(
+        events,
+        vec![
+            Event::Armed { forced: false },
+            Event::ModeChanged { mode: FlightMode::Takeoff, custom_mode: AUTO_TAKEOFF },
+            Event::TakeoffComplete,
+            Event::ModeChanged { mode: FlightMode::Hold, custom_mode: AUTO_LOITER },
+            Event::ModeChanged { mode: FlightMode::Land, custom_mode: AUTO_LAND },
+            Event::Landed,
+            Event::Disarmed { reason: DisarmReason::AutoLanded },
+            Event::ModeChanged { mode: FlightMode::Hold, custom_mode: AUTO_LOITER },
+        ]
+    );
+    assert_eq!(sim.pos_d_m, 0.0);
+    let hold: Vec<&CommanderOutput> = outs.iter().filter(|o| o.state == State::Hold).collect();
+    assert!(hold.len() >= 2000, "held 20 s: {} steps", hold.len());
+    let states: Vec<State> = outs.iter().map(|o| o.state).fold(Vec::new(), |mut v, s| {
+        if v.last() != Some(&s) {
+            v.push(s);
+        }
+        v
+    });
+    assert_eq!(states, [State::Disarmed, State::ArmedIdle, State::Takeoff, State::Hold, State::Land, State::Disarmed]);
+    let landed_states: Vec<u8> = outs.iter().map(|o| o.landed_state).fold(Vec::new(), |mut v, s| {
+        if v.last() != Some(&s) {
+            v.push(s);
+        }
+        v
+    });
+    assert_eq!(landed_states, [1, 3, 2, 4, 1]);
+    let t_s = sim.now_us as f64 * 1e-6;
+    assert!(t_s > 26.0 && t_s < 40.0, "flight took {t_s} s");
+}
+
+#[test]
+fn given_the_same_inputs_when_run_twice_then_the_outputs_are_identical() {
+    let (a, sa) = whole_flight();
+    let (b, sb) = whole_flight();
+    assert_eq!(a, b);
+    assert_eq!(sa.now_us, sb.now_us);
+}
