@@ -147,10 +147,11 @@ pub struct CommanderInputs {
 pub enum Request {
     /// ARM_DISARM param1 1; `force` is param2 = 21196.
     Arm { force: bool },
-    /// ARM_DISARM param1 0; `force` disarms in the air. (param1 0 with force from MAVSDK is a [`Request::Kill`]
-    /// when the MAVLink layer wants PX4's lockdown semantics.)
+    /// ARM_DISARM param1 0 without the force magic; `force` disarms in the air (for callers other than
+    /// ARM_DISARM, which sends param1 0 with force as a [`Request::Kill`]). Also resets a kill.
     Disarm { force: bool },
-    /// Stop the motors now, from any state; stays killed until a disarm.
+    /// ARM_DISARM param1 0, param2 21196 (MAVSDK `kill()`): stop the motors now, from any state; stays
+    /// killed (arming refused) until a [`Request::Disarm`].
     Kill,
     /// NAV_TAKEOFF, to `alt_rel_m` above home (None: `takeoff_alt_m`). Accepted while disarmed: remembered
     /// and started on arming.
