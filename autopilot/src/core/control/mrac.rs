@@ -496,12 +496,8 @@ mod tests {
             c.last_saturation = MixerSaturation { roll: true, pitch: true, ..c.last_saturation };
             let before = c.att.map(|ch| ch.parameters());
             c.update(&input, &r);
-            for j in 0..2 {
-                assert_eq!(
-                    c.att[j].parameters() == before[j],
-                    frozen,
-                    "axis {j}, freeze_roll_pitch {freeze_roll_pitch}"
-                );
+            for (j, (channel, was)) in c.att.iter().zip(before).take(2).enumerate() {
+                assert_eq!(channel.parameters() == was, frozen, "axis {j}, freeze_roll_pitch {freeze_roll_pitch}");
             }
         }
     }
