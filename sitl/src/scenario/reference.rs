@@ -408,9 +408,10 @@ impl SplinePath {
     }
 
     /// Distance (m) from `p_ne_m` to the path within `window_m` of arc length around `s_m` (so a point
-    /// near a crossing is measured against its own branch), on a polyline of 5 mm segments.
+    /// near a crossing is measured against its own branch), on a polyline of 5 mm segments, and the arc
+    /// length (m, unwrapped like `s_m`) of the nearest point.
     #[must_use]
-    pub fn distance_near(&self, p_ne_m: Vector2<f64>, s_m: f64, window_m: f64) -> f64 {
+    pub fn nearest_near(&self, p_ne_m: Vector2<f64>, s_m: f64, window_m: f64) -> (f64, f64) {
         let segments = self.polyline.len() - 1;
         let step = self.length_m() / segments as f64;
         let lo = ((s_m - window_m) / step).floor() as i64;
@@ -418,15 +419,30 @@ impl SplinePath {
         let (lo, hi) = if self.closed { (lo, hi) } else { (lo.max(0), hi.min(segments as i64)) };
         let n = segments as i64;
         let point = |k: i64| self.polyline[usize::try_from(k.rem_euclid(n)).expect("rem_euclid is non-negative")];
-        (lo..hi).map(|k| point_segment_distance(p_ne_m, point(k), point(k + 1))).fold(f64::INFINITY, f64::min)
+        let mut best = (f64::INFINITY, s_m);
+        for k in lo..hi {
+            let (a, b) = (point(k), point(k + 1));
+            let (d, x) = point_segment(p_ne_m, a, b);
+            if d < best.0 {
+                best = (d, (k as f64 + x) * step);
+            }
+        }
+        best
+    }
+
+    /// [`SplinePath::nearest_near`], the distance only.
+    #[must_use]
+    pub fn distance_near(&self, p_ne_m: Vector2<f64>, s_m: f64, window_m: f64) -> f64 {
+        self.nearest_near(p_ne_m, s_m, window_m).0
     }
 }
 
-fn point_segment_distance(p: Vector2<f64>, a: Vector2<f64>, b: Vector2<f64>) -> f64 {
+/// Distance from `p` to segment `ab` and the fraction along it of the nearest point.
+fn point_segment(p: Vector2<f64>, a: Vector2<f64>, b: Vector2<f64>) -> (f64, f64) {
     let ab = b - a;
     let len2 = ab.norm_squared();
     let x = if len2 > 0.0 { ((p - a).dot(&ab) / len2).clamp(0.0, 1.0) } else { 0.0 };
-    (p - (a + ab * x)).norm()
+    ((p - (a + ab * x)).norm(), x)
 }
 
 #[cfg(test)]

@@ -303,12 +303,20 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
         let (t0, t1) = (spec.start_s, track.end_s());
         let mut cross = Vec::new();
         let mut alt = Vec::new();
+        // The vehicle's own nearest point is followed along the path (it moves a few mm per tick), so a
+        // point near the crossing stays on its branch; the first is sought near the reference.
+        let mut nearest_s: Option<f64> = None;
         for k in 0..series.t.len() {
             if series.t[k] < t0 || series.t[k] > t1 {
                 continue;
             }
             let p = Vector2::new(series.pos[0][k], series.pos[1][k]);
-            cross.push(track.path.distance_near(p, series.progress_m[k], 0.5));
+            let (d, s) = match nearest_s {
+                Some(s) => track.path.nearest_near(p, s, 0.05),
+                None => track.path.nearest_near(p, series.progress_m[k], 0.5),
+            };
+            nearest_s = Some(s);
+            cross.push(d);
             alt.push(series.pos[2][k] - series.ref_pos[2][k]);
         }
         m.track = Some(metrics::track_metrics(&cross, &alt));
