@@ -376,6 +376,35 @@ pub(crate) fn clip_abs(v: &Vector3<f64>, limit: &[f64; 3]) -> Vector3<f64> {
 mod tests {
     use super::*;
 
+    /// Every controller: a non-finite input or reference never gives NaN PWM; the first tick gives hover
+    /// PWM, later ones hold the last good command, and no adaptive weight or integrator moves meanwhile.
+    #[test]
+    fn given_non_finite_input_when_ticked_then_hover_first_then_hold_and_state_untouched() {
+        use toy_plant::{hover_input, poisoned_inputs};
+        let p = Vector3::new(0.0, 0.0, -2.0);
+        let good = hover_input(p, 0.0);
+        let mut tilted = good;
+        tilted.euler_rad.x = 0.1;
+        let r = Reference::position(Vector3::new(0.5, 0.0, -2.0), 0.0);
+        let hover = Airframe::default().hover_pwm_us();
+        for kind in ControllerKind::ALL {
+            for bad in poisoned_inputs(&good) {
+                let mut c = new_controller(kind, &ControllerConfig::default());
+                assert_eq!(c.update(&bad, &r), [hover; 4], "{kind}: first tick");
+                let held = c.update(&tilted, &r);
+                let state = c.telemetry();
+                for _ in 0..7 {
+                    assert_eq!(c.update(&bad, &r), held, "{kind}: hold");
+                }
+                assert_eq!(c.telemetry(), state, "{kind}: state moved on bad input");
+                assert!(c.update(&tilted, &r).iter().all(|x| x.is_finite()), "{kind}: recovers");
+            }
+            let mut c = new_controller(kind, &ControllerConfig::default());
+            let bad_ref = Reference { yaw_rad: f64::NAN, ..r };
+            assert_eq!(c.update(&good, &bad_ref), [hover; 4], "{kind}: bad reference");
+        }
+    }
+
     #[test]
     fn given_kind_names_when_parsed_and_displayed_then_round_trip() {
         for k in ControllerKind::ALL {

@@ -269,7 +269,7 @@ impl Controller for PidController {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::core::control::toy_plant::{ToyPlant, at, fly, hover_input, max_after, poisoned_inputs};
+    use crate::core::control::toy_plant::{ToyPlant, at, fly, hover_input, max_after};
 
     fn pid() -> PidController {
         PidController::new(&PidConfig::default(), LoopRates::default())
@@ -285,25 +285,6 @@ mod tests {
             for x in pwm {
                 assert!((x - hover).abs() < 1.0, "{pwm:?} vs {hover}");
             }
-        }
-    }
-
-    #[test]
-    fn given_non_finite_input_when_ticked_then_never_nan_and_integrators_untouched() {
-        let p = Vector3::new(0.0, 0.0, -2.0);
-        let good = hover_input(p, 0.0);
-        let r = Reference::position(Vector3::new(0.5, 0.0, -2.0), 0.0);
-        let hover = Airframe::default().hover_pwm_us();
-        for bad in poisoned_inputs(&good) {
-            let mut c = pid();
-            assert_eq!(c.update(&bad, &r), [hover; 4]);
-            let held = c.update(&good, &r);
-            let state = c.telemetry();
-            for _ in 0..7 {
-                assert_eq!(c.update(&bad, &r), held);
-            }
-            assert_eq!(c.telemetry(), state);
-            assert!(c.update(&good, &r).iter().all(|x| x.is_finite()));
         }
     }
 
