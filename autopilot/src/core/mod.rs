@@ -3,3 +3,4 @@
 pub mod commander;
 pub mod control;
 pub mod estimator;
+pub mod hil;
