@@ -1,5 +1,6 @@
 //! The SITL side: the paper's quadrotor plant (`plant`), pure and deterministic, and the paper's
 //! experiments run against it.
 
+pub mod link;
 pub mod plant;
 pub mod scenario;

@@ -1,0 +1,774 @@
+//! The plant's end of the plant protocol (MAVLink 2 HIL messages, see `autopilot::core::hil`), over UDP
+//! or serial. Out, once per plant step (`dt_us`, default 2 ms = 500 Hz) for plant time `t`: one datagram
+//! holding `HIL_GPS` (when the plant releases a fix, 10 Hz by default), `HIL_STATE_QUATERNION` (truth) and
+//! `HIL_SENSOR` last (the autopilot ticks on it). In: `HIL_ACTUATOR_CONTROLS` with `time_usec == t`, whose
+//! four controls are the PWM (µs) of the paper's rotors 1..4 held over the step (1000 µs each when
+//! disarmed).
+//!
+//! Lockstep: the plant steps only when it has the reply for `t`; replies for other times are stale and
+//! counted. No reply within `resend_timeout` (wall clock, default 1 s): the same datagram is resent and
+//! counted. No reply within `link_lost_timeout` (default 5 s): [`LinkError::LinkLost`]; the autopilot
+//! does the same on its side and commands the motors to minimum. [`Pacing::RealTime`] keeps the
+//! handshake and also holds plant time at or below `speed` times wall time (if the autopilot is slower,
+//! the simulation lags; it never drops a step).
+//!
+//! Who binds (as PX4's simulator interface): the plant LISTENS on UDP 127.0.0.1:4560
+//! ([`autopilot::core::hil::DEFAULT_PLANT_PORT`]); the autopilot binds any port and announces itself by
+//! sending any MAVLink message (e.g. `HEARTBEAT`) to 4560. Until then the plant waits (`connect_timeout`,
+//! default forever). Afterwards the plant answers the sender of the last matching actuator message, so an
+//! autopilot restarted on another port is followed. Serial ([`SerialTransport`]) is point to point.
+
+use std::io::{self, Read, Write};
+use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use autopilot::core::estimator::{GeoOrigin, GpsSample as ApGpsSample, TruthSample};
+use autopilot::core::hil::{
+    ActuatorCommand, DecoderStats, FrameDecoder, HilBaroFields, HilInput, HilSensorFields, decode_hil_message,
+    encode_frame_v2, encode_hil_gps, encode_hil_sensor, encode_hil_state_quaternion,
+};
+use mavlink::MavHeader;
+use mavlink::dialects::common::MavMessage;
+
+use crate::plant::sensors::HomeConfig;
+use crate::plant::{GpsSample, Plant, SensorSample, Truth};
+
+/// MAVLink system id the plant sends with.
+pub const PLANT_SYSTEM_ID: u8 = 1;
+/// MAVLink component id the plant sends with (`MAV_COMP_ID_USER1`..: any; PX4 ignores it for HIL).
+pub const PLANT_COMPONENT_ID: u8 = 51;
+
+/// Bytes in and out: a UDP socket or a serial port.
+pub trait Transport {
+    /// Send `bytes` (one datagram, or written to the stream).
+    ///
+    /// # Errors
+    /// The underlying I/O error.
+    fn send(&mut self, bytes: &[u8]) -> io::Result<()>;
+    /// Wait up to `timeout` for input: `Ok(None)` on timeout.
+    ///
+    /// # Errors
+    /// The underlying I/O error (timeouts are not errors).
+    fn recv(&mut self, timeout: Duration) -> io::Result<Option<Vec<u8>>>;
+    /// Each `recv` returns whole frames (a datagram), rather than a piece of a byte stream.
+    fn is_datagram(&self) -> bool;
+    /// There is a peer to send to (UDP: not before the autopilot's first datagram).
+    fn has_peer(&self) -> bool {
+        true
+    }
+    /// Make the sender of the last received datagram the peer (UDP); nothing for point-to-point links.
+    fn adopt_last_sender(&mut self) {}
+}
+
+/// UDP: bound to the plant's port, sending to the autopilot that spoke last.
+#[derive(Debug)]
+pub struct UdpTransport {
+    socket: UdpSocket,
+    peer: Option<SocketAddr>,
+    last_sender: Option<SocketAddr>,
+    read_timeout: Option<Duration>,
+    buf: Vec<u8>,
+}
+
+impl UdpTransport {
+    /// Bind `addr` (e.g. `127.0.0.1:4560`, or port 0 in tests); no peer until one speaks.
+    ///
+    /// # Errors
+    /// The bind error.
+    pub fn bind(addr: impl ToSocketAddrs) -> io::Result<Self> {
+        Ok(Self {
+            socket: UdpSocket::bind(addr)?,
+            peer: None,
+            last_sender: None,
+            read_timeout: None,
+            buf: vec![0; 65_536],
+        })
+    }
+
+    /// Send to `peer` from the start instead of waiting for it to speak.
+    #[must_use]
+    pub fn with_peer(mut self, peer: SocketAddr) -> Self {
+        self.peer = Some(peer);
+        self
+    }
+
+    /// The bound address.
+    ///
+    /// # Errors
+    /// The socket's error.
+    pub fn local_addr(&self) -> io::Result<SocketAddr> {
+        self.socket.local_addr()
+    }
+
+    /// The autopilot's address, once known.
+    #[must_use]
+    pub fn peer(&self) -> Option<SocketAddr> {
+        self.peer
+    }
+}
+
+impl Transport for UdpTransport {
+    fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
+        match self.peer {
+            Some(peer) => self.socket.send_to(bytes, peer).map(|_| ()),
+            None => Ok(()),
+        }
+    }
+
+    /// A port-unreachable report (Windows: `ConnectionReset`) for an autopilot not yet or no longer
+    /// listening is read as "nothing received": the resend and link-loss timers handle it.
+    fn recv(&mut self, timeout: Duration) -> io::Result<Option<Vec<u8>>> {
+        let timeout = timeout.max(Duration::from_micros(1));
+        if self.read_timeout != Some(timeout) {
+            self.socket.set_read_timeout(Some(timeout))?;
+            self.read_timeout = Some(timeout);
+        }
+        match self.socket.recv_from(&mut self.buf) {
+            Ok((n, from)) => {
+                self.last_sender = Some(from);
+                Ok(Some(self.buf[..n].to_vec()))
+            }
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    io::ErrorKind::WouldBlock
+                        | io::ErrorKind::TimedOut
+                        | io::ErrorKind::Interrupted
+                        | io::ErrorKind::ConnectionRefused
+                        | io::ErrorKind::ConnectionReset
+                ) =>
+            {
+                Ok(None)
+            }
+            Err(e) => Err(e),
+        }
+    }
+
+    fn is_datagram(&self) -> bool {
+        true
+    }
+
+    fn has_peer(&self) -> bool {
+        self.peer.is_some()
+    }
+
+    fn adopt_last_sender(&mut self) {
+        if self.last_sender.is_some() {
+            self.peer = self.last_sender;
+        }
+    }
+}
+
+/// A serial port (e.g. to the ARM board, or a pty pair for tests); a byte stream.
+pub struct SerialTransport {
+    port: Box<dyn serialport::SerialPort>,
+    buf: Vec<u8>,
+}
+
+impl std::fmt::Debug for SerialTransport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SerialTransport").field("port", &self.port.name()).finish_non_exhaustive()
+    }
+}
+
+impl SerialTransport {
+    /// Open `path` at `baud_rate` (8N1, no flow control).
+    ///
+    /// # Errors
+    /// The open error, as an I/O error.
+    pub fn open(path: &str, baud_rate: u32) -> io::Result<Self> {
+        let port =
+            serialport::new(path, baud_rate).timeout(Duration::from_millis(10)).open().map_err(io::Error::from)?;
+        Ok(Self { port, buf: vec![0; 4096] })
+    }
+}
+
+impl Transport for SerialTransport {
+    fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
+        self.port.write_all(bytes)?;
+        self.port.flush()
+    }
+
+    fn recv(&mut self, timeout: Duration) -> io::Result<Option<Vec<u8>>> {
+        self.port.set_timeout(timeout.max(Duration::from_millis(1))).map_err(io::Error::from)?;
+        match self.port.read(&mut self.buf) {
+            Ok(0) => Ok(None),
+            Ok(n) => Ok(Some(self.buf[..n].to_vec())),
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    io::ErrorKind::TimedOut | io::ErrorKind::WouldBlock | io::ErrorKind::Interrupted
+                ) =>
+            {
+                Ok(None)
+            }
+            Err(e) => Err(e),
+        }
+    }
+
+    fn is_datagram(&self) -> bool {
+        false
+    }
+}
+
+/// How plant time relates to wall time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Pacing {
+    /// As fast as the autopilot answers (the default; what tests use).
+    Lockstep,
+    /// Lockstep, and plant time never ahead of `speed` times wall time (1.0 = real time).
+    RealTime { speed: f64 },
+}
+
+/// Timing of the link.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LinkConfig {
+    /// Plant step per sensor sample (µs); default 2000 (500 Hz).
+    pub dt_us: u64,
+    pub pacing: Pacing,
+    /// Wall time without a reply before the sensor datagram is resent; default 1 s.
+    pub resend_timeout: Duration,
+    /// Wall time without a reply before [`LinkError::LinkLost`]; default 5 s.
+    pub link_lost_timeout: Duration,
+    /// Wall time to wait for the autopilot's first datagram; `None` (default) = forever.
+    pub connect_timeout: Option<Duration>,
+}
+
+impl Default for LinkConfig {
+    fn default() -> Self {
+        Self {
+            dt_us: 2000,
+            pacing: Pacing::Lockstep,
+            resend_timeout: Duration::from_secs(1),
+            link_lost_timeout: Duration::from_secs(5),
+            connect_timeout: None,
+        }
+    }
+}
+
+/// Link errors.
+#[derive(Debug, thiserror::Error)]
+pub enum LinkError {
+    #[error("plant link I/O: {0}")]
+    Io(#[from] io::Error),
+    #[error("link lost: no actuator reply for plant time {time_us} µs within {waited:?}")]
+    LinkLost { time_us: u64, waited: Duration },
+    #[error("no autopilot connected within {waited:?}")]
+    NoPeer { waited: Duration },
+}
+
+/// What the link saw; every field only grows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct LinkStats {
+    /// Plant steps taken.
+    pub steps: u64,
+    /// Sensor datagrams sent (first sends, not resends).
+    pub sensor_sent: u64,
+    /// `HIL_GPS` messages sent.
+    pub gps_sent: u64,
+    /// Sensor datagrams resent after `resend_timeout`.
+    pub resends: u64,
+    /// Actuator replies for another time than the one awaited.
+    pub stale_actuators: u64,
+    /// Well-formed messages other than `HIL_ACTUATOR_CONTROLS` (ignored).
+    pub other_messages: u64,
+    /// Datagrams without a single good frame.
+    pub junk_datagrams: u64,
+    /// The frame decoder's counts (garbage, bad CRC, truncated, ...).
+    pub decoder: DecoderStats,
+}
+
+/// The plant's [`HomeConfig`] as the protocol's geodetic origin.
+#[must_use]
+pub fn home_origin(home: &HomeConfig) -> GeoOrigin {
+    GeoOrigin { lat_deg: home.lat_deg, lon_deg: home.lon_deg, alt_amsl_m: home.alt_amsl_m }
+}
+
+/// A plant sensor sample as `HIL_SENSOR` fields (the plant updates every field at every sample).
+#[must_use]
+pub fn sensor_fields(sample: &SensorSample) -> HilSensorFields {
+    HilSensorFields {
+        time_us: sample.time_us,
+        accel_frd_mps2: sample.accel_frd_mps2,
+        gyro_frd_radps: sample.gyro_frd_radps,
+        mag_frd_gauss: Some(sample.mag_frd_gauss),
+        baro: Some(HilBaroFields {
+            pressure_hpa: sample.baro.pressure_hpa,
+            pressure_alt_m: sample.baro.pressure_alt_m,
+            temperature_degc: sample.baro.temperature_degc,
+        }),
+    }
+}
+
+/// A plant GPS sample as the protocol's GPS fields (ground speed and course are recomputed from the
+/// velocity by the encoder).
+#[must_use]
+pub fn gps_fields(gps: &GpsSample) -> ApGpsSample {
+    ApGpsSample {
+        time_us: gps.time_us,
+        lat_deg: gps.lat_deg,
+        lon_deg: gps.lon_deg,
+        alt_amsl_m: gps.alt_amsl_m,
+        vel_ned_mps: gps.vel_ned_mps,
+        fix_type: gps.fix_type,
+        satellites: gps.satellites_visible,
+        eph_m: gps.eph_m,
+        epv_m: gps.epv_m,
+    }
+}
+
+/// The plant's truth as the protocol's truth fields.
+#[must_use]
+pub fn truth_fields(truth: &Truth) -> TruthSample {
+    TruthSample {
+        time_us: truth.time_us,
+        pos_ned_m: truth.pos_ned_m,
+        vel_ned_mps: truth.vel_ned_mps,
+        q_ned_frd: truth.q_ned_frd,
+        rate_frd_radps: truth.rate_frd_radps,
+        specific_force_frd_mps2: truth.specific_force_frd_mps2,
+    }
+}
+
+/// The plant behind a [`Transport`], in lockstep with the autopilot.
+#[derive(Debug)]
+pub struct PlantServer<T: Transport> {
+    plant: Plant,
+    transport: T,
+    config: LinkConfig,
+    home: GeoOrigin,
+    decoder: FrameDecoder,
+    stats: LinkStats,
+    sequence: u8,
+    last_command: Option<ActuatorCommand>,
+    /// The sensor datagram of the current plant time, kept until the plant steps (a `step` retried after
+    /// an error resends it rather than sampling the sensors twice).
+    pending: Option<(u64, Vec<u8>)>,
+    /// Wall time and plant time at the first paced step.
+    pace_origin: Option<(Instant, u64)>,
+}
+
+impl PlantServer<UdpTransport> {
+    /// A server listening on UDP `addr` (default plant address `127.0.0.1:4560`).
+    ///
+    /// # Errors
+    /// The bind error.
+    pub fn bind_udp(plant: Plant, addr: impl ToSocketAddrs, config: LinkConfig) -> io::Result<Self> {
+        Ok(Self::new(plant, UdpTransport::bind(addr)?, config))
+    }
+}
+
+impl<T: Transport> PlantServer<T> {
+    #[must_use]
+    pub fn new(plant: Plant, transport: T, config: LinkConfig) -> Self {
+        let home = home_origin(&plant.config().sensors.home);
+        Self {
+            plant,
+            transport,
+            config,
+            home,
+            decoder: FrameDecoder::new(),
+            stats: LinkStats::default(),
+            sequence: 0,
+            last_command: None,
+            pending: None,
+            pace_origin: None,
+        }
+    }
+
+    #[must_use]
+    pub fn plant(&self) -> &Plant {
+        &self.plant
+    }
+
+    /// The plant, for fault injection between steps.
+    pub fn plant_mut(&mut self) -> &mut Plant {
+        &mut self.plant
+    }
+
+    #[must_use]
+    pub fn transport(&self) -> &T {
+        &self.transport
+    }
+
+    #[must_use]
+    pub fn stats(&self) -> LinkStats {
+        LinkStats { decoder: self.decoder.stats(), ..self.stats }
+    }
+
+    /// The last accepted actuator command.
+    #[must_use]
+    pub fn last_command(&self) -> Option<ActuatorCommand> {
+        self.last_command
+    }
+
+    /// Stop and hand back the plant.
+    #[must_use]
+    pub fn into_plant(self) -> Plant {
+        self.plant
+    }
+
+    fn frame(&mut self, msg: &MavMessage) -> Vec<u8> {
+        let header = MavHeader {
+            system_id: u32::from(PLANT_SYSTEM_ID),
+            component_id: PLANT_COMPONENT_ID,
+            sequence: self.sequence,
+        };
+        self.sequence = self.sequence.wrapping_add(1);
+        encode_frame_v2(header, msg)
+    }
+
+    /// Sample the plant now (once per step: sampling advances the sensor noise and GPS schedule) and
+    /// build the datagram: `HIL_GPS` if a fix is released, `HIL_STATE_QUATERNION`, `HIL_SENSOR`.
+    fn sensor_datagram(&mut self) -> Vec<u8> {
+        let truth = self.plant.truth();
+        let sample = self.plant.sample_sensors();
+        let mut datagram = Vec::with_capacity(256);
+        if let Some(gps) = &sample.gps {
+            let msg = MavMessage::HIL_GPS(encode_hil_gps(&gps_fields(gps)));
+            datagram.extend(self.frame(&msg));
+            self.stats.gps_sent += 1;
+        }
+        let airspeed_mps = (truth.vel_ned_mps - truth.wind_ned_mps).norm();
+        let msg = MavMessage::HIL_STATE_QUATERNION(encode_hil_state_quaternion(
+            &truth_fields(&truth),
+            &self.home,
+            airspeed_mps,
+        ));
+        datagram.extend(self.frame(&msg));
+        let msg = MavMessage::HIL_SENSOR(encode_hil_sensor(&sensor_fields(&sample)));
+        datagram.extend(self.frame(&msg));
+        datagram
+    }
+
+    /// One lockstep cycle: send the sensors for the current plant time `t`, wait for the reply for `t`,
+    /// (pace,) step the plant by `dt_us` with its PWM. Returns the command applied.
+    ///
+    /// # Errors
+    /// [`LinkError::Io`] from the transport, [`LinkError::NoPeer`] / [`LinkError::LinkLost`] on timeouts;
+    /// the plant has not stepped then (call again to keep waiting).
+    pub fn step(&mut self) -> Result<ActuatorCommand, LinkError> {
+        let t = self.plant.time_us();
+        let datagram = match self.pending.take() {
+            Some((time_us, datagram)) if time_us == t => datagram,
+            _ => {
+                self.stats.sensor_sent += 1;
+                self.sensor_datagram()
+            }
+        };
+        self.transport.send(&datagram)?;
+        let reply = self.wait_for_reply(t, &datagram);
+        self.pending = Some((t, datagram));
+        let command = reply?;
+        self.pending = None;
+        self.pace(t);
+        self.plant.step(command.effective_pwm_us(), self.config.dt_us);
+        self.stats.steps += 1;
+        self.last_command = Some(command);
+        Ok(command)
+    }
+
+    /// Run until `max_steps` steps (`None`: no limit) or `stop` is set; returns the steps taken.
+    ///
+    /// # Errors
+    /// As [`PlantServer::step`].
+    pub fn run(&mut self, max_steps: Option<u64>, stop: &AtomicBool) -> Result<u64, LinkError> {
+        let mut steps = 0;
+        while max_steps.is_none_or(|n| steps < n) && !stop.load(Ordering::Relaxed) {
+            self.step()?;
+            steps += 1;
+        }
+        Ok(steps)
+    }
+
+    fn wait_for_reply(&mut self, t: u64, datagram: &[u8]) -> Result<ActuatorCommand, LinkError> {
+        let start = Instant::now();
+        let mut last_send = start;
+        loop {
+            let now = Instant::now();
+            let waited = now - start;
+            let limit = if self.transport.has_peer() {
+                Some(self.config.link_lost_timeout)
+            } else {
+                self.config.connect_timeout
+            };
+            if let Some(limit) = limit
+                && waited >= limit
+            {
+                return Err(if self.transport.has_peer() {
+                    LinkError::LinkLost { time_us: t, waited }
+                } else {
+                    LinkError::NoPeer { waited }
+                });
+            }
+            let until_resend = self.config.resend_timeout.saturating_sub(now - last_send);
+            if until_resend.is_zero() {
+                if self.transport.has_peer() {
+                    self.transport.send(datagram)?;
+                    self.stats.resends += 1;
+                }
+                last_send = now;
+                continue;
+            }
+            let wait = limit.map_or(until_resend, |l| until_resend.min(l - waited));
+            let Some(bytes) = self.transport.recv(wait)? else { continue };
+            let frames = if self.transport.is_datagram() {
+                self.decoder.decode_datagram(&bytes)
+            } else {
+                self.decoder.push(&bytes)
+            };
+            if frames.is_empty() && self.transport.is_datagram() {
+                self.stats.junk_datagrams += 1;
+            }
+            if !frames.is_empty() && !self.transport.has_peer() {
+                // First contact: answer whoever spoke, at once.
+                self.transport.adopt_last_sender();
+                self.transport.send(datagram)?;
+                last_send = Instant::now();
+            }
+            let mut reply = None;
+            for frame in &frames {
+                match decode_hil_message(&frame.message, &self.home) {
+                    Some(HilInput::Actuators(cmd)) if cmd.time_us == t && reply.is_none() => reply = Some(cmd),
+                    Some(HilInput::Actuators(_)) => self.stats.stale_actuators += 1,
+                    _ => self.stats.other_messages += 1,
+                }
+            }
+            if let Some(cmd) = reply {
+                self.transport.adopt_last_sender();
+                return Ok(cmd);
+            }
+        }
+    }
+
+    /// Real-time pacing: sleep until plant time `t + dt` is due at `speed` times wall time.
+    fn pace(&mut self, t: u64) {
+        let Pacing::RealTime { speed } = self.config.pacing else { return };
+        if !(speed.is_finite() && speed > 0.0) {
+            return;
+        }
+        let (wall0, t0) = *self.pace_origin.get_or_insert((Instant::now(), t));
+        let due_s = (t + self.config.dt_us).saturating_sub(t0) as f64 * 1e-6 / speed;
+        let due = wall0 + Duration::from_secs_f64(due_s);
+        let now = Instant::now();
+        if due > now {
+            std::thread::sleep(due - now);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plant::{InitialState, PlantConfig};
+    use autopilot::core::hil::{encode_actuator_controls, encode_frame_v2};
+    use mavlink::dialects::common::HEARTBEAT_DATA;
+    use nalgebra::Vector3;
+    use std::sync::Arc;
+    use std::thread;
+
+    const HOVER_ALT_M: f64 = 10.0;
+
+    fn hover_plant() -> Plant {
+        let initial = InitialState { pos_ned_m: Vector3::new(0.0, 0.0, -HOVER_ALT_M), ..InitialState::default() };
+        Plant::new(PlantConfig::default(), &initial, 7).expect("nominal plant")
+    }
+
+    fn ap_header() -> MavHeader {
+        MavHeader { system_id: 1, component_id: 1, sequence: 0 }
+    }
+
+    fn heartbeat() -> Vec<u8> {
+        encode_frame_v2(ap_header(), &MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()))
+    }
+
+    fn reply(t: u64, pwm_us: f64) -> Vec<u8> {
+        let cmd = ActuatorCommand { time_us: t, pwm_us: [pwm_us; 4], armed: true };
+        encode_frame_v2(ap_header(), &MavMessage::HIL_ACTUATOR_CONTROLS(encode_actuator_controls(&cmd)))
+    }
+
+    /// What the test autopilot saw.
+    #[derive(Debug, Default)]
+    struct Seen {
+        sensor_times_us: Vec<u64>,
+        gps: usize,
+        truth: usize,
+    }
+
+    /// A test autopilot: announce, then answer every new HIL_SENSOR with `pwm_us` until `n` sensor
+    /// times were answered; `before_reply(k, socket)` runs before the k-th reply, `skip(k)` leaves the
+    /// k-th first delivery unanswered.
+    fn autopilot(
+        plant_addr: SocketAddr,
+        n: usize,
+        pwm_us: f64,
+        before_reply: impl Fn(usize, &UdpSocket) + Send + 'static,
+        skip: impl Fn(usize) -> bool + Send + 'static,
+    ) -> thread::JoinHandle<Seen> {
+        let socket = UdpSocket::bind("127.0.0.1:0").expect("bind autopilot");
+        socket.set_read_timeout(Some(Duration::from_secs(5))).expect("timeout");
+        thread::spawn(move || {
+            socket.send_to(&heartbeat(), plant_addr).expect("announce");
+            let mut decoder = FrameDecoder::new();
+            let mut seen = Seen::default();
+            let mut buf = vec![0; 65_536];
+            let mut skipped = std::collections::HashSet::new();
+            while seen.sensor_times_us.len() < n {
+                let Ok((len, _)) = socket.recv_from(&mut buf) else { break };
+                for frame in decoder.decode_datagram(&buf[..len]) {
+                    match frame.message {
+                        MavMessage::HIL_GPS(_) => seen.gps += 1,
+                        MavMessage::HIL_STATE_QUATERNION(_) => seen.truth += 1,
+                        MavMessage::HIL_SENSOR(m) => {
+                            let k = seen.sensor_times_us.len();
+                            if skip(k) && skipped.insert(k) {
+                                continue;
+                            }
+                            if seen.sensor_times_us.last() != Some(&m.time_usec) {
+                                seen.sensor_times_us.push(m.time_usec);
+                            }
+                            before_reply(k, &socket);
+                            socket.send_to(&reply(m.time_usec, pwm_us), plant_addr).expect("reply");
+                        }
+                        _ => {}
+                    }
+                }
+            }
+            seen
+        })
+    }
+
+    #[test]
+    fn link_lockstep_over_udp_holds_hover_and_counts_garbage() {
+        const N: usize = 2000;
+        let plant = hover_plant();
+        let hover_pwm_us = plant.config().airframe.hover_pwm_us();
+        let p0 = plant.truth().pos_ned_m;
+        let config = LinkConfig::default();
+        let mut server = PlantServer::bind_udp(plant, "127.0.0.1:0", config).expect("bind plant");
+        let plant_addr = server.transport().local_addr().expect("addr");
+        let ap = autopilot(
+            plant_addr,
+            N,
+            hover_pwm_us,
+            move |k, socket| {
+                if k == N / 2 {
+                    socket.send_to(b"\xfd\x09garbage\xfe\x03xyz and more junk", plant_addr).expect("inject");
+                }
+            },
+            |_| false,
+        );
+        let stop = Arc::new(AtomicBool::new(false));
+        let started = Instant::now();
+        let steps = server.run(Some(N as u64), &stop).expect("lockstep run");
+        let elapsed = started.elapsed();
+        let seen = ap.join().expect("autopilot thread");
+        println!(
+            "lockstep UDP: {N} steps in {elapsed:?} = {:.0} steps/s; {:?}",
+            N as f64 / elapsed.as_secs_f64(),
+            server.stats()
+        );
+
+        assert_eq!(steps, N as u64);
+        let dt = config.dt_us;
+        assert_eq!(server.plant().time_us(), N as u64 * dt, "plant time = N·dt");
+        let expected: Vec<u64> = (0..N as u64).map(|k| k * dt).collect();
+        assert_eq!(seen.sensor_times_us, expected, "one sensor sample per dt, none skipped");
+        assert_eq!(seen.truth, N);
+        assert_eq!(seen.gps, N * 2 / 100, "10 Hz GPS at 500 Hz steps");
+        let dp = (server.plant().truth().pos_ned_m - p0).norm();
+        assert!(dp < 1e-3, "hover drifted {dp} m");
+        let stats = server.stats();
+        assert_eq!(stats.steps, N as u64);
+        assert_eq!(stats.junk_datagrams, 1, "{stats:?}");
+        assert!(stats.decoder.malformed() >= 1 && stats.decoder.garbage_bytes > 0, "{stats:?}");
+        assert_eq!(stats.resends, 0);
+        let cmd = server.last_command().expect("a command");
+        assert!((cmd.pwm_us[0] - hover_pwm_us).abs() < 1e-3);
+    }
+
+    #[test]
+    fn link_resends_after_timeout_and_counts_stale_replies() {
+        let config = LinkConfig { resend_timeout: Duration::from_millis(50), ..LinkConfig::default() };
+        let mut server = PlantServer::bind_udp(hover_plant(), "127.0.0.1:0", config).expect("bind plant");
+        let plant_addr = server.transport().local_addr().expect("addr");
+        let pwm = server.plant().config().airframe.hover_pwm_us();
+        // Ignore the first delivery of sample 3; before replying to sample 5, send a stale reply.
+        let ap = autopilot(
+            plant_addr,
+            8,
+            pwm,
+            move |k, socket| {
+                if k == 5 {
+                    socket.send_to(&reply(123, 1500.0), plant_addr).expect("stale");
+                }
+            },
+            |k| k == 3,
+        );
+        let steps = server.run(Some(8), &AtomicBool::new(false)).expect("run");
+        let seen = ap.join().expect("autopilot");
+        assert_eq!(steps, 8);
+        assert_eq!(seen.sensor_times_us, (0..8).map(|k| k * 2000).collect::<Vec<_>>());
+        let stats = server.stats();
+        assert_eq!(stats.resends, 1, "{stats:?}");
+        assert_eq!(stats.stale_actuators, 1, "{stats:?}");
+        assert_eq!(stats.other_messages, 1, "the announcing HEARTBEAT: {stats:?}");
+    }
+
+    #[test]
+    fn link_reports_loss_and_no_peer() {
+        let config = LinkConfig {
+            resend_timeout: Duration::from_millis(20),
+            link_lost_timeout: Duration::from_millis(150),
+            connect_timeout: Some(Duration::from_millis(100)),
+            ..LinkConfig::default()
+        };
+        let mut server = PlantServer::bind_udp(hover_plant(), "127.0.0.1:0", config).expect("bind plant");
+        assert!(matches!(server.step(), Err(LinkError::NoPeer { .. })));
+        assert_eq!(server.plant().time_us(), 0);
+
+        // A peer that announces itself and then never answers.
+        let silent = UdpSocket::bind("127.0.0.1:0").expect("bind");
+        silent.send_to(&heartbeat(), server.transport().local_addr().expect("addr")).expect("announce");
+        let started = Instant::now();
+        let err = server.step().expect_err("no reply");
+        assert!(matches!(err, LinkError::LinkLost { time_us: 0, .. }), "{err}");
+        assert!(started.elapsed() >= Duration::from_millis(150));
+        assert_eq!(server.plant().time_us(), 0, "no step without a reply");
+        assert!(server.stats().resends >= 3, "{:?}", server.stats());
+    }
+
+    #[test]
+    fn link_real_time_pacing_holds_plant_time_to_wall_time() {
+        let config = LinkConfig { pacing: Pacing::RealTime { speed: 2.0 }, ..LinkConfig::default() };
+        let mut server = PlantServer::bind_udp(hover_plant(), "127.0.0.1:0", config).expect("bind plant");
+        let plant_addr = server.transport().local_addr().expect("addr");
+        let pwm = server.plant().config().airframe.hover_pwm_us();
+        let ap = autopilot(plant_addr, 100, pwm, |_, _| {}, |_| false);
+        let started = Instant::now();
+        server.run(Some(100), &AtomicBool::new(false)).expect("run");
+        let elapsed = started.elapsed();
+        ap.join().expect("autopilot");
+        // 100 steps of 2 ms = 0.2 s plant time at 2x: at least 0.1 s wall.
+        assert!(elapsed >= Duration::from_millis(99), "{elapsed:?}");
+        assert!(elapsed < Duration::from_secs(2), "{elapsed:?}");
+    }
+
+    #[test]
+    fn link_plant_samples_map_to_hil_fields() {
+        let mut plant = hover_plant();
+        let sample = plant.sample_sensors();
+        let fields = sensor_fields(&sample);
+        assert_eq!(fields.time_us, 0);
+        assert_eq!(fields.accel_frd_mps2, sample.accel_frd_mps2);
+        assert_eq!(fields.baro.map(|b| b.pressure_alt_m), Some(sample.baro.pressure_alt_m));
+        let gps = sample.gps.expect("GPS at t = 0");
+        let back = gps_fields(&gps);
+        assert_eq!((back.lat_deg, back.satellites, back.eph_m), (gps.lat_deg, gps.satellites_visible, gps.eph_m));
+        let home = home_origin(&plant.config().sensors.home);
+        let truth = truth_fields(&plant.truth());
+        let msg = encode_hil_state_quaternion(&truth, &home, 0.0);
+        assert_eq!(msg.alt, ((home.alt_amsl_m + HOVER_ALT_M) * 1000.0).round() as i32);
+    }
+}
