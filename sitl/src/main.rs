@@ -1,5 +1,6 @@
 //! `sitl`: the simulator's command line. `sitl scenario` runs the paper's experiments in-process in
-//! lockstep (headless, faster than real time) and writes metrics JSON, CSV traces and PNG plots.
+//! lockstep (headless, faster than real time) and writes metrics JSON, CSV traces and PNG plots;
+//! `sitl serve` serves the plant to an autopilot over the MAVLink HIL plant protocol (UDP or serial).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -7,10 +8,13 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use autopilot::core::control::{ControllerKind, LoopRates};
 use clap::{Args, Parser, Subcommand};
+use sitl::link::{LinkConfig, Pacing, PlantServer, SerialTransport};
+use sitl::plant::{Airframe, InitialState, Plant, PlantConfig};
 use sitl::scenario::plot::{self, Panel, Run};
 use sitl::scenario::reference::{ReferenceMode, ReferenceSpec, SplinePath};
 use sitl::scenario::runner::{self, RunOptions, RunOutput};
 use sitl::scenario::{BUILT_INS, MetricKind, Scenario};
+use std::sync::atomic::AtomicBool;
 
 #[derive(Parser)]
 #[command(name = "sitl", version, about = "SITL plant of the paper's quadrotor and its experiments")]
@@ -23,6 +27,37 @@ struct Cli {
 enum Command {
     /// Run scenarios in-process (plant + controller in lockstep on simulated time) and report metrics.
     Scenario(ScenarioArgs),
+    /// Serve the plant to an autopilot over the HIL plant protocol (lockstep by default).
+    Serve(ServeArgs),
+}
+
+#[derive(Args)]
+struct ServeArgs {
+    /// Plant configuration file (TOML: [airframe], [wind], [sensors], [ground], integrator_step_s).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Airframe preset (nominal, mismatch), applied over the configuration file's.
+    #[arg(long)]
+    plant: Option<String>,
+    /// Instance: the UDP port becomes 4560 + N.
+    #[arg(short = 'i', long, default_value_t = 0)]
+    instance: u16,
+    /// UDP address to listen on; the autopilot announces itself with any MAVLink message.
+    #[arg(long)]
+    listen: Option<String>,
+    /// Serve over a serial port instead of UDP: `DEVICE:BAUD`, e.g. /dev/ttyUSB0:921600.
+    #[arg(long)]
+    serial: Option<String>,
+    /// Pace the plant at this multiple of real time (lockstep with the autopilot either way); omit it to
+    /// run as fast as the autopilot answers.
+    #[arg(long)]
+    speed: Option<f64>,
+    /// Plant step per sensor sample, µs (2000 = 500 Hz).
+    #[arg(long, default_value_t = 2000)]
+    dt_us: u64,
+    /// Seed of every noise and turbulence stream.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
 }
 
 #[derive(Args)]
@@ -85,6 +120,7 @@ fn main() -> Result<()> {
         .init();
     match Cli::parse().command {
         Command::Scenario(args) => scenario(&args),
+        Command::Serve(args) => serve(&args),
     }
 }
 
@@ -280,4 +316,44 @@ fn with_horizontal_error(trace: &runner::Trace) -> runner::Trace {
         row.push(ealt);
     }
     t
+}
+
+fn serve(args: &ServeArgs) -> Result<()> {
+    let mut config = match &args.config {
+        Some(path) => {
+            let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+            PlantConfig::from_toml_str(&text).with_context(|| format!("plant configuration {}", path.display()))?
+        }
+        None => PlantConfig::default(),
+    };
+    if let Some(preset) = &args.plant {
+        config.airframe = Airframe::preset(preset)?;
+    }
+    let pacing = match args.speed {
+        Some(speed) if speed.is_finite() && speed > 0.0 => Pacing::RealTime { speed },
+        Some(speed) => bail!("--speed must be a positive number, got {speed}"),
+        None => Pacing::Lockstep,
+    };
+    if args.dt_us == 0 || args.dt_us > 20_000 {
+        bail!("--dt-us must be in 1..=20000, got {}", args.dt_us);
+    }
+    let link = LinkConfig { dt_us: args.dt_us, pacing, ..LinkConfig::default() };
+    let plant = Plant::new(config, &InitialState::default(), args.seed)?;
+    let stop = AtomicBool::new(false);
+    let steps = if let Some(spec) = &args.serial {
+        let (device, baud) = spec.rsplit_once(':').context("--serial takes DEVICE:BAUD")?;
+        let baud: u32 = baud.parse().with_context(|| format!("baud rate `{baud}`"))?;
+        let transport = SerialTransport::open(device, baud).with_context(|| format!("opening {device}"))?;
+        eprintln!("sitl: plant on serial {device} at {baud} baud");
+        PlantServer::new(plant, transport, link).run(None, &stop)?
+    } else {
+        let port = 4560 + args.instance;
+        let listen = args.listen.clone().unwrap_or_else(|| format!("127.0.0.1:{port}"));
+        let mut server =
+            PlantServer::bind_udp(plant, listen.as_str(), link).with_context(|| format!("binding {listen}"))?;
+        eprintln!("sitl: plant listening on udp {listen}; waiting for an autopilot");
+        server.run(None, &stop)?
+    };
+    eprintln!("sitl: {steps} steps served");
+    Ok(())
 }
