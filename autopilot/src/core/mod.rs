@@ -4,3 +4,5 @@ pub mod commander;
 pub mod control;
 pub mod estimator;
 pub mod hil;
+pub mod mavlink;
+pub mod vehicle;

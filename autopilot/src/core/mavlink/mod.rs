@@ -1,0 +1,107 @@
+//! The vehicle's MAVLink microservices as sans-I/O handlers: no sockets, no clocks. In: a received
+//! message with its [`MavHeader`] (for commands, answered at once with replies to the sender) and, once per
+//! vehicle step, the vehicle time `now_us` (µs, the plant's sensor clock) with a [`TelemetrySnapshot`] and
+//! the commander's [`Event`]s. Out: the [`MavMessage`]s to send, and for commands an [`InboundCommand`]
+//! whose [`CommandEffect`] the vehicle applies to its commander (the "effect" of the message).
+//!
+//! - `identity`: HEARTBEAT as PX4 (QUADROTOR, PX4, commander's base/custom mode and status), 1 Hz of
+//!   vehicle time and at once on any arm or mode change.
+//! - `command`: COMMAND_LONG, COMMAND_INT and SET_MODE -> commander requests; COMMAND_ACK for every
+//!   command, STATUSTEXT with the refusal text on DENIED, UNSUPPORTED for anything else.
+//! - `telemetry`: the default streams (SYS_STATUS, ATTITUDE(+_QUATERNION), LOCAL_POSITION_NED,
+//!   GLOBAL_POSITION_INT, GPS_RAW_INT, EXTENDED_SYS_STATE, HOME_POSITION, VFR_HUD, BATTERY_STATUS) on
+//!   vehicle time, and STATUSTEXT on events.
+
+use ::mavlink::dialects::common::MavMessage;
+
+use crate::core::commander::Event;
+
+pub mod command;
+pub mod identity;
+pub mod telemetry;
+
+/// The wire types of this API (so users need no direct dependency on the same `mavlink` version).
+pub use ::mavlink::MavHeader;
+pub use ::mavlink::dialects::common;
+
+pub use command::{CommandContext, CommandEffect, InboundCommand, command_replies, decode_command};
+pub use identity::heartbeat;
+pub use telemetry::{Home, Stream, StreamScheduler, TelemetrySnapshot, statustext};
+
+/// The autopilot's component id (MAV_COMP_ID_AUTOPILOT1).
+pub const AUTOPILOT_COMPONENT_ID: u8 = 1;
+
+/// Interval of the HEARTBEAT (µs of vehicle time): 1 Hz.
+pub const HEARTBEAT_INTERVAL_US: u64 = 1_000_000;
+
+/// Whether a message for `(target_system, target_component)` is ours: our system or broadcast (0), and
+/// our component or any (0; pymavlink sends 0).
+#[must_use]
+pub fn addressed_to_us(sysid: u8, target_system: u8, target_component: u8) -> bool {
+    (target_system == sysid || target_system == 0)
+        && (target_component == AUTOPILOT_COMPONENT_ID || target_component == 0)
+}
+
+/// The header of every message the vehicle sends: `sysid`, component 1. The sequence is the transport's.
+#[must_use]
+pub fn own_header(sysid: u8) -> MavHeader {
+    MavHeader { system_id: sysid.into(), component_id: AUTOPILOT_COMPONENT_ID, sequence: 0 }
+}
+
+/// The MAVLink side of the vehicle: the heartbeat cadence, the stream scheduler and the command decoder.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MavlinkService {
+    sysid: u8,
+    heartbeat_due_us: Option<u64>,
+    streams: StreamScheduler,
+}
+
+impl MavlinkService {
+    /// A service for system `sysid` with the default stream rates.
+    #[must_use]
+    pub fn new(sysid: u8) -> Self {
+        Self { sysid, heartbeat_due_us: None, streams: StreamScheduler::default() }
+    }
+
+    #[must_use]
+    pub fn sysid(&self) -> u8 {
+        self.sysid
+    }
+
+    /// The streams (to change a rate).
+    pub fn streams_mut(&mut self) -> &mut StreamScheduler {
+        &mut self.streams
+    }
+
+    /// A received message: `Some` command to apply and answer, `None` when it is not for us or not a
+    /// command (telemetry of other systems, GCS heartbeats).
+    #[must_use]
+    pub fn on_message(&self, header: &MavHeader, msg: &MavMessage, ctx: &CommandContext) -> Option<InboundCommand> {
+        decode_command(self.sysid, header, msg, ctx)
+    }
+
+    /// What is due at `now_us`: a HEARTBEAT (on its cadence, or at once when an event changed it), the
+    /// STATUSTEXT of every event, then the telemetry streams that are due.
+    pub fn outbound(&mut self, now_us: u64, snapshot: &TelemetrySnapshot<'_>, events: &[Event]) -> Vec<MavMessage> {
+        let mut out = Vec::new();
+        let changed = events.iter().any(Event::changes_heartbeat);
+        if changed || self.heartbeat_due_us.is_none_or(|due| now_us >= due) {
+            out.push(heartbeat(snapshot.commander));
+            self.heartbeat_due_us = Some(next_due_us(self.heartbeat_due_us, now_us, HEARTBEAT_INTERVAL_US, changed));
+        }
+        out.extend(events.iter().map(|e| statustext(telemetry::event_severity(e), &e.text())));
+        out.extend(self.streams.due(now_us).into_iter().filter_map(|s| s.message(snapshot)));
+        out
+    }
+}
+
+/// The next due time after an emission at `now_us`: one interval after the previous due time (no drift),
+/// or after `now_us` when restarting (first emission, an out-of-cadence emission, or having fallen behind
+/// by more than one interval).
+#[must_use]
+pub(crate) fn next_due_us(previous_due_us: Option<u64>, now_us: u64, interval_us: u64, restart: bool) -> u64 {
+    match previous_due_us {
+        Some(due) if !restart && now_us >= due && now_us - due < interval_us => due + interval_us,
+        _ => now_us.saturating_add(interval_us),
+    }
+}

@@ -1,0 +1,403 @@
+//! Telemetry streams on vehicle time. In, once per vehicle step: `now_us` (µs, the plant's sensor clock)
+//! and a [`TelemetrySnapshot`] (the estimate with its origin, the last GPS fix, home, the commander's
+//! output, the motor commands). Out: the messages whose interval has elapsed, at the default rates
+//! ([`Stream::default_interval_us`]): SYS_STATUS 1 Hz, ATTITUDE and ATTITUDE_QUATERNION 20 Hz,
+//! LOCAL_POSITION_NED 10 Hz, GLOBAL_POSITION_INT 10 Hz (once an origin exists), GPS_RAW_INT 5 Hz (once a fix
+//! arrived), EXTENDED_SYS_STATE 1 Hz, HOME_POSITION 0.5 Hz (once home is set), VFR_HUD 4 Hz,
+//! BATTERY_STATUS 1 Hz. A stream due without its data is skipped, not queued.
+//!
+//! Units on the wire: angles rad (ATTITUDE) or cdeg, positions degE7 and mm, speeds cm/s. Nothing here
+//! measures the battery: SYS_STATUS and BATTERY_STATUS carry MAVLink's "unknown" values (voltage
+//! UINT16_MAX, current -1, remaining -1, temperature INT16_MAX, consumption -1).
+
+use ::mavlink::dialects::common::{
+    ATTITUDE_DATA, ATTITUDE_QUATERNION_DATA, BATTERY_STATUS_DATA, EXTENDED_SYS_STATE_DATA, GLOBAL_POSITION_INT_DATA,
+    GPS_RAW_INT_DATA, GpsFixType, HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA, MavBatteryFunction, MavBatteryType,
+    MavLandedState, MavMessage, MavSeverity, MavSysStatusSensor, MavVtolState, STATUSTEXT_DATA, SYS_STATUS_DATA,
+    VFR_HUD_DATA,
+};
+use nalgebra::Vector3;
+
+use super::next_due_us;
+use crate::core::commander::{CommanderOutput, Event};
+use crate::core::estimator::{EstimatorState, GpsSample};
+
+/// Home: where the vehicle armed (m, NED about the estimator's origin) and, with an origin, geodetic.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Home {
+    pub pos_ned_m: Vector3<f64>,
+    /// (lat deg, lon deg, alt m AMSL), when the estimator has an origin.
+    pub geodetic: Option<(f64, f64, f64)>,
+}
+
+/// What the streams report, at one vehicle step.
+#[derive(Debug, Clone, Copy)]
+pub struct TelemetrySnapshot<'a> {
+    pub now_us: u64,
+    pub estimate: &'a EstimatorState,
+    pub gps: Option<&'a GpsSample>,
+    pub home: Option<&'a Home>,
+    pub commander: &'a CommanderOutput,
+    /// The motor commands of this step (µs).
+    pub pwm_us: [f64; 4],
+}
+
+/// The periodic streams.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Stream {
+    SysStatus,
+    Attitude,
+    AttitudeQuaternion,
+    LocalPositionNed,
+    GlobalPositionInt,
+    GpsRawInt,
+    ExtendedSysState,
+    HomePosition,
+    VfrHud,
+    BatteryStatus,
+}
+
+impl Stream {
+    pub const ALL: [Self; 10] = [
+        Self::SysStatus,
+        Self::Attitude,
+        Self::AttitudeQuaternion,
+        Self::LocalPositionNed,
+        Self::GlobalPositionInt,
+        Self::GpsRawInt,
+        Self::ExtendedSysState,
+        Self::HomePosition,
+        Self::VfrHud,
+        Self::BatteryStatus,
+    ];
+
+    /// The MAVLink message id.
+    #[must_use]
+    pub const fn message_id(self) -> u32 {
+        match self {
+            Self::SysStatus => 1,
+            Self::Attitude => 30,
+            Self::AttitudeQuaternion => 31,
+            Self::LocalPositionNed => 32,
+            Self::GlobalPositionInt => 33,
+            Self::GpsRawInt => 24,
+            Self::ExtendedSysState => 245,
+            Self::HomePosition => 242,
+            Self::VfrHud => 74,
+            Self::BatteryStatus => 147,
+        }
+    }
+
+    /// The default interval (µs of vehicle time).
+    #[must_use]
+    pub const fn default_interval_us(self) -> u64 {
+        match self {
+            Self::SysStatus | Self::ExtendedSysState | Self::BatteryStatus => 1_000_000,
+            Self::Attitude | Self::AttitudeQuaternion => 50_000,
+            Self::LocalPositionNed | Self::GlobalPositionInt => 100_000,
+            Self::GpsRawInt => 200_000,
+            Self::HomePosition => 2_000_000,
+            Self::VfrHud => 250_000,
+        }
+    }
+
+    /// The message for `snap`, or `None` when its data does not exist yet (no origin, no fix, no home).
+    #[must_use]
+    pub fn message(self, snap: &TelemetrySnapshot<'_>) -> Option<MavMessage> {
+        match self {
+            Self::SysStatus => Some(sys_status(snap.estimate)),
+            Self::Attitude => Some(attitude(snap)),
+            Self::AttitudeQuaternion => Some(attitude_quaternion(snap)),
+            Self::LocalPositionNed => Some(local_position_ned(snap)),
+            Self::GlobalPositionInt => global_position_int(snap),
+            Self::GpsRawInt => snap.gps.map(gps_raw_int),
+            Self::ExtendedSysState => Some(extended_sys_state(snap.commander.landed_state)),
+            Self::HomePosition => snap.home.and_then(home_position),
+            Self::VfrHud => Some(vfr_hud(snap)),
+            Self::BatteryStatus => Some(battery_status()),
+        }
+    }
+}
+
+/// Per-stream intervals and due times on vehicle time. A stream is first sent at the first step, then
+/// every interval without drift (restarting if the steps fell behind by more than one interval).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StreamScheduler {
+    /// Per stream of [`Stream::ALL`]: interval (µs; 0 = off) and next due time.
+    interval_us: [u64; Stream::ALL.len()],
+    due_us: [Option<u64>; Stream::ALL.len()],
+}
+
+impl Default for StreamScheduler {
+    fn default() -> Self {
+        Self { interval_us: Stream::ALL.map(Stream::default_interval_us), due_us: [None; Stream::ALL.len()] }
+    }
+}
+
+impl StreamScheduler {
+    fn index(stream: Stream) -> usize {
+        Stream::ALL.iter().position(|s| *s == stream).unwrap_or(0)
+    }
+
+    /// Sets a stream's interval (µs; 0 turns it off); it restarts at the next step.
+    pub fn set_interval_us(&mut self, stream: Stream, interval_us: u64) {
+        let i = Self::index(stream);
+        self.interval_us[i] = interval_us;
+        self.due_us[i] = None;
+    }
+
+    #[must_use]
+    pub fn interval_us(&self, stream: Stream) -> u64 {
+        self.interval_us[Self::index(stream)]
+    }
+
+    /// The streams due at `now_us`, in [`Stream::ALL`] order; their next due times advance.
+    pub fn due(&mut self, now_us: u64) -> Vec<Stream> {
+        let mut out = Vec::new();
+        for (i, stream) in Stream::ALL.into_iter().enumerate() {
+            let interval = self.interval_us[i];
+            if interval == 0 || self.due_us[i].is_some_and(|due| now_us < due) {
+                continue;
+            }
+            self.due_us[i] = Some(next_due_us(self.due_us[i], now_us, interval, false));
+            out.push(stream);
+        }
+        out
+    }
+}
+
+/// Milliseconds since boot (the plant's clock starts at 0), wrapping as MAVLink's u32 does.
+fn time_boot_ms(now_us: u64) -> u32 {
+    (now_us / 1000) as u32
+}
+
+fn deg_e7(angle_deg: f64) -> i32 {
+    (angle_deg * 1e7).round() as i32
+}
+
+fn mm(length_m: f64) -> i32 {
+    (length_m * 1e3).round() as i32
+}
+
+fn cm_i16(speed_mps: f64) -> i16 {
+    (speed_mps * 100.0).round() as i16
+}
+
+/// Heading of a vector or yaw in centidegrees 0..35999.
+fn cdeg_0_360(angle_rad: f64) -> u16 {
+    if !angle_rad.is_finite() {
+        return u16::MAX;
+    }
+    ((angle_rad.to_degrees().rem_euclid(360.0) * 100.0).round() as u16) % 36_000
+}
+
+fn sensors(bits: &[(bool, MavSysStatusSensor)]) -> MavSysStatusSensor {
+    bits.iter().filter(|(on, _)| *on).fold(MavSysStatusSensor::empty(), |acc, (_, b)| acc | *b)
+}
+
+/// SYS_STATUS: gyro, accel, mag, baro, GPS and PREARM_CHECK present and enabled; healthy from the estimator
+/// flags (IMU: attitude valid; PREARM_CHECK: converged, i.e. armable). Battery unknown.
+#[must_use]
+pub fn sys_status(est: &EstimatorState) -> MavMessage {
+    use MavSysStatusSensor as S;
+    let all = S::MAV_SYS_STATUS_SENSOR_3D_GYRO
+        | S::MAV_SYS_STATUS_SENSOR_3D_ACCEL
+        | S::MAV_SYS_STATUS_SENSOR_3D_MAG
+        | S::MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+        | S::MAV_SYS_STATUS_SENSOR_GPS
+        | S::MAV_SYS_STATUS_PREARM_CHECK;
+    let f = &est.flags;
+    let health = sensors(&[
+        (f.attitude_valid, S::MAV_SYS_STATUS_SENSOR_3D_GYRO),
+        (f.attitude_valid, S::MAV_SYS_STATUS_SENSOR_3D_ACCEL),
+        (f.mag_ok, S::MAV_SYS_STATUS_SENSOR_3D_MAG),
+        (f.baro_ok, S::MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE),
+        (f.gps_ok, S::MAV_SYS_STATUS_SENSOR_GPS),
+        (f.converged, S::MAV_SYS_STATUS_PREARM_CHECK),
+    ]);
+    MavMessage::SYS_STATUS(SYS_STATUS_DATA {
+        onboard_control_sensors_present: all,
+        onboard_control_sensors_enabled: all,
+        onboard_control_sensors_health: health,
+        load: 0,
+        voltage_battery: u16::MAX,
+        current_battery: -1,
+        battery_remaining: -1,
+        ..SYS_STATUS_DATA::default()
+    })
+}
+
+fn attitude(snap: &TelemetrySnapshot<'_>) -> MavMessage {
+    let (e, w) = (snap.estimate.euler_rad, snap.estimate.rate_frd_radps);
+    MavMessage::ATTITUDE(ATTITUDE_DATA {
+        time_boot_ms: time_boot_ms(snap.now_us),
+        roll: e.x as f32,
+        pitch: e.y as f32,
+        yaw: e.z as f32,
+        rollspeed: w.x as f32,
+        pitchspeed: w.y as f32,
+        yawspeed: w.z as f32,
+    })
+}
+
+fn attitude_quaternion(snap: &TelemetrySnapshot<'_>) -> MavMessage {
+    let q = snap.estimate.q_ned_frd;
+    let w = snap.estimate.rate_frd_radps;
+    MavMessage::ATTITUDE_QUATERNION(ATTITUDE_QUATERNION_DATA {
+        time_boot_ms: time_boot_ms(snap.now_us),
+        q1: q.w as f32,
+        q2: q.i as f32,
+        q3: q.j as f32,
+        q4: q.k as f32,
+        rollspeed: w.x as f32,
+        pitchspeed: w.y as f32,
+        yawspeed: w.z as f32,
+    })
+}
+
+fn local_position_ned(snap: &TelemetrySnapshot<'_>) -> MavMessage {
+    let (p, v) = (snap.estimate.pos_ned_m, snap.estimate.vel_ned_mps);
+    MavMessage::LOCAL_POSITION_NED(LOCAL_POSITION_NED_DATA {
+        time_boot_ms: time_boot_ms(snap.now_us),
+        x: p.x as f32,
+        y: p.y as f32,
+        z: p.z as f32,
+        vx: v.x as f32,
+        vy: v.y as f32,
+        vz: v.z as f32,
+    })
+}
+
+/// GLOBAL_POSITION_INT from the estimate and its origin; relative altitude above home (above the origin
+/// before home is set).
+fn global_position_int(snap: &TelemetrySnapshot<'_>) -> Option<MavMessage> {
+    let est = snap.estimate;
+    let origin = est.origin?;
+    let (lat_deg, lon_deg, alt_amsl_m) = origin.geodetic_from_ned(&est.pos_ned_m);
+    let home_d_m = snap.home.map_or(0.0, |h| h.pos_ned_m.z);
+    let v = est.vel_ned_mps;
+    Some(MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
+        time_boot_ms: time_boot_ms(snap.now_us),
+        lat: deg_e7(lat_deg),
+        lon: deg_e7(lon_deg),
+        alt: mm(alt_amsl_m),
+        relative_alt: mm(home_d_m - est.pos_ned_m.z),
+        vx: cm_i16(v.x),
+        vy: cm_i16(v.y),
+        vz: cm_i16(v.z),
+        hdg: cdeg_0_360(est.euler_rad.z),
+    }))
+}
+
+fn gps_raw_int(gps: &GpsSample) -> MavMessage {
+    let fix_type = match gps.fix_type {
+        0 => GpsFixType::GPS_FIX_TYPE_NO_GPS,
+        1 => GpsFixType::GPS_FIX_TYPE_NO_FIX,
+        2 => GpsFixType::GPS_FIX_TYPE_2D_FIX,
+        3 => GpsFixType::GPS_FIX_TYPE_3D_FIX,
+        4 => GpsFixType::GPS_FIX_TYPE_DGPS,
+        5 => GpsFixType::GPS_FIX_TYPE_RTK_FLOAT,
+        _ => GpsFixType::GPS_FIX_TYPE_RTK_FIXED,
+    };
+    let centi = |x: f64| if x.is_finite() && x >= 0.0 { (x * 100.0).round().min(65_534.0) as u16 } else { u16::MAX };
+    let v = gps.vel_ned_mps;
+    let ground_mps = v.xy().norm();
+    MavMessage::GPS_RAW_INT(GPS_RAW_INT_DATA {
+        time_usec: gps.time_us,
+        lat: deg_e7(gps.lat_deg),
+        lon: deg_e7(gps.lon_deg),
+        alt: mm(gps.alt_amsl_m),
+        eph: centi(gps.eph_m),
+        epv: centi(gps.epv_m),
+        vel: centi(ground_mps),
+        cog: if ground_mps > 0.1 { cdeg_0_360(v.y.atan2(v.x)) } else { u16::MAX },
+        fix_type,
+        satellites_visible: gps.satellites,
+    })
+}
+
+fn landed_state(n: u8) -> MavLandedState {
+    match n {
+        1 => MavLandedState::MAV_LANDED_STATE_ON_GROUND,
+        2 => MavLandedState::MAV_LANDED_STATE_IN_AIR,
+        3 => MavLandedState::MAV_LANDED_STATE_TAKEOFF,
+        4 => MavLandedState::MAV_LANDED_STATE_LANDING,
+        _ => MavLandedState::MAV_LANDED_STATE_UNDEFINED,
+    }
+}
+
+fn extended_sys_state(landed: u8) -> MavMessage {
+    MavMessage::EXTENDED_SYS_STATE(EXTENDED_SYS_STATE_DATA {
+        vtol_state: MavVtolState::MAV_VTOL_STATE_UNDEFINED,
+        landed_state: landed_state(landed),
+    })
+}
+
+fn home_position(home: &Home) -> Option<MavMessage> {
+    let (lat_deg, lon_deg, alt_amsl_m) = home.geodetic?;
+    let p = home.pos_ned_m;
+    Some(MavMessage::HOME_POSITION(HOME_POSITION_DATA {
+        latitude: deg_e7(lat_deg),
+        longitude: deg_e7(lon_deg),
+        altitude: mm(alt_amsl_m),
+        x: p.x as f32,
+        y: p.y as f32,
+        z: p.z as f32,
+        q: [1.0, 0.0, 0.0, 0.0],
+        ..HOME_POSITION_DATA::default()
+    }))
+}
+
+/// VFR_HUD: no airspeed sensor, so airspeed is the ground speed (no wind estimate); altitude AMSL (or
+/// -D about the start point without an origin); throttle % from the mean motor command.
+fn vfr_hud(snap: &TelemetrySnapshot<'_>) -> MavMessage {
+    let est = snap.estimate;
+    let ground_mps = est.vel_ned_mps.xy().norm();
+    let alt_m = est.origin.map_or(-est.pos_ned_m.z, |o| o.alt_amsl_m - est.pos_ned_m.z);
+    let mean_pwm_us = snap.pwm_us.iter().sum::<f64>() / 4.0;
+    let throttle_pct = ((mean_pwm_us - 1000.0) / 10.0).clamp(0.0, 100.0);
+    let heading_deg = i16::try_from(cdeg_0_360(est.euler_rad.z) / 100).unwrap_or(0);
+    MavMessage::VFR_HUD(VFR_HUD_DATA {
+        airspeed: ground_mps as f32,
+        groundspeed: ground_mps as f32,
+        alt: alt_m as f32,
+        climb: -est.vel_ned_mps.z as f32,
+        heading: heading_deg,
+        throttle: if throttle_pct.is_finite() { throttle_pct.round() as u16 } else { 0 },
+    })
+}
+
+/// BATTERY_STATUS with every value unknown, as MAVLink spells it.
+fn battery_status() -> MavMessage {
+    MavMessage::BATTERY_STATUS(BATTERY_STATUS_DATA {
+        current_consumed: -1,
+        energy_consumed: -1,
+        temperature: i16::MAX,
+        voltages: [u16::MAX; 10],
+        current_battery: -1,
+        id: 0,
+        battery_function: MavBatteryFunction::MAV_BATTERY_FUNCTION_ALL,
+        mavtype: MavBatteryType::MAV_BATTERY_TYPE_UNKNOWN,
+        battery_remaining: -1,
+    })
+}
+
+/// A STATUSTEXT (text cut to MAVLink's 50 bytes at a character boundary).
+#[must_use]
+pub fn statustext(severity: MavSeverity, text: &str) -> MavMessage {
+    let mut end = text.len().min(50);
+    while !text.is_char_boundary(end) {
+        end -= 1;
+    }
+    MavMessage::STATUSTEXT(STATUSTEXT_DATA { severity, text: text[..end].into() })
+}
+
+/// The severity of an event's STATUSTEXT: a kill is critical, a disarm a notice, the rest info.
+#[must_use]
+pub fn event_severity(event: &Event) -> MavSeverity {
+    match event {
+        Event::Killed => MavSeverity::MAV_SEVERITY_CRITICAL,
+        Event::Disarmed { .. } => MavSeverity::MAV_SEVERITY_NOTICE,
+        _ => MavSeverity::MAV_SEVERITY_INFO,
+    }
+}
