@@ -2,3 +2,4 @@
 //! scenario runner and the real airframe all drive identically.
 
 pub mod core;
+pub mod runtime;

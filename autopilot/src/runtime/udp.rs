@@ -1,0 +1,462 @@
+//! The UDP ground-station link, PX4 SITL style. One socket, bound on `0.0.0.0:18570 + N` for instance N
+//! (PX4's SITL GCS port; configurable). In: datagrams from any address; each valid frame goes to the core
+//! as an [`Incoming`] tagged with its sender, and the sender enters the [`PeerTable`]. Out: each
+//! [`Outgoing`] is encoded once as MAVLink 2 and sent to every fixed target (127.0.0.1:14550 + N for
+//! QGroundControl, 127.0.0.1:14540 + N for MAVSDK) and every live peer, or to one peer for a reply.
+//!
+//! Peers expire after [`PEER_EXPIRY`] (10 s) without a valid frame from them: GCS heartbeats come at 1 Hz
+//! and clients give up on a silent vehicle after 3-3.5 s, so 10 s keeps a client through a few lost
+//! heartbeats and a one-shot script for a while after its last message. Fixed targets never expire.
+//! rust-mavlink's `udpin` answers only the last sender, which is why this shell keeps its own socket.
+//!
+//! Malformed datagrams are counted in the link's `LinkStats` and dropped; a send that fails (nobody
+//! listening, full buffer) is counted and the link keeps running. Only a receive error that is not about
+//! one peer stops the link, as a [`LinkError`].
+
+use std::collections::{BTreeMap, HashSet};
+use std::io::ErrorKind;
+use std::net::{Ipv4Addr, SocketAddr, SocketAddrV4};
+use std::sync::Arc;
+use std::time::Duration;
+
+use tokio::net::UdpSocket;
+use tokio::sync::mpsc;
+use tokio::sync::mpsc::error::TrySendError;
+use tokio::time::Instant;
+
+use super::frame::{CountingDecoder, LinkCounters, encode_v2};
+use super::link::{Destination, Incoming, LinkError, Outgoing};
+use super::shutdown::Shutdown;
+
+/// PX4 SITL's local GCS port for instance 0; instance N binds `LOCAL_PORT + N`.
+pub const LOCAL_PORT: u16 = 18570;
+/// QGroundControl's port for instance 0.
+pub const QGC_PORT: u16 = 14550;
+/// MAVSDK / API port for instance 0.
+pub const API_PORT: u16 = 14540;
+/// How long a peer stays in the table without sending a valid frame.
+pub const PEER_EXPIRY: Duration = Duration::from_secs(10);
+/// Largest UDP payload, in bytes: a datagram may hold several frames.
+const MAX_DATAGRAM_BYTES: usize = 65_536;
+
+/// Where the UDP link binds and what it always sends to.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct UdpConfig {
+    /// Local address to bind (port 0 picks a free one, for tests).
+    pub bind: SocketAddr,
+    /// Fixed targets: sent every broadcast, never expire.
+    pub targets: Vec<SocketAddr>,
+    /// How long a peer stays without traffic.
+    pub peer_expiry: Duration,
+}
+
+impl UdpConfig {
+    /// PX4 SITL's layout for instance `instance`: bind 0.0.0.0:18570+N, send to 127.0.0.1:14550+N and
+    /// 127.0.0.1:14540+N. Ports wrap around at 65535 rather than panic on absurd instance numbers.
+    #[must_use]
+    pub fn for_instance(instance: u16) -> Self {
+        let local = |port: u16| SocketAddr::V4(SocketAddrV4::new(Ipv4Addr::LOCALHOST, port.wrapping_add(instance)));
+        Self {
+            bind: SocketAddr::V4(SocketAddrV4::new(Ipv4Addr::UNSPECIFIED, LOCAL_PORT.wrapping_add(instance))),
+            targets: vec![local(QGC_PORT), local(API_PORT)],
+            peer_expiry: PEER_EXPIRY,
+        }
+    }
+}
+
+impl Default for UdpConfig {
+    fn default() -> Self {
+        Self::for_instance(0)
+    }
+}
+
+/// Fixed targets plus every address that sent a valid frame within the expiry time.
+#[derive(Debug, Clone)]
+pub struct PeerTable {
+    fixed: Vec<SocketAddr>,
+    last_heard: BTreeMap<SocketAddr, Instant>,
+    expiry: Duration,
+}
+
+impl PeerTable {
+    #[must_use]
+    pub fn new(fixed: Vec<SocketAddr>, expiry: Duration) -> Self {
+        Self { fixed, last_heard: BTreeMap::new(), expiry }
+    }
+
+    /// `peer` sent a valid frame at `now`; true if it was not live before.
+    pub fn heard(&mut self, peer: SocketAddr, now: Instant) -> bool {
+        self.last_heard.insert(peer, now).is_none_or(|last| now.duration_since(last) >= self.expiry)
+    }
+
+    /// Drop peers silent for the expiry time or longer; returns them.
+    pub fn expire(&mut self, now: Instant) -> Vec<SocketAddr> {
+        let expiry = self.expiry;
+        let mut gone = Vec::new();
+        self.last_heard.retain(|peer, last| {
+            let live = now.duration_since(*last) < expiry;
+            if !live {
+                gone.push(*peer);
+            }
+            live
+        });
+        gone
+    }
+
+    /// Live peers (after [`PeerTable::expire`]), in address order.
+    pub fn peers(&self) -> impl Iterator<Item = SocketAddr> + '_ {
+        self.last_heard.keys().copied()
+    }
+
+    /// Where a broadcast goes: fixed targets, then live peers not among them; no address twice.
+    #[must_use]
+    pub fn broadcast_targets(&self) -> Vec<SocketAddr> {
+        let mut seen = HashSet::new();
+        self.fixed.iter().copied().chain(self.peers()).filter(|a| seen.insert(*a)).collect()
+    }
+}
+
+/// A bound UDP link, ready to [`UdpLink::run`].
+#[derive(Debug)]
+pub struct UdpLink {
+    socket: UdpSocket,
+    local: SocketAddr,
+    peers: PeerTable,
+    counters: Arc<LinkCounters>,
+}
+
+impl UdpLink {
+    /// Bind the socket.
+    ///
+    /// # Errors
+    /// [`LinkError::Bind`] if the address cannot be bound, [`LinkError::Io`] if its local address cannot
+    /// be read back.
+    pub async fn bind(config: UdpConfig) -> Result<Self, LinkError> {
+        let socket =
+            UdpSocket::bind(config.bind).await.map_err(|source| LinkError::Bind { addr: config.bind, source })?;
+        let local = socket.local_addr()?;
+        tracing::info!(%local, targets = ?config.targets, "UDP ground-station link bound");
+        Ok(Self {
+            socket,
+            local,
+            peers: PeerTable::new(config.targets, config.peer_expiry),
+            counters: LinkCounters::new_shared(),
+        })
+    }
+
+    /// The bound address (with the real port when bound to port 0).
+    #[must_use]
+    pub fn local_addr(&self) -> SocketAddr {
+        self.local
+    }
+
+    /// The link's counters; keep a clone to read them while it runs.
+    #[must_use]
+    pub fn counters(&self) -> Arc<LinkCounters> {
+        self.counters.clone()
+    }
+
+    /// Move frames until shutdown fires, the core drops its receiver of `incoming`, or the core closes
+    /// `outgoing`. On return the `incoming` sender is dropped, so the core sees the link end.
+    ///
+    /// # Errors
+    /// [`LinkError::Receive`] when the socket fails in a way that is not about one peer.
+    pub async fn run(
+        mut self,
+        incoming: mpsc::Sender<Incoming>,
+        mut outgoing: mpsc::Receiver<Outgoing>,
+        mut shutdown: Shutdown,
+    ) -> Result<(), LinkError> {
+        let mut decoder = CountingDecoder::new(self.counters.clone());
+        let mut buf = vec![0u8; MAX_DATAGRAM_BYTES];
+        loop {
+            tokio::select! {
+                biased;
+                () = shutdown.recv() => break,
+                out = outgoing.recv() => {
+                    let Some(out) = out else { break };
+                    self.send(&out).await;
+                }
+                received = self.socket.recv_from(&mut buf) => {
+                    let (len, peer) = match received {
+                        Ok(r) => r,
+                        // An ICMP "port unreachable" for an earlier send (reported on some platforms):
+                        // about one peer, not the link.
+                        Err(e) if matches!(e.kind(), ErrorKind::ConnectionRefused | ErrorKind::ConnectionReset) => {
+                            tracing::debug!(error = %e, "UDP peer unreachable");
+                            self.counters.add_send_error();
+                            continue;
+                        }
+                        Err(source) => return Err(LinkError::Receive { local: self.local, source }),
+                    };
+                    let frames = decoder.decode_datagram(&buf[..len]);
+                    if frames.is_empty() {
+                        tracing::debug!(%peer, len, "UDP datagram without a valid frame dropped");
+                        continue;
+                    }
+                    if self.peers.heard(peer, Instant::now()) {
+                        tracing::info!(%peer, "UDP ground-station peer joined");
+                    }
+                    for f in frames {
+                        self.counters.add_frame_in();
+                        let msg = Incoming { peer, header: f.header, message: f.message, version: f.version };
+                        match incoming.try_send(msg) {
+                            Ok(()) => {}
+                            Err(TrySendError::Full(_)) => {
+                                self.counters.add_dropped_in();
+                                tracing::warn!(%peer, "core is not keeping up; incoming frame dropped");
+                            }
+                            Err(TrySendError::Closed(_)) => return Ok(()),
+                        }
+                    }
+                }
+            }
+        }
+        tracing::info!(local = %self.local, "UDP ground-station link stopped");
+        Ok(())
+    }
+
+    async fn send(&mut self, out: &Outgoing) {
+        let bytes = encode_v2(out.header, &out.message);
+        let targets = match out.to {
+            Destination::All => {
+                for peer in self.peers.expire(Instant::now()) {
+                    tracing::info!(%peer, "UDP ground-station peer expired");
+                }
+                self.peers.broadcast_targets()
+            }
+            Destination::Peer(peer) => vec![peer],
+        };
+        for target in targets {
+            match self.socket.send_to(&bytes, target).await {
+                Ok(_) => self.counters.add_sent(bytes.len()),
+                Err(e) => {
+                    self.counters.add_send_error();
+                    tracing::debug!(%target, error = %e, "UDP send failed");
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::runtime::frame::DecodedFrame;
+    use crate::runtime::frame::FrameDecoder;
+    use crate::runtime::frame::tests::{heartbeat, signed};
+    use crate::runtime::link::CHANNEL_CAPACITY;
+    use crate::runtime::shutdown::{self, ShutdownTrigger};
+    use mavlink::MavHeader;
+    use mavlink::dialects::common::{COMMAND_ACK_DATA, MavCmd, MavMessage, MavResult};
+    use tokio::task::JoinHandle;
+
+    const VEHICLE: MavHeader = MavHeader { system_id: 1, component_id: 1, sequence: 0 };
+    /// Long enough for a loopback datagram; with paused time it costs nothing.
+    const WAIT: Duration = Duration::from_millis(500);
+
+    struct Harness {
+        link_addr: SocketAddr,
+        fixed: UdpSocket,
+        incoming: mpsc::Receiver<Incoming>,
+        outgoing: mpsc::Sender<Outgoing>,
+        counters: Arc<LinkCounters>,
+        trigger: ShutdownTrigger,
+        task: JoinHandle<Result<(), LinkError>>,
+    }
+
+    async fn loopback_socket() -> UdpSocket {
+        UdpSocket::bind("127.0.0.1:0").await.expect("bind loopback")
+    }
+
+    async fn start() -> Harness {
+        let fixed = loopback_socket().await;
+        let config = UdpConfig {
+            bind: "127.0.0.1:0".parse().expect("addr"),
+            targets: vec![fixed.local_addr().expect("addr")],
+            peer_expiry: PEER_EXPIRY,
+        };
+        let link = UdpLink::bind(config).await.expect("bind link");
+        let link_addr = link.local_addr();
+        let counters = link.counters();
+        let (in_tx, incoming) = mpsc::channel(CHANNEL_CAPACITY);
+        let (outgoing, out_rx) = mpsc::channel(CHANNEL_CAPACITY);
+        let (trigger, shutdown) = shutdown::channel();
+        let task = tokio::spawn(link.run(in_tx, out_rx, shutdown));
+        Harness { link_addr, fixed, incoming, outgoing, counters, trigger, task }
+    }
+
+    async fn send_heartbeat(sock: &UdpSocket, to: SocketAddr, seq: u8) {
+        let (h, m) = heartbeat(255, seq);
+        sock.send_to(&encode_v2(h, &m), to).await.expect("send");
+    }
+
+    /// The frames of the next datagram, or None if none comes within [`WAIT`].
+    async fn next_frames(sock: &UdpSocket) -> Option<Vec<DecodedFrame>> {
+        let mut buf = vec![0u8; MAX_DATAGRAM_BYTES];
+        let (len, _) = tokio::time::timeout(WAIT, sock.recv_from(&mut buf)).await.ok()?.expect("recv");
+        Some(FrameDecoder::new().decode_datagram(&buf[..len]))
+    }
+
+    async fn expect_heartbeat(sock: &UdpSocket, seq: u8, who: &str) {
+        let frames = next_frames(sock).await.unwrap_or_else(|| panic!("{who}: no heartbeat {seq}"));
+        assert_eq!(frames.len(), 1, "{who}");
+        assert!(matches!(frames[0].message, MavMessage::HEARTBEAT(_)), "{who}: {:?}", frames[0].message);
+        assert_eq!(frames[0].header.sequence, seq, "{who}");
+    }
+
+    async fn broadcast_heartbeat(h: &Harness, seq: u8) {
+        let (_, message) = heartbeat(1, seq);
+        let header = MavHeader { sequence: seq, ..VEHICLE };
+        h.outgoing.send(Outgoing { to: Destination::All, header, message }).await.expect("link alive");
+    }
+
+    async fn next_incoming(h: &mut Harness) -> Incoming {
+        tokio::time::timeout(WAIT, h.incoming.recv()).await.expect("incoming in time").expect("link alive")
+    }
+
+    #[test]
+    fn instance_shifts_every_port() {
+        let c = UdpConfig::for_instance(2);
+        assert_eq!(c.bind, "0.0.0.0:18572".parse().expect("addr"));
+        assert_eq!(c.targets, vec!["127.0.0.1:14552".parse().expect("addr"), "127.0.0.1:14542".parse().expect("addr")]);
+        assert_eq!(c.peer_expiry, Duration::from_secs(10));
+    }
+
+    #[test]
+    fn peer_table_expires_peers_not_fixed_targets_and_never_doubles() {
+        let fixed: SocketAddr = "127.0.0.1:14550".parse().expect("addr");
+        let peer: SocketAddr = "127.0.0.1:40000".parse().expect("addr");
+        let mut t = PeerTable::new(vec![fixed], Duration::from_secs(10));
+        let t0 = Instant::now();
+        assert!(t.heard(peer, t0));
+        assert!(!t.heard(peer, t0 + Duration::from_secs(1)));
+        assert!(t.heard(fixed, t0), "a fixed target that talks is also a peer");
+        assert_eq!(t.broadcast_targets(), vec![fixed, peer]);
+        assert!(t.expire(t0 + Duration::from_millis(10_999)).contains(&fixed));
+        assert_eq!(t.broadcast_targets(), vec![fixed, peer]);
+        assert_eq!(t.expire(t0 + Duration::from_secs(11)), vec![peer]);
+        assert_eq!(t.broadcast_targets(), vec![fixed]);
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn talking_and_silent_peers_both_receive_every_broadcast() {
+        let mut h = start().await;
+        let talker = loopback_socket().await;
+        let script = loopback_socket().await;
+        // The script peer sends one message and then only listens.
+        send_heartbeat(&script, h.link_addr, 0).await;
+        assert_eq!(next_incoming(&mut h).await.peer, script.local_addr().expect("addr"));
+        send_heartbeat(&talker, h.link_addr, 0).await;
+        assert_eq!(next_incoming(&mut h).await.peer, talker.local_addr().expect("addr"));
+        for seq in 0..8u8 {
+            broadcast_heartbeat(&h, seq).await;
+            expect_heartbeat(&talker, seq, "talker").await;
+            expect_heartbeat(&script, seq, "script").await;
+            expect_heartbeat(&h.fixed, seq, "fixed").await;
+            tokio::time::sleep(Duration::from_secs(1)).await;
+            send_heartbeat(&talker, h.link_addr, seq + 1).await;
+            assert_eq!(next_incoming(&mut h).await.header.sequence, seq + 1);
+        }
+        let s = h.counters.snapshot();
+        assert_eq!((s.frames_in, s.frames_out, s.malformed), (10, 24, 0));
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_silent_peer_expires_fixed_targets_do_not() {
+        let mut h = start().await;
+        let peer = loopback_socket().await;
+        send_heartbeat(&peer, h.link_addr, 0).await;
+        next_incoming(&mut h).await;
+        tokio::time::sleep(Duration::from_millis(9_900)).await;
+        broadcast_heartbeat(&h, 1).await;
+        expect_heartbeat(&peer, 1, "peer before expiry").await;
+        expect_heartbeat(&h.fixed, 1, "fixed").await;
+        tokio::time::sleep(Duration::from_millis(200)).await;
+        broadcast_heartbeat(&h, 2).await;
+        expect_heartbeat(&h.fixed, 2, "fixed after the peer expired").await;
+        assert!(next_frames(&peer).await.is_none(), "an expired peer receives nothing");
+        // Talking again brings it back.
+        send_heartbeat(&peer, h.link_addr, 1).await;
+        next_incoming(&mut h).await;
+        broadcast_heartbeat(&h, 3).await;
+        expect_heartbeat(&peer, 3, "peer rejoined").await;
+        expect_heartbeat(&h.fixed, 3, "fixed").await;
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_reply_reaches_only_its_peer() {
+        let mut h = start().await;
+        let (a, b) = (loopback_socket().await, loopback_socket().await);
+        send_heartbeat(&a, h.link_addr, 0).await;
+        send_heartbeat(&b, h.link_addr, 0).await;
+        let from = next_incoming(&mut h).await.peer;
+        next_incoming(&mut h).await;
+        assert_eq!(from, a.local_addr().expect("addr"));
+        let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+            command: MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+            result: MavResult::MAV_RESULT_ACCEPTED,
+        });
+        h.outgoing
+            .send(Outgoing { to: Destination::Peer(from), header: VEHICLE, message: ack.clone() })
+            .await
+            .expect("send");
+        let got = next_frames(&a).await.expect("the addressed peer gets the reply");
+        assert_eq!(got[0].message, ack);
+        assert!(next_frames(&b).await.is_none(), "the other peer gets nothing");
+        assert!(next_frames(&h.fixed).await.is_none(), "the fixed target gets nothing");
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn garbage_and_truncated_datagrams_are_counted_and_the_next_frame_delivered() {
+        let mut h = start().await;
+        let (peer, noise) = (loopback_socket().await, loopback_socket().await);
+        let (hb_header, hb) = heartbeat(255, 7);
+        let good = encode_v2(hb_header, &hb);
+        noise.send_to(&[0x00, 0x13, 0x37, 0x42, 0x99], h.link_addr).await.expect("send");
+        peer.send_to(&good[..good.len() - 4], h.link_addr).await.expect("send");
+        let mut bad_crc = good.clone();
+        bad_crc[12] ^= 0x5A;
+        peer.send_to(&bad_crc, h.link_addr).await.expect("send");
+        // A signed v2 frame is read (signature skipped), then a plain one.
+        peer.send_to(&signed(&good, 0), h.link_addr).await.expect("send");
+        peer.send_to(&good, h.link_addr).await.expect("send");
+        for _ in 0..2 {
+            let got = next_incoming(&mut h).await;
+            assert_eq!((got.peer, got.header, &got.message), (peer.local_addr().expect("addr"), hb_header, &hb));
+        }
+        let s = h.counters.snapshot();
+        assert_eq!(s.frames_in, 2);
+        assert_eq!(s.malformed, 2, "{s:?}");
+        assert!(s.garbage_bytes >= 5, "the noise datagram and the dropped frames' bytes: {s:?}");
+        // Noise does not make a peer.
+        broadcast_heartbeat(&h, 0).await;
+        expect_heartbeat(&peer, 0, "peer").await;
+        assert!(next_frames(&noise).await.is_none(), "a sender of garbage is not a peer");
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn shutdown_ends_the_link_and_closes_the_incoming_channel() {
+        let mut h = start().await;
+        h.trigger.fire();
+        let res = tokio::time::timeout(WAIT, h.task).await.expect("ends promptly").expect("no panic");
+        assert!(res.is_ok());
+        assert!(h.incoming.recv().await.is_none(), "sender dropped on exit");
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn the_core_closing_outgoing_ends_the_link() {
+        let h = start().await;
+        drop(h.outgoing);
+        let res = tokio::time::timeout(WAIT, h.task).await.expect("ends promptly").expect("no panic");
+        assert!(res.is_ok());
+    }
+
+    #[tokio::test]
+    async fn binding_a_taken_port_is_a_typed_error() {
+        let taken = UdpSocket::bind("127.0.0.1:0").await.expect("bind");
+        let config = UdpConfig { bind: taken.local_addr().expect("addr"), ..UdpConfig::default() };
+        let err = UdpLink::bind(config).await.expect_err("port taken");
+        assert!(matches!(err, LinkError::Bind { .. }), "{err}");
+    }
+}
