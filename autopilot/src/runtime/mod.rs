@@ -8,4 +8,5 @@
 pub mod frame;
 pub mod link;
 pub mod shutdown;
+pub mod tlog;
 pub mod udp;
