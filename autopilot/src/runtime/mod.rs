@@ -8,5 +8,6 @@
 pub mod frame;
 pub mod link;
 pub mod shutdown;
+pub mod tcp;
 pub mod tlog;
 pub mod udp;

@@ -1,0 +1,378 @@
+//! The TCP ground-station link: a server on `0.0.0.0:5760 + N` for instance N (ArduPilot's and PX4's
+//! SITL TCP port; configurable) accepting any number of clients. In: each client's byte stream through
+//! its own stream decoder; each valid frame goes to the core as an [`Incoming`] tagged with the client's
+//! address. Out: each [`Outgoing`] is encoded once and queued to every connected client
+//! ([`Destination::All`]) or to one ([`Destination::Peer`]).
+//!
+//! One task accepts and routes; one task per client reads and writes. A client that disconnects, fails or
+//! falls [`CLIENT_QUEUE_FRAMES`] frames behind is dropped without disturbing the others (its frames
+//! dropped are counted as send errors). Only a listener failure that is not about one connection stops
+//! the link, as a [`LinkError`].
+
+use std::collections::BTreeMap;
+use std::io::ErrorKind;
+use std::net::{Ipv4Addr, SocketAddr, SocketAddrV4};
+use std::sync::Arc;
+
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::{TcpListener, TcpStream};
+use tokio::sync::mpsc;
+use tokio::sync::mpsc::error::TrySendError;
+use tokio::task::JoinSet;
+
+use super::frame::{CountingDecoder, LinkCounters, encode_v2};
+use super::link::{Destination, Incoming, LinkError, Outgoing};
+use super::shutdown::Shutdown;
+
+/// SITL's TCP port for instance 0; instance N listens on `TCP_PORT + N`.
+pub const TCP_PORT: u16 = 5760;
+/// Frames queued to one client before it counts as stalled and its frames are dropped.
+pub const CLIENT_QUEUE_FRAMES: usize = 256;
+/// Read size per client, in bytes.
+const READ_CHUNK_BYTES: usize = 4096;
+
+/// Where the TCP server listens.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct TcpConfig {
+    /// Local address to listen on (port 0 picks a free one, for tests).
+    pub bind: SocketAddr,
+}
+
+impl TcpConfig {
+    /// `0.0.0.0:5760 + instance` (wrapping at 65535 rather than panic).
+    #[must_use]
+    pub fn for_instance(instance: u16) -> Self {
+        Self { bind: SocketAddr::V4(SocketAddrV4::new(Ipv4Addr::UNSPECIFIED, TCP_PORT.wrapping_add(instance))) }
+    }
+}
+
+impl Default for TcpConfig {
+    fn default() -> Self {
+        Self::for_instance(0)
+    }
+}
+
+/// A listening TCP link, ready to [`TcpLink::run`].
+#[derive(Debug)]
+pub struct TcpLink {
+    listener: TcpListener,
+    local: SocketAddr,
+    counters: Arc<LinkCounters>,
+}
+
+type Frame = Arc<[u8]>;
+
+impl TcpLink {
+    /// Start listening.
+    ///
+    /// # Errors
+    /// [`LinkError::Bind`] if the address cannot be bound, [`LinkError::Io`] if its local address cannot
+    /// be read back.
+    pub async fn bind(config: TcpConfig) -> Result<Self, LinkError> {
+        let listener =
+            TcpListener::bind(config.bind).await.map_err(|source| LinkError::Bind { addr: config.bind, source })?;
+        let local = listener.local_addr()?;
+        tracing::info!(%local, "TCP ground-station link listening");
+        Ok(Self { listener, local, counters: LinkCounters::new_shared() })
+    }
+
+    /// The listening address (with the real port when bound to port 0).
+    #[must_use]
+    pub fn local_addr(&self) -> SocketAddr {
+        self.local
+    }
+
+    /// The link's counters (all clients together).
+    #[must_use]
+    pub fn counters(&self) -> Arc<LinkCounters> {
+        self.counters.clone()
+    }
+
+    /// Accept clients and move frames until shutdown fires or the core closes `outgoing`; then every client
+    /// task is ended and awaited, and the `incoming` senders are dropped.
+    ///
+    /// # Errors
+    /// [`LinkError::Receive`] when accepting fails in a way that is not about one connection.
+    pub async fn run(
+        self,
+        incoming: mpsc::Sender<Incoming>,
+        mut outgoing: mpsc::Receiver<Outgoing>,
+        mut shutdown: Shutdown,
+    ) -> Result<(), LinkError> {
+        let mut clients: BTreeMap<SocketAddr, mpsc::Sender<Frame>> = BTreeMap::new();
+        let mut tasks = JoinSet::new();
+        let result = loop {
+            tokio::select! {
+                biased;
+                () = shutdown.recv() => break Ok(()),
+                Some(done) = tasks.join_next(), if !tasks.is_empty() => {
+                    match done {
+                        Ok(peer) => {
+                            clients.remove(&peer);
+                        }
+                        Err(e) => tracing::error!(error = %e, "TCP client task panicked"),
+                    }
+                }
+                out = outgoing.recv() => {
+                    let Some(out) = out else { break Ok(()) };
+                    self.route(&mut clients, &out);
+                }
+                accepted = self.listener.accept() => match accepted {
+                    Ok((stream, peer)) => {
+                        tracing::info!(%peer, "TCP ground-station client connected");
+                        let (tx, rx) = mpsc::channel(CLIENT_QUEUE_FRAMES);
+                        clients.insert(peer, tx);
+                        let client = Client {
+                            peer,
+                            incoming: incoming.clone(),
+                            outgoing: rx,
+                            shutdown: shutdown.clone(),
+                            counters: self.counters.clone(),
+                        };
+                        tasks.spawn(client.run(stream));
+                    }
+                    Err(e) if is_per_connection(&e) => {
+                        tracing::warn!(error = %e, "TCP accept failed for one connection");
+                    }
+                    Err(source) => break Err(LinkError::Receive { local: self.local, source }),
+                }
+            }
+        };
+        // Drain: closing each client's queue ends its task (a task in a shutdown select ends anyway).
+        drop(clients);
+        drop(incoming);
+        while let Some(done) = tasks.join_next().await {
+            if let Err(e) = done {
+                tracing::error!(error = %e, "TCP client task panicked");
+            }
+        }
+        tracing::info!(local = %self.local, "TCP ground-station link stopped");
+        result
+    }
+
+    fn route(&self, clients: &mut BTreeMap<SocketAddr, mpsc::Sender<Frame>>, out: &Outgoing) {
+        let frame: Frame = encode_v2(out.header, &out.message).into();
+        let mut gone = Vec::new();
+        for (peer, tx) in clients.iter() {
+            if let Destination::Peer(to) = out.to
+                && to != *peer
+            {
+                continue;
+            }
+            match tx.try_send(frame.clone()) {
+                Ok(()) => {}
+                Err(TrySendError::Full(_)) => {
+                    self.counters.add_send_error();
+                    tracing::warn!(%peer, "TCP client is not reading; frame dropped");
+                }
+                Err(TrySendError::Closed(_)) => gone.push(*peer),
+            }
+        }
+        if let Destination::Peer(to) = out.to
+            && !clients.contains_key(&to)
+        {
+            self.counters.add_send_error();
+            tracing::debug!(peer = %to, "reply to a TCP client that is not connected dropped");
+        }
+        for peer in gone {
+            clients.remove(&peer);
+        }
+    }
+}
+
+/// Accept errors that concern one incoming connection, not the listener.
+fn is_per_connection(e: &std::io::Error) -> bool {
+    matches!(e.kind(), ErrorKind::ConnectionAborted | ErrorKind::ConnectionReset | ErrorKind::ConnectionRefused)
+}
+
+/// One connected client's task state.
+struct Client {
+    peer: SocketAddr,
+    incoming: mpsc::Sender<Incoming>,
+    outgoing: mpsc::Receiver<Frame>,
+    shutdown: Shutdown,
+    counters: Arc<LinkCounters>,
+}
+
+impl Client {
+    /// Read and write until the client leaves, fails, the server drops its queue, or shutdown; returns the
+    /// peer so the server can forget it. Errors end only this client and are logged with its address.
+    async fn run(mut self, stream: TcpStream) -> SocketAddr {
+        let peer = self.peer;
+        let (mut reader, mut writer) = stream.into_split();
+        let mut decoder = CountingDecoder::new(self.counters.clone());
+        let mut buf = vec![0u8; READ_CHUNK_BYTES];
+        loop {
+            tokio::select! {
+                biased;
+                () = self.shutdown.recv() => break,
+                frame = self.outgoing.recv() => {
+                    let Some(frame) = frame else { break };
+                    if let Err(e) = writer.write_all(&frame).await {
+                        self.counters.add_send_error();
+                        tracing::warn!(%peer, error = %e, "TCP client write failed; dropping the client");
+                        break;
+                    }
+                    self.counters.add_sent(frame.len());
+                }
+                read = reader.read(&mut buf) => match read {
+                    Ok(0) => {
+                        let _ = decoder.finish();
+                        tracing::info!(%peer, "TCP ground-station client disconnected");
+                        break;
+                    }
+                    Ok(n) => {
+                        for f in decoder.push(&buf[..n]) {
+                            self.counters.add_frame_in();
+                            let msg = Incoming { peer, header: f.header, message: f.message, version: f.version };
+                            match self.incoming.try_send(msg) {
+                                Ok(()) => {}
+                                Err(TrySendError::Full(_)) => {
+                                    self.counters.add_dropped_in();
+                                    tracing::warn!(%peer, "core is not keeping up; incoming frame dropped");
+                                }
+                                Err(TrySendError::Closed(_)) => return peer,
+                            }
+                        }
+                    }
+                    Err(e) => {
+                        tracing::warn!(%peer, error = %e, "TCP client read failed; dropping the client");
+                        break;
+                    }
+                }
+            }
+        }
+        peer
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::runtime::frame::tests::heartbeat;
+    use crate::runtime::frame::{DecodedFrame, FrameDecoder};
+    use crate::runtime::link::CHANNEL_CAPACITY;
+    use crate::runtime::shutdown::{self, ShutdownTrigger};
+    use mavlink::MavHeader;
+    use mavlink::dialects::common::MavMessage;
+    use std::time::Duration;
+    use tokio::task::JoinHandle;
+
+    const WAIT: Duration = Duration::from_secs(2);
+    const QUIET: Duration = Duration::from_millis(200);
+
+    struct Harness {
+        addr: SocketAddr,
+        incoming: mpsc::Receiver<Incoming>,
+        outgoing: mpsc::Sender<Outgoing>,
+        trigger: ShutdownTrigger,
+        task: JoinHandle<Result<(), LinkError>>,
+    }
+
+    async fn start() -> Harness {
+        let link = TcpLink::bind(TcpConfig { bind: "127.0.0.1:0".parse().expect("addr") }).await.expect("bind");
+        let addr = link.local_addr();
+        let (in_tx, incoming) = mpsc::channel(CHANNEL_CAPACITY);
+        let (outgoing, out_rx) = mpsc::channel(CHANNEL_CAPACITY);
+        let (trigger, shutdown) = shutdown::channel();
+        let task = tokio::spawn(link.run(in_tx, out_rx, shutdown));
+        Harness { addr, incoming, outgoing, trigger, task }
+    }
+
+    /// A connected client whose hello heartbeat the core has seen (so the server has registered it).
+    async fn connect(h: &mut Harness) -> TcpStream {
+        let mut s = TcpStream::connect(h.addr).await.expect("connect");
+        let (hh, hm) = heartbeat(255, 0);
+        s.write_all(&encode_v2(hh, &hm)).await.expect("write");
+        let got = tokio::time::timeout(WAIT, h.incoming.recv()).await.expect("in time").expect("alive");
+        assert_eq!(got.peer, s.local_addr().expect("addr"), "frames arrive with the client's address");
+        assert_eq!(got.message, hm);
+        s
+    }
+
+    async fn next_frame(s: &mut TcpStream, dec: &mut FrameDecoder, wait: Duration) -> Option<DecodedFrame> {
+        let mut buf = [0u8; 512];
+        loop {
+            let n = tokio::time::timeout(wait, s.read(&mut buf)).await.ok()?.expect("read");
+            if n == 0 {
+                return None;
+            }
+            if let Some(f) = dec.push(&buf[..n]).into_iter().next() {
+                return Some(f);
+            }
+        }
+    }
+
+    async fn broadcast(h: &Harness, seq: u8) {
+        let (_, message) = heartbeat(1, seq);
+        let header = MavHeader { system_id: 1, component_id: 1, sequence: seq };
+        h.outgoing.send(Outgoing { to: Destination::All, header, message }).await.expect("alive");
+    }
+
+    #[tokio::test]
+    async fn two_clients_receive_broadcasts_and_a_disconnect_leaves_the_other() {
+        let mut h = start().await;
+        let mut a = connect(&mut h).await;
+        let mut b = connect(&mut h).await;
+        let (mut da, mut db) = (FrameDecoder::new(), FrameDecoder::new());
+        for seq in 0..3 {
+            broadcast(&h, seq).await;
+            assert_eq!(next_frame(&mut a, &mut da, WAIT).await.expect("a").header.sequence, seq);
+            assert_eq!(next_frame(&mut b, &mut db, WAIT).await.expect("b").header.sequence, seq);
+        }
+        drop(a);
+        // Give the server a moment to see the EOF; the broadcast must reach b whether or not it has.
+        tokio::time::sleep(Duration::from_millis(50)).await;
+        for seq in 3..6 {
+            broadcast(&h, seq).await;
+            assert_eq!(next_frame(&mut b, &mut db, WAIT).await.expect("b after a left").header.sequence, seq);
+        }
+        // b still talks to the core.
+        let (hh, hm) = heartbeat(255, 9);
+        b.write_all(&encode_v2(hh, &hm)).await.expect("write");
+        let got = tokio::time::timeout(WAIT, h.incoming.recv()).await.expect("in time").expect("alive");
+        assert_eq!((got.peer, got.header.sequence), (b.local_addr().expect("addr"), 9));
+    }
+
+    #[tokio::test]
+    async fn a_reply_reaches_only_its_client_and_split_frames_are_joined() {
+        let mut h = start().await;
+        let mut a = connect(&mut h).await;
+        let mut b = connect(&mut h).await;
+        // A frame written in two pieces with garbage before it still arrives once.
+        let (hh, hm) = heartbeat(255, 4);
+        let bytes = encode_v2(hh, &hm);
+        a.write_all(&[0x55, 0xAA]).await.expect("write");
+        a.write_all(&bytes[..5]).await.expect("write");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+        a.write_all(&bytes[5..]).await.expect("write");
+        let got = tokio::time::timeout(WAIT, h.incoming.recv()).await.expect("in time").expect("alive");
+        assert_eq!(got.header.sequence, 4);
+        let (_, message) = heartbeat(1, 0);
+        let to = Destination::Peer(a.local_addr().expect("addr"));
+        let header = MavHeader { system_id: 1, component_id: 1, sequence: 42 };
+        h.outgoing.send(Outgoing { to, header, message }).await.expect("alive");
+        let (mut da, mut db) = (FrameDecoder::new(), FrameDecoder::new());
+        assert_eq!(next_frame(&mut a, &mut da, WAIT).await.expect("a").header.sequence, 42);
+        assert!(next_frame(&mut b, &mut db, QUIET).await.is_none(), "b gets nothing");
+        assert!(matches!(got.message, MavMessage::HEARTBEAT(_)));
+    }
+
+    #[tokio::test]
+    async fn shutdown_ends_server_and_clients_promptly() {
+        let mut h = start().await;
+        let mut a = connect(&mut h).await;
+        h.trigger.fire();
+        let res = tokio::time::timeout(WAIT, h.task).await.expect("ends promptly").expect("no panic");
+        assert!(res.is_ok());
+        assert!(h.incoming.recv().await.is_none(), "every incoming sender dropped");
+        let mut buf = [0u8; 16];
+        let n = tokio::time::timeout(WAIT, a.read(&mut buf)).await.expect("closed promptly");
+        assert!(matches!(n, Ok(0) | Err(_)), "the client sees the connection end: {n:?}");
+    }
+
+    #[test]
+    fn instance_shifts_the_port() {
+        assert_eq!(TcpConfig::for_instance(3).bind, "0.0.0.0:5763".parse().expect("addr"));
+    }
+}
