@@ -397,3 +397,351 @@ impl Vehicle {
             .map(|p| if p.is_finite() { p.clamp(PWM_MIN_US, PWM_MAX_US) } else { PWM_MIN_US })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use ::mavlink::Message as _;
+    use ::mavlink::dialects::common::{
+        COMMAND_INT_DATA, COMMAND_LONG_DATA, MavCmd, MavFrame, MavModeFlag, MavResult, MavSeverity,
+    };
+    use nalgebra::UnitQuaternion;
+
+    use super::*;
+    use crate::core::commander::State;
+    use crate::core::estimator::GeoOrigin;
+
+    const GCS: MavHeader = MavHeader { system_id: 255, component_id: 190, sequence: 0 };
+    const DT_US: u64 = 2_000;
+    const ORIGIN: GeoOrigin = GeoOrigin { lat_deg: 47.397742, lon_deg: 8.545594, alt_amsl_m: 488.0 };
+    const HOLD: u32 = (4 << 16) | (3 << 24);
+    const TAKEOFF: u32 = (4 << 16) | (2 << 24);
+    const POSCTL: u32 = 3 << 16;
+
+    /// A vehicle fed the truth of a vehicle at rest on the ground (the truth source is converged at once).
+    fn truth_vehicle() -> Vehicle {
+        let mut config = VehicleConfig::default();
+        config.estimator.source = EstimatorSource::Truth;
+        config.estimator.truth_origin = Some(ORIGIN);
+        config.commander.disarm_preflight_s = -1.0;
+        Vehicle::new(config).expect("valid config")
+    }
+
+    fn at_rest(time_us: u64) -> VehicleInputs {
+        let truth = TruthSample {
+            time_us,
+            pos_ned_m: Vector3::zeros(),
+            vel_ned_mps: Vector3::zeros(),
+            q_ned_frd: UnitQuaternion::identity(),
+            rate_frd_radps: Vector3::zeros(),
+            specific_force_frd_mps2: Vector3::new(0.0, 0.0, -9.81),
+        };
+        let imu =
+            ImuSample { time_us, accel_frd_mps2: truth.specific_force_frd_mps2, gyro_frd_radps: Vector3::zeros() };
+        let gps = time_us.is_multiple_of(100_000).then_some(GpsSample {
+            time_us,
+            lat_deg: ORIGIN.lat_deg,
+            lon_deg: ORIGIN.lon_deg,
+            alt_amsl_m: ORIGIN.alt_amsl_m,
+            vel_ned_mps: Vector3::zeros(),
+            fix_type: 3,
+            satellites: 10,
+            eph_m: 0.5,
+            epv_m: 0.8,
+        });
+        VehicleInputs { imu: Some(imu), truth: Some(truth), gps, ..VehicleInputs::default() }
+    }
+
+    /// Steps `v` from `*t_us` for `seconds`, returning every message with its time.
+    fn run(v: &mut Vehicle, t_us: &mut u64, seconds: f64) -> Vec<(u64, MavMessage)> {
+        let mut out = Vec::new();
+        let end = *t_us + (seconds * 1e6) as u64;
+        while *t_us < end {
+            let o = v.step(*t_us, &at_rest(*t_us));
+            out.extend(o.messages.into_iter().map(|m| (*t_us, m)));
+            *t_us += DT_US;
+        }
+        out
+    }
+
+    fn long(command: MavCmd, p: [f32; 7], target_system: u8) -> MavMessage {
+        MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+            param1: p[0],
+            param2: p[1],
+            param3: p[2],
+            param4: p[3],
+            param5: p[4],
+            param6: p[5],
+            param7: p[6],
+            command,
+            target_system,
+            target_component: 0,
+            confirmation: 0,
+        })
+    }
+
+    fn int(command: MavCmd, p: [f32; 7], frame: MavFrame) -> MavMessage {
+        MavMessage::COMMAND_INT(COMMAND_INT_DATA {
+            param1: p[0],
+            param2: p[1],
+            param3: p[2],
+            param4: p[3],
+            x: 0,
+            y: 0,
+            z: p[6],
+            command,
+            target_system: 1,
+            target_component: 1,
+            frame,
+            current: 0,
+            autocontinue: 0,
+        })
+    }
+
+    fn ack_of(replies: &[MavMessage]) -> Option<(MavCmd, MavResult)> {
+        replies.iter().find_map(|m| match m {
+            MavMessage::COMMAND_ACK(a) => Some((a.command, a.result)),
+            _ => None,
+        })
+    }
+
+    fn heartbeats(msgs: &[(u64, MavMessage)]) -> Vec<(u64, u32, MavModeFlag)> {
+        msgs.iter()
+            .filter_map(|(t, m)| match m {
+                MavMessage::HEARTBEAT(h) => Some((*t, h.custom_mode, h.base_mode)),
+                _ => None,
+            })
+            .collect()
+    }
+
+    const ARM: [f32; 7] = [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+
+    #[test]
+    fn given_a_disarmed_vehicle_when_run_10s_then_heartbeat_at_1hz_of_vehicle_time_and_at_once_on_arm() {
+        let (mut v, mut t) = (truth_vehicle(), 0);
+        let hb = heartbeats(&run(&mut v, &mut t, 10.0));
+        assert_eq!(hb.len(), 10);
+        assert!(hb.windows(2).all(|w| w[1].0 - w[0].0 == 1_000_000), "{hb:?}");
+        // WHEN armed half-way between two heartbeats THEN the next step sends one, armed.
+        run(&mut v, &mut t, 0.5);
+        let armed_at = t;
+        let replies = v.handle_message(t, &GCS, &long(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, ARM, 1));
+        assert_eq!(ack_of(&replies), Some((MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, MavResult::MAV_RESULT_ACCEPTED)));
+        let hb = heartbeats(&run(&mut v, &mut t, 0.01));
+        assert_eq!(hb.len(), 1);
+        assert_eq!(hb[0].0, armed_at);
+        assert!(hb[0].2.contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED));
+    }
+
+    #[test]
+    fn given_arm_takeoff_and_mode_changes_when_heartbeats_then_px4_custom_and_base_modes() {
+        let (mut v, mut t) = (truth_vehicle(), 0);
+        let hb = heartbeats(&run(&mut v, &mut t, 0.1));
+        let custom = MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED;
+        assert_eq!(hb[0].1, HOLD);
+        assert!(hb[0].2.contains(custom) && !hb[0].2.contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED));
+        let mode = |main: f32, sub: f32| long(MavCmd::MAV_CMD_DO_SET_MODE, [1.0, main, sub, 0.0, 0.0, 0.0, 0.0], 1);
+        let replies = v.handle_message(t, &GCS, &mode(3.0, 0.0));
+        assert_eq!(ack_of(&replies).map(|a| a.1), Some(MavResult::MAV_RESULT_ACCEPTED));
+        let hb = heartbeats(&run(&mut v, &mut t, 0.01));
+        assert_eq!((hb.len(), hb[0].1), (1, POSCTL), "immediate heartbeat on a mode change");
+        v.handle_message(t, &GCS, &long(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, ARM, 1));
+        let hb = heartbeats(&run(&mut v, &mut t, 0.01));
+        assert_eq!(hb[0].1, POSCTL);
+        assert!(hb[0].2.contains(custom | MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED));
+        let replies = v.handle_message(t, &GCS, &long(MavCmd::MAV_CMD_NAV_TAKEOFF, [f32::NAN; 7], 1));
+        assert_eq!(ack_of(&replies).map(|a| a.1), Some(MavResult::MAV_RESULT_ACCEPTED));
+        let hb = heartbeats(&run(&mut v, &mut t, 0.01));
+        assert_eq!(hb.last().map(|h| h.1), Some(TAKEOFF));
+        assert!(hb[0].2.contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED));
+    }
+
+    #[test]
+    fn given_commands_when_handled_then_every_one_is_acked_and_unknown_ones_unsupported() {
+        let (mut v, mut t) = (truth_vehicle(), 0);
+        run(&mut v, &mut t, 0.1);
+        let nan = f32::NAN;
+        for (cmd, p, want) in [
+            (MavCmd::MAV_CMD_NAV_TAKEOFF, [0.0, 0.0, 0.0, nan, nan, nan, 1.5], MavResult::MAV_RESULT_ACCEPTED),
+            (MavCmd::MAV_CMD_NAV_LAND, [0.0; 7], MavResult::MAV_RESULT_DENIED),
+            (MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, ARM, MavResult::MAV_RESULT_ACCEPTED),
+            (MavCmd::MAV_CMD_DO_SET_SERVO, [1.0, 1500.0, 0.0, 0.0, 0.0, 0.0, 0.0], MavResult::MAV_RESULT_UNSUPPORTED),
+        ] {
+            let replies = v.handle_message(t, &GCS, &long(cmd, p, 1));
+            assert_eq!(ack_of(&replies), Some((cmd, want)), "{cmd:?}");
+            run(&mut v, &mut t, 0.05);
+        }
+        assert_eq!(v.commander().state(), State::Takeoff);
+        let replies = v.handle_message(t, &GCS, &long(MavCmd::MAV_CMD_NAV_LAND, [0.0; 7], 1));
+        assert_eq!(ack_of(&replies), Some((MavCmd::MAV_CMD_NAV_LAND, MavResult::MAV_RESULT_ACCEPTED)));
+        assert_eq!(v.commander().state(), State::Land);
+    }
+
+    #[test]
+    fn given_an_unconverged_estimator_when_arming_then_denied_with_statustext() {
+        let mut v = Vehicle::new(VehicleConfig::default()).expect("defaults are valid");
+        let mut t = 0;
+        run(&mut v, &mut t, 0.1);
+        let replies = v.handle_message(t, &GCS, &long(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, ARM, 1));
+        assert_eq!(ack_of(&replies), Some((MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, MavResult::MAV_RESULT_DENIED)));
+        let text = replies.iter().find_map(|m| match m {
+            MavMessage::STATUSTEXT(s) => Some((s.severity, s.text.to_str().unwrap_or("").to_owned())),
+            _ => None,
+        });
+        assert_eq!(
+            text,
+            Some((MavSeverity::MAV_SEVERITY_WARNING, "Arming denied: estimator not converged".to_owned()))
+        );
+        assert!(!v.commander().armed());
+    }
+
+    #[test]
+    fn given_the_same_commands_as_long_and_int_when_handled_then_same_replies_and_state() {
+        let nan = f32::NAN;
+        let script = [
+            (MavCmd::MAV_CMD_NAV_TAKEOFF, [0.0, 0.0, 0.0, nan, 0.0, 0.0, 490.0]),
+            (MavCmd::MAV_CMD_DO_SET_MODE, [1.0, 4.0, 3.0, 0.0, 0.0, 0.0, 0.0]),
+            (MavCmd::MAV_CMD_NAV_TAKEOFF, [0.0, 0.0, 0.0, nan, 0.0, 0.0, 1.5]),
+            (MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, ARM),
+            (MavCmd::MAV_CMD_NAV_LAND, [0.0; 7]),
+            (MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [0.0, 21196.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+            (MavCmd::MAV_CMD_DO_SET_SERVO, [0.0; 7]),
+        ];
+        let (mut a, mut b, mut ta, mut tb) = (truth_vehicle(), truth_vehicle(), 0, 0);
+        run(&mut a, &mut ta, 0.1);
+        run(&mut b, &mut tb, 0.1);
+        for (cmd, p) in script {
+            let ra = a.handle_message(ta, &GCS, &long(cmd, p, 1));
+            let rb = b.handle_message(tb, &GCS, &int(cmd, p, MavFrame::MAV_FRAME_GLOBAL));
+            assert_eq!(ra, rb, "{cmd:?}");
+            assert_eq!(
+                (a.commander().state(), a.commander().pending_takeoff_alt_m()),
+                (b.commander().state(), b.commander().pending_takeoff_alt_m())
+            );
+            let ma = run(&mut a, &mut ta, 0.2);
+            let mb = run(&mut b, &mut tb, 0.2);
+            assert_eq!(heartbeats(&ma), heartbeats(&mb));
+        }
+        assert_eq!(a.commander().state(), State::Killed);
+    }
+
+    #[test]
+    fn given_takeoff_altitudes_when_sent_disarmed_then_nan_default_amsl_relative_and_low_relative() {
+        let (mut v, mut t) = (truth_vehicle(), 0);
+        run(&mut v, &mut t, 0.1);
+        let nan = f32::NAN;
+        let mut pending = |alt: f32| {
+            let p = [0.0, 0.0, 0.0, nan, nan, nan, alt];
+            let replies = v.handle_message(t, &GCS, &long(MavCmd::MAV_CMD_NAV_TAKEOFF, p, 1));
+            assert_eq!(ack_of(&replies).map(|a| a.1), Some(MavResult::MAV_RESULT_ACCEPTED), "alt {alt}");
+            v.commander().pending_takeoff_alt_m()
+        };
+        assert_eq!(pending(nan), Some(CommanderConfig::default().takeoff_alt_m));
+        assert_eq!(pending(491.0), Some(3.0), "AMSL above home at 488 m");
+        assert_eq!(pending(1.5), Some(1.5), "below home: relative");
+        // A relative-altitude COMMAND_INT frame is taken as given.
+        let msg = int(
+            MavCmd::MAV_CMD_NAV_TAKEOFF,
+            [0.0, 0.0, 0.0, nan, 0.0, 0.0, 2.0],
+            MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT,
+        );
+        v.handle_message(t, &GCS, &msg);
+        assert_eq!(v.commander().pending_takeoff_alt_m(), Some(2.0));
+        t += DT_US;
+        v.step(t, &at_rest(t));
+    }
+
+    #[test]
+    fn given_a_command_for_another_system_when_handled_then_ignored() {
+        let (mut v, mut t) = (truth_vehicle(), 0);
+        run(&mut v, &mut t, 0.1);
+        let replies = v.handle_message(t, &GCS, &long(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, ARM, 7));
+        assert!(replies.is_empty());
+        run(&mut v, &mut t, 0.1);
+        assert!(!v.commander().armed());
+        let broadcast = v.handle_message(t, &GCS, &long(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, ARM, 0));
+        assert_eq!(ack_of(&broadcast).map(|a| a.1), Some(MavResult::MAV_RESULT_ACCEPTED));
+    }
+
+    #[test]
+    fn given_10s_of_vehicle_time_when_counted_then_each_stream_at_its_default_rate() {
+        let (mut v, mut t) = (truth_vehicle(), 0);
+        run(&mut v, &mut t, 0.1);
+        v.handle_message(t, &GCS, &long(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, ARM, 1));
+        run(&mut v, &mut t, 0.9);
+        let msgs = run(&mut v, &mut t, 10.0);
+        let count = |id: u32| msgs.iter().filter(|(_, m)| m.message_id() == id).count() as i64;
+        for (name, id, want) in [
+            ("HEARTBEAT", 0, 10),
+            ("SYS_STATUS", 1, 10),
+            ("GPS_RAW_INT", 24, 50),
+            ("ATTITUDE", 30, 200),
+            ("ATTITUDE_QUATERNION", 31, 200),
+            ("LOCAL_POSITION_NED", 32, 100),
+            ("GLOBAL_POSITION_INT", 33, 100),
+            ("VFR_HUD", 74, 40),
+            ("BATTERY_STATUS", 147, 10),
+            ("HOME_POSITION", 242, 5),
+            ("EXTENDED_SYS_STATE", 245, 10),
+        ] {
+            assert!((count(id) - want).abs() <= 1, "{name}: {} in 10 s, want {want}", count(id));
+        }
+        let sys = msgs.iter().find_map(|(_, m)| match m {
+            MavMessage::SYS_STATUS(s) => Some(s.clone()),
+            _ => None,
+        });
+        let sys = sys.expect("SYS_STATUS");
+        assert!(
+            sys.onboard_control_sensors_health
+                .contains(::mavlink::dialects::common::MavSysStatusSensor::MAV_SYS_STATUS_PREARM_CHECK)
+        );
+        assert_eq!((sys.voltage_battery, sys.current_battery, sys.battery_remaining), (u16::MAX, -1, -1));
+    }
+
+    #[test]
+    fn given_disarmed_or_idle_or_non_finite_inputs_when_stepped_then_pwm_1000_and_never_nan() {
+        let (mut v, mut t) = (truth_vehicle(), 0);
+        for _ in 0..100 {
+            assert_eq!(v.step(t, &at_rest(t)).pwm_us, [PWM_MIN_US; 4], "disarmed");
+            t += DT_US;
+        }
+        v.handle_message(t, &GCS, &long(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, ARM, 1));
+        let o = v.step(t, &at_rest(t));
+        assert!(o.armed);
+        assert_eq!(o.pwm_us, [PWM_MIN_US; 4], "armed idle");
+        v.handle_message(t, &GCS, &long(MavCmd::MAV_CMD_NAV_TAKEOFF, [f32::NAN; 7], 1));
+        let mut spun_up = false;
+        for i in 0..500 {
+            t += DT_US;
+            let mut inputs = at_rest(t);
+            if i % 3 == 0 {
+                inputs.imu = Some(ImuSample {
+                    time_us: t,
+                    accel_frd_mps2: Vector3::repeat(f64::NAN),
+                    gyro_frd_radps: Vector3::zeros(),
+                });
+                if let Some(truth) = inputs.truth.as_mut() {
+                    truth.pos_ned_m.x = f64::NAN;
+                }
+            }
+            let pwm = v.step(t, &inputs).pwm_us;
+            assert!(pwm.iter().all(|p| p.is_finite() && (PWM_MIN_US..=PWM_MAX_US).contains(p)), "{pwm:?}");
+            spun_up |= pwm.iter().any(|p| *p > PWM_MIN_US);
+        }
+        assert!(spun_up, "the takeoff ran the controller");
+        v.handle_message(
+            t,
+            &GCS,
+            &long(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [0.0, 21196.0, 0.0, 0.0, 0.0, 0.0, 0.0], 1),
+        );
+        t += DT_US;
+        assert_eq!(v.step(t, &at_rest(t)).pwm_us, [PWM_MIN_US; 4], "killed");
+    }
+
+    #[test]
+    fn given_bad_configs_when_built_then_errors() {
+        let bad_sysid = VehicleConfig { sysid: 0, ..VehicleConfig::default() };
+        assert_eq!(Vehicle::new(bad_sysid).err(), Some(VehicleError::Sysid));
+        let bad_speed = VehicleConfig { takeoff_speed_mps: f64::NAN, ..VehicleConfig::default() };
+        assert!(matches!(Vehicle::new(bad_speed), Err(VehicleError::NotPositive { .. })));
+    }
+}

@@ -105,3 +105,6 @@ pub(crate) fn next_due_us(previous_due_us: Option<u64>, now_us: u64, interval_us
         _ => now_us.saturating_add(interval_us),
     }
 }
+
+#[cfg(test)]
+mod tests;
