@@ -1,6 +1,7 @@
 //! `sitl`: the simulator's command line. `sitl scenario` runs the paper's experiments in-process in
 //! lockstep (headless, faster than real time) and writes metrics JSON, CSV traces and PNG plots;
-//! `sitl serve` serves the plant to an autopilot over the MAVLink HIL plant protocol (UDP or serial).
+//! `sitl serve` serves the plant to an autopilot over the MAVLink HIL plant protocol (UDP or serial);
+//! `sitl run` is the one-command SITL: the plant server plus the `autopilot` binary as a child process.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -29,6 +30,37 @@ enum Command {
     Scenario(ScenarioArgs),
     /// Serve the plant to an autopilot over the HIL plant protocol (lockstep by default).
     Serve(ServeArgs),
+    /// One-command SITL: serve the plant on UDP 4560+N and run the `autopilot` binary against it.
+    Run(RunArgs),
+}
+
+#[derive(Args)]
+struct RunArgs {
+    /// Plant configuration file (TOML); default: the nominal plant with modest sensor noise.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Airframe preset (nominal, mismatch), applied over the configuration's.
+    #[arg(long)]
+    plant: Option<String>,
+    /// Instance N: plant on UDP 4560+N, autopilot on 18570+N, ground stations on 14550+N / 14540+N,
+    /// system id N+1.
+    #[arg(short = 'i', long, default_value_t = 0)]
+    instance: u16,
+    /// Pace the plant at this multiple of real time; omit it to run as fast as the autopilot answers.
+    #[arg(long)]
+    speed: Option<f64>,
+    /// Seed of every noise and turbulence stream.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Autopilot estimator (fused, truth).
+    #[arg(long)]
+    estimator: Option<String>,
+    /// Autopilot controller (aco, ca, pid).
+    #[arg(long)]
+    controller: Option<String>,
+    /// Autopilot `.tlog` directory.
+    #[arg(long)]
+    log_dir: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -121,6 +153,7 @@ fn main() -> Result<()> {
     match Cli::parse().command {
         Command::Scenario(args) => scenario(&args),
         Command::Serve(args) => serve(&args),
+        Command::Run(args) => run(&args),
     }
 }
 
@@ -355,5 +388,135 @@ fn serve(args: &ServeArgs) -> Result<()> {
         server.run(None, &stop)?
     };
     eprintln!("sitl: {steps} steps served");
+    Ok(())
+}
+
+/// The plant `sitl run` uses without `--config`: nominal, with modest sensor noise (gyro 0.005 rad/s,
+/// accel 0.05 m/s², mag 0.002 G, baro 0.05 m, GPS 0.1 m and 0.02 m/s), so the fused estimator has work to do.
+fn realistic_plant_config() -> PlantConfig {
+    let mut config = PlantConfig::default();
+    let s = &mut config.sensors;
+    s.gyro.white_sigma = 0.005;
+    s.accel.white_sigma = 0.05;
+    s.mag.white_sigma = 0.002;
+    s.baro.white_sigma_m = 0.05;
+    s.gps.position.white_sigma = 0.1;
+    s.gps.velocity.white_sigma = 0.02;
+    config
+}
+
+/// Ask the child to stop (SIGINT, so it closes its log), then make sure it does.
+fn stop_child(child: &mut std::process::Child) {
+    if matches!(child.try_wait(), Ok(Some(_))) {
+        return;
+    }
+    let _ = std::process::Command::new("kill").args(["-s", "INT", "--", &child.id().to_string()]).status();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(3);
+    while std::time::Instant::now() < deadline {
+        if matches!(child.try_wait(), Ok(Some(_))) {
+            return;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+}
+
+fn run(args: &RunArgs) -> Result<()> {
+    let mut config = match &args.config {
+        Some(path) => {
+            let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+            PlantConfig::from_toml_str(&text).with_context(|| format!("plant configuration {}", path.display()))?
+        }
+        None => realistic_plant_config(),
+    };
+    if let Some(preset) = &args.plant {
+        config.airframe = Airframe::preset(preset)?;
+    }
+    let pacing = match args.speed {
+        Some(speed) if speed.is_finite() && speed > 0.0 => Pacing::RealTime { speed },
+        Some(speed) => bail!("--speed must be a positive number, got {speed}"),
+        None => Pacing::Lockstep,
+    };
+    let n = args.instance;
+    let port = |base: u16| base.checked_add(n).context("instance too large: a port would exceed 65535");
+    let (plant_port, ap_port, qgc_port, api_port) = (port(4560)?, port(18570)?, port(14550)?, port(14540)?);
+    let autopilot = std::env::current_exe()?.with_file_name("autopilot");
+    if !autopilot.exists() {
+        bail!(
+            "autopilot binary not found at {}: build it next to sitl with `cargo build --release` \
+             (or `cargo build` for a debug sitl)",
+            autopilot.display()
+        );
+    }
+    let link =
+        LinkConfig { pacing, connect_timeout: Some(std::time::Duration::from_secs(30)), ..LinkConfig::default() };
+    let plant = Plant::new(config, &InitialState::default(), args.seed)?;
+    let listen = format!("127.0.0.1:{plant_port}");
+    let mut server =
+        PlantServer::bind_udp(plant, listen.as_str(), link).with_context(|| format!("binding {listen}"))?;
+
+    let mut cmd = std::process::Command::new(&autopilot);
+    cmd.args(["--plant", &format!("udp://127.0.0.1:{plant_port}"), "-i", &n.to_string()]);
+    if let Some(e) = &args.estimator {
+        cmd.args(["--estimator", e]);
+    }
+    if let Some(c) = &args.controller {
+        cmd.args(["--controller", c]);
+    }
+    if let Some(dir) = &args.log_dir {
+        cmd.arg("--log-dir").arg(dir);
+    }
+    let mut child = cmd.spawn().with_context(|| format!("starting {}", autopilot.display()))?;
+    eprintln!(
+        "sitl: instance {n}: plant on udp 127.0.0.1:{plant_port} ({}), autopilot pid {} (system id {}) \
+         listening on udp {ap_port}; ground stations: listen on udp 14550+N = {qgc_port} (QGroundControl) \
+         or {api_port} (MAVSDK/API), or send to 127.0.0.1:{ap_port}",
+        match pacing {
+            Pacing::Lockstep => "lockstep, as fast as possible".to_owned(),
+            Pacing::RealTime { speed } => format!("lockstep at {speed}x real time"),
+        },
+        child.id(),
+        u32::from(n) + 1,
+    );
+
+    let stop = std::sync::Arc::new(AtomicBool::new(false));
+    let server_stop = stop.clone();
+    let wall = std::time::Instant::now();
+    let server_thread = std::thread::spawn(move || {
+        let result = server.run(None, &server_stop);
+        (result, server.stats(), server.plant().time_us())
+    });
+    let child_status = loop {
+        if server_thread.is_finished() {
+            break None;
+        }
+        match child.try_wait() {
+            Ok(Some(status)) => break Some(status),
+            Ok(None) => {}
+            Err(e) => {
+                stop.store(true, std::sync::atomic::Ordering::Relaxed);
+                stop_child(&mut child);
+                return Err(e).context("waiting for the autopilot");
+            }
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    };
+    if let Some(status) = child_status {
+        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        bail!("the autopilot exited ({status}); plant stopped");
+    }
+    stop_child(&mut child);
+    let (result, stats, time_us) =
+        server_thread.join().map_err(|_| anyhow::anyhow!("the plant server thread panicked"))?;
+    let wall_s = wall.elapsed().as_secs_f64();
+    let sim_s = time_us as f64 * 1e-6;
+    eprintln!(
+        "sitl: {} steps, {sim_s:.1} sim s in {wall_s:.1} s wall ({:.1}x real time, {:.0} steps/s)",
+        stats.steps,
+        sim_s / wall_s,
+        stats.steps as f64 / wall_s
+    );
+    result?;
     Ok(())
 }
