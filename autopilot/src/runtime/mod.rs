@@ -187,3 +187,26 @@ pub async fn run(config: RuntimeConfig) -> Result<PlantLinkStats, RuntimeError> 
         None => Ok(stats),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn config(instance: u16) -> RuntimeConfig {
+        RuntimeConfig {
+            plant: SocketAddr::from(([127, 0, 0, 1], 4560 + instance)),
+            instance,
+            estimator: EstimatorSource::Truth,
+            controller: ControllerKind::Pid,
+            log_dir: None,
+        }
+    }
+
+    #[test]
+    fn instance_n_is_system_id_n_plus_one_and_too_large_is_refused() {
+        let v = vehicle_config(&config(3)).expect("valid");
+        assert_eq!((v.sysid, v.controller, v.estimator.source), (4, ControllerKind::Pid, EstimatorSource::Truth));
+        assert_eq!(vehicle_config(&config(254)).expect("valid").sysid, 255);
+        assert!(matches!(vehicle_config(&config(255)), Err(RuntimeError::Instance { instance: 255 })));
+    }
+}

@@ -243,7 +243,12 @@ pub async fn run(
     let mut gcs_open = true;
     let mut warned_silent = false;
     let mut announced = false;
+    let mut last_data = tokio::time::Instant::now();
     loop {
+        if !warned_silent && last_data.elapsed() >= PLANT_SILENCE {
+            tracing::warn!(plant = %addr, "no sensor data from the plant for 1 s; waiting");
+            warned_silent = true;
+        }
         if !announced {
             let header = driver.plant_header();
             match socket.send(&encode_frame_v2(header, &announce)).await {
@@ -258,10 +263,6 @@ pub async fn run(
             received = tokio::time::timeout(PLANT_SILENCE, socket.recv(&mut buf)) => {
                 let len = match received {
                     Err(_elapsed) => {
-                        if !warned_silent {
-                            tracing::warn!(plant = %addr, "no sensor data from the plant for 1 s; waiting");
-                            warned_silent = true;
-                        }
                         // Re-announce, in case the plant started after us.
                         announced = false;
                         continue;
@@ -285,6 +286,7 @@ pub async fn run(
                     }
                 }
                 if let Some(cmd) = reply {
+                    last_data = tokio::time::Instant::now();
                     if warned_silent {
                         tracing::info!(plant = %addr, "plant data again");
                         warned_silent = false;
@@ -318,4 +320,62 @@ pub async fn run(
 /// Whether a socket error only means nobody is listening at the plant address (yet).
 fn is_absent_peer(e: &std::io::Error) -> bool {
     matches!(e.kind(), std::io::ErrorKind::ConnectionRefused | std::io::ErrorKind::ConnectionReset)
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::Vector3;
+
+    use super::*;
+    use crate::core::hil::{HilSensorFields, decode_actuator_controls, encode_hil_sensor};
+    use crate::runtime::shutdown;
+
+    fn sensor_datagram(time_us: u64) -> Vec<u8> {
+        let fields = HilSensorFields {
+            time_us,
+            accel_frd_mps2: Vector3::new(0.0, 0.0, -9.806_65),
+            gyro_frd_radps: Vector3::zeros(),
+            mag_frd_gauss: None,
+            baro: None,
+        };
+        let header = MavHeader { system_id: 1, component_id: 51, sequence: 0 };
+        encode_frame_v2(header, &MavMessage::HIL_SENSOR(encode_hil_sensor(&fields)))
+    }
+
+    #[tokio::test]
+    async fn each_hil_sensor_is_answered_with_actuators_for_its_time_and_telemetry_goes_to_the_gcs() {
+        let plant = UdpSocket::bind("127.0.0.1:0").await.expect("bind fake plant");
+        let plant_addr = plant.local_addr().expect("addr");
+        let (trigger, shutdown) = shutdown::channel();
+        let (_in_tx, in_rx) = mpsc::channel(16);
+        let (out_tx, mut out_rx) = mpsc::channel(1024);
+        let config = PlantLinkConfig { plant: plant_addr, vehicle: VehicleConfig { sysid: 7, ..Default::default() } };
+        let task = tokio::spawn(run(config, in_rx, out_tx, None, shutdown));
+        let mut buf = vec![0u8; 2048];
+        // The announcement.
+        let (_, autopilot) = plant.recv_from(&mut buf).await.expect("announce");
+        let mut decoder = FrameDecoder::new();
+        for time_us in [0_u64, 2_000, 4_000] {
+            plant.send_to(&sensor_datagram(time_us), autopilot).await.expect("send");
+            let len = plant.recv(&mut buf).await.expect("reply");
+            let frames = decoder.decode_datagram(&buf[..len]);
+            let Some(MavMessage::HIL_ACTUATOR_CONTROLS(m)) = frames.first().map(|f| &f.message) else {
+                panic!("expected HIL_ACTUATOR_CONTROLS, got {frames:?}");
+            };
+            let cmd = decode_actuator_controls(m);
+            assert_eq!(cmd.time_us, time_us);
+            assert!(!cmd.armed && cmd.pwm_us.iter().all(|&p| (p - 1000.0).abs() < 1e-9), "{cmd:?}");
+        }
+        let mut heartbeat = false;
+        while let Ok(out) = out_rx.try_recv() {
+            assert_eq!(out.to, Destination::All);
+            assert_eq!(out.header.system_id, 7);
+            heartbeat |= matches!(out.message, MavMessage::HEARTBEAT(_));
+        }
+        assert!(heartbeat, "the first step's HEARTBEAT reaches the ground-station link");
+        trigger.fire();
+        let stats = task.await.expect("join").expect("clean stop");
+        assert_eq!(stats.steps, 3);
+        assert_eq!((stats.first_time_us, stats.last_time_us), (Some(0), Some(4_000)));
+    }
 }
