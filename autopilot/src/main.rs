@@ -78,7 +78,9 @@ fn main() -> Result<()> {
         controller: cli.controller,
         log_dir: cli.log_dir,
     };
-    let rt = tokio::runtime::Builder::new_multi_thread().enable_all().build().context("starting tokio")?;
+    // One thread: the lockstep plant link is latency-bound, and cross-thread wake-ups cost ~30 % of the
+    // real-time factor (measured with sitl's e2e flight: ~31x vs ~24x real time).
+    let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().context("starting tokio")?;
     let stats = rt.block_on(runtime::run(config))?;
     if let (Some(first), Some(last)) = (stats.first_time_us, stats.last_time_us) {
         tracing::info!(steps = stats.steps, sim_s = (last - first) as f64 * 1e-6, "autopilot stopped");

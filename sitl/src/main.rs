@@ -504,6 +504,10 @@ fn run(args: &RunArgs) -> Result<()> {
     };
     if let Some(status) = child_status {
         stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        if status.success() {
+            eprintln!("sitl: the autopilot stopped; plant stopped");
+            return Ok(());
+        }
         bail!("the autopilot exited ({status}); plant stopped");
     }
     stop_child(&mut child);
