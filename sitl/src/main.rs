@@ -10,7 +10,7 @@ use anyhow::{Context, Result, bail};
 use autopilot::core::control::{ControllerKind, LoopRates};
 use clap::{Args, Parser, Subcommand};
 use sitl::link::{LinkConfig, Pacing, PlantServer, SerialTransport};
-use sitl::plant::{Airframe, InitialState, Plant, PlantConfig};
+use sitl::plant::{Airframe, InitialState, Plant, PlantConfig, SensorConfig};
 use sitl::scenario::plot::{self, Panel, Run};
 use sitl::scenario::reference::{ReferenceMode, ReferenceSpec, SplinePath};
 use sitl::scenario::runner::{self, RunOptions, RunOutput};
@@ -391,18 +391,10 @@ fn serve(args: &ServeArgs) -> Result<()> {
     Ok(())
 }
 
-/// The plant `sitl run` uses without `--config`: nominal, with modest sensor noise (gyro 0.005 rad/s,
-/// accel 0.05 m/s², mag 0.002 G, baro 0.05 m, GPS 0.1 m and 0.02 m/s), so the fused estimator has work to do.
+/// The plant `sitl run` uses without `--config`: nominal, with [`SensorConfig::modest_noise`], so the fused
+/// estimator has work to do.
 fn realistic_plant_config() -> PlantConfig {
-    let mut config = PlantConfig::default();
-    let s = &mut config.sensors;
-    s.gyro.white_sigma = 0.005;
-    s.accel.white_sigma = 0.05;
-    s.mag.white_sigma = 0.002;
-    s.baro.white_sigma_m = 0.05;
-    s.gps.position.white_sigma = 0.1;
-    s.gps.velocity.white_sigma = 0.02;
-    config
+    PlantConfig { sensors: SensorConfig::modest_noise(), ..PlantConfig::default() }
 }
 
 /// Ask the child to stop (SIGINT, so it closes its log), then make sure it does.

@@ -11,8 +11,9 @@ use std::time::{Duration, Instant};
 
 use autopilot::core::hil::{FrameDecoder, encode_frame_v2};
 use autopilot::core::mavlink::MavHeader;
+use autopilot::core::mavlink::command_long;
 use autopilot::core::mavlink::common::{
-    COMMAND_LONG_DATA, MavCmd, MavLandedState, MavMessage, MavModeFlag, MavResult, MavSysStatusSensor,
+    MavCmd, MavLandedState, MavMessage, MavModeFlag, MavResult, MavSysStatusSensor,
 };
 
 const WALL_LIMIT: Duration = Duration::from_secs(120);
@@ -115,19 +116,7 @@ impl Gcs {
     }
 
     fn command(&mut self, command: MavCmd, params: [f32; 7]) -> MavResult {
-        let msg = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-            param1: params[0],
-            param2: params[1],
-            param3: params[2],
-            param4: params[3],
-            param5: params[4],
-            param6: params[5],
-            param7: params[6],
-            command,
-            target_system: self.sysid,
-            target_component: 1,
-            confirmation: 0,
-        });
+        let msg = command_long(self.sysid, command, params);
         self.seen.acks.clear();
         self.socket.send_to(&encode_frame_v2(GCS, &msg), &self.autopilot).expect("send command");
         self.wait_until(5.0, &format!("ACK of {command:?}"), |s| s.acks.iter().any(|a| a.0 == command));

@@ -10,9 +10,10 @@ use autopilot::core::estimator::{
     BaroSample, EstimatorSource, GeoOrigin, GpsSample, ImuSample, MagSample, TruthSample,
 };
 use autopilot::core::mavlink::MavHeader;
-use autopilot::core::mavlink::common::{COMMAND_LONG_DATA, MavCmd, MavLandedState, MavMessage, MavModeFlag, MavResult};
+use autopilot::core::mavlink::command_long;
+use autopilot::core::mavlink::common::{MavCmd, MavLandedState, MavMessage, MavModeFlag, MavResult};
 use autopilot::core::vehicle::{Vehicle, VehicleConfig, VehicleInputs};
-use sitl::plant::{InitialState, Plant, PlantConfig};
+use sitl::plant::{InitialState, Plant, PlantConfig, SensorConfig};
 
 const DT_US: u64 = 2_000;
 const GCS: MavHeader = MavHeader { system_id: 255, component_id: 190, sequence: 0 };
@@ -28,15 +29,8 @@ struct Rig {
 
 impl Rig {
     fn new(source: EstimatorSource) -> Self {
-        let mut config = PlantConfig::default();
-        let s = &mut config.sensors;
-        s.accel.white_sigma = 0.05;
-        s.gyro.white_sigma = 0.002;
-        s.mag.white_sigma = 0.002;
-        s.baro.white_sigma_m = 0.05;
-        s.gps.position.white_sigma = 0.05;
-        s.gps.velocity.white_sigma = 0.02;
-        let home = s.home;
+        let config = PlantConfig { sensors: SensorConfig::modest_noise(), ..PlantConfig::default() };
+        let home = config.sensors.home;
         let plant = Plant::new(config, &InitialState::default(), 7).expect("plant");
         let mut vc = VehicleConfig::default();
         vc.estimator.source = source;
@@ -110,19 +104,7 @@ impl Rig {
     }
 
     fn command(&mut self, command: MavCmd, params: [f32; 7]) -> MavResult {
-        let msg = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-            param1: params[0],
-            param2: params[1],
-            param3: params[2],
-            param4: params[3],
-            param5: params[4],
-            param6: params[5],
-            param7: params[6],
-            command,
-            target_system: 1,
-            target_component: 1,
-            confirmation: 0,
-        });
+        let msg = command_long(1, command, params);
         let replies = self.vehicle.handle_message(self.now_us, &GCS, &msg);
         match replies.first() {
             Some(MavMessage::COMMAND_ACK(a)) if a.command == command => a.result,

@@ -164,6 +164,21 @@ pub struct SensorConfig {
 }
 
 impl SensorConfig {
+    /// Modest white noise on every sensor, for SITL flights where the fused estimator should have work
+    /// to do: gyro 0.005 rad/s, accelerometer 0.05 m/s², magnetometer 0.002 G, barometer 0.05 m, GPS
+    /// 0.1 m and 0.02 m/s. No bias, no latency.
+    #[must_use]
+    pub fn modest_noise() -> Self {
+        let mut s = Self::default();
+        s.gyro.white_sigma = 0.005;
+        s.accel.white_sigma = 0.05;
+        s.mag.white_sigma = 0.002;
+        s.baro.white_sigma_m = 0.05;
+        s.gps.position.white_sigma = 0.1;
+        s.gps.velocity.white_sigma = 0.02;
+        s
+    }
+
     /// Check every value.
     ///
     /// # Errors

@@ -18,7 +18,7 @@
 
 use ::mavlink::MavHeader;
 use ::mavlink::dialects::common::{
-    COMMAND_ACK_DATA, MavCmd, MavFrame, MavMessage, MavModeFlag, MavResult, MavSeverity,
+    COMMAND_ACK_DATA, COMMAND_LONG_DATA, MavCmd, MavFrame, MavMessage, MavModeFlag, MavResult, MavSeverity,
 };
 
 use super::addressed_to_us;
@@ -152,6 +152,26 @@ pub fn decode_command(sysid: u8, header: &MavHeader, msg: &MavMessage, ctx: &Com
         sender_system: u8::try_from(header.system_id).unwrap_or(u8::MAX),
         sender_component: header.component_id,
         effect,
+    })
+}
+
+/// A COMMAND_LONG to component 1 of `target_system` with the seven parameters in order, as a ground
+/// station sends it (confirmation 0).
+#[must_use]
+pub fn command_long(target_system: u8, command: MavCmd, params: [f32; 7]) -> MavMessage {
+    let [param1, param2, param3, param4, param5, param6, param7] = params;
+    MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        param1,
+        param2,
+        param3,
+        param4,
+        param5,
+        param6,
+        param7,
+        command,
+        target_system,
+        target_component: 1,
+        confirmation: 0,
     })
 }
 

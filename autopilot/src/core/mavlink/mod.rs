@@ -24,7 +24,7 @@ pub mod telemetry;
 pub use ::mavlink::MavHeader;
 pub use ::mavlink::dialects::common;
 
-pub use command::{CommandContext, CommandEffect, InboundCommand, command_replies, decode_command};
+pub use command::{CommandContext, CommandEffect, InboundCommand, command_long, command_replies, decode_command};
 pub use identity::heartbeat;
 pub use telemetry::{Home, Stream, StreamScheduler, TelemetrySnapshot, statustext};
 
