@@ -1,0 +1,137 @@
+"""The one-command SITL flown with pymavlink as a user scripts it: connect, wait for the estimator, take
+off to 1.5 m, hold 20 s of vehicle time within 0.10 m of the hover point (the vehicle's own estimate),
+land and see the auto-disarm. Every wait is measured on the vehicle's clock (time_boot_ms), never on the
+wall clock, so the test holds at any simulation speed; a wall-clock deadline only stops a hung run."""
+
+import math
+import os
+import random
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+
+os.environ["MAVLINK20"] = "1"  # pymavlink speaks MAVLink 1 unless told otherwise
+from pymavlink import mavutil  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[2]
+WALL_LIMIT_S = 120.0
+MAV_SYS_STATUS_PREARM_CHECK = 0x10000000
+MAV_LANDED_STATE_ON_GROUND = 1
+
+
+def binary(name):
+    target = Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
+    for profile in (os.environ.get("SITL_PROFILE", "debug"), "release"):
+        path = target / profile / name
+        if path.exists():
+            return path
+    pytest.fail(f"{name} is not built: run `cargo build -p sitl -p autopilot` first")
+
+
+class Gcs:
+    """A pymavlink ground station on the autopilot's fixed QGroundControl target (UDP 14550+N)."""
+
+    def __init__(self, instance):
+        self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{14550 + instance}", source_system=255)
+        self.autopilot = ("127.0.0.1", 18570 + instance)
+        self.deadline = time.monotonic() + WALL_LIMIT_S
+        self.now_ms = 0
+        self.pos = None
+        self.vel = None
+        self.converged = False
+        self.armed = False
+        self.landed_state = None
+        self.acks = {}
+
+    def pump(self):
+        assert time.monotonic() < self.deadline, "wall-clock limit reached: the SITL hung"
+        msg = self.conn.recv_match(blocking=True, timeout=0.5)
+        if msg is None:
+            return
+        kind = msg.get_type()
+        if hasattr(msg, "time_boot_ms"):
+            self.now_ms = max(self.now_ms, msg.time_boot_ms)
+        if kind == "HEARTBEAT" and msg.get_srcComponent() == 1:
+            self.armed = bool(msg.base_mode & mavutil.mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
+        elif kind == "SYS_STATUS":
+            self.converged = bool(msg.onboard_control_sensors_health & MAV_SYS_STATUS_PREARM_CHECK)
+        elif kind == "LOCAL_POSITION_NED":
+            self.pos = (msg.x, msg.y, msg.z)
+            self.vel = (msg.vx, msg.vy, msg.vz)
+        elif kind == "EXTENDED_SYS_STATE":
+            self.landed_state = msg.landed_state
+        elif kind == "COMMAND_ACK":
+            self.acks[msg.command] = msg.result
+
+    def wait_until(self, vehicle_s, what, cond):
+        start = self.now_ms
+        while not cond():
+            assert self.now_ms - start <= vehicle_s * 1000, f"{what}: not within {vehicle_s} s of vehicle time"
+            self.pump()
+        return (self.now_ms - start) / 1000.0
+
+    def command(self, command, *params):
+        params = list(params) + [0.0] * (7 - len(params))
+        self.acks.pop(command, None)
+        # pymavlink answers the last sender; the autopilot listens on 18570+N, so address it explicitly.
+        self.conn.port.sendto(
+            self.conn.mav.command_long_encode(self.target_system, 1, command, 0, *params).pack(self.conn.mav),
+            self.autopilot,
+        )
+        self.wait_until(5.0, f"ACK of command {command}", lambda: command in self.acks)
+        return self.acks[command]
+
+
+@pytest.fixture
+def sitl():
+    instance = random.randint(20, 60)
+    proc = subprocess.Popen(
+        [str(binary("sitl")), "run", "-i", str(instance)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        start_new_session=True,
+    )
+    try:
+        yield instance
+    finally:
+        os.killpg(proc.pid, signal.SIGINT)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+
+
+def test_pymavlink_takes_off_holds_and_lands(sitl):
+    gcs = Gcs(sitl)
+    hb = gcs.conn.wait_heartbeat(timeout=30)
+    assert hb is not None, "no HEARTBEAT from the autopilot"
+    assert hb.autopilot == mavutil.mavlink.MAV_AUTOPILOT_PX4 and hb.type == mavutil.mavlink.MAV_TYPE_QUADROTOR
+    gcs.target_system = gcs.conn.target_system
+    assert gcs.target_system == sitl + 1, "instance N is system N+1"
+    assert "LOITER" in gcs.conn.mode_mapping(), "pymavlink sees PX4 modes"
+
+    converge_s = gcs.wait_until(30.0, "estimator convergence", lambda: gcs.converged and gcs.pos is not None)
+    ground = gcs.pos
+    accepted = mavutil.mavlink.MAV_RESULT_ACCEPTED
+    nan = float("nan")
+    assert gcs.command(mavutil.mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, nan, nan, nan, 1.5) == accepted
+    assert gcs.command(mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1) == accepted
+    gcs.wait_until(2.0, "armed HEARTBEAT", lambda: gcs.armed)
+
+    hover = (ground[0], ground[1], ground[2] - 1.5)
+    climb_s = gcs.wait_until(15.0, "climb to 1.5 m", lambda: abs(gcs.pos[2] - hover[2]) < 0.05 and abs(gcs.vel[2]) < 0.1)
+    worst = 0.0
+    end = gcs.now_ms + 20_000
+    while gcs.now_ms < end:
+        gcs.pump()
+        worst = max(worst, math.dist(gcs.pos, hover))
+    assert gcs.armed, "disarmed during the hover"
+    assert worst <= 0.10, f"hover error {worst:.3f} m > 0.10 m"
+
+    assert gcs.command(mavutil.mavlink.MAV_CMD_NAV_LAND) == accepted
+    land_s = gcs.wait_until(30.0, "landed and disarmed", lambda: gcs.landed_state == MAV_LANDED_STATE_ON_GROUND and not gcs.armed)
+    print(f"converge {converge_s:.1f} s, climb {climb_s:.1f} s, hover error max {worst:.3f} m, land {land_s:.1f} s (vehicle time)")
