@@ -36,22 +36,12 @@ enum Command {
 
 #[derive(Args)]
 struct RunArgs {
-    /// Plant configuration file (TOML); default: the nominal plant with modest sensor noise.
-    #[arg(long)]
-    config: Option<PathBuf>,
-    /// Airframe preset (nominal, mismatch), applied over the configuration's.
-    #[arg(long)]
-    plant: Option<String>,
+    #[command(flatten)]
+    plant: PlantArgs,
     /// Instance N: plant on UDP 4560+N, autopilot on 18570+N, ground stations on 14550+N / 14540+N,
     /// system id N+1.
     #[arg(short = 'i', long, default_value_t = 0)]
     instance: u16,
-    /// Pace the plant at this multiple of real time; omit it to run as fast as the autopilot answers.
-    #[arg(long)]
-    speed: Option<f64>,
-    /// Seed of every noise and turbulence stream.
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
     /// Autopilot estimator (fused, truth).
     #[arg(long)]
     estimator: Option<String>,
@@ -63,14 +53,51 @@ struct RunArgs {
     log_dir: Option<PathBuf>,
 }
 
+/// The plant options `sitl run` and `sitl serve` share.
 #[derive(Args)]
-struct ServeArgs {
-    /// Plant configuration file (TOML: [airframe], [wind], [sensors], [ground], integrator_step_s).
+struct PlantArgs {
+    /// Plant configuration file (TOML: [airframe], [wind], [sensors], [ground], integrator_step_s);
+    /// default: the nominal plant (`sitl run`: with modest sensor noise).
     #[arg(long)]
     config: Option<PathBuf>,
-    /// Airframe preset (nominal, mismatch), applied over the configuration file's.
+    /// Airframe preset (nominal, mismatch), applied over the configuration's.
+    #[arg(long = "plant")]
+    preset: Option<String>,
+    /// Pace the plant at this multiple of real time (lockstep with the autopilot either way); omit it to
+    /// run as fast as the autopilot answers.
     #[arg(long)]
-    plant: Option<String>,
+    speed: Option<f64>,
+    /// Seed of every noise and turbulence stream.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+impl PlantArgs {
+    /// The plant and its pacing; `default` is the configuration used without `--config`.
+    fn build(&self, default: PlantConfig) -> Result<(Plant, Pacing)> {
+        let mut config = match &self.config {
+            Some(path) => {
+                let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+                PlantConfig::from_toml_str(&text).with_context(|| format!("plant configuration {}", path.display()))?
+            }
+            None => default,
+        };
+        if let Some(preset) = &self.preset {
+            config.airframe = Airframe::preset(preset)?;
+        }
+        let pacing = match self.speed {
+            Some(speed) if speed.is_finite() && speed > 0.0 => Pacing::RealTime { speed },
+            Some(speed) => bail!("--speed must be a positive number, got {speed}"),
+            None => Pacing::Lockstep,
+        };
+        Ok((Plant::new(config, &InitialState::default(), self.seed)?, pacing))
+    }
+}
+
+#[derive(Args)]
+struct ServeArgs {
+    #[command(flatten)]
+    plant: PlantArgs,
     /// Instance: the UDP port becomes 4560 + N.
     #[arg(short = 'i', long, default_value_t = 0)]
     instance: u16,
@@ -80,16 +107,9 @@ struct ServeArgs {
     /// Serve over a serial port instead of UDP: `DEVICE:BAUD`, e.g. /dev/ttyUSB0:921600.
     #[arg(long)]
     serial: Option<String>,
-    /// Pace the plant at this multiple of real time (lockstep with the autopilot either way); omit it to
-    /// run as fast as the autopilot answers.
-    #[arg(long)]
-    speed: Option<f64>,
     /// Plant step per sensor sample, µs (2000 = 500 Hz).
     #[arg(long, default_value_t = 2000)]
     dt_us: u64,
-    /// Seed of every noise and turbulence stream.
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
 }
 
 #[derive(Args)]
@@ -352,26 +372,11 @@ fn with_horizontal_error(trace: &runner::Trace) -> runner::Trace {
 }
 
 fn serve(args: &ServeArgs) -> Result<()> {
-    let mut config = match &args.config {
-        Some(path) => {
-            let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-            PlantConfig::from_toml_str(&text).with_context(|| format!("plant configuration {}", path.display()))?
-        }
-        None => PlantConfig::default(),
-    };
-    if let Some(preset) = &args.plant {
-        config.airframe = Airframe::preset(preset)?;
-    }
-    let pacing = match args.speed {
-        Some(speed) if speed.is_finite() && speed > 0.0 => Pacing::RealTime { speed },
-        Some(speed) => bail!("--speed must be a positive number, got {speed}"),
-        None => Pacing::Lockstep,
-    };
+    let (plant, pacing) = args.plant.build(PlantConfig::default())?;
     if args.dt_us == 0 || args.dt_us > 20_000 {
         bail!("--dt-us must be in 1..=20000, got {}", args.dt_us);
     }
     let link = LinkConfig { dt_us: args.dt_us, pacing, ..LinkConfig::default() };
-    let plant = Plant::new(config, &InitialState::default(), args.seed)?;
     let stop = AtomicBool::new(false);
     let steps = if let Some(spec) = &args.serial {
         let (device, baud) = spec.rsplit_once(':').context("--serial takes DEVICE:BAUD")?;
@@ -415,21 +420,7 @@ fn stop_child(child: &mut std::process::Child) {
 }
 
 fn run(args: &RunArgs) -> Result<()> {
-    let mut config = match &args.config {
-        Some(path) => {
-            let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-            PlantConfig::from_toml_str(&text).with_context(|| format!("plant configuration {}", path.display()))?
-        }
-        None => realistic_plant_config(),
-    };
-    if let Some(preset) = &args.plant {
-        config.airframe = Airframe::preset(preset)?;
-    }
-    let pacing = match args.speed {
-        Some(speed) if speed.is_finite() && speed > 0.0 => Pacing::RealTime { speed },
-        Some(speed) => bail!("--speed must be a positive number, got {speed}"),
-        None => Pacing::Lockstep,
-    };
+    let (plant, pacing) = args.plant.build(realistic_plant_config())?;
     let n = args.instance;
     let port = |base: u16| base.checked_add(n).context("instance too large: a port would exceed 65535");
     let (plant_port, ap_port, qgc_port, api_port) = (port(4560)?, port(18570)?, port(14550)?, port(14540)?);
@@ -443,7 +434,6 @@ fn run(args: &RunArgs) -> Result<()> {
     }
     let link =
         LinkConfig { pacing, connect_timeout: Some(std::time::Duration::from_secs(30)), ..LinkConfig::default() };
-    let plant = Plant::new(config, &InitialState::default(), args.seed)?;
     let listen = format!("127.0.0.1:{plant_port}");
     let mut server =
         PlantServer::bind_udp(plant, listen.as_str(), link).with_context(|| format!("binding {listen}"))?;
