@@ -116,7 +116,7 @@ impl Gcs {
     }
 
     fn command(&mut self, command: MavCmd, params: [f32; 7]) -> MavResult {
-        let msg = command_long(self.sysid, command, params);
+        let msg = command_long(self.sysid, 1, command, params);
         self.seen.acks.clear();
         self.socket.send_to(&encode_frame_v2(GCS, &msg), &self.autopilot).expect("send command");
         self.wait_until(5.0, &format!("ACK of {command:?}"), |s| s.acks.iter().any(|a| a.0 == command));

@@ -104,7 +104,7 @@ impl Rig {
     }
 
     fn command(&mut self, command: MavCmd, params: [f32; 7]) -> MavResult {
-        let msg = command_long(1, command, params);
+        let msg = command_long(1, 1, command, params);
         let replies = self.vehicle.handle_message(self.now_us, &GCS, &msg);
         match replies.first() {
             Some(MavMessage::COMMAND_ACK(a)) if a.command == command => a.result,

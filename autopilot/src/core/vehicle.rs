@@ -401,14 +401,13 @@ impl Vehicle {
 #[cfg(test)]
 mod tests {
     use ::mavlink::Message as _;
-    use ::mavlink::dialects::common::{
-        COMMAND_INT_DATA, COMMAND_LONG_DATA, MavCmd, MavFrame, MavModeFlag, MavResult, MavSeverity,
-    };
+    use ::mavlink::dialects::common::{COMMAND_INT_DATA, MavCmd, MavFrame, MavModeFlag, MavResult, MavSeverity};
     use nalgebra::UnitQuaternion;
 
     use super::*;
     use crate::core::commander::State;
     use crate::core::estimator::GeoOrigin;
+    use crate::core::mavlink::command_long;
 
     const GCS: MavHeader = MavHeader { system_id: 255, component_id: 190, sequence: 0 };
     const DT_US: u64 = 2_000;
@@ -463,20 +462,9 @@ mod tests {
         out
     }
 
+    /// A COMMAND_LONG to every component (0) of `target_system`, as pymavlink sends it.
     fn long(command: MavCmd, p: [f32; 7], target_system: u8) -> MavMessage {
-        MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-            param1: p[0],
-            param2: p[1],
-            param3: p[2],
-            param4: p[3],
-            param5: p[4],
-            param6: p[5],
-            param7: p[6],
-            command,
-            target_system,
-            target_component: 0,
-            confirmation: 0,
-        })
+        command_long(target_system, 0, command, p)
     }
 
     fn int(command: MavCmd, p: [f32; 7], frame: MavFrame) -> MavMessage {

@@ -155,10 +155,10 @@ pub fn decode_command(sysid: u8, header: &MavHeader, msg: &MavMessage, ctx: &Com
     })
 }
 
-/// A COMMAND_LONG to component 1 of `target_system` with the seven parameters in order, as a ground
-/// station sends it (confirmation 0).
+/// A COMMAND_LONG to `target_system`/`target_component` with the seven parameters in order, as a ground
+/// station sends it (confirmation 0; component 0 addresses every component, as pymavlink does).
 #[must_use]
-pub fn command_long(target_system: u8, command: MavCmd, params: [f32; 7]) -> MavMessage {
+pub fn command_long(target_system: u8, target_component: u8, command: MavCmd, params: [f32; 7]) -> MavMessage {
     let [param1, param2, param3, param4, param5, param6, param7] = params;
     MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
         param1,
@@ -170,7 +170,7 @@ pub fn command_long(target_system: u8, command: MavCmd, params: [f32; 7]) -> Mav
         param7,
         command,
         target_system,
-        target_component: 1,
+        target_component,
         confirmation: 0,
     })
 }

@@ -1,6 +1,6 @@
 //! Unit tests of the pure MAVLink pieces: scheduling, addressing, command decoding and units.
 
-use ::mavlink::dialects::common::{COMMAND_LONG_DATA, MavCmd, MavModeFlag};
+use ::mavlink::dialects::common::{MavCmd, MavModeFlag};
 
 use super::command::{px4_main_sub, takeoff_alt_rel_m};
 use super::*;
@@ -9,19 +9,7 @@ use crate::core::commander::Request;
 const GCS: MavHeader = MavHeader { system_id: 255, component_id: 190, sequence: 0 };
 
 fn long(command: MavCmd, p: [f32; 7], target_system: u8, target_component: u8) -> MavMessage {
-    MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-        param1: p[0],
-        param2: p[1],
-        param3: p[2],
-        param4: p[3],
-        param5: p[4],
-        param6: p[5],
-        param7: p[6],
-        command,
-        target_system,
-        target_component,
-        confirmation: 0,
-    })
+    command_long(target_system, target_component, command, p)
 }
 
 #[test]
