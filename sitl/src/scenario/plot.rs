@@ -5,6 +5,7 @@
 use std::path::Path;
 use std::sync::Once;
 
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use plotters::style::FontStyle;
 
@@ -65,6 +66,41 @@ fn colour(i: usize) -> RGBColor {
         RGBColor(23, 190, 207),
     ];
     PALETTE[i % PALETTE.len()]
+}
+
+/// The colour of references and paths.
+const REFERENCE_GREY: RGBColor = RGBColor(120, 120, 120);
+
+/// Both figure kinds draw on this chart: f64 axes on a bitmap.
+type Chart<'a, 'b> = ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// One labelled line, with its legend swatch.
+fn draw_line(
+    chart: &mut Chart<'_, '_>,
+    path: &Path,
+    points: impl IntoIterator<Item = (f64, f64)>,
+    colour: RGBColor,
+    width: u32,
+    label: &str,
+) -> Result<(), PlotError> {
+    chart
+        .draw_series(LineSeries::new(points, ShapeStyle::from(&colour).stroke_width(width)))
+        .map_err(|e| draw_err(path, e))?
+        .label(label)
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour));
+    Ok(())
+}
+
+/// The legend box, upper right.
+fn draw_legend<'a, 'b: 'a>(chart: &mut Chart<'a, 'b>, path: &Path) -> Result<(), PlotError> {
+    chart
+        .configure_series_labels()
+        .label_font((FONT, 14))
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()
+        .map_err(|e| draw_err(path, e))
 }
 
 fn draw_err(path: &Path, e: impl std::fmt::Display) -> PlotError {
@@ -130,34 +166,12 @@ pub fn time_panels(path: &Path, title: &str, panels: &[Panel], runs: &[Run<'_>])
             .draw()
             .map_err(|e| draw_err(path, e))?;
         if let Some((t, r)) = &reference {
-            chart
-                .draw_series(LineSeries::new(
-                    t.iter().copied().zip(r.iter().copied()),
-                    ShapeStyle::from(&RGBColor(120, 120, 120)).stroke_width(2),
-                ))
-                .map_err(|e| draw_err(path, e))?
-                .label("reference")
-                .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RGBColor(120, 120, 120)));
+            draw_line(&mut chart, path, t.iter().copied().zip(r.iter().copied()), REFERENCE_GREY, 2, "reference")?;
         }
         for (i, (label, t, y)) in lines.iter().enumerate() {
-            let c = colour(i);
-            chart
-                .draw_series(LineSeries::new(
-                    t.iter().copied().zip(y.iter().copied()),
-                    ShapeStyle::from(&c).stroke_width(2),
-                ))
-                .map_err(|e| draw_err(path, e))?
-                .label(*label)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c));
+            draw_line(&mut chart, path, t.iter().copied().zip(y.iter().copied()), colour(i), 2, label)?;
         }
-        chart
-            .configure_series_labels()
-            .label_font((FONT, 14))
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .position(SeriesLabelPosition::UpperRight)
-            .draw()
-            .map_err(|e| draw_err(path, e))?;
+        draw_legend(&mut chart, path)?;
     }
     root.present().map_err(|e| draw_err(path, e))
 }
@@ -196,29 +210,10 @@ pub fn track(path: &Path, title: &str, path_ne_m: &[(f64, f64)], runs: &[Run<'_>
         .axis_desc_style((FONT, 16))
         .draw()
         .map_err(|e| draw_err(path, e))?;
-    chart
-        .draw_series(LineSeries::new(
-            path_ne_m.iter().map(|&(n, e)| (e, n)),
-            ShapeStyle::from(&RGBColor(120, 120, 120)).stroke_width(3),
-        ))
-        .map_err(|e| draw_err(path, e))?
-        .label("path")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RGBColor(120, 120, 120)));
+    draw_line(&mut chart, path, path_ne_m.iter().map(|&(n, e)| (e, n)), REFERENCE_GREY, 3, "path")?;
     for (i, (label, pts)) in tracks.iter().enumerate() {
-        let c = colour(i);
-        chart
-            .draw_series(LineSeries::new(pts.iter().copied(), ShapeStyle::from(&c).stroke_width(2)))
-            .map_err(|e| draw_err(path, e))?
-            .label(*label)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c));
+        draw_line(&mut chart, path, pts.iter().copied(), colour(i), 2, label)?;
     }
-    chart
-        .configure_series_labels()
-        .label_font((FONT, 14))
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperRight)
-        .draw()
-        .map_err(|e| draw_err(path, e))?;
+    draw_legend(&mut chart, path)?;
     root.present().map_err(|e| draw_err(path, e))
 }
