@@ -23,6 +23,7 @@
 //! | GPS accuracy | `eph`, `epv` | cm, u16 (65535 = unknown -> +inf, refused by the estimator) | ≤ 0.5 cm |
 //! | truth attitude | `attitude_quaternion` | [w, x, y, z] FRD -> NED, f32 | ≤ 1.2e-7 rad |
 //! | truth specific force | `xacc/yacc/zacc` | mG (1 mG = 9.80665e-3 m/s²), i16 (±32.767 g, saturating) | ≤ 4.9e-3 m/s² |
+//! | precise truth (optional) | `ODOMETRY` x/y/z, vx/vy/vz, q, rates | m, m/s, rad/s NED/FRD; f32 | ≤ 6e-8 relative |
 //! | motor command | `controls[0..4]` | (pwm_us - 1000)/1000, f32 | ≤ 3e-5 µs |
 //!
 //! Integer fields saturate at their range (NaN encodes as 0). The extension fields (`HIL_SENSOR.id`,
@@ -39,7 +40,7 @@
 
 use mavlink::dialects::common::{
     HIL_ACTUATOR_CONTROLS_DATA, HIL_GPS_DATA, HIL_SENSOR_DATA, HIL_STATE_QUATERNION_DATA, HilActuatorControlsFlags,
-    HilSensorUpdatedFlags, MavMessage, MavModeFlag,
+    HilSensorUpdatedFlags, MavFrame, MavMessage, MavModeFlag, ODOMETRY_DATA,
 };
 use mavlink::{MAVLinkV1MessageRaw, MAVLinkV2MessageRaw, MavHeader, MavlinkVersion, Message};
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
@@ -383,6 +384,80 @@ pub fn decode_hil_state_quaternion(msg: &HIL_STATE_QUATERNION_DATA, home: &GeoOr
 }
 
 // ---------------------------------------------------------------------------------------------------------
+// ODOMETRY (precise truth)
+// ---------------------------------------------------------------------------------------------------------
+
+/// Truth in the plant's local NED frame at float precision, sent as `ODOMETRY` (frame LOCAL_NED, child
+/// BODY_FRD) after `HIL_STATE_QUATERNION` when the plant is asked to: degE7 latitude and longitude
+/// quantise the position to ±5.6 mm, which is a quarter of the paper's 2 cm state noise and the size of
+/// the steady hover error of the truth-fed runs. Position m, velocity m/s, rates rad/s (f32: ≤ 6e-8
+/// relative); the covariances are "unknown" (NaN first element).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LocalTruth {
+    pub time_us: u64,
+    pub pos_ned_m: Vector3<f64>,
+    pub vel_ned_mps: Vector3<f64>,
+    pub q_ned_frd: UnitQuaternion<f64>,
+    pub rate_frd_radps: Vector3<f64>,
+}
+
+impl LocalTruth {
+    /// `truth` with its position, velocity, attitude and rates replaced by these (same sample time).
+    #[must_use]
+    pub fn refine(&self, truth: &TruthSample) -> TruthSample {
+        TruthSample {
+            pos_ned_m: self.pos_ned_m,
+            vel_ned_mps: self.vel_ned_mps,
+            q_ned_frd: self.q_ned_frd,
+            rate_frd_radps: self.rate_frd_radps,
+            ..*truth
+        }
+    }
+}
+
+/// [`TruthSample`] (position in the plant's NED about its home) -> `ODOMETRY`.
+#[must_use]
+pub fn encode_odometry(truth: &TruthSample) -> ODOMETRY_DATA {
+    let q = truth.q_ned_frd.quaternion();
+    let mut unknown = [0.0_f32; 21];
+    unknown[0] = f32::NAN;
+    ODOMETRY_DATA {
+        time_usec: truth.time_us,
+        x: truth.pos_ned_m.x as f32,
+        y: truth.pos_ned_m.y as f32,
+        z: truth.pos_ned_m.z as f32,
+        q: [q.w as f32, q.i as f32, q.j as f32, q.k as f32],
+        vx: truth.vel_ned_mps.x as f32,
+        vy: truth.vel_ned_mps.y as f32,
+        vz: truth.vel_ned_mps.z as f32,
+        rollspeed: truth.rate_frd_radps.x as f32,
+        pitchspeed: truth.rate_frd_radps.y as f32,
+        yawspeed: truth.rate_frd_radps.z as f32,
+        pose_covariance: unknown,
+        velocity_covariance: unknown,
+        frame_id: MavFrame::MAV_FRAME_LOCAL_NED,
+        child_frame_id: MavFrame::MAV_FRAME_BODY_FRD,
+    }
+}
+
+/// `ODOMETRY` -> [`LocalTruth`], or `None` unless its frames are LOCAL_NED / BODY_FRD (the plant's truth;
+/// anything else is some other source's odometry).
+#[must_use]
+pub fn decode_odometry(msg: &ODOMETRY_DATA) -> Option<LocalTruth> {
+    if msg.frame_id != MavFrame::MAV_FRAME_LOCAL_NED || msg.child_frame_id != MavFrame::MAV_FRAME_BODY_FRD {
+        return None;
+    }
+    let [w, x, y, z] = msg.q.map(f64::from);
+    Some(LocalTruth {
+        time_us: msg.time_usec,
+        pos_ned_m: vec3_f64(msg.x, msg.y, msg.z),
+        vel_ned_mps: vec3_f64(msg.vx, msg.vy, msg.vz),
+        q_ned_frd: UnitQuaternion::new_normalize(Quaternion::new(w, x, y, z)),
+        rate_frd_radps: vec3_f64(msg.rollspeed, msg.pitchspeed, msg.yawspeed),
+    })
+}
+
+// ---------------------------------------------------------------------------------------------------------
 // HIL_ACTUATOR_CONTROLS
 // ---------------------------------------------------------------------------------------------------------
 
@@ -441,6 +516,8 @@ pub enum HilInput {
     Sensor(HilSensorFields),
     Gps(GpsSample),
     Truth(TruthSample),
+    /// Precise truth, refining the `Truth` of the same datagram.
+    LocalTruth(LocalTruth),
     Actuators(ActuatorCommand),
 }
 
@@ -451,6 +528,7 @@ pub fn decode_hil_message(msg: &MavMessage, home: &GeoOrigin) -> Option<HilInput
         MavMessage::HIL_SENSOR(m) => Some(HilInput::Sensor(decode_hil_sensor(m))),
         MavMessage::HIL_GPS(m) => Some(HilInput::Gps(decode_hil_gps(m))),
         MavMessage::HIL_STATE_QUATERNION(m) => Some(HilInput::Truth(decode_hil_state_quaternion(m, home))),
+        MavMessage::ODOMETRY(m) => decode_odometry(m).map(HilInput::LocalTruth),
         MavMessage::HIL_ACTUATOR_CONTROLS(m) => Some(HilInput::Actuators(decode_actuator_controls(m))),
         _ => None,
     }
@@ -721,6 +799,22 @@ mod tests {
         }
     }
 
+    #[test]
+    fn odometry_of_another_frame_is_not_the_plants_truth() {
+        let truth = TruthSample {
+            time_us: 1,
+            pos_ned_m: Vector3::zeros(),
+            vel_ned_mps: Vector3::zeros(),
+            q_ned_frd: UnitQuaternion::identity(),
+            rate_frd_radps: Vector3::zeros(),
+            specific_force_frd_mps2: Vector3::zeros(),
+        };
+        let mut msg = encode_odometry(&truth);
+        assert!(decode_odometry(&msg).is_some());
+        msg.frame_id = MavFrame::MAV_FRAME_LOCAL_FRD;
+        assert_eq!(decode_odometry(&msg), None);
+    }
+
     fn actuator_frame(t: u64, pwm: [f64; 4]) -> Vec<u8> {
         let cmd = ActuatorCommand { time_us: t, pwm_us: pwm, armed: true };
         encode_frame_v2(header(), &MavMessage::HIL_ACTUATOR_CONTROLS(encode_actuator_controls(&cmd)))
@@ -809,6 +903,32 @@ mod tests {
             prop_assert!(vec_close_f32(&truth.rate_frd_radps, &back.rate_frd_radps));
             prop_assert!((back.specific_force_frd_mps2 - truth.specific_force_frd_mps2).amax() <= 0.5e-3 * MPS2_PER_G + 1e-9);
             prop_assert_eq!((msg.ind_airspeed, msg.true_airspeed), (1234, 1234));
+        }
+
+        #[test]
+        fn odometry_refines_truth_to_f32_precision(
+            pos in prop::array::uniform3(-300.0_f64..300.0), vel in prop::array::uniform3(-30.0_f64..30.0),
+            axis_angle in prop::array::uniform3(-3.0_f64..3.0), t in any::<u64>(),
+        ) {
+            let truth = TruthSample {
+                time_us: t,
+                pos_ned_m: Vector3::from(pos),
+                vel_ned_mps: Vector3::from(vel),
+                q_ned_frd: UnitQuaternion::from_scaled_axis(Vector3::from(axis_angle)),
+                rate_frd_radps: Vector3::new(0.1, -0.2, 0.3),
+                specific_force_frd_mps2: Vector3::new(0.0, 0.0, -9.8),
+            };
+            let frame = encode_frame_v2(header(), &MavMessage::ODOMETRY(encode_odometry(&truth)));
+            let decoded = FrameDecoder::new().decode_datagram(&frame);
+            let Some(HilInput::LocalTruth(local)) = decode_hil_message(&decoded[0].message, &HOME) else {
+                panic!("not the plant's ODOMETRY")
+            };
+            let coarse = TruthSample { pos_ned_m: truth.pos_ned_m.add_scalar(0.005), ..truth };
+            let back = local.refine(&coarse);
+            prop_assert!(vec_close_f32(&truth.pos_ned_m, &back.pos_ned_m), "{:?}", back.pos_ned_m - truth.pos_ned_m);
+            prop_assert!(vec_close_f32(&truth.vel_ned_mps, &back.vel_ned_mps));
+            prop_assert!(back.q_ned_frd.angle_to(&truth.q_ned_frd) <= 2.5e-7);
+            prop_assert_eq!(back.specific_force_frd_mps2, truth.specific_force_frd_mps2);
         }
 
         #[test]
