@@ -39,7 +39,7 @@ pub const PWM_MAX_US: f64 = 2000.0;
 
 /// Everything the vehicle is built from.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct VehicleConfig {
     /// MAVLink system id (N+1 for instance N).
     pub sysid: u8,
@@ -51,6 +51,18 @@ pub struct VehicleConfig {
     pub takeoff_speed_mps: f64,
     /// How far below the ground the landing reference may ramp (m), bounding the push into the ground.
     pub land_ramp_below_ground_m: f64,
+    /// Start armed and holding a point instead of disarmed on the ground (experiments that begin in the
+    /// air, as the paper's do: `sitl run --scenario`); home is then the ground below that point.
+    pub start_airborne: Option<AirborneStart>,
+}
+
+/// Where an airborne start holds (NED m about the estimator's origin, yaw rad).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AirborneStart {
+    pub hold_ned_m: [f64; 3],
+    #[serde(default)]
+    pub yaw_rad: f64,
 }
 
 impl Default for VehicleConfig {
@@ -63,6 +75,7 @@ impl Default for VehicleConfig {
             commander: CommanderConfig::default(),
             takeoff_speed_mps: 1.0,
             land_ramp_below_ground_m: 0.5,
+            start_airborne: None,
         }
     }
 }
@@ -74,6 +87,8 @@ pub enum VehicleError {
     Sysid,
     #[error("vehicle config: {field} = {value} must be finite and positive")]
     NotPositive { field: &'static str, value: f64 },
+    #[error("vehicle config: start_airborne hold_ned_m and yaw_rad must be finite")]
+    StartAirborne,
     #[error(transparent)]
     Controller(#[from] control::ConfigError),
     #[error(transparent)]
@@ -129,6 +144,7 @@ pub struct Vehicle {
     /// Down coordinate of the last position reference flown (m).
     last_ref_d_m: Option<f64>,
     throttle_low_pwm_us: f64,
+    comm_errors: u64,
 }
 
 impl std::fmt::Debug for Vehicle {
@@ -167,6 +183,15 @@ impl Vehicle {
         let controller = try_new_controller(config.controller, &config.control)?;
         let mut commander = Commander::new(config.commander)?;
         let output = commander.step(&CommanderInputs::default());
+        let mut home = None;
+        if let Some(start) = config.start_airborne {
+            let hold = Vector3::from(start.hold_ned_m);
+            if !(finite3(&hold) && start.yaw_rad.is_finite()) {
+                return Err(VehicleError::StartAirborne);
+            }
+            commander.start_airborne(hold, start.yaw_rad);
+            home = Some(Home { pos_ned_m: Vector3::new(hold.x, hold.y, 0.0), geodetic: None });
+        }
         let airframe = &config.control.aco.airframe;
         let throttle_low_pwm_us = distributor::pwm_from_lift_us(0.3 * airframe.hover_rotor_lift_n());
         Ok(Self {
@@ -177,13 +202,14 @@ impl Vehicle {
             mavlink: MavlinkService::new(config.sysid),
             output,
             last_gps: None,
-            home: None,
+            home,
             pwm_us: [PWM_MIN_US; 4],
             last_tick_us: None,
             ramp: Ramp::None,
             ramp_d_m: 0.0,
             last_ref_d_m: None,
             throttle_low_pwm_us,
+            comm_errors: 0,
             config,
         })
     }
@@ -212,6 +238,11 @@ impl Vehicle {
     #[must_use]
     pub fn home(&self) -> Option<&Home> {
         self.home.as_ref()
+    }
+
+    /// The malformed frames the shell's links have dropped so far (reported in SYS_STATUS errors_comm).
+    pub fn set_comm_errors(&mut self, count: u64) {
+        self.comm_errors = count;
     }
 
     /// The MAVLink services (stream rates).
@@ -294,6 +325,12 @@ impl Vehicle {
                 geodetic: state.origin.map(|o| o.geodetic_from_ned(&state.pos_ned_m)),
             });
         }
+        if let Some(home) = &mut self.home
+            && home.geodetic.is_none()
+            && let Some(origin) = state.origin
+        {
+            home.geodetic = Some(origin.geodetic_from_ned(&home.pos_ned_m));
+        }
         if tick {
             self.pwm_us = self.control(now_us, &state, &out);
         }
@@ -307,6 +344,7 @@ impl Vehicle {
             home: self.home.as_ref(),
             commander: &out,
             pwm_us: self.pwm_us,
+            comm_errors: self.comm_errors,
         };
         let messages = self.mavlink.outbound(now_us, &snapshot, &out.events);
         let armed = out.armed;

@@ -419,6 +419,17 @@ impl Commander {
         }
     }
 
+    /// Starts armed in Hold at `hold_ned_m` (m, NED) and `yaw_rad`, instead of disarmed on the ground:
+    /// for experiments that begin in the air, as the paper's do (`sitl run --scenario`). Call before the
+    /// first step; no Armed event is raised (there was no arming), the first HEARTBEAT shows it armed.
+    pub fn start_airborne(&mut self, hold_ned_m: Vector3<f64>, yaw_rad: f64) {
+        self.state = State::Hold;
+        self.hold_ned_m = hold_ned_m;
+        self.yaw_sp_rad = yaw_rad;
+        self.hold_mode = FlightMode::Hold;
+        self.set_mode(FlightMode::Hold);
+    }
+
     /// Handles a request at `now_us`, at once.
     ///
     /// # Errors

@@ -40,6 +40,8 @@ pub struct TelemetrySnapshot<'a> {
     pub commander: &'a CommanderOutput,
     /// The motor commands of this step (µs).
     pub pwm_us: [f64; 4],
+    /// Malformed frames dropped so far on every link (plant and ground stations): SYS_STATUS errors_comm.
+    pub comm_errors: u64,
 }
 
 /// The periodic streams.
@@ -105,7 +107,7 @@ impl Stream {
     #[must_use]
     pub fn message(self, snap: &TelemetrySnapshot<'_>) -> Option<MavMessage> {
         match self {
-            Self::SysStatus => Some(sys_status(snap.estimate)),
+            Self::SysStatus => Some(sys_status(snap.estimate, snap.comm_errors)),
             Self::Attitude => Some(attitude(snap)),
             Self::AttitudeQuaternion => Some(attitude_quaternion(snap)),
             Self::LocalPositionNed => Some(local_position_ned(snap)),
@@ -196,9 +198,10 @@ fn sensors(bits: &[(bool, MavSysStatusSensor)]) -> MavSysStatusSensor {
 }
 
 /// SYS_STATUS: gyro, accel, mag, baro, GPS and PREARM_CHECK present and enabled; healthy from the estimator
-/// flags (IMU: attitude valid; PREARM_CHECK: converged, i.e. armable). Battery unknown.
+/// flags (IMU: attitude valid; PREARM_CHECK: converged, i.e. armable). Battery unknown. `errors_comm`: the
+/// malformed frames dropped on every link (saturating at 65535).
 #[must_use]
-pub fn sys_status(est: &EstimatorState) -> MavMessage {
+pub fn sys_status(est: &EstimatorState, comm_errors: u64) -> MavMessage {
     use MavSysStatusSensor as S;
     let all = S::MAV_SYS_STATUS_SENSOR_3D_GYRO
         | S::MAV_SYS_STATUS_SENSOR_3D_ACCEL
@@ -223,6 +226,7 @@ pub fn sys_status(est: &EstimatorState) -> MavMessage {
         voltage_battery: u16::MAX,
         current_battery: -1,
         battery_remaining: -1,
+        errors_comm: u16::try_from(comm_errors).unwrap_or(u16::MAX),
         ..SYS_STATUS_DATA::default()
     })
 }
