@@ -1,17 +1,15 @@
-//! `autopilot`: the ACO quadrotor autopilot process. Connects to a plant over the HIL plant protocol and
-//! serves ground stations over UDP (instance `-i N`: ports shifted by N, system id N+1).
+//! `autopilot`: the ACO quadrotor autopilot process. Attaches to a plant over the HIL plant protocol (UDP
+//! to the SITL plant, or serial to the real airframe's ARM board) and serves ground stations over UDP, TCP
+//! and optionally serial (instance `-i N`: default ports shifted by N, system id N+1). Configuration: a
+//! TOML file (`--config`, see `runtime::config`), overridden by the options below; logs with `RUST_LOG`.
 
-use std::net::{SocketAddr, ToSocketAddrs};
 use std::path::PathBuf;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use autopilot::core::control::ControllerKind;
 use autopilot::core::estimator::EstimatorSource;
-use autopilot::runtime::{self, RuntimeConfig};
+use autopilot::runtime::{self, ConfigFile, Overrides, RuntimeConfig};
 use clap::{Parser, ValueEnum};
-
-/// Default plant UDP port (instance 0).
-const PLANT_PORT: u16 = 4560;
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
 enum Estimator {
@@ -24,39 +22,27 @@ enum Estimator {
 #[derive(Parser)]
 #[command(name = "autopilot", version, about = "ACO quadrotor autopilot (MAVLink, HIL plant protocol)")]
 struct Cli {
-    /// Plant address: `udp://HOST:PORT` (default udp://127.0.0.1:4560+N). Serial is not supported yet.
+    /// Configuration file (TOML: [plant], [gcs], [log], [vehicle]).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Plant link: `udp://HOST:PORT` (default udp://127.0.0.1:4560+N) or `serial:DEVICE:BAUD`.
     #[arg(long)]
     plant: Option<String>,
-    /// Instance N: shifts the plant port 4560 (if --plant is not given), 18570, 14550 and 14540 by N;
-    /// system id N+1.
+    /// Instance N: shifts the default ports (plant 4560, UDP 18570, targets 14550 and 14540, TCP 5760) by
+    /// N; system id N+1.
     #[arg(short = 'i', long, default_value_t = 0)]
     instance: u16,
-    #[arg(long, value_enum, default_value = "fused")]
-    estimator: Estimator,
+    #[arg(long, value_enum)]
+    estimator: Option<Estimator>,
     /// Controller: aco, ca or pid.
-    #[arg(long, default_value = "aco")]
-    controller: ControllerKind,
+    #[arg(long)]
+    controller: Option<ControllerKind>,
     /// Directory for `.tlog` flight logs (none if omitted).
     #[arg(long)]
     log_dir: Option<PathBuf>,
-}
-
-fn plant_addr(spec: Option<&str>, instance: u16) -> Result<SocketAddr> {
-    let Some(spec) = spec else {
-        let port = PLANT_PORT.checked_add(instance).context("instance too large for the plant port")?;
-        return Ok(SocketAddr::from(([127, 0, 0, 1], port)));
-    };
-    if let Some(hostport) = spec.strip_prefix("udp://") {
-        return hostport
-            .to_socket_addrs()
-            .with_context(|| format!("resolving plant address `{hostport}`"))?
-            .next()
-            .with_context(|| format!("plant address `{hostport}` resolves to nothing"));
-    }
-    if spec.starts_with("serial:") {
-        bail!("--plant serial:... is not supported yet; use udp://HOST:PORT");
-    }
-    bail!("--plant must be udp://HOST:PORT, got `{spec}`")
+    /// Stop when standard input closes (how `sitl run` keeps its autopilot from outliving it).
+    #[arg(long, hide = true)]
+    stop_on_stdin_eof: bool,
 }
 
 fn main() -> Result<()> {
@@ -68,22 +54,34 @@ fn main() -> Result<()> {
         .with_writer(std::io::stderr)
         .init();
     let cli = Cli::parse();
-    let config = RuntimeConfig {
-        plant: plant_addr(cli.plant.as_deref(), cli.instance)?,
-        instance: cli.instance,
-        estimator: match cli.estimator {
+    let file = match &cli.config {
+        Some(path) => ConfigFile::load(path)?,
+        None => ConfigFile::default(),
+    };
+    let overrides = Overrides { plant: cli.plant, log_dir: cli.log_dir, stop_on_stdin_eof: cli.stop_on_stdin_eof };
+    let mut config = RuntimeConfig::resolve(file, cli.instance, overrides)?;
+    if let Some(e) = cli.estimator {
+        config.vehicle.estimator.source = match e {
             Estimator::Fused => EstimatorSource::Fused,
             Estimator::Truth => EstimatorSource::Truth,
-        },
-        controller: cli.controller,
-        log_dir: cli.log_dir,
-    };
-    // One thread: the lockstep plant link is latency-bound, and cross-thread wake-ups cost ~30 % of the
-    // real-time factor (measured with sitl's e2e flight: ~31x vs ~24x real time).
+        };
+    }
+    if let Some(c) = cli.controller {
+        config.vehicle.controller = c;
+    }
+    // One thread for the tokio links: the vehicle runs on the plant link's own thread, and the links only
+    // carry telemetry.
     let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().context("starting tokio")?;
     let stats = rt.block_on(runtime::run(config))?;
     if let (Some(first), Some(last)) = (stats.first_time_us, stats.last_time_us) {
-        tracing::info!(steps = stats.steps, sim_s = (last - first) as f64 * 1e-6, "autopilot stopped");
+        tracing::info!(
+            steps = stats.steps,
+            sim_s = (last - first) as f64 * 1e-6,
+            plant_losses = stats.plant_losses,
+            plant_malformed = stats.plant_decoder.malformed(),
+            gcs_dropped = stats.gcs_dropped,
+            "autopilot stopped"
+        );
     }
     Ok(())
 }

@@ -39,7 +39,8 @@ pub fn encode(header: MavHeader, message: &MavMessage, version: MavlinkVersion) 
 pub struct LinkStats {
     /// Valid frames received and passed on to the core.
     pub frames_in: u64,
-    /// Frames sent (a broadcast to three peers counts three).
+    /// Datagrams (UDP: several frames may be packed in one) or frames (TCP, serial) sent; a broadcast to
+    /// three peers counts three.
     pub frames_out: u64,
     /// Frames dropped by the decoder: bad CRC, truncated, unknown message id, unknown incompat flags,
     /// unparsable payload.

@@ -6,16 +6,27 @@ use std::net::SocketAddr;
 
 use mavlink::dialects::common::MavMessage;
 use mavlink::{MavHeader, MavlinkVersion};
+use tokio::sync::mpsc;
+use tokio::sync::mpsc::error::TrySendError;
+
+use super::frame::{DecodedFrame, LinkCounters};
 
 /// Capacity of the channels between a link and the core, in messages. At the 20 Hz offboard stream of one
 /// MAVSDK client plus 1 Hz heartbeats this is seconds of slack; beyond it frames are dropped and counted
 /// (`LinkStats::dropped_in`), never queued without bound.
 pub const CHANNEL_CAPACITY: usize = 1024;
 
+/// Which ground-station link a message came in on (its index in the runtime's link list), so that a
+/// reply goes back out on the same link.
+pub type LinkId = usize;
+
 /// A valid message from a ground station, on its way to the core.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Incoming {
-    /// Who sent it: the address a reply goes to.
+    /// The link it came in on.
+    pub link: LinkId,
+    /// Who sent it: the address a reply goes to (UDP, TCP); unspecified (`0.0.0.0:0`) on a serial link,
+    /// which has one peer.
     pub peer: SocketAddr,
     pub header: MavHeader,
     pub message: MavMessage,
@@ -52,6 +63,13 @@ pub enum LinkError {
         #[source]
         source: std::io::Error,
     },
+    /// Opening a device (a serial port) failed.
+    #[error("cannot open {what}: {source}")]
+    Open {
+        what: String,
+        #[source]
+        source: std::io::Error,
+    },
     /// Receiving (or accepting) failed with an error that is not about one peer.
     #[error("receive on {local} failed: {source}")]
     Receive {
@@ -62,4 +80,29 @@ pub enum LinkError {
     /// Any other socket operation (reading the bound address, ...).
     #[error("link I/O: {0}")]
     Io(#[from] std::io::Error),
+}
+
+/// Hands the frames of one read from `peer` on link `link` to the core, counting each in `counters`; a
+/// full channel drops (and counts) the frame rather than blocking the link. `false` once the core has
+/// gone (the link should stop).
+pub fn deliver(
+    incoming: &mpsc::Sender<Incoming>,
+    counters: &LinkCounters,
+    link: LinkId,
+    peer: SocketAddr,
+    frames: Vec<DecodedFrame>,
+) -> bool {
+    for f in frames {
+        counters.add_frame_in();
+        let msg = Incoming { link, peer, header: f.header, message: f.message, version: f.version };
+        match incoming.try_send(msg) {
+            Ok(()) => {}
+            Err(TrySendError::Full(_)) => {
+                counters.add_dropped_in();
+                tracing::warn!(%peer, "core is not keeping up; incoming frame dropped");
+            }
+            Err(TrySendError::Closed(_)) => return false,
+        }
+    }
+    true
 }

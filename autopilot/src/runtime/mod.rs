@@ -1,53 +1,50 @@
 //! The tokio shell around the sans-I/O core: it only moves bytes. In: datagrams and streams from ground
-//! stations; out to the core: [`link::Incoming`] messages on an mpsc channel; back from the core:
-//! [`link::Outgoing`] messages fanned out to every ground station or addressed to one. Also the `.tlog`
-//! writer and the shutdown signal every task selects on.
+//! stations (UDP, TCP, serial links, each a tokio task); out to the core: [`link::Incoming`] messages on
+//! one mpsc channel; back from the core: [`link::Outgoing`] messages to every link, or to the peer of one
+//! link that a reply answers. The core itself runs on the plant link's own thread
+//! ([`plant_link`], blocking I/O: the lockstep round trip is latency-bound). Also the configuration
+//! ([`config`]), the `.tlog` writer and the shutdown signal every task selects on.
 //!
 //! Nothing here decides anything about the vehicle; see `DESIGN.md`, "The one idea".
 
+pub mod config;
 pub mod frame;
 pub mod link;
 pub mod plant_link;
+pub mod serial;
 pub mod shutdown;
 pub mod tcp;
 pub mod tlog;
+pub mod transport;
 pub mod udp;
 
-use std::net::SocketAddr;
 use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{SystemTime, UNIX_EPOCH};
 
 use tokio::sync::mpsc;
+use tokio::task::JoinSet;
 
-use crate::core::control::ControllerKind;
-use crate::core::estimator::EstimatorSource;
-use crate::core::vehicle::VehicleConfig;
+pub use config::{ConfigError, ConfigFile, Overrides, PlantEndpoint, RuntimeConfig};
 use link::{CHANNEL_CAPACITY, LinkError};
-use plant_link::{PlantLinkConfig, PlantLinkError, PlantLinkStats, TlogFrame};
+use plant_link::{GcsOutputs, PlantLinkError, PlantLinkStats, TlogFrame};
+use serial::{SerialConfig, SerialLink};
+use tcp::TcpLink;
 use tlog::{TlogError, TlogWriter};
-use udp::{UdpConfig, UdpLink};
+use transport::{SerialTransport, Transport, UdpPeerTransport};
+use udp::UdpLink;
+
+use crate::core::vehicle::Vehicle;
 
 /// Frames the tlog task may lag behind before frames are dropped (and counted).
 const TLOG_CHANNEL_CAPACITY: usize = 8192;
 
-/// Everything the autopilot process is started with.
-#[derive(Debug, Clone)]
-pub struct RuntimeConfig {
-    /// The plant's UDP address (127.0.0.1:4560+N).
-    pub plant: SocketAddr,
-    /// Instance N: ground-station ports shift by N, system id N+1.
-    pub instance: u16,
-    pub estimator: EstimatorSource,
-    pub controller: ControllerKind,
-    /// Where `.tlog` files go; `None`: no log.
-    pub log_dir: Option<PathBuf>,
-}
-
 /// Why the runtime stopped with an error.
 #[derive(Debug, thiserror::Error)]
 pub enum RuntimeError {
-    #[error("instance {instance} is too large: the system id N+1 must fit 1..=255")]
-    Instance { instance: u16 },
+    #[error(transparent)]
+    Config(#[from] ConfigError),
     #[error(transparent)]
     Link(#[from] LinkError),
     #[error(transparent)]
@@ -64,20 +61,6 @@ pub enum RuntimeError {
     Signal(#[source] std::io::Error),
     #[error("a runtime task panicked or was cancelled: {0}")]
     Join(#[from] tokio::task::JoinError),
-}
-
-/// The vehicle configuration of `config`.
-///
-/// # Errors
-/// [`RuntimeError::Instance`] if the system id N+1 does not fit a byte.
-pub fn vehicle_config(config: &RuntimeConfig) -> Result<VehicleConfig, RuntimeError> {
-    let sysid = u8::try_from(config.instance + 1)
-        .ok()
-        .filter(|_| config.instance < 255)
-        .ok_or(RuntimeError::Instance { instance: config.instance })?;
-    let mut vehicle = VehicleConfig { sysid, controller: config.controller, ..VehicleConfig::default() };
-    vehicle.estimator.source = config.estimator;
-    Ok(vehicle)
 }
 
 fn wall_us() -> u64 {
@@ -97,21 +80,67 @@ async fn tlog_task(mut writer: TlogWriter, mut frames: mpsc::Receiver<TlogFrame>
     Ok(path)
 }
 
-/// Run the autopilot until Ctrl-C (or a task fails): the ground-station UDP link on the instance's ports,
-/// the plant link driving the vehicle, and the `.tlog` writer; every task is stopped and awaited.
+/// The plant link's transport.
+fn open_plant(endpoint: &PlantEndpoint) -> Result<Box<dyn Transport + Send>, PlantLinkError> {
+    let open = |source| PlantLinkError::Open { link: endpoint.to_string(), source };
+    Ok(match endpoint {
+        PlantEndpoint::Udp(addr) => Box::new(UdpPeerTransport::connect(*addr, transport::POLL_INTERVAL).map_err(open)?),
+        PlantEndpoint::Serial { path, baud } => {
+            Box::new(SerialTransport::open(path, *baud, transport::POLL_INTERVAL).map_err(open)?)
+        }
+    })
+}
+
+/// Resolves when standard input reaches its end (a detached thread reads it, so a pending read never
+/// holds up the process exit).
+async fn stdin_closed() {
+    let (tx, rx) = tokio::sync::oneshot::channel();
+    std::thread::spawn(move || {
+        let mut sink = [0u8; 256];
+        let mut stdin = std::io::stdin();
+        while std::io::Read::read(&mut stdin, &mut sink).is_ok_and(|n| n > 0) {}
+        let _ = tx.send(());
+    });
+    let _ = rx.await;
+}
+
+/// Run the autopilot until Ctrl-C (or, with `stop_on_stdin_eof`, until standard input closes, or until a
+/// task fails): the ground-station links (UDP, TCP, serial), the plant link driving the vehicle on a
+/// thread of its own, and the `.tlog` writer; every task is stopped and awaited.
 ///
 /// # Errors
-/// The first task error ([`RuntimeError`]); the other tasks are still shut down.
+/// The first error ([`RuntimeError`]); the other tasks are still shut down.
 pub async fn run(config: RuntimeConfig) -> Result<PlantLinkStats, RuntimeError> {
-    let vehicle = vehicle_config(&config)?;
+    // Refuse a bad vehicle configuration before opening anything.
+    Vehicle::new(config.vehicle.clone()).map_err(PlantLinkError::from)?;
     let (trigger, shutdown) = shutdown::channel();
-    let udp = UdpLink::bind(UdpConfig::for_instance(config.instance)).await?;
-    tracing::info!(
-        local = %udp.local_addr(),
-        plant = %config.plant,
-        sysid = vehicle.sysid,
-        "autopilot up"
-    );
+    let (in_tx, in_rx) = mpsc::channel(CHANNEL_CAPACITY);
+    let mut links = JoinSet::new();
+    let mut out_links = Vec::new();
+    let mut counters = Vec::new();
+
+    let udp = UdpLink::bind(config.udp.clone()).await?;
+    counters.push(udp.counters());
+    let (tx, rx) = mpsc::channel(CHANNEL_CAPACITY);
+    out_links.push(tx);
+    tracing::info!(local = %udp.local_addr(), sysid = config.vehicle.sysid, "autopilot up");
+    links.spawn(udp.run(in_tx.clone(), rx, shutdown.clone()));
+    if let Some(tcp) = &config.tcp {
+        let tcp = TcpLink::bind(tcp.clone()).await?;
+        counters.push(tcp.counters());
+        let (tx, rx) = mpsc::channel(CHANNEL_CAPACITY);
+        out_links.push(tx);
+        links.spawn(tcp.run(in_tx.clone(), rx, shutdown.clone()));
+    }
+    if let Some((path, baud)) = &config.serial {
+        let serial = SerialLink::open(&SerialConfig { link: out_links.len(), path: path.clone(), baud: *baud })?;
+        counters.push(serial.counters());
+        let (tx, rx) = mpsc::channel(CHANNEL_CAPACITY);
+        out_links.push(tx);
+        links.spawn(serial.run(in_tx.clone(), rx, shutdown.clone()));
+    }
+    drop(in_tx);
+
     let (tlog_tx, tlog_task) = match &config.log_dir {
         Some(dir) => {
             std::fs::create_dir_all(dir).map_err(|source| RuntimeError::LogDir { path: dir.clone(), source })?;
@@ -123,30 +152,38 @@ pub async fn run(config: RuntimeConfig) -> Result<PlantLinkStats, RuntimeError> 
         }
         None => (None, None),
     };
-    let (in_tx, in_rx) = mpsc::channel(CHANNEL_CAPACITY);
-    let (out_tx, out_rx) = mpsc::channel(CHANNEL_CAPACITY);
-    let mut udp_task = tokio::spawn(udp.run(in_tx, out_rx, shutdown.clone()));
-    let plant_config = PlantLinkConfig { plant: config.plant, vehicle };
-    let mut plant_task = tokio::spawn(plant_link::run(plant_config, in_rx, out_tx, tlog_tx, shutdown.clone()));
+
+    let mut plant = open_plant(&config.plant)?;
+    tracing::info!(plant = %config.plant, "plant link open");
+    let stop = Arc::new(AtomicBool::new(false));
+    let plant_stop = stop.clone();
+    let vehicle = config.vehicle.clone();
+    let outputs = GcsOutputs { links: out_links, tlog: tlog_tx, counters };
+    let mut plant_task =
+        tokio::task::spawn_blocking(move || plant_link::run(plant.as_mut(), vehicle, in_rx, outputs, &plant_stop));
 
     let mut first_error: Option<RuntimeError> = None;
-    let mut udp_done = None;
     let mut plant_done = None;
+    let stdin_eof = config.stop_on_stdin_eof;
     tokio::select! {
         signal = tokio::signal::ctrl_c() => {
             if let Err(e) = signal {
                 first_error = Some(RuntimeError::Signal(e));
             }
-            tracing::info!("shutting down");
+            tracing::info!("shutting down (Ctrl-C)");
         }
-        r = &mut udp_task => udp_done = Some(r),
+        () = stdin_closed(), if stdin_eof => tracing::info!("shutting down (standard input closed)"),
+        Some(done) = links.join_next() => {
+            match done {
+                Ok(Ok(())) => tracing::info!("a ground-station link stopped; shutting down"),
+                Ok(Err(e)) => first_error = Some(e.into()),
+                Err(e) => first_error = Some(e.into()),
+            }
+        }
         r = &mut plant_task => plant_done = Some(r),
     }
     trigger.fire();
-    let udp_result = match udp_done {
-        Some(r) => r,
-        None => udp_task.await,
-    };
+    stop.store(true, Ordering::Relaxed);
     let plant_result = match plant_done {
         Some(r) => r,
         None => plant_task.await,
@@ -161,16 +198,18 @@ pub async fn run(config: RuntimeConfig) -> Result<PlantLinkStats, RuntimeError> 
             first_error.get_or_insert(e.into());
         }
     }
-    match udp_result {
-        Ok(Ok(())) => {}
-        Ok(Err(e)) => {
-            first_error.get_or_insert(e.into());
-        }
-        Err(e) => {
-            first_error.get_or_insert(e.into());
+    while let Some(done) = links.join_next().await {
+        match done {
+            Ok(Ok(())) => {}
+            Ok(Err(e)) => {
+                first_error.get_or_insert(e.into());
+            }
+            Err(e) => {
+                first_error.get_or_insert(e.into());
+            }
         }
     }
-    // The plant task has dropped its tlog sender: the tlog task drains and closes.
+    // The plant thread has dropped its tlog sender: the tlog task drains and closes.
     if let Some(task) = tlog_task {
         match task.await {
             Ok(Ok(_)) => {}
@@ -185,28 +224,5 @@ pub async fn run(config: RuntimeConfig) -> Result<PlantLinkStats, RuntimeError> 
     match first_error {
         Some(e) => Err(e),
         None => Ok(stats),
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn config(instance: u16) -> RuntimeConfig {
-        RuntimeConfig {
-            plant: SocketAddr::from(([127, 0, 0, 1], 4560 + instance)),
-            instance,
-            estimator: EstimatorSource::Truth,
-            controller: ControllerKind::Pid,
-            log_dir: None,
-        }
-    }
-
-    #[test]
-    fn instance_n_is_system_id_n_plus_one_and_too_large_is_refused() {
-        let v = vehicle_config(&config(3)).expect("valid");
-        assert_eq!((v.sysid, v.controller, v.estimator.source), (4, ControllerKind::Pid, EstimatorSource::Truth));
-        assert_eq!(vehicle_config(&config(254)).expect("valid").sysid, 255);
-        assert!(matches!(vehicle_config(&config(255)), Err(RuntimeError::Instance { instance: 255 })));
     }
 }

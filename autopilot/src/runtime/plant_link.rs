@@ -1,52 +1,69 @@
-//! The autopilot side of the plant protocol over UDP, and the one task that owns the [`Vehicle`]: plant
-//! datagrams (`HIL_GPS`, `HIL_STATE_QUATERNION`, `HIL_SENSOR`) become [`VehicleInputs`]; each `HIL_SENSOR`
-//! is a tick (its `time_usec` is the vehicle clock): `Vehicle::step`, then `HIL_ACTUATOR_CONTROLS` echoing
-//! that time, and the step's telemetry to every ground station. Ground-station messages are fed to
-//! `Vehicle::handle_message` at the current vehicle time, and the replies go back to their sender.
+//! The autopilot's end of the plant protocol, and the one thread that owns the [`Vehicle`]. In: plant
+//! frames (`HIL_GPS`, `HIL_STATE_QUATERNION`, `HIL_SENSOR`) over a blocking [`Transport`] (UDP to the SITL
+//! plant, or serial to the real airframe's ARM board), and ground-station messages from the tokio links
+//! on a channel. Each `HIL_SENSOR` is a tick (its `time_usec` is the vehicle clock): `Vehicle::step`, then
+//! `HIL_ACTUATOR_CONTROLS` echoing that time, and the step's telemetry to every ground-station link.
+//! Ground-station messages are handled between ticks at the current vehicle time; replies go back to
+//! the link and peer they came from.
 //!
-//! No locks: the vehicle lives in this task only. Without sensor datagrams for [`PLANT_SILENCE`] of wall
-//! time it warns once and keeps waiting (no plant, no ticks: the motors stay at their minimum).
+//! Why a thread of its own rather than a tokio task: the lockstep round trip (plant sends, autopilot
+//! answers, plant steps) is latency-bound, and a blocking `recv` on one socket is the shortest path from
+//! the plant's datagram to the vehicle (one system call in, one out). The tokio links only see the
+//! telemetry, which is 60-odd messages per simulated second.
+//!
+//! No locks: the vehicle lives in this thread only. Plant silence for [`PLANT_SILENCE`] of wall time is a
+//! lost link: it is reported once (log and a critical STATUSTEXT to every ground station) and the motors
+//! are commanded to their minimum (1000 µs, disarmed) on the link, so a board that still listens stops
+//! them; the vehicle clock stops with the plant's and resumes when the plant does. Until the plant first
+//! speaks, and after each silence, the autopilot announces itself with a HEARTBEAT every second, as the
+//! plant only answers peers that spoke (DESIGN.md, "The plant protocol").
 
-use std::net::SocketAddr;
-use std::time::Duration;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
 
 use mavlink::MavHeader;
-use mavlink::dialects::common::{HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavState, MavType};
-use tokio::net::UdpSocket;
+use mavlink::dialects::common::{
+    HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavSeverity, MavState, MavType,
+};
 use tokio::sync::mpsc;
+use tokio::sync::mpsc::error::{TryRecvError, TrySendError};
 
 use crate::core::estimator::{EstimatorSource, GeoOrigin};
 use crate::core::hil::{
-    ActuatorCommand, FrameDecoder, HilInput, SensorSamples, decode_hil_message, dege7_to_deg, encode_actuator_controls,
-    encode_frame_v2, mm_to_m,
+    ActuatorCommand, DecoderStats, FrameDecoder, HilInput, SensorSamples, decode_hil_message, dege7_to_deg,
+    encode_actuator_controls, encode_frame_v2, mm_to_m,
 };
-use crate::core::mavlink::own_header;
-use crate::core::vehicle::{Vehicle, VehicleConfig, VehicleError, VehicleInputs};
-use crate::runtime::frame;
-use crate::runtime::link::{Destination, Incoming, Outgoing};
-use crate::runtime::shutdown::Shutdown;
+use crate::core::mavlink::{own_header, statustext};
+use crate::core::vehicle::{PWM_MIN_US, Vehicle, VehicleConfig, VehicleError, VehicleInputs};
+use crate::runtime::frame::{self, LinkCounters};
+use crate::runtime::link::{Destination, Incoming, LinkId, Outgoing};
+use crate::runtime::transport::Transport;
 
-/// Wall time without a sensor datagram after which the link is reported lost (once).
+/// Wall time without a sensor sample after which the plant link counts as lost.
 pub const PLANT_SILENCE: Duration = Duration::from_secs(1);
+
+/// Wall time the step's telemetry may wait before it is handed to the ground-station links. Handing each
+/// message over on its own wakes the tokio thread every time, which in lockstep (about 5000 messages per
+/// wall second at 70x) cost 8 µs per step, a quarter of the round trip; in bursts it costs one wake-up.
+/// Replies to a ground station are handed over at once.
+pub const GCS_FLUSH_INTERVAL: Duration = Duration::from_millis(2);
 
 /// Component id of the autopilot's messages to the plant.
 const PLANT_LINK_COMPONENT_ID: u8 = 1;
 
-/// Largest datagram read from the plant.
-const MAX_DATAGRAM_BYTES: usize = 65_536;
-
-/// Why the plant link task stopped.
+/// Why the plant link stopped.
 #[derive(Debug, thiserror::Error)]
 pub enum PlantLinkError {
-    #[error("cannot open the plant link to {addr}: {source}")]
-    Connect {
-        addr: SocketAddr,
+    #[error("cannot open the plant link {link}: {source}")]
+    Open {
+        link: String,
         #[source]
         source: std::io::Error,
     },
-    #[error("plant link to {addr}: {source}")]
+    #[error("plant link {link}: {source}")]
     Io {
-        addr: SocketAddr,
+        link: String,
         #[source]
         source: std::io::Error,
     },
@@ -57,27 +74,33 @@ pub enum PlantLinkError {
 /// A raw frame for the `.tlog`, in or out.
 pub type TlogFrame = Vec<u8>;
 
-/// What the plant link task needs.
-#[derive(Debug)]
-pub struct PlantLinkConfig {
-    /// The plant's UDP address (127.0.0.1:4560+N).
-    pub plant: SocketAddr,
-    /// The vehicle; with the `Truth` source its `truth_origin` is set from the first truth sample.
-    pub vehicle: VehicleConfig,
-}
-
-/// Counts of one run, returned when the task stops.
+/// Counts of one run, returned when the link stops.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct PlantLinkStats {
     /// Vehicle steps (HIL_SENSOR ticks).
     pub steps: u64,
     /// Ground-station messages handled.
     pub gcs_messages: u64,
-    /// Frames not logged because the tlog task was behind.
+    /// Messages to a ground-station link dropped because its queue was full.
+    pub gcs_dropped: u64,
+    /// Frames not logged because the tlog writer was behind.
     pub tlog_dropped: u64,
+    /// Times the plant went silent for [`PLANT_SILENCE`].
+    pub plant_losses: u64,
+    /// The plant link's frame decoder: malformed frames and garbage bytes dropped.
+    pub plant_decoder: DecoderStats,
     /// First and last vehicle time seen (µs).
     pub first_time_us: Option<u64>,
     pub last_time_us: Option<u64>,
+}
+
+/// The senders towards each ground-station link (index = [`LinkId`]) and the `.tlog`, and the links'
+/// counters (their malformed frames are reported in SYS_STATUS).
+#[derive(Debug, Default)]
+pub struct GcsOutputs {
+    pub links: Vec<mpsc::Sender<Outgoing>>,
+    pub tlog: Option<mpsc::Sender<TlogFrame>>,
+    pub counters: Vec<Arc<LinkCounters>>,
 }
 
 /// The plant link and the vehicle it drives.
@@ -89,8 +112,12 @@ struct Driver {
     now_us: u64,
     sequence: u8,
     plant_sequence: u8,
-    outgoing: mpsc::Sender<Outgoing>,
-    tlog: Option<mpsc::Sender<TlogFrame>>,
+    out: GcsOutputs,
+    /// Messages waiting for the next flush: (only this link, message).
+    pending: Vec<(Option<LinkId>, Outgoing)>,
+    /// A reply is pending: flush at once.
+    urgent: bool,
+    last_flush: Instant,
     stats: PlantLinkStats,
 }
 
@@ -102,61 +129,97 @@ impl Driver {
         header
     }
 
-    fn plant_header(&mut self) -> MavHeader {
+    fn plant_frame(&mut self, message: &MavMessage) -> Vec<u8> {
         let header = MavHeader {
             system_id: self.config.sysid.into(),
             component_id: PLANT_LINK_COMPONENT_ID,
             sequence: self.plant_sequence,
         };
         self.plant_sequence = self.plant_sequence.wrapping_add(1);
-        header
+        encode_frame_v2(header, message)
     }
 
     fn log(&mut self, frame: TlogFrame) {
-        if let Some(tlog) = &self.tlog
+        if let Some(tlog) = &self.out.tlog
             && tlog.try_send(frame).is_err()
         {
             self.stats.tlog_dropped += 1;
         }
     }
 
-    /// Queue a message to the ground stations; `false` once the ground-station link is gone.
-    async fn send_gcs(&mut self, to: Destination, message: MavMessage) -> bool {
+    /// Queues a message to every link (`to == All`) or to one peer of link `link`; it goes out at the next
+    /// [`Driver::flush`] that is due (at once for a reply to one peer).
+    fn send_gcs(&mut self, link: Option<LinkId>, to: Destination, message: MavMessage) {
         let header = self.header();
-        if self.tlog.is_some() {
+        if self.out.tlog.is_some() {
             self.log(frame::encode_v2(header, &message));
         }
-        self.outgoing.send(Outgoing { to, header, message }).await.is_ok()
+        self.urgent |= matches!(to, Destination::Peer(_));
+        self.pending.push((link, Outgoing { to, header, message }));
     }
 
-    /// The vehicle, built on first use (with the `Truth` source only once the truth origin is known).
+    /// Hands the pending messages to the links if a reply waits or [`GCS_FLUSH_INTERVAL`] has passed
+    /// (always with `force`).
+    fn flush(&mut self, now: Instant, force: bool) {
+        if self.pending.is_empty() || !(force || self.urgent || now - self.last_flush >= GCS_FLUSH_INTERVAL) {
+            return;
+        }
+        let mut dropped = 0;
+        for (link, out) in self.pending.drain(..) {
+            for (id, tx) in self.out.links.iter().enumerate() {
+                if link.is_some_and(|l| l != id) {
+                    continue;
+                }
+                match tx.try_send(out.clone()) {
+                    Ok(()) | Err(TrySendError::Closed(_)) => {}
+                    Err(TrySendError::Full(_)) => dropped += 1,
+                }
+            }
+        }
+        self.stats.gcs_dropped += dropped;
+        self.urgent = false;
+        self.last_flush = now;
+    }
+
+    /// The vehicle, built on first use (with the `Truth` source only once a truth origin is known: from
+    /// the configuration, or else the first truth sample's position).
     fn vehicle(&mut self) -> Result<Option<&mut Vehicle>, VehicleError> {
         if self.vehicle.is_none() {
             let mut config = self.config.clone();
-            if config.estimator.source == EstimatorSource::Truth {
+            if config.estimator.source == EstimatorSource::Truth && config.estimator.truth_origin.is_none() {
                 let Some(home) = self.home else { return Ok(None) };
-                config.estimator.truth_origin.get_or_insert(home);
+                config.estimator.truth_origin = Some(home);
             }
             self.vehicle = Some(Vehicle::new(config)?);
         }
         Ok(self.vehicle.as_mut())
     }
 
-    /// One plant datagram; returns the actuator reply to send if it carried a `HIL_SENSOR`.
-    async fn on_plant_frame(&mut self, message: &MavMessage) -> Result<Option<ActuatorCommand>, PlantLinkError> {
+    /// One plant frame; returns the actuator reply to send if it carried a `HIL_SENSOR`. `plant_malformed`
+    /// is what the plant link's decoder has dropped so far.
+    fn on_plant_frame(
+        &mut self,
+        message: &MavMessage,
+        plant_malformed: u64,
+    ) -> Result<Option<ActuatorCommand>, VehicleError> {
         if self.home.is_none()
             && let MavMessage::HIL_STATE_QUATERNION(m) = message
         {
-            self.home = Some(GeoOrigin {
+            self.home = Some(self.config.estimator.truth_origin.unwrap_or(GeoOrigin {
                 lat_deg: dege7_to_deg(m.lat),
                 lon_deg: dege7_to_deg(m.lon),
                 alt_amsl_m: mm_to_m(m.alt),
-            });
+            }));
         }
         let home = self.home.unwrap_or(GeoOrigin { lat_deg: 0.0, lon_deg: 0.0, alt_amsl_m: 0.0 });
         match decode_hil_message(message, &home) {
             Some(HilInput::Gps(gps)) => self.inputs.gps = Some(gps),
             Some(HilInput::Truth(truth)) if self.home.is_some() => self.inputs.truth = Some(truth),
+            Some(HilInput::LocalTruth(local)) => {
+                if let Some(truth) = self.inputs.truth.as_mut().filter(|t| t.time_us == local.time_us) {
+                    *truth = local.refine(truth);
+                }
+            }
             Some(HilInput::Sensor(fields)) => {
                 let samples = SensorSamples::from(&fields);
                 self.inputs.imu = Some(samples.imu);
@@ -167,15 +230,16 @@ impl Driver {
                 self.stats.first_time_us.get_or_insert(now_us);
                 self.stats.last_time_us = Some(now_us);
                 let inputs = std::mem::take(&mut self.inputs);
+                let comm_errors =
+                    plant_malformed + self.out.counters.iter().map(|c| c.snapshot().malformed).sum::<u64>();
                 let Some(vehicle) = self.vehicle()? else {
-                    return Ok(Some(ActuatorCommand { time_us: now_us, pwm_us: [1000.0; 4], armed: false }));
+                    return Ok(Some(ActuatorCommand { time_us: now_us, pwm_us: [PWM_MIN_US; 4], armed: false }));
                 };
+                vehicle.set_comm_errors(comm_errors);
                 let outputs = vehicle.step(now_us, &inputs);
                 self.stats.steps += 1;
                 for message in outputs.messages {
-                    if !self.send_gcs(Destination::All, message).await {
-                        break;
-                    }
+                    self.send_gcs(None, Destination::All, message);
                 }
                 return Ok(Some(ActuatorCommand { time_us: now_us, pwm_us: outputs.pwm_us, armed: outputs.armed }));
             }
@@ -184,153 +248,146 @@ impl Driver {
         Ok(None)
     }
 
-    async fn on_gcs(&mut self, incoming: Incoming) -> Result<(), PlantLinkError> {
+    fn on_gcs(&mut self, incoming: Incoming) -> Result<(), VehicleError> {
         self.stats.gcs_messages += 1;
-        if self.tlog.is_some() {
+        if self.out.tlog.is_some() {
             self.log(frame::encode(incoming.header, &incoming.message, incoming.version));
         }
         let now_us = self.now_us;
         let Some(vehicle) = self.vehicle()? else { return Ok(()) };
         let replies = vehicle.handle_message(now_us, &incoming.header, &incoming.message);
         for reply in replies {
-            self.send_gcs(Destination::Peer(incoming.peer), reply).await;
+            self.send_gcs(Some(incoming.link), Destination::Peer(incoming.peer), reply);
         }
         Ok(())
     }
 }
 
-/// Run the plant link until shutdown (or until the ground-station link goes away).
+/// The HEARTBEAT the autopilot announces itself to the plant with.
+fn announcement() -> MavMessage {
+    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        custom_mode: 0,
+        mavtype: MavType::MAV_TYPE_QUADROTOR,
+        autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
+        base_mode: MavModeFlag::empty(),
+        system_status: MavState::MAV_STATE_BOOT,
+        mavlink_version: 3,
+    })
+}
+
+/// Runs the plant link on `transport` until `stop` is set or the ground-station side has gone (every
+/// link's queue closed and the incoming channel closed). Blocking: run it on a thread of its own.
 ///
 /// # Errors
-/// [`PlantLinkError::Connect`] if the socket cannot be opened, [`PlantLinkError::Io`] if sending to or
-/// receiving from the plant fails other than by the plant being absent, [`PlantLinkError::Vehicle`] on an
-/// unusable vehicle configuration.
-pub async fn run(
-    config: PlantLinkConfig,
+/// [`PlantLinkError::Vehicle`] on an unusable vehicle configuration (checked before any I/O),
+/// [`PlantLinkError::Io`] if the transport fails other than by the plant being absent.
+pub fn run(
+    transport: &mut dyn Transport,
+    vehicle: VehicleConfig,
     mut incoming: mpsc::Receiver<Incoming>,
-    outgoing: mpsc::Sender<Outgoing>,
-    tlog: Option<mpsc::Sender<TlogFrame>>,
-    mut shutdown: Shutdown,
+    out: GcsOutputs,
+    stop: &AtomicBool,
 ) -> Result<PlantLinkStats, PlantLinkError> {
-    let addr = config.plant;
-    // Validate the configuration before touching the network.
-    Vehicle::new(config.vehicle.clone())?;
-    let bind: SocketAddr = if addr.is_ipv4() { ([0, 0, 0, 0], 0).into() } else { ([0u16; 8], 0).into() };
-    let socket = UdpSocket::bind(bind).await.map_err(|source| PlantLinkError::Connect { addr, source })?;
-    socket.connect(addr).await.map_err(|source| PlantLinkError::Connect { addr, source })?;
+    Vehicle::new(vehicle.clone())?;
+    let link = transport.describe();
+    let io = |source| PlantLinkError::Io { link: link.clone(), source };
     let mut driver = Driver {
-        config: config.vehicle,
+        config: vehicle,
         vehicle: None,
         home: None,
         inputs: VehicleInputs::default(),
         now_us: 0,
         sequence: 0,
         plant_sequence: 0,
-        outgoing,
-        tlog,
+        out,
+        pending: Vec::new(),
+        urgent: false,
+        last_flush: Instant::now(),
         stats: PlantLinkStats::default(),
     };
-    let announce = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-        custom_mode: 0,
-        mavtype: MavType::MAV_TYPE_QUADROTOR,
-        autopilot: MavAutopilot::MAV_AUTOPILOT_GENERIC,
-        base_mode: MavModeFlag::empty(),
-        system_status: MavState::MAV_STATE_BOOT,
-        mavlink_version: 3,
-    });
     let mut decoder = FrameDecoder::new();
-    let mut buf = vec![0u8; MAX_DATAGRAM_BYTES];
+    let datagrams = transport.is_datagram();
+    let mut last_sensor: Option<Instant> = None;
+    let mut last_announce: Option<Instant> = None;
+    let mut lost = false;
     let mut gcs_open = true;
-    let mut warned_silent = false;
-    let mut announced = false;
-    let mut last_data = tokio::time::Instant::now();
-    loop {
-        if !warned_silent && last_data.elapsed() >= PLANT_SILENCE {
-            tracing::warn!(plant = %addr, "no sensor data from the plant for 1 s; waiting");
-            warned_silent = true;
-        }
-        if !announced {
-            let header = driver.plant_header();
-            match socket.send(&encode_frame_v2(header, &announce)).await {
-                Ok(_) => announced = true,
-                Err(e) if is_absent_peer(&e) => {}
-                Err(source) => return Err(PlantLinkError::Io { addr, source }),
+    let started = Instant::now();
+    while !stop.load(Ordering::Relaxed) {
+        let now = Instant::now();
+        let silent_for = now - last_sensor.unwrap_or(started);
+        if silent_for >= PLANT_SILENCE && !lost {
+            lost = true;
+            if last_sensor.is_some() {
+                driver.stats.plant_losses += 1;
+                tracing::warn!(plant = %link, "plant link lost: no sensor data for 1 s; motors to minimum");
+                let text = "Plant link lost: motors stopped";
+                driver.send_gcs(None, Destination::All, statustext(MavSeverity::MAV_SEVERITY_CRITICAL, text));
+                let stopped = ActuatorCommand { time_us: driver.now_us, pwm_us: [PWM_MIN_US; 4], armed: false };
+                let frame = driver.plant_frame(&MavMessage::HIL_ACTUATOR_CONTROLS(encode_actuator_controls(&stopped)));
+                transport.send(&frame).map_err(io)?;
+            } else {
+                tracing::warn!(plant = %link, "no sensor data from the plant yet; waiting");
             }
         }
-        tokio::select! {
-            biased;
-            () = shutdown.recv() => break,
-            received = tokio::time::timeout(PLANT_SILENCE, socket.recv(&mut buf)) => {
-                let len = match received {
-                    Err(_elapsed) => {
-                        // Re-announce, in case the plant started after us.
-                        announced = false;
-                        continue;
-                    }
-                    Ok(Err(e)) if is_absent_peer(&e) => {
-                        // Nobody listening yet (ICMP port unreachable): wait and re-announce.
-                        tokio::select! {
-                            () = shutdown.recv() => break,
-                            () = tokio::time::sleep(Duration::from_millis(100)) => {}
-                        }
-                        announced = false;
-                        continue;
-                    }
-                    Ok(Err(source)) => return Err(PlantLinkError::Io { addr, source }),
-                    Ok(Ok(len)) => len,
-                };
-                let mut reply = None;
-                for decoded in decoder.decode_datagram(&buf[..len]) {
-                    if let Some(cmd) = driver.on_plant_frame(&decoded.message).await? {
-                        reply = Some(cmd);
-                    }
+        if last_sensor.is_none_or(|_| lost) && last_announce.is_none_or(|t| now - t >= PLANT_SILENCE) {
+            let frame = driver.plant_frame(&announcement());
+            transport.send(&frame).map_err(io)?;
+            last_announce = Some(now);
+        }
+        if let Some(bytes) = transport.recv().map_err(io)? {
+            let frames = if datagrams { decoder.decode_datagram(bytes) } else { decoder.push(bytes) };
+            let mut reply = None;
+            let malformed = decoder.stats().malformed();
+            for decoded in frames {
+                if let Some(cmd) = driver.on_plant_frame(&decoded.message, malformed)? {
+                    reply = Some(cmd);
                 }
-                if let Some(cmd) = reply {
-                    last_data = tokio::time::Instant::now();
-                    if warned_silent {
-                        tracing::info!(plant = %addr, "plant data again");
-                        warned_silent = false;
-                    }
-                    let header = driver.plant_header();
-                    let msg = MavMessage::HIL_ACTUATOR_CONTROLS(encode_actuator_controls(&cmd));
-                    match socket.send(&encode_frame_v2(header, &msg)).await {
-                        Ok(_) => {}
-                        Err(e) if is_absent_peer(&e) => {}
-                        Err(source) => return Err(PlantLinkError::Io { addr, source }),
-                    }
-                }
-                // Between ticks: everything the ground stations said meanwhile.
-                while gcs_open {
-                    match incoming.try_recv() {
-                        Ok(msg) => driver.on_gcs(msg).await?,
-                        Err(mpsc::error::TryRecvError::Empty) => break,
-                        Err(mpsc::error::TryRecvError::Disconnected) => gcs_open = false,
+            }
+            if let Some(cmd) = reply {
+                let frame = driver.plant_frame(&MavMessage::HIL_ACTUATOR_CONTROLS(encode_actuator_controls(&cmd)));
+                transport.send(&frame).map_err(io)?;
+                last_sensor = Some(Instant::now());
+                if lost {
+                    lost = false;
+                    tracing::info!(plant = %link, "plant data again");
+                    if driver.stats.plant_losses > 0 {
+                        let text = "Plant link regained";
+                        driver.send_gcs(None, Destination::All, statustext(MavSeverity::MAV_SEVERITY_NOTICE, text));
                     }
                 }
             }
-            msg = incoming.recv(), if gcs_open => match msg {
-                Some(msg) => driver.on_gcs(msg).await?,
-                None => gcs_open = false,
-            },
+        }
+        // Between ticks: everything the ground stations said meanwhile.
+        while gcs_open {
+            match incoming.try_recv() {
+                Ok(msg) => driver.on_gcs(msg)?,
+                Err(TryRecvError::Empty) => break,
+                Err(TryRecvError::Disconnected) => gcs_open = false,
+            }
+        }
+        driver.flush(Instant::now(), lost);
+        if !gcs_open && driver.out.links.iter().all(mpsc::Sender::is_closed) {
+            tracing::info!("every ground-station link has stopped; plant link stopping");
+            break;
         }
     }
+    driver.flush(Instant::now(), true);
+    driver.stats.plant_decoder = decoder.stats();
     Ok(driver.stats)
-}
-
-/// Whether a socket error only means nobody is listening at the plant address (yet).
-fn is_absent_peer(e: &std::io::Error) -> bool {
-    matches!(e.kind(), std::io::ErrorKind::ConnectionRefused | std::io::ErrorKind::ConnectionReset)
 }
 
 #[cfg(test)]
 mod tests {
+    use std::net::UdpSocket;
+    use std::sync::Arc;
+
     use nalgebra::Vector3;
 
     use super::*;
     use crate::core::hil::{HilSensorFields, decode_actuator_controls, encode_hil_sensor};
-    use crate::runtime::shutdown;
+    use crate::runtime::transport::UdpPeerTransport;
 
-    fn sensor_datagram(time_us: u64) -> Vec<u8> {
+    fn sensor_frame(time_us: u64) -> Vec<u8> {
         let fields = HilSensorFields {
             time_us,
             accel_frd_mps2: Vector3::new(0.0, 0.0, -9.806_65),
@@ -342,40 +399,102 @@ mod tests {
         encode_frame_v2(header, &MavMessage::HIL_SENSOR(encode_hil_sensor(&fields)))
     }
 
-    #[tokio::test]
-    async fn each_hil_sensor_is_answered_with_actuators_for_its_time_and_telemetry_goes_to_the_gcs() {
-        let plant = UdpSocket::bind("127.0.0.1:0").await.expect("bind fake plant");
+    struct Harness {
+        plant: UdpSocket,
+        out_rx: mpsc::Receiver<Outgoing>,
+        _in_tx: mpsc::Sender<Incoming>,
+        stop: Arc<AtomicBool>,
+        thread: std::thread::JoinHandle<Result<PlantLinkStats, PlantLinkError>>,
+    }
+
+    fn start(sysid: u8) -> Harness {
+        let plant = UdpSocket::bind("127.0.0.1:0").expect("bind fake plant");
+        plant.set_read_timeout(Some(Duration::from_secs(5))).expect("timeout");
         let plant_addr = plant.local_addr().expect("addr");
-        let (trigger, shutdown) = shutdown::channel();
-        let (_in_tx, in_rx) = mpsc::channel(16);
-        let (out_tx, mut out_rx) = mpsc::channel(1024);
-        let config = PlantLinkConfig { plant: plant_addr, vehicle: VehicleConfig { sysid: 7, ..Default::default() } };
-        let task = tokio::spawn(run(config, in_rx, out_tx, None, shutdown));
+        let stop = Arc::new(AtomicBool::new(false));
+        let (in_tx, in_rx) = mpsc::channel(16);
+        let (out_tx, out_rx) = mpsc::channel(4096);
+        let thread_stop = stop.clone();
+        let thread = std::thread::spawn(move || {
+            let mut transport = UdpPeerTransport::connect(plant_addr, Duration::from_millis(5)).expect("connect");
+            let config = VehicleConfig { sysid, ..VehicleConfig::default() };
+            let out = GcsOutputs { links: vec![out_tx], ..GcsOutputs::default() };
+            run(&mut transport, config, in_rx, out, &thread_stop)
+        });
+        Harness { plant, out_rx, _in_tx: in_tx, stop, thread }
+    }
+
+    #[test]
+    fn each_hil_sensor_is_answered_for_its_time_garbage_is_counted_and_telemetry_goes_out() {
+        let mut h = start(7);
         let mut buf = vec![0u8; 2048];
         // The announcement.
-        let (_, autopilot) = plant.recv_from(&mut buf).await.expect("announce");
+        let (_, autopilot) = h.plant.recv_from(&mut buf).expect("announce");
         let mut decoder = FrameDecoder::new();
         for time_us in [0_u64, 2_000, 4_000] {
-            plant.send_to(&sensor_datagram(time_us), autopilot).await.expect("send");
-            let len = plant.recv(&mut buf).await.expect("reply");
-            let frames = decoder.decode_datagram(&buf[..len]);
-            let Some(MavMessage::HIL_ACTUATOR_CONTROLS(m)) = frames.first().map(|f| &f.message) else {
-                panic!("expected HIL_ACTUATOR_CONTROLS, got {frames:?}");
+            if time_us == 2_000 {
+                // A truncated frame and line noise ahead of a good one, in one datagram.
+                let mut datagram = b"\xfd\x09\x00\x00junk".to_vec();
+                datagram.extend(sensor_frame(time_us));
+                h.plant.send_to(&datagram, autopilot).expect("send");
+            } else {
+                h.plant.send_to(&sensor_frame(time_us), autopilot).expect("send");
+            }
+            let cmd = loop {
+                let len = h.plant.recv(&mut buf).expect("reply");
+                let frames = decoder.decode_datagram(&buf[..len]);
+                if let Some(MavMessage::HIL_ACTUATOR_CONTROLS(m)) = frames.first().map(|f| &f.message) {
+                    break decode_actuator_controls(m);
+                }
             };
-            let cmd = decode_actuator_controls(m);
             assert_eq!(cmd.time_us, time_us);
             assert!(!cmd.armed && cmd.pwm_us.iter().all(|&p| (p - 1000.0).abs() < 1e-9), "{cmd:?}");
         }
+        h.stop.store(true, Ordering::Relaxed);
+        let stats = h.thread.join().expect("join").expect("clean stop");
         let mut heartbeat = false;
-        while let Ok(out) = out_rx.try_recv() {
+        while let Ok(out) = h.out_rx.try_recv() {
             assert_eq!(out.to, Destination::All);
             assert_eq!(out.header.system_id, 7);
             heartbeat |= matches!(out.message, MavMessage::HEARTBEAT(_));
         }
         assert!(heartbeat, "the first step's HEARTBEAT reaches the ground-station link");
-        trigger.fire();
-        let stats = task.await.expect("join").expect("clean stop");
         assert_eq!(stats.steps, 3);
         assert_eq!((stats.first_time_us, stats.last_time_us), (Some(0), Some(4_000)));
+        assert!(stats.plant_decoder.malformed() >= 1, "{stats:?}");
+    }
+
+    #[test]
+    fn a_silent_plant_is_reported_and_the_motors_commanded_to_minimum() {
+        let mut h = start(1);
+        let mut buf = vec![0u8; 2048];
+        let (_, autopilot) = h.plant.recv_from(&mut buf).expect("announce");
+        h.plant.send_to(&sensor_frame(0), autopilot).expect("send");
+        let mut decoder = FrameDecoder::new();
+        let mut commands = Vec::new();
+        let started = Instant::now();
+        // The reply to t = 0, then (after a second of silence) the stop command.
+        while commands.len() < 2 && started.elapsed() < Duration::from_secs(4) {
+            let Ok(len) = h.plant.recv(&mut buf) else { break };
+            for f in decoder.decode_datagram(&buf[..len]) {
+                if let MavMessage::HIL_ACTUATOR_CONTROLS(m) = f.message {
+                    commands.push((started.elapsed(), decode_actuator_controls(&m)));
+                }
+            }
+        }
+        assert_eq!(commands.len(), 2, "{commands:?}");
+        let (after, stop_cmd) = commands[1];
+        assert!(after >= PLANT_SILENCE, "reported after {after:?}");
+        assert!(!stop_cmd.armed && stop_cmd.pwm_us == [PWM_MIN_US; 4], "{stop_cmd:?}");
+        h.stop.store(true, Ordering::Relaxed);
+        let stats = h.thread.join().expect("join").expect("clean stop");
+        let text = std::iter::from_fn(|| h.out_rx.try_recv().ok()).find_map(|o| match o.message {
+            MavMessage::STATUSTEXT(s) => Some((s.severity, s.text.to_str().unwrap_or("").to_owned())),
+            _ => None,
+        });
+        let (severity, text) = text.expect("a STATUSTEXT");
+        assert_eq!(severity, MavSeverity::MAV_SEVERITY_CRITICAL);
+        assert!(text.starts_with("Plant link lost"), "{text}");
+        assert_eq!(stats.plant_losses, 1);
     }
 }

@@ -21,7 +21,7 @@ use tokio::sync::mpsc::error::TrySendError;
 use tokio::task::JoinSet;
 
 use super::frame::{CountingDecoder, LinkCounters, encode_v2};
-use super::link::{Destination, Incoming, LinkError, Outgoing};
+use super::link::{Destination, Incoming, LinkError, LinkId, Outgoing, deliver};
 use super::shutdown::Shutdown;
 
 /// SITL's TCP port for instance 0; instance N listens on `TCP_PORT + N`.
@@ -34,6 +34,8 @@ const READ_CHUNK_BYTES: usize = 4096;
 /// Where the TCP server listens.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct TcpConfig {
+    /// This link's id (its index in the runtime's link list).
+    pub link: LinkId,
     /// Local address to listen on (port 0 picks a free one, for tests).
     pub bind: SocketAddr,
 }
@@ -42,7 +44,10 @@ impl TcpConfig {
     /// `0.0.0.0:5760 + instance` (wrapping at 65535 rather than panic).
     #[must_use]
     pub fn for_instance(instance: u16) -> Self {
-        Self { bind: SocketAddr::V4(SocketAddrV4::new(Ipv4Addr::UNSPECIFIED, TCP_PORT.wrapping_add(instance))) }
+        Self {
+            link: 1,
+            bind: SocketAddr::V4(SocketAddrV4::new(Ipv4Addr::UNSPECIFIED, TCP_PORT.wrapping_add(instance))),
+        }
     }
 }
 
@@ -55,6 +60,7 @@ impl Default for TcpConfig {
 /// A listening TCP link, ready to [`TcpLink::run`].
 #[derive(Debug)]
 pub struct TcpLink {
+    link: LinkId,
     listener: TcpListener,
     local: SocketAddr,
     counters: Arc<LinkCounters>,
@@ -73,7 +79,7 @@ impl TcpLink {
             TcpListener::bind(config.bind).await.map_err(|source| LinkError::Bind { addr: config.bind, source })?;
         let local = listener.local_addr()?;
         tracing::info!(%local, "TCP ground-station link listening");
-        Ok(Self { listener, local, counters: LinkCounters::new_shared() })
+        Ok(Self { link: config.link, listener, local, counters: LinkCounters::new_shared() })
     }
 
     /// The listening address (with the real port when bound to port 0).
@@ -123,6 +129,7 @@ impl TcpLink {
                         let (tx, rx) = mpsc::channel(CLIENT_QUEUE_FRAMES);
                         clients.insert(peer, tx);
                         let client = Client {
+                            link: self.link,
                             peer,
                             incoming: incoming.clone(),
                             outgoing: rx,
@@ -187,6 +194,7 @@ fn is_per_connection(e: &std::io::Error) -> bool {
 
 /// One connected client's task state.
 struct Client {
+    link: LinkId,
     peer: SocketAddr,
     incoming: mpsc::Sender<Incoming>,
     outgoing: mpsc::Receiver<Frame>,
@@ -222,17 +230,8 @@ impl Client {
                         break;
                     }
                     Ok(n) => {
-                        for f in decoder.push(&buf[..n]) {
-                            self.counters.add_frame_in();
-                            let msg = Incoming { peer, header: f.header, message: f.message, version: f.version };
-                            match self.incoming.try_send(msg) {
-                                Ok(()) => {}
-                                Err(TrySendError::Full(_)) => {
-                                    self.counters.add_dropped_in();
-                                    tracing::warn!(%peer, "core is not keeping up; incoming frame dropped");
-                                }
-                                Err(TrySendError::Closed(_)) => return peer,
-                            }
+                        if !deliver(&self.incoming, &self.counters, self.link, peer, decoder.push(&buf[..n])) {
+                            return peer;
                         }
                     }
                     Err(e) => {
@@ -270,7 +269,8 @@ mod tests {
     }
 
     async fn start() -> Harness {
-        let link = TcpLink::bind(TcpConfig { bind: "127.0.0.1:0".parse().expect("addr") }).await.expect("bind");
+        let link =
+            TcpLink::bind(TcpConfig { link: 1, bind: "127.0.0.1:0".parse().expect("addr") }).await.expect("bind");
         let addr = link.local_addr();
         let (in_tx, incoming) = mpsc::channel(CHANNEL_CAPACITY);
         let (outgoing, out_rx) = mpsc::channel(CHANNEL_CAPACITY);

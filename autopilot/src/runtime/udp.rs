@@ -21,11 +21,10 @@ use std::time::Duration;
 
 use tokio::net::UdpSocket;
 use tokio::sync::mpsc;
-use tokio::sync::mpsc::error::TrySendError;
 use tokio::time::Instant;
 
 use super::frame::{CountingDecoder, LinkCounters, encode_v2};
-use super::link::{Destination, Incoming, LinkError, Outgoing};
+use super::link::{Destination, Incoming, LinkError, LinkId, Outgoing, deliver};
 use super::shutdown::Shutdown;
 
 /// PX4 SITL's local GCS port for instance 0; instance N binds `LOCAL_PORT + N`.
@@ -38,10 +37,18 @@ pub const API_PORT: u16 = 14540;
 pub const PEER_EXPIRY: Duration = Duration::from_secs(10);
 /// Largest UDP payload, in bytes: a datagram may hold several frames.
 const MAX_DATAGRAM_BYTES: usize = 65_536;
+/// Broadcast frames queued together are packed into datagrams of at most this many bytes (below a 1500
+/// byte MTU), as PX4 does: ground stations parse every frame of a datagram, and one `sendto` per
+/// datagram and target instead of per message is most of the link's cost at lockstep speeds.
+pub const MAX_PACKED_BYTES: usize = 1400;
+/// Messages taken from the core's queue at once.
+const MAX_BATCH: usize = 256;
 
 /// Where the UDP link binds and what it always sends to.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct UdpConfig {
+    /// This link's id (its index in the runtime's link list).
+    pub link: LinkId,
     /// Local address to bind (port 0 picks a free one, for tests).
     pub bind: SocketAddr,
     /// Fixed targets: sent every broadcast, never expire.
@@ -57,6 +64,7 @@ impl UdpConfig {
     pub fn for_instance(instance: u16) -> Self {
         let local = |port: u16| SocketAddr::V4(SocketAddrV4::new(Ipv4Addr::LOCALHOST, port.wrapping_add(instance)));
         Self {
+            link: 0,
             bind: SocketAddr::V4(SocketAddrV4::new(Ipv4Addr::UNSPECIFIED, LOCAL_PORT.wrapping_add(instance))),
             targets: vec![local(QGC_PORT), local(API_PORT)],
             peer_expiry: PEER_EXPIRY,
@@ -119,6 +127,7 @@ impl PeerTable {
 /// A bound UDP link, ready to [`UdpLink::run`].
 #[derive(Debug)]
 pub struct UdpLink {
+    link: LinkId,
     socket: UdpSocket,
     local: SocketAddr,
     peers: PeerTable,
@@ -137,6 +146,7 @@ impl UdpLink {
         let local = socket.local_addr()?;
         tracing::info!(%local, targets = ?config.targets, "UDP ground-station link bound");
         Ok(Self {
+            link: config.link,
             socket,
             local,
             peers: PeerTable::new(config.targets, config.peer_expiry),
@@ -175,7 +185,14 @@ impl UdpLink {
                 () = shutdown.recv() => break,
                 out = outgoing.recv() => {
                     let Some(out) = out else { break };
-                    self.send(&out).await;
+                    let mut batch = vec![out];
+                    while batch.len() < MAX_BATCH {
+                        match outgoing.try_recv() {
+                            Ok(out) => batch.push(out),
+                            Err(_) => break,
+                        }
+                    }
+                    self.send(&batch).await;
                 }
                 received = self.socket.recv_from(&mut buf) => {
                     let (len, peer) = match received {
@@ -197,17 +214,8 @@ impl UdpLink {
                     if self.peers.heard(peer, Instant::now()) {
                         tracing::info!(%peer, "UDP ground-station peer joined");
                     }
-                    for f in frames {
-                        self.counters.add_frame_in();
-                        let msg = Incoming { peer, header: f.header, message: f.message, version: f.version };
-                        match incoming.try_send(msg) {
-                            Ok(()) => {}
-                            Err(TrySendError::Full(_)) => {
-                                self.counters.add_dropped_in();
-                                tracing::warn!(%peer, "core is not keeping up; incoming frame dropped");
-                            }
-                            Err(TrySendError::Closed(_)) => return Ok(()),
-                        }
+                    if !deliver(&incoming, &self.counters, self.link, peer, frames) {
+                        return Ok(());
                     }
                 }
             }
@@ -216,24 +224,50 @@ impl UdpLink {
         Ok(())
     }
 
-    async fn send(&mut self, out: &Outgoing) {
-        let bytes = encode_v2(out.header, &out.message);
-        let targets = match out.to {
-            Destination::All => {
-                for peer in self.peers.expire(Instant::now()) {
-                    tracing::info!(%peer, "UDP ground-station peer expired");
+    /// Sends `batch` in order: consecutive broadcasts packed into datagrams of at most
+    /// [`MAX_PACKED_BYTES`] to every broadcast target, each reply on its own to its peer.
+    async fn send(&mut self, batch: &[Outgoing]) {
+        let mut packed: Vec<u8> = Vec::new();
+        for out in batch {
+            let bytes = encode_v2(out.header, &out.message);
+            match out.to {
+                Destination::All => {
+                    if !packed.is_empty() && packed.len() + bytes.len() > MAX_PACKED_BYTES {
+                        self.broadcast(&packed).await;
+                        packed.clear();
+                    }
+                    packed.extend_from_slice(&bytes);
                 }
-                self.peers.broadcast_targets()
+                Destination::Peer(peer) => {
+                    if !packed.is_empty() {
+                        self.broadcast(&packed).await;
+                        packed.clear();
+                    }
+                    self.send_to(&bytes, peer).await;
+                }
             }
-            Destination::Peer(peer) => vec![peer],
-        };
-        for target in targets {
-            match self.socket.send_to(&bytes, target).await {
-                Ok(_) => self.counters.add_sent(bytes.len()),
-                Err(e) => {
-                    self.counters.add_send_error();
-                    tracing::debug!(%target, error = %e, "UDP send failed");
-                }
+        }
+        if !packed.is_empty() {
+            self.broadcast(&packed).await;
+        }
+    }
+
+    /// One datagram to every fixed target and live peer.
+    async fn broadcast(&mut self, datagram: &[u8]) {
+        for peer in self.peers.expire(Instant::now()) {
+            tracing::info!(%peer, "UDP ground-station peer expired");
+        }
+        for target in self.peers.broadcast_targets() {
+            self.send_to(datagram, target).await;
+        }
+    }
+
+    async fn send_to(&self, datagram: &[u8], target: SocketAddr) {
+        match self.socket.send_to(datagram, target).await {
+            Ok(_) => self.counters.add_sent(datagram.len()),
+            Err(e) => {
+                self.counters.add_send_error();
+                tracing::debug!(%target, error = %e, "UDP send failed");
             }
         }
     }
@@ -272,6 +306,7 @@ mod tests {
     async fn start() -> Harness {
         let fixed = loopback_socket().await;
         let config = UdpConfig {
+            link: 0,
             bind: "127.0.0.1:0".parse().expect("addr"),
             targets: vec![fixed.local_addr().expect("addr")],
             peer_expiry: PEER_EXPIRY,

@@ -1,0 +1,315 @@
+//! The autopilot's configuration: a TOML file (`autopilot --config FILE`), resolved against the instance
+//! number and the command line into a [`RuntimeConfig`]. Every section and key is optional; unknown keys
+//! are refused (a typo is an error, not a silently ignored setting).
+//!
+//! ```toml
+//! [plant]
+//! link = "udp://127.0.0.1:4560"        # or "serial:/dev/ttyACM0:921600" (the real airframe's ARM board)
+//!
+//! [gcs]
+//! udp_bind = "0.0.0.0:18570"           # the UDP ground-station link: bound here ...
+//! udp_targets = ["127.0.0.1:14550", "127.0.0.1:14540"]   # ... always sending here, and to every peer
+//! tcp_bind = "0.0.0.0:5760"            # TCP server; "off" disables it
+//! serial = "/dev/ttyUSB0:57600"        # a telemetry radio (none by default)
+//!
+//! [log]
+//! dir = "logs"                         # .tlog of all ground-station traffic per run (none by default)
+//!
+//! [vehicle]                            # autopilot::core::vehicle::VehicleConfig, every field optional
+//! controller = "aco"
+//! [vehicle.estimator]
+//! source = "fused"
+//! ```
+//!
+//! Defaults (instance N): plant `udp://127.0.0.1:4560+N`, UDP bound on `0.0.0.0:18570+N` sending to
+//! `127.0.0.1:14550+N` and `127.0.0.1:14540+N`, TCP on `0.0.0.0:5760+N`, system id N+1. Addresses given in
+//! the file are taken as written (not shifted by N).
+
+use std::net::{Ipv4Addr, SocketAddr, SocketAddrV4, ToSocketAddrs};
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+use super::tcp::{TCP_PORT, TcpConfig};
+use super::transport::parse_serial_spec;
+use super::udp::{PEER_EXPIRY, UdpConfig};
+use crate::core::hil::DEFAULT_PLANT_PORT;
+use crate::core::vehicle::VehicleConfig;
+
+/// A configuration that cannot be used; the message names the file and the key.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("cannot read {path}: {source}")]
+    Read {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: {message}")]
+    Parse { path: String, message: String },
+    #[error("{key}: {message}")]
+    Invalid { key: &'static str, message: String },
+}
+
+/// `[plant]`.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PlantSection {
+    /// `udp://HOST:PORT` or `serial:DEVICE:BAUD`.
+    pub link: Option<String>,
+}
+
+/// `[gcs]`.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct GcsSection {
+    pub udp_bind: Option<SocketAddr>,
+    pub udp_targets: Option<Vec<SocketAddr>>,
+    /// An address, or `off`.
+    pub tcp_bind: Option<String>,
+    /// `DEVICE:BAUD`.
+    pub serial: Option<String>,
+}
+
+/// `[log]`.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LogSection {
+    pub dir: Option<PathBuf>,
+}
+
+/// The configuration file as written.
+#[derive(Debug, Clone, Default, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ConfigFile {
+    pub plant: PlantSection,
+    pub gcs: GcsSection,
+    pub log: LogSection,
+    pub vehicle: VehicleConfig,
+}
+
+impl ConfigFile {
+    /// Parse TOML text; `origin` names it in errors.
+    ///
+    /// # Errors
+    /// [`ConfigError::Parse`] with the parser's message (line, column, key).
+    pub fn from_toml_str(text: &str, origin: &str) -> Result<Self, ConfigError> {
+        toml::from_str(text).map_err(|e| ConfigError::Parse { path: origin.to_owned(), message: e.to_string() })
+    }
+
+    /// Read and parse a file.
+    ///
+    /// # Errors
+    /// [`ConfigError::Read`] or [`ConfigError::Parse`].
+    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        let text =
+            std::fs::read_to_string(path).map_err(|source| ConfigError::Read { path: path.to_owned(), source })?;
+        Self::from_toml_str(&text, &path.display().to_string())
+    }
+}
+
+/// Where the plant is.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum PlantEndpoint {
+    Udp(SocketAddr),
+    Serial { path: String, baud: u32 },
+}
+
+impl PlantEndpoint {
+    /// `udp://HOST:PORT` or `serial:DEVICE:BAUD`.
+    ///
+    /// # Errors
+    /// A message saying what is wrong.
+    pub fn parse(spec: &str) -> Result<Self, String> {
+        if let Some(hostport) = spec.strip_prefix("udp://") {
+            let addr = hostport
+                .to_socket_addrs()
+                .map_err(|e| format!("cannot resolve `{hostport}`: {e}"))?
+                .next()
+                .ok_or_else(|| format!("`{hostport}` resolves to nothing"))?;
+            return Ok(Self::Udp(addr));
+        }
+        if let Some(serial) = spec.strip_prefix("serial:") {
+            let (path, baud) = parse_serial_spec(serial)?;
+            return Ok(Self::Serial { path, baud });
+        }
+        Err(format!("`{spec}` is neither udp://HOST:PORT nor serial:DEVICE:BAUD"))
+    }
+}
+
+impl std::fmt::Display for PlantEndpoint {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Udp(addr) => write!(f, "udp://{addr}"),
+            Self::Serial { path, baud } => write!(f, "serial:{path}:{baud}"),
+        }
+    }
+}
+
+/// Everything the autopilot process runs with.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RuntimeConfig {
+    pub plant: PlantEndpoint,
+    /// Instance N: system id N+1, default ports shifted by N.
+    pub instance: u16,
+    /// The vehicle (its `sysid` is N+1).
+    pub vehicle: VehicleConfig,
+    /// The UDP ground-station link (always on).
+    pub udp: UdpConfig,
+    /// The TCP server, unless off.
+    pub tcp: Option<TcpConfig>,
+    /// A serial ground-station link, if any: (device, baud).
+    pub serial: Option<(String, u32)>,
+    /// Where `.tlog` files go; `None`: no log.
+    pub log_dir: Option<PathBuf>,
+    /// Stop when standard input closes (set by `sitl run`, so that the autopilot never outlives it).
+    pub stop_on_stdin_eof: bool,
+}
+
+/// What the command line adds to (and overrides in) the file.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Overrides {
+    pub plant: Option<String>,
+    pub log_dir: Option<PathBuf>,
+    pub stop_on_stdin_eof: bool,
+}
+
+fn shifted(base: u16, instance: u16, what: &'static str) -> Result<u16, ConfigError> {
+    base.checked_add(instance)
+        .ok_or_else(|| ConfigError::Invalid { key: what, message: format!("instance {instance} is too large") })
+}
+
+fn local(port: u16) -> SocketAddr {
+    SocketAddr::V4(SocketAddrV4::new(Ipv4Addr::LOCALHOST, port))
+}
+
+fn any(port: u16) -> SocketAddr {
+    SocketAddr::V4(SocketAddrV4::new(Ipv4Addr::UNSPECIFIED, port))
+}
+
+impl RuntimeConfig {
+    /// Resolve `file` for instance `instance` with the command line's `overrides`.
+    ///
+    /// # Errors
+    /// [`ConfigError::Invalid`] naming the key: an instance whose system id or ports do not fit, a plant
+    /// or serial spec that does not parse, a TCP address that is neither an address nor `off`.
+    pub fn resolve(file: ConfigFile, instance: u16, overrides: Overrides) -> Result<Self, ConfigError> {
+        let sysid = u8::try_from(u32::from(instance) + 1).map_err(|_| ConfigError::Invalid {
+            key: "instance",
+            message: format!("instance {instance}: the system id N+1 must be at most 255"),
+        })?;
+        let plant = match overrides.plant.or(file.plant.link) {
+            Some(spec) => {
+                PlantEndpoint::parse(&spec).map_err(|message| ConfigError::Invalid { key: "plant.link", message })?
+            }
+            None => PlantEndpoint::Udp(local(shifted(DEFAULT_PLANT_PORT, instance, "plant.link")?)),
+        };
+        let default_udp = UdpConfig::for_instance(instance);
+        shifted(super::udp::LOCAL_PORT, instance, "gcs.udp_bind")?;
+        shifted(super::udp::QGC_PORT, instance, "gcs.udp_targets")?;
+        let udp = UdpConfig {
+            link: 0,
+            bind: file.gcs.udp_bind.unwrap_or(default_udp.bind),
+            targets: file.gcs.udp_targets.unwrap_or(default_udp.targets),
+            peer_expiry: PEER_EXPIRY,
+        };
+        let tcp = match file.gcs.tcp_bind.as_deref().map(str::trim) {
+            Some("off") => None,
+            Some(addr) => Some(TcpConfig {
+                link: 1,
+                bind: addr.parse().map_err(|e| ConfigError::Invalid {
+                    key: "gcs.tcp_bind",
+                    message: format!("`{addr}` is not an address (or `off`): {e}"),
+                })?,
+            }),
+            None => Some(TcpConfig { link: 1, bind: any(shifted(TCP_PORT, instance, "gcs.tcp_bind")?) }),
+        };
+        let serial = file
+            .gcs
+            .serial
+            .map(|spec| parse_serial_spec(&spec).map_err(|message| ConfigError::Invalid { key: "gcs.serial", message }))
+            .transpose()?;
+        let vehicle = VehicleConfig { sysid, ..file.vehicle };
+        Ok(Self {
+            plant,
+            instance,
+            vehicle,
+            udp,
+            tcp,
+            serial,
+            log_dir: overrides.log_dir.or(file.log.dir),
+            stop_on_stdin_eof: overrides.stop_on_stdin_eof,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::control::ControllerKind;
+    use crate::core::estimator::EstimatorSource;
+
+    #[test]
+    fn defaults_follow_the_instance() {
+        let c = RuntimeConfig::resolve(ConfigFile::default(), 3, Overrides::default()).expect("defaults");
+        assert_eq!(c.plant, PlantEndpoint::Udp("127.0.0.1:4563".parse().expect("addr")));
+        assert_eq!(c.vehicle.sysid, 4);
+        assert_eq!(c.udp.bind, "0.0.0.0:18573".parse().expect("addr"));
+        assert_eq!(c.udp.targets, vec![local(14553), local(14543)]);
+        assert_eq!(c.tcp.map(|t| t.bind), Some("0.0.0.0:5763".parse().expect("addr")));
+        assert_eq!((c.serial, c.log_dir), (None, None));
+    }
+
+    #[test]
+    fn a_file_sets_links_and_vehicle_and_the_command_line_wins() {
+        let text = r#"
+            [plant]
+            link = "serial:/dev/ttyACM0:921600"
+            [gcs]
+            udp_bind = "127.0.0.1:20000"
+            udp_targets = ["127.0.0.1:20001"]
+            tcp_bind = "off"
+            serial = "/dev/ttyUSB0:57600"
+            [log]
+            dir = "flights"
+            [vehicle]
+            controller = "pid"
+            [vehicle.estimator]
+            source = "truth"
+        "#;
+        let file = ConfigFile::from_toml_str(text, "test.toml").expect("parses");
+        let c = RuntimeConfig::resolve(file.clone(), 0, Overrides::default()).expect("valid");
+        assert_eq!(c.plant, PlantEndpoint::Serial { path: "/dev/ttyACM0".into(), baud: 921_600 });
+        assert_eq!((c.udp.bind, c.udp.targets.clone()), (local(20000), vec![local(20001)]));
+        assert_eq!(c.tcp, None);
+        assert_eq!(c.serial, Some(("/dev/ttyUSB0".into(), 57_600)));
+        assert_eq!(c.log_dir, Some(PathBuf::from("flights")));
+        assert_eq!((c.vehicle.controller, c.vehicle.estimator.source), (ControllerKind::Pid, EstimatorSource::Truth));
+        let o =
+            Overrides { plant: Some("udp://127.0.0.1:5000".into()), log_dir: Some("x".into()), ..Overrides::default() };
+        let c = RuntimeConfig::resolve(file, 0, o).expect("valid");
+        assert_eq!(c.plant, PlantEndpoint::Udp(local(5000)));
+        assert_eq!(c.log_dir, Some(PathBuf::from("x")));
+    }
+
+    #[test]
+    fn bad_files_are_refused_with_the_key_named() {
+        let typo = ConfigFile::from_toml_str("[gcs]\nudp_bnd = \"0.0.0.0:1\"\n", "a.toml").unwrap_err();
+        assert!(typo.to_string().contains("udp_bnd") && typo.to_string().starts_with("a.toml"), "{typo}");
+        let vehicle_typo = ConfigFile::from_toml_str("[vehicle]\ncontroler = \"aco\"\n", "b.toml").unwrap_err();
+        assert!(vehicle_typo.to_string().contains("controler"), "{vehicle_typo}");
+        let bad = |text: &str| {
+            let file = ConfigFile::from_toml_str(text, "c.toml").expect("parses");
+            RuntimeConfig::resolve(file, 0, Overrides::default()).unwrap_err().to_string()
+        };
+        assert!(bad("[plant]\nlink = \"tcp://x:1\"\n").starts_with("plant.link"));
+        assert!(bad("[plant]\nlink = \"serial:/dev/x\"\n").contains("DEVICE:BAUD"));
+        assert!(bad("[gcs]\ntcp_bind = \"everywhere\"\n").starts_with("gcs.tcp_bind"));
+        assert!(bad("[gcs]\nserial = \"/dev/ttyUSB0:fast\"\n").starts_with("gcs.serial"));
+        let too_big = RuntimeConfig::resolve(ConfigFile::default(), 255, Overrides::default()).unwrap_err();
+        assert!(too_big.to_string().contains("at most 255"), "{too_big}");
+        assert!(
+            ConfigFile::load(Path::new("/nonexistent/autopilot.toml")).unwrap_err().to_string().contains("cannot read")
+        );
+    }
+}
