@@ -1,11 +1,13 @@
-"""The one-command SITL flown with pymavlink as a user scripts it: connect, wait for the estimator, take
-off to 1.5 m, hold 20 s of vehicle time within 0.10 m of the hover point (the vehicle's own estimate),
-land and see the auto-disarm. Every wait is measured on the vehicle's clock (time_boot_ms), never on the
+"""The SITL flown with pymavlink as a user scripts it: connect, wait for the estimator, take off to 1.5 m,
+hold 20 s of vehicle time within 0.10 m of the hover point (the vehicle's own estimate), land and see
+the auto-disarm. Twice: with `sitl run` (plant and autopilot over UDP), and with the plant and the
+autopilot on the two ends of a socat pty pair (the serial plant link of the real airframe). Every wait is measured on the vehicle's clock (time_boot_ms), never on the
 wall clock, so the test holds at any simulation speed; a wall-clock deadline only stops a hung run."""
 
 import math
 import os
 import random
+import shutil
 import signal
 import subprocess
 import time
@@ -85,24 +87,74 @@ class Gcs:
         return self.acks[command]
 
 
-@pytest.fixture
-def sitl():
-    instance = random.randint(20, 60)
+def stop_group(proc, timeout=10):
+    """SIGINT to the process group (both processes close their logs), SIGKILL if that is not enough."""
+    if proc.poll() is None:
+        os.killpg(proc.pid, signal.SIGINT)
+    try:
+        proc.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+
+
+def log_file(tmp_path, name):
+    """Where a child's standard error goes (kept with the test's temporary files, shown on failure)."""
+    return open(tmp_path / f"{name}.log", "w")
+
+
+def start_udp(instance, tmp_path):
+    """`sitl run -i N`: the plant and the autopilot over UDP."""
     proc = subprocess.Popen(
         [str(binary("sitl")), "run", "-i", str(instance)],
         stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
+        stderr=log_file(tmp_path, "sitl-run"),
         start_new_session=True,
     )
+    return [proc]
+
+
+def start_serial(instance, tmp_path):
+    """The plant (`sitl serve --serial`) and the autopilot (`--plant serial:`) on the two ends of a socat
+    pty pair, as the autopilot attaches to the airframe's ARM board; the ground station still on UDP."""
+    socat = shutil.which("socat")
+    if socat is None:
+        pytest.fail("socat is not installed (scripts/test installs it: apt-get install socat)")
+    plant_tty, autopilot_tty = tmp_path / "plant-tty", tmp_path / "autopilot-tty"
+    pty = subprocess.Popen(
+        [socat, f"pty,raw,echo=0,link={plant_tty}", f"pty,raw,echo=0,link={autopilot_tty}"],
+        stderr=log_file(tmp_path, "socat"),
+        start_new_session=True,
+    )
+    deadline = time.monotonic() + 10
+    while not (plant_tty.exists() and autopilot_tty.exists()):
+        assert time.monotonic() < deadline and pty.poll() is None, "socat made no pty pair"
+        time.sleep(0.05)
+    plant = subprocess.Popen(
+        [str(binary("sitl")), "serve", "--serial", f"{plant_tty}:921600", "-i", str(instance)],
+        stdout=subprocess.DEVNULL,
+        stderr=log_file(tmp_path, "sitl-serve"),
+        start_new_session=True,
+    )
+    autopilot = subprocess.Popen(
+        [str(binary("autopilot")), "--plant", f"serial:{autopilot_tty}:921600", "-i", str(instance), "--stop-on-stdin-eof"],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.DEVNULL,
+        stderr=log_file(tmp_path, "autopilot"),
+        start_new_session=True,
+    )
+    return [autopilot, plant, pty]
+
+
+@pytest.fixture(params=["udp", "serial"])
+def sitl(request, tmp_path):
+    instance = random.randint(20, 60)
+    procs = {"udp": start_udp, "serial": start_serial}[request.param](instance, tmp_path)
     try:
         yield instance
     finally:
-        os.killpg(proc.pid, signal.SIGINT)
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
+        for proc in procs:
+            stop_group(proc)
 
 
 def test_pymavlink_takes_off_holds_and_lands(sitl):

@@ -1,6 +1,7 @@
 //! The SITL side: the paper's quadrotor plant (`plant`), pure and deterministic, and the paper's
 //! experiments run against it.
 
+pub mod launch;
 pub mod link;
 pub mod plant;
 pub mod scenario;

@@ -1,6 +1,7 @@
 //! The plant's end of the plant protocol (MAVLink 2 HIL messages, see `autopilot::core::hil`), over UDP
 //! or serial. Out, once per plant step (`dt_us`, default 2 ms = 500 Hz) for plant time `t`: one datagram
-//! holding `HIL_GPS` (when the plant releases a fix, 10 Hz by default), `HIL_STATE_QUATERNION` (truth) and
+//! holding `HIL_GPS` (when the plant releases a fix, 10 Hz by default), `HIL_STATE_QUATERNION` (truth,
+//! optionally with the paper's state noise), optionally `ODOMETRY` (the same truth at float precision) and
 //! `HIL_SENSOR` last (the autopilot ticks on it). In: `HIL_ACTUATOR_CONTROLS` with `time_usec == t`, whose
 //! four controls are the PWM (µs) of the paper's rotors 1..4 held over the step (1000 µs each when
 //! disarmed).
@@ -18,7 +19,7 @@
 //! default forever). Afterwards the plant answers the sender of the last matching actuator message, so an
 //! autopilot restarted on another port is followed. Serial ([`SerialTransport`]) is point to point.
 
-use std::io::{self, Read, Write};
+use std::io;
 use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -26,62 +27,52 @@ use std::time::{Duration, Instant};
 use autopilot::core::estimator::{GeoOrigin, GpsSample as ApGpsSample, TruthSample};
 use autopilot::core::hil::{
     ActuatorCommand, DecoderStats, FrameDecoder, HilBaroFields, HilInput, HilSensorFields, decode_hil_message,
-    encode_frame_v2, encode_hil_gps, encode_hil_sensor, encode_hil_state_quaternion,
+    encode_frame_v2, encode_hil_gps, encode_hil_sensor, encode_hil_state_quaternion, encode_odometry,
 };
 use mavlink::MavHeader;
 use mavlink::dialects::common::MavMessage;
+use nalgebra::UnitQuaternion;
 
 use crate::plant::sensors::HomeConfig;
-use crate::plant::{GpsSample, Plant, SensorSample, Truth};
+use crate::plant::sensors::NoisyState;
+use crate::plant::{GpsSample, Plant, SensorSample, StateNoise, Truth};
 
 /// MAVLink system id the plant sends with.
 pub const PLANT_SYSTEM_ID: u8 = 1;
 /// MAVLink component id the plant sends with (`MAV_COMP_ID_USER1`..: any; PX4 ignores it for HIL).
 pub const PLANT_COMPONENT_ID: u8 = 51;
 
-/// Bytes in and out: a UDP socket or a serial port.
-pub trait Transport {
-    /// Send `bytes` (one datagram, or written to the stream).
-    ///
-    /// # Errors
-    /// The underlying I/O error.
-    fn send(&mut self, bytes: &[u8]) -> io::Result<()>;
-    /// Wait up to `timeout` for input: `Ok(None)` on timeout.
-    ///
-    /// # Errors
-    /// The underlying I/O error (timeouts are not errors).
-    fn recv(&mut self, timeout: Duration) -> io::Result<Option<Vec<u8>>>;
-    /// Each `recv` returns whole frames (a datagram), rather than a piece of a byte stream.
-    fn is_datagram(&self) -> bool;
-    /// There is a peer to send to (UDP: not before the autopilot's first datagram).
-    fn has_peer(&self) -> bool {
-        true
-    }
-    /// Make the sender of the last received datagram the peer (UDP); nothing for point-to-point links.
-    fn adopt_last_sender(&mut self) {}
-}
+use autopilot::runtime::transport::{POLL_INTERVAL, SpinReceiver, is_transient};
+pub use autopilot::runtime::transport::{SerialTransport, Transport};
 
 /// UDP: bound to the plant's port, sending to the autopilot that spoke last.
 #[derive(Debug)]
 pub struct UdpTransport {
     socket: UdpSocket,
+    local: SocketAddr,
     peer: Option<SocketAddr>,
     last_sender: Option<SocketAddr>,
-    read_timeout: Option<Duration>,
+    receiver: SpinReceiver,
     buf: Vec<u8>,
 }
 
 impl UdpTransport {
-    /// Bind `addr` (e.g. `127.0.0.1:4560`, or port 0 in tests); no peer until one speaks.
+    /// Bind `addr` (e.g. `127.0.0.1:4560`, or port 0 in tests); no peer until one speaks. A `recv` polls
+    /// for [`UDP_SPIN`], then waits at most [`POLL_INTERVAL`].
     ///
     /// # Errors
-    /// The bind error.
+    /// The bind or socket-option error.
     pub fn bind(addr: impl ToSocketAddrs) -> io::Result<Self> {
+        let socket = UdpSocket::bind(addr)?;
+        socket.set_read_timeout(Some(POLL_INTERVAL))?;
+        socket.set_nonblocking(true)?;
+        let local = socket.local_addr()?;
         Ok(Self {
-            socket: UdpSocket::bind(addr)?,
+            socket,
+            local,
             peer: None,
             last_sender: None,
-            read_timeout: None,
+            receiver: SpinReceiver::default(),
             buf: vec![0; 65_536],
         })
     }
@@ -109,40 +100,26 @@ impl UdpTransport {
 }
 
 impl Transport for UdpTransport {
+    /// Nothing to send to before the autopilot spoke; an autopilot gone away is not an error here (the
+    /// link-loss timer reports it).
     fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
-        match self.peer {
-            Some(peer) => self.socket.send_to(bytes, peer).map(|_| ()),
-            None => Ok(()),
+        let Some(peer) = self.peer else { return Ok(()) };
+        match self.socket.send_to(bytes, peer) {
+            Ok(_) => Ok(()),
+            Err(e) if is_transient(&e) => Ok(()),
+            Err(e) => Err(e),
         }
     }
 
     /// A port-unreachable report (Windows: `ConnectionReset`) for an autopilot not yet or no longer
     /// listening is read as "nothing received": the resend and link-loss timers handle it.
-    fn recv(&mut self, timeout: Duration) -> io::Result<Option<Vec<u8>>> {
-        let timeout = timeout.max(Duration::from_micros(1));
-        if self.read_timeout != Some(timeout) {
-            self.socket.set_read_timeout(Some(timeout))?;
-            self.read_timeout = Some(timeout);
-        }
-        match self.socket.recv_from(&mut self.buf) {
-            Ok((n, from)) => {
-                self.last_sender = Some(from);
-                Ok(Some(self.buf[..n].to_vec()))
-            }
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    io::ErrorKind::WouldBlock
-                        | io::ErrorKind::TimedOut
-                        | io::ErrorKind::Interrupted
-                        | io::ErrorKind::ConnectionRefused
-                        | io::ErrorKind::ConnectionReset
-                ) =>
-            {
-                Ok(None)
-            }
-            Err(e) => Err(e),
-        }
+    fn recv(&mut self) -> io::Result<Option<&[u8]>> {
+        let buf = &mut self.buf;
+        let Some((n, from)) = self.receiver.recv(&self.socket, |s| s.recv_from(buf))? else {
+            return Ok(None);
+        };
+        self.last_sender = Some(from);
+        Ok(Some(&self.buf[..n]))
     }
 
     fn is_datagram(&self) -> bool {
@@ -158,57 +135,9 @@ impl Transport for UdpTransport {
             self.peer = self.last_sender;
         }
     }
-}
 
-/// A serial port (e.g. to the ARM board, or a pty pair for tests); a byte stream.
-pub struct SerialTransport {
-    port: Box<dyn serialport::SerialPort>,
-    buf: Vec<u8>,
-}
-
-impl std::fmt::Debug for SerialTransport {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("SerialTransport").field("port", &self.port.name()).finish_non_exhaustive()
-    }
-}
-
-impl SerialTransport {
-    /// Open `path` at `baud_rate` (8N1, no flow control).
-    ///
-    /// # Errors
-    /// The open error, as an I/O error.
-    pub fn open(path: &str, baud_rate: u32) -> io::Result<Self> {
-        let port =
-            serialport::new(path, baud_rate).timeout(Duration::from_millis(10)).open().map_err(io::Error::from)?;
-        Ok(Self { port, buf: vec![0; 4096] })
-    }
-}
-
-impl Transport for SerialTransport {
-    fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
-        self.port.write_all(bytes)?;
-        self.port.flush()
-    }
-
-    fn recv(&mut self, timeout: Duration) -> io::Result<Option<Vec<u8>>> {
-        self.port.set_timeout(timeout.max(Duration::from_millis(1))).map_err(io::Error::from)?;
-        match self.port.read(&mut self.buf) {
-            Ok(0) => Ok(None),
-            Ok(n) => Ok(Some(self.buf[..n].to_vec())),
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    io::ErrorKind::TimedOut | io::ErrorKind::WouldBlock | io::ErrorKind::Interrupted
-                ) =>
-            {
-                Ok(None)
-            }
-            Err(e) => Err(e),
-        }
-    }
-
-    fn is_datagram(&self) -> bool {
-        false
+    fn describe(&self) -> String {
+        format!("udp://{}", self.local)
     }
 }
 
@@ -233,6 +162,12 @@ pub struct LinkConfig {
     pub link_lost_timeout: Duration,
     /// Wall time to wait for the autopilot's first datagram; `None` (default) = forever.
     pub connect_timeout: Option<Duration>,
+    /// White noise added to the truth in `HIL_STATE_QUATERNION` (the paper's truth-fed "hardware" runs);
+    /// `None` (default): exact truth.
+    pub truth_noise: Option<StateNoise>,
+    /// Also send the truth as `ODOMETRY` at float precision (see `autopilot::core::hil::LocalTruth`), for
+    /// truth-fed runs; default off (HIL_STATE_QUATERNION's degE7 position is quantised to ±5.6 mm).
+    pub truth_odometry: bool,
 }
 
 impl Default for LinkConfig {
@@ -243,6 +178,8 @@ impl Default for LinkConfig {
             resend_timeout: Duration::from_secs(1),
             link_lost_timeout: Duration::from_secs(5),
             connect_timeout: None,
+            truth_noise: None,
+            truth_odometry: false,
         }
     }
 }
@@ -256,6 +193,8 @@ pub enum LinkError {
     LinkLost { time_us: u64, waited: Duration },
     #[error("no autopilot connected within {waited:?}")]
     NoPeer { waited: Duration },
+    #[error("stopped")]
+    Stopped,
 }
 
 /// What the link saw; every field only grows.
@@ -420,7 +359,8 @@ impl<T: Transport> PlantServer<T> {
     }
 
     /// Sample the plant now (once per step: sampling advances the sensor noise and GPS schedule) and
-    /// build the datagram: `HIL_GPS` if a fix is released, `HIL_STATE_QUATERNION`, `HIL_SENSOR`.
+    /// build the datagram: `HIL_GPS` if a fix is released, `HIL_STATE_QUATERNION` (truth, with
+    /// [`LinkConfig::truth_noise`] added), `HIL_SENSOR`.
     fn sensor_datagram(&mut self) -> Vec<u8> {
         let truth = self.plant.truth();
         let sample = self.plant.sample_sensors();
@@ -431,12 +371,15 @@ impl<T: Transport> PlantServer<T> {
             self.stats.gps_sent += 1;
         }
         let airspeed_mps = (truth.vel_ned_mps - truth.wind_ned_mps).norm();
-        let msg = MavMessage::HIL_STATE_QUATERNION(encode_hil_state_quaternion(
-            &truth_fields(&truth),
-            &self.home,
-            airspeed_mps,
-        ));
+        let reported = match self.config.truth_noise {
+            Some(noise) => noisy_truth_fields(&self.plant.sample_state_of(&truth, &noise)),
+            None => truth_fields(&truth),
+        };
+        let msg = MavMessage::HIL_STATE_QUATERNION(encode_hil_state_quaternion(&reported, &self.home, airspeed_mps));
         datagram.extend(self.frame(&msg));
+        if self.config.truth_odometry {
+            datagram.extend(self.frame(&MavMessage::ODOMETRY(encode_odometry(&reported))));
+        }
         let msg = MavMessage::HIL_SENSOR(encode_hil_sensor(&sensor_fields(&sample)));
         datagram.extend(self.frame(&msg));
         datagram
@@ -446,9 +389,10 @@ impl<T: Transport> PlantServer<T> {
     /// (pace,) step the plant by `dt_us` with its PWM. Returns the command applied.
     ///
     /// # Errors
-    /// [`LinkError::Io`] from the transport, [`LinkError::NoPeer`] / [`LinkError::LinkLost`] on timeouts;
-    /// the plant has not stepped then (call again to keep waiting).
-    pub fn step(&mut self) -> Result<ActuatorCommand, LinkError> {
+    /// [`LinkError::Io`] from the transport, [`LinkError::NoPeer`] / [`LinkError::LinkLost`] on timeouts,
+    /// [`LinkError::Stopped`] once `stop` is set; the plant has not stepped then (call again to keep
+    /// waiting).
+    pub fn step(&mut self, stop: &AtomicBool) -> Result<ActuatorCommand, LinkError> {
         let t = self.plant.time_us();
         let datagram = match self.pending.take() {
             Some((time_us, datagram)) if time_us == t => datagram,
@@ -458,7 +402,7 @@ impl<T: Transport> PlantServer<T> {
             }
         };
         self.transport.send(&datagram)?;
-        let reply = self.wait_for_reply(t, &datagram);
+        let reply = self.wait_for_reply(t, &datagram, stop);
         self.pending = Some((t, datagram));
         let command = reply?;
         self.pending = None;
@@ -472,53 +416,50 @@ impl<T: Transport> PlantServer<T> {
     /// Run until `max_steps` steps (`None`: no limit) or `stop` is set; returns the steps taken.
     ///
     /// # Errors
-    /// As [`PlantServer::step`].
+    /// As [`PlantServer::step`], except that a stop is not an error.
     pub fn run(&mut self, max_steps: Option<u64>, stop: &AtomicBool) -> Result<u64, LinkError> {
         let mut steps = 0;
-        while max_steps.is_none_or(|n| steps < n) && !stop.load(Ordering::Relaxed) {
-            self.step()?;
-            steps += 1;
+        while max_steps.is_none_or(|n| steps < n) {
+            match self.step(stop) {
+                Ok(_) => steps += 1,
+                Err(LinkError::Stopped) => break,
+                Err(e) => return Err(e),
+            }
         }
         Ok(steps)
     }
 
-    fn wait_for_reply(&mut self, t: u64, datagram: &[u8]) -> Result<ActuatorCommand, LinkError> {
+    fn wait_for_reply(&mut self, t: u64, datagram: &[u8], stop: &AtomicBool) -> Result<ActuatorCommand, LinkError> {
         let start = Instant::now();
         let mut last_send = start;
+        let datagrams = self.transport.is_datagram();
         loop {
+            if stop.load(Ordering::Relaxed) {
+                return Err(LinkError::Stopped);
+            }
             let now = Instant::now();
             let waited = now - start;
-            let limit = if self.transport.has_peer() {
-                Some(self.config.link_lost_timeout)
-            } else {
-                self.config.connect_timeout
-            };
+            let has_peer = self.transport.has_peer();
+            let limit = if has_peer { Some(self.config.link_lost_timeout) } else { self.config.connect_timeout };
             if let Some(limit) = limit
                 && waited >= limit
             {
-                return Err(if self.transport.has_peer() {
+                return Err(if has_peer {
                     LinkError::LinkLost { time_us: t, waited }
                 } else {
                     LinkError::NoPeer { waited }
                 });
             }
-            let until_resend = self.config.resend_timeout.saturating_sub(now - last_send);
-            if until_resend.is_zero() {
-                if self.transport.has_peer() {
+            if now - last_send >= self.config.resend_timeout {
+                if has_peer {
                     self.transport.send(datagram)?;
                     self.stats.resends += 1;
                 }
                 last_send = now;
-                continue;
             }
-            let wait = limit.map_or(until_resend, |l| until_resend.min(l - waited));
-            let Some(bytes) = self.transport.recv(wait)? else { continue };
-            let frames = if self.transport.is_datagram() {
-                self.decoder.decode_datagram(&bytes)
-            } else {
-                self.decoder.push(&bytes)
-            };
-            if frames.is_empty() && self.transport.is_datagram() {
+            let Some(bytes) = self.transport.recv()? else { continue };
+            let frames = if datagrams { self.decoder.decode_datagram(bytes) } else { self.decoder.push(bytes) };
+            if frames.is_empty() && datagrams {
                 self.stats.junk_datagrams += 1;
             }
             if !frames.is_empty() && !self.transport.has_peer() {
@@ -555,6 +496,21 @@ impl<T: Transport> PlantServer<T> {
         if due > now {
             std::thread::sleep(due - now);
         }
+    }
+}
+
+/// The truth-fed state with noise as the protocol's truth fields (the attitude rebuilt from the noisy
+/// Euler angles).
+#[must_use]
+pub fn noisy_truth_fields(state: &NoisyState) -> TruthSample {
+    let e = state.euler_rad;
+    TruthSample {
+        time_us: state.time_us,
+        pos_ned_m: state.pos_ned_m,
+        vel_ned_mps: state.vel_ned_mps,
+        q_ned_frd: UnitQuaternion::from_euler_angles(e.x, e.y, e.z),
+        rate_frd_radps: state.rate_frd_radps,
+        specific_force_frd_mps2: state.specific_force_frd_mps2,
     }
 }
 
@@ -725,14 +681,14 @@ mod tests {
             ..LinkConfig::default()
         };
         let mut server = PlantServer::bind_udp(hover_plant(), "127.0.0.1:0", config).expect("bind plant");
-        assert!(matches!(server.step(), Err(LinkError::NoPeer { .. })));
+        assert!(matches!(server.step(&AtomicBool::new(false)), Err(LinkError::NoPeer { .. })));
         assert_eq!(server.plant().time_us(), 0);
 
         // A peer that announces itself and then never answers.
         let silent = UdpSocket::bind("127.0.0.1:0").expect("bind");
         silent.send_to(&heartbeat(), server.transport().local_addr().expect("addr")).expect("announce");
         let started = Instant::now();
-        let err = server.step().expect_err("no reply");
+        let err = server.step(&AtomicBool::new(false)).expect_err("no reply");
         assert!(matches!(err, LinkError::LinkLost { time_us: 0, .. }), "{err}");
         assert!(started.elapsed() >= Duration::from_millis(150));
         assert_eq!(server.plant().time_us(), 0, "no step without a reply");

@@ -1,21 +1,30 @@
 //! `sitl`: the simulator's command line. `sitl scenario` runs the paper's experiments in-process in
 //! lockstep (headless, faster than real time) and writes metrics JSON, CSV traces and PNG plots;
 //! `sitl serve` serves the plant to an autopilot over the MAVLink HIL plant protocol (UDP or serial);
-//! `sitl run` is the one-command SITL: the plant server plus the `autopilot` binary as a child process.
+//! `sitl run` is the one-command SITL: the plant server plus the `autopilot` binary as a child process
+//! (optionally flying a hover scenario through both, with its metrics); `sitl bench` measures the
+//! two-process real-time factor in lockstep and the CPU cost of the SITL and its telemetry in real time.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use autopilot::core::control::{ControllerKind, LoopRates};
+use autopilot::core::estimator::EstimatorSource;
+use autopilot::runtime::transport::{POLL_INTERVAL, SerialTransport, parse_serial_spec};
 use clap::{Args, Parser, Subcommand};
-use sitl::link::{LinkConfig, Pacing, PlantServer, SerialTransport};
+use sitl::launch::{self, AutopilotChild};
+use sitl::link::{LinkConfig, Pacing, PlantServer};
 use sitl::plant::{Airframe, InitialState, Plant, PlantConfig, SensorConfig};
 use sitl::scenario::plot::{self, Panel, Run};
 use sitl::scenario::reference::{ReferenceMode, ReferenceSpec, SplinePath};
 use sitl::scenario::runner::{self, RunOptions, RunOutput};
+use sitl::scenario::two_process::{self, TwoProcessOptions};
 use sitl::scenario::{BUILT_INS, MetricKind, Scenario};
-use std::sync::atomic::AtomicBool;
+use std::ffi::OsString;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
 
 #[derive(Parser)]
 #[command(name = "sitl", version, about = "SITL plant of the paper's quadrotor and its experiments")]
@@ -32,6 +41,8 @@ enum Command {
     Serve(ServeArgs),
     /// One-command SITL: serve the plant on UDP 4560+N and run the `autopilot` binary against it.
     Run(RunArgs),
+    /// Measure the two-process SITL: lockstep real-time factor, and CPU and telemetry at real time.
+    Bench(BenchArgs),
 }
 
 #[derive(Args)]
@@ -51,13 +62,39 @@ struct RunArgs {
     /// Autopilot `.tlog` directory.
     #[arg(long)]
     log_dir: Option<PathBuf>,
+    /// Autopilot configuration file (TOML; see `autopilot --help`).
+    #[arg(long, conflicts_with = "scenario")]
+    autopilot_config: Option<PathBuf>,
+    /// Stop after this many simulated seconds (default: run until Ctrl-C).
+    #[arg(long)]
+    duration: Option<f64>,
+    /// Fly a hover scenario (gust-hover, turbulence-hover, or a file) through both processes, starting in
+    /// the air as the in-process runner does, and report its metrics at the end.
+    #[arg(long)]
+    scenario: Option<String>,
+    /// With --scenario: print the metrics as one JSON object.
+    #[arg(long, requires = "scenario")]
+    json: bool,
+}
+
+#[derive(Args)]
+struct BenchArgs {
+    /// Instance N (ports as for `sitl run -i N`).
+    #[arg(short = 'i', long, default_value_t = 90)]
+    instance: u16,
+    /// Simulated seconds of the lockstep run.
+    #[arg(long, default_value_t = 120.0)]
+    sim_s: f64,
+    /// Wall seconds of the real-time run.
+    #[arg(long, default_value_t = 10.0)]
+    realtime_s: f64,
 }
 
 /// The plant options `sitl run` and `sitl serve` share.
 #[derive(Args)]
 struct PlantArgs {
     /// Plant configuration file (TOML: [airframe], [wind], [sensors], [ground], integrator_step_s);
-    /// default: the nominal plant (`sitl run`: with modest sensor noise).
+    /// default: the nominal plant with modest sensor noise.
     #[arg(long)]
     config: Option<PathBuf>,
     /// Airframe preset (nominal, mismatch), applied over the configuration's.
@@ -174,6 +211,7 @@ fn main() -> Result<()> {
         Command::Scenario(args) => scenario(&args),
         Command::Serve(args) => serve(&args),
         Command::Run(args) => run(&args),
+        Command::Bench(args) => bench(&args),
     }
 }
 
@@ -372,16 +410,16 @@ fn with_horizontal_error(trace: &runner::Trace) -> runner::Trace {
 }
 
 fn serve(args: &ServeArgs) -> Result<()> {
-    let (plant, pacing) = args.plant.build(PlantConfig::default())?;
+    let (plant, pacing) = args.plant.build(realistic_plant_config())?;
     if args.dt_us == 0 || args.dt_us > 20_000 {
         bail!("--dt-us must be in 1..=20000, got {}", args.dt_us);
     }
     let link = LinkConfig { dt_us: args.dt_us, pacing, ..LinkConfig::default() };
-    let stop = AtomicBool::new(false);
+    let stop = launch::ctrl_c_flag();
     let steps = if let Some(spec) = &args.serial {
-        let (device, baud) = spec.rsplit_once(':').context("--serial takes DEVICE:BAUD")?;
-        let baud: u32 = baud.parse().with_context(|| format!("baud rate `{baud}`"))?;
-        let transport = SerialTransport::open(device, baud).with_context(|| format!("opening {device}"))?;
+        let (device, baud) = parse_serial_spec(spec).map_err(anyhow::Error::msg).context("--serial")?;
+        let transport =
+            SerialTransport::open(&device, baud, POLL_INTERVAL).with_context(|| format!("opening {device}"))?;
         eprintln!("sitl: plant on serial {device} at {baud} baud");
         PlantServer::new(plant, transport, link).run(None, &stop)?
     } else {
@@ -402,107 +440,222 @@ fn realistic_plant_config() -> PlantConfig {
     PlantConfig { sensors: SensorConfig::modest_noise(), ..PlantConfig::default() }
 }
 
-/// Ask the child to stop (SIGINT, so it closes its log), then make sure it does.
-fn stop_child(child: &mut std::process::Child) {
-    if matches!(child.try_wait(), Ok(Some(_))) {
-        return;
+/// The instance's ports: plant, autopilot, QGroundControl, MAVSDK.
+fn instance_ports(n: u16) -> Result<(u16, u16, u16, u16)> {
+    let port = |base: u16| base.checked_add(n).context("instance too large: a port would exceed 65535");
+    Ok((port(4560)?, port(18570)?, port(14550)?, port(14540)?))
+}
+
+fn duration_us(seconds: Option<f64>) -> Result<Option<u64>> {
+    match seconds {
+        Some(s) if s.is_finite() && s > 0.0 => Ok(Some((s * 1e6).round() as u64)),
+        Some(s) => bail!("--duration must be a positive number of seconds, got {s}"),
+        None => Ok(None),
     }
-    let _ = std::process::Command::new("kill").args(["-s", "INT", "--", &child.id().to_string()]).status();
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(3);
-    while std::time::Instant::now() < deadline {
-        if matches!(child.try_wait(), Ok(Some(_))) {
-            return;
-        }
-        std::thread::sleep(std::time::Duration::from_millis(20));
+}
+
+fn print_two_process(m: &two_process::TwoProcessMetrics, json: bool) -> Result<()> {
+    if json {
+        println!("{}", serde_json::to_string(m)?);
+        return Ok(());
     }
-    let _ = child.kill();
-    let _ = child.wait();
+    let mut line = format!(
+        "{} {} {} seed {} (two processes, {} estimator)",
+        m.scenario, m.controller, m.plant, m.seed, m.estimator
+    );
+    if let Some(g) = &m.gust {
+        line += &format!(
+            "\n  gust: recovery {} / {} s  peak {:.3} m  steady {:.3} m  rms xy {:.3} m  rms z {:.4} m",
+            fmt_opt(g.recovery_onset_s),
+            fmt_opt(g.recovery_release_s),
+            g.peak_m,
+            g.steady_err_m,
+            g.rms_xy_m,
+            g.rms_z_m
+        );
+    }
+    line += &format!(
+        "\n  non-finite: {}  pwm activity {:.2} us/tick  {:.1} sim s in {:.2} s wall ({:.0}x real time)",
+        m.non_finite, m.pwm_activity_us, m.sim_s, m.wall_s, m.realtime_factor
+    );
+    println!("{line}");
+    Ok(())
 }
 
 fn run(args: &RunArgs) -> Result<()> {
-    let (plant, pacing) = args.plant.build(realistic_plant_config())?;
     let n = args.instance;
-    let port = |base: u16| base.checked_add(n).context("instance too large: a port would exceed 65535");
-    let (plant_port, ap_port, qgc_port, api_port) = (port(4560)?, port(18570)?, port(14550)?, port(14540)?);
-    let autopilot = std::env::current_exe()?.with_file_name("autopilot");
-    if !autopilot.exists() {
-        bail!(
-            "autopilot binary not found at {}: build it next to sitl with `cargo build --release` \
-             (or `cargo build` for a debug sitl)",
-            autopilot.display()
-        );
+    let (plant_port, ap_port, qgc_port, api_port) = instance_ports(n)?;
+    let autopilot = launch::autopilot_binary()?;
+    let mut ap_args: Vec<OsString> = Vec::new();
+    if let Some(dir) = &args.log_dir {
+        ap_args.push("--log-dir".into());
+        ap_args.push(dir.into());
     }
-    let link =
-        LinkConfig { pacing, connect_timeout: Some(std::time::Duration::from_secs(30)), ..LinkConfig::default() };
+    let stop = launch::ctrl_c_flag();
+    if let Some(name) = &args.scenario {
+        let scenario = Scenario::load(name)?;
+        let controller = match &args.controller {
+            Some(c) => c.parse()?,
+            None => scenario.controllers.first().copied().unwrap_or(ControllerKind::Aco),
+        };
+        let estimator = match args.estimator.as_deref() {
+            None | Some("truth") => EstimatorSource::Truth,
+            Some("fused") => EstimatorSource::Fused,
+            Some(other) => bail!("--estimator must be fused or truth, got `{other}`"),
+        };
+        if args.plant.config.is_some() || args.plant.speed.is_some() || args.duration.is_some() {
+            bail!("--scenario sets the plant, pacing and duration itself; drop --config, --speed and --duration");
+        }
+        let opts = TwoProcessOptions {
+            controller,
+            plant: args.plant.preset.clone(),
+            seed: args.plant.seed,
+            instance: n,
+            estimator,
+            autopilot_args: ap_args,
+        };
+        eprintln!("sitl: instance {n}: flying scenario {} through plant and autopilot ({controller})", scenario.name);
+        let m = two_process::run(&scenario, &opts, &autopilot, &stop)?;
+        return print_two_process(&m, args.json);
+    }
+
+    let (plant, pacing) = args.plant.build(realistic_plant_config())?;
+    let duration = duration_us(args.duration)?;
+    for (flag, value) in [("--estimator", &args.estimator), ("--controller", &args.controller)] {
+        if let Some(v) = value {
+            ap_args.push(flag.into());
+            ap_args.push(v.into());
+        }
+    }
+    if let Some(path) = &args.autopilot_config {
+        ap_args.push("--config".into());
+        ap_args.push(path.into());
+    }
+    let link = LinkConfig {
+        pacing,
+        connect_timeout: Some(Duration::from_secs(30)),
+        truth_odometry: args.estimator.as_deref() == Some("truth"),
+        ..LinkConfig::default()
+    };
     let listen = format!("127.0.0.1:{plant_port}");
     let mut server =
         PlantServer::bind_udp(plant, listen.as_str(), link).with_context(|| format!("binding {listen}"))?;
-
-    let mut cmd = std::process::Command::new(&autopilot);
-    cmd.args(["--plant", &format!("udp://127.0.0.1:{plant_port}"), "-i", &n.to_string()]);
-    if let Some(e) = &args.estimator {
-        cmd.args(["--estimator", e]);
-    }
-    if let Some(c) = &args.controller {
-        cmd.args(["--controller", c]);
-    }
-    if let Some(dir) = &args.log_dir {
-        cmd.arg("--log-dir").arg(dir);
-    }
-    let mut child = cmd.spawn().with_context(|| format!("starting {}", autopilot.display()))?;
+    ap_args.extend(["--plant".into(), format!("udp://{listen}").into(), "-i".into(), n.to_string().into()]);
+    let child = AutopilotChild::spawn(&autopilot, &ap_args)?;
     eprintln!(
-        "sitl: instance {n}: plant on udp 127.0.0.1:{plant_port} ({}), autopilot pid {} (system id {}) \
-         listening on udp {ap_port}; ground stations: listen on udp 14550+N = {qgc_port} (QGroundControl) \
-         or {api_port} (MAVSDK/API), or send to 127.0.0.1:{ap_port}",
+        "sitl: instance {n}: plant on udp {listen} ({}), autopilot pid {} (system id {}) listening on udp \
+         {ap_port} and tcp {}; ground stations: listen on udp {qgc_port} (QGroundControl) or {api_port} \
+         (MAVSDK/API), or send to 127.0.0.1:{ap_port}. Ctrl-C stops both.",
         match pacing {
             Pacing::Lockstep => "lockstep, as fast as possible".to_owned(),
             Pacing::RealTime { speed } => format!("lockstep at {speed}x real time"),
         },
         child.id(),
         u32::from(n) + 1,
+        5760 + u32::from(n),
     );
-
-    let stop = std::sync::Arc::new(AtomicBool::new(false));
-    let server_stop = stop.clone();
-    let wall = std::time::Instant::now();
-    let server_thread = std::thread::spawn(move || {
-        let result = server.run(None, &server_stop);
-        (result, server.stats(), server.plant().time_us())
-    });
-    let child_status = loop {
-        if server_thread.is_finished() {
-            break None;
-        }
-        match child.try_wait() {
-            Ok(Some(status)) => break Some(status),
-            Ok(None) => {}
-            Err(e) => {
-                stop.store(true, std::sync::atomic::Ordering::Relaxed);
-                stop_child(&mut child);
-                return Err(e).context("waiting for the autopilot");
-            }
-        }
-        std::thread::sleep(std::time::Duration::from_millis(50));
-    };
-    if let Some(status) = child_status {
-        stop.store(true, std::sync::atomic::Ordering::Relaxed);
-        if status.success() {
-            eprintln!("sitl: the autopilot stopped; plant stopped");
-            return Ok(());
-        }
-        bail!("the autopilot exited ({status}); plant stopped");
-    }
-    stop_child(&mut child);
-    let (result, stats, time_us) =
-        server_thread.join().map_err(|_| anyhow::anyhow!("the plant server thread panicked"))?;
-    let wall_s = wall.elapsed().as_secs_f64();
-    let sim_s = time_us as f64 * 1e-6;
+    let report = launch::run_with_child(&mut server, child, duration, &stop, |_, _| {})?;
+    let l = &report.link;
     eprintln!(
-        "sitl: {} steps, {sim_s:.1} sim s in {wall_s:.1} s wall ({:.1}x real time, {:.0} steps/s)",
-        stats.steps,
-        sim_s / wall_s,
-        stats.steps as f64 / wall_s
+        "sitl: {} steps, {:.1} sim s in {:.1} s wall ({:.1}x real time, {:.0} steps/s); plant link: {} resends, {} \
+         stale replies, {} junk datagrams, {} malformed frames dropped",
+        report.steps,
+        report.sim_s,
+        report.wall_s,
+        report.realtime_factor(),
+        report.steps as f64 / report.wall_s.max(1e-9),
+        l.resends,
+        l.stale_actuators,
+        l.junk_datagrams,
+        l.decoder.malformed(),
     );
-    result?;
+    Ok(())
+}
+
+/// Counts what arrives on a UDP port (the ground-station side of a bench run) until stopped.
+struct TelemetryCounter {
+    stop: Arc<AtomicBool>,
+    thread: std::thread::JoinHandle<(u64, u64)>,
+}
+
+impl TelemetryCounter {
+    fn listen(port: u16) -> Result<Self> {
+        let socket = std::net::UdpSocket::bind(("127.0.0.1", port)).with_context(|| format!("binding udp {port}"))?;
+        socket.set_read_timeout(Some(Duration::from_millis(20)))?;
+        let stop = Arc::new(AtomicBool::new(false));
+        let flag = stop.clone();
+        let thread = std::thread::spawn(move || {
+            let mut decoder = autopilot::core::hil::FrameDecoder::new();
+            let (mut frames, mut bytes) = (0, 0);
+            let mut buf = [0u8; 65_536];
+            while !flag.load(Ordering::Relaxed) {
+                if let Ok(n) = socket.recv(&mut buf) {
+                    frames += decoder.decode_datagram(&buf[..n]).len() as u64;
+                    bytes += n as u64;
+                }
+            }
+            (frames, bytes)
+        });
+        Ok(Self { stop, thread })
+    }
+
+    /// (MAVLink messages, bytes) received.
+    fn finish(self) -> (u64, u64) {
+        self.stop.store(true, Ordering::Relaxed);
+        self.thread.join().unwrap_or((0, 0))
+    }
+}
+
+/// One bench run: the default `sitl run` plant and autopilot for `duration_s` simulated seconds, with a
+/// ground station listening on the QGroundControl port.
+fn bench_once(n: u16, pacing: Pacing, duration_s: f64, stop: &AtomicBool) -> Result<(launch::LaunchReport, u64, u64)> {
+    let (plant_port, _, qgc_port, _) = instance_ports(n)?;
+    let plant = Plant::new(realistic_plant_config(), &InitialState::default(), 1)?;
+    let link = LinkConfig { pacing, connect_timeout: Some(Duration::from_secs(30)), ..LinkConfig::default() };
+    let listen = format!("127.0.0.1:{plant_port}");
+    let mut server =
+        PlantServer::bind_udp(plant, listen.as_str(), link).with_context(|| format!("binding {listen}"))?;
+    let gcs = TelemetryCounter::listen(qgc_port)?;
+    let args: Vec<OsString> =
+        vec!["--plant".into(), format!("udp://{listen}").into(), "-i".into(), n.to_string().into()];
+    let child = AutopilotChild::spawn_with(&launch::autopilot_binary()?, &args, Some("warn"))?;
+    let report = launch::run_with_child(&mut server, child, duration_us(Some(duration_s))?, stop, |_, _| {})?;
+    let (messages, bytes) = gcs.finish();
+    if report.stopped {
+        bail!("stopped");
+    }
+    Ok((report, messages, bytes))
+}
+
+fn bench(args: &BenchArgs) -> Result<()> {
+    let stop = launch::ctrl_c_flag();
+    let n = args.instance;
+    println!(
+        "sitl bench: the default `sitl run` plant (nominal, modest sensor noise) and autopilot (fused estimator, \
+         ACO, on the ground), telemetry to a ground station on udp {}",
+        14550 + u32::from(n)
+    );
+    let (r, messages, _) = bench_once(n, Pacing::Lockstep, args.sim_s, &stop)?;
+    println!(
+        "  lockstep: {:.1} sim s in {:.2} s wall = {:.1}x real time, {:.0} steps/s, {:.1} us per step; CPU per \
+         step: autopilot {:.1} us, plant {:.1} us (both poll while waiting); {} telemetry messages received",
+        r.sim_s,
+        r.wall_s,
+        r.realtime_factor(),
+        r.steps as f64 / r.wall_s,
+        r.wall_s * 1e6 / r.steps as f64,
+        r.autopilot_cpu_s.unwrap_or(f64::NAN) * 1e6 / r.steps as f64,
+        r.plant_cpu_s.unwrap_or(f64::NAN) * 1e6 / r.steps as f64,
+        messages,
+    );
+    let (r, messages, bytes) = bench_once(n, Pacing::RealTime { speed: 1.0 }, args.realtime_s, &stop)?;
+    println!(
+        "  real time: {:.1} s: CPU autopilot {:.2} % of a core, plant {:.2} %; telemetry {:.1} messages/s, {:.2} kB/s",
+        r.wall_s,
+        100.0 * r.autopilot_cpu_s.unwrap_or(f64::NAN) / r.wall_s,
+        100.0 * r.plant_cpu_s.unwrap_or(f64::NAN) / r.wall_s,
+        messages as f64 / r.wall_s,
+        bytes as f64 / r.wall_s / 1000.0,
+    );
     Ok(())
 }

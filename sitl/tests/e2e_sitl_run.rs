@@ -24,6 +24,9 @@ struct Guard(Child);
 
 impl Drop for Guard {
     fn drop(&mut self) {
+        if matches!(self.0.try_wait(), Ok(Some(_))) {
+            return;
+        }
         let pgid = self.0.id();
         // `--` so the negative process-group id is not read as a signal or option.
         let _ = Command::new("kill").args(["-s", "KILL", "--", &format!("-{pgid}")]).status();
@@ -39,6 +42,7 @@ struct Seen {
     base_mode: Option<MavModeFlag>,
     landed_state: Option<MavLandedState>,
     converged: bool,
+    errors_comm: u16,
     pos_ned_m: Option<[f32; 3]>,
     vel_ned_mps: [f32; 3],
     acks: Vec<(MavCmd, MavResult)>,
@@ -73,6 +77,7 @@ impl Gcs {
                 }
                 MavMessage::EXTENDED_SYS_STATE(e) => s.landed_state = Some(e.landed_state),
                 MavMessage::SYS_STATUS(st) => {
+                    s.errors_comm = st.errors_comm;
                     s.converged =
                         st.onboard_control_sensors_health.contains(MavSysStatusSensor::MAV_SYS_STATUS_PREARM_CHECK);
                 }
@@ -138,19 +143,25 @@ fn sitl_run_with_the_truth_fed_estimator_flies_the_same_flight() {
     fly(&["--estimator", "truth"]);
 }
 
-fn fly(extra_args: &[&str]) {
+/// A free instance N in 20..=60 with the ground-station sockets bound: 14550+N (QGroundControl's) and
+/// 14540+N (MAVSDK's), retried while another test or run holds them.
+fn free_instance() -> (u16, UdpSocket, UdpSocket) {
     let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).expect("clock").subsec_nanos();
-    // A random instance in 20..=60, retried if its ground-station port is taken (the other test, another run).
-    let mut attempt = 0;
-    let (n, socket) = loop {
+    for attempt in 0..40u32 {
         let n = 20 + u16::try_from((nanos.wrapping_add(attempt * 7919) ^ std::process::id()) % 41).expect("small");
-        match UdpSocket::bind(("127.0.0.1", 14550 + n)) {
-            Ok(socket) => break (n, socket),
-            Err(e) => assert!(attempt < 20, "no free ground-station port 14550+N: {e}"),
+        if let (Ok(qgc), Ok(api)) =
+            (UdpSocket::bind(("127.0.0.1", 14550 + n)), UdpSocket::bind(("127.0.0.1", 14540 + n)))
+        {
+            qgc.set_read_timeout(Some(Duration::from_millis(100))).expect("timeout");
+            api.set_read_timeout(Some(Duration::from_millis(100))).expect("timeout");
+            return (n, qgc, api);
         }
-        attempt += 1;
-    };
-    socket.set_read_timeout(Some(Duration::from_millis(100))).expect("timeout");
+    }
+    panic!("no free ground-station ports 14550+N / 14540+N");
+}
+
+/// The `sitl` binary, with the `autopilot` binary built next to it.
+fn sitl_binary() -> &'static str {
     let sitl = env!("CARGO_BIN_EXE_sitl");
     let autopilot_bin = std::path::Path::new(sitl).with_file_name("autopilot");
     if !autopilot_bin.exists() {
@@ -163,13 +174,24 @@ fn fly(extra_args: &[&str]) {
         }
         assert!(build.status().expect("cargo build").success(), "building the autopilot binary failed");
     }
-    let child = Command::new(sitl)
+    sitl
+}
+
+/// `sitl run -i n` with `extra_args`, its standard error piped, in a process group of its own.
+fn start_sitl_run(n: u16, extra_args: &[&str]) -> Guard {
+    let child = Command::new(sitl_binary())
         .args(["run", "-i", &n.to_string()])
         .args(extra_args)
+        .stderr(std::process::Stdio::piped())
         .process_group(0)
         .spawn()
         .expect("spawn sitl");
-    let _guard = Guard(child);
+    Guard(child)
+}
+
+fn fly(extra_args: &[&str]) {
+    let (n, socket, _api) = free_instance();
+    let mut guard = start_sitl_run(n, extra_args);
     let wall_start = Instant::now();
     let mut gcs = Gcs {
         socket,
@@ -209,15 +231,28 @@ fn fly(extra_args: &[&str]) {
     gcs.run_s(3.0, |_| {});
     let p = gcs.seen.pos_ned_m.expect("position");
     let hover = [p[0], p[1], target_d_m];
-    // AND holds within 0.10 m of the hover point (by its own LOCAL_POSITION_NED) for 20 s.
+    // AND holds within 0.10 m of the hover point (by its own LOCAL_POSITION_NED) for 20 s, while malformed
+    // and truncated frames arrive on both links half-way through.
     let mut hover_err_m = 0.0_f32;
-    gcs.run_s(20.0, |s| {
+    let mut track = |s: &Seen| {
         if let Some(p) = s.pos_ned_m {
             let e = (0..3).map(|i| (p[i] - hover[i]).powi(2)).sum::<f32>().sqrt();
             hover_err_m = hover_err_m.max(e);
         }
-    });
+    };
+    gcs.run_s(10.0, &mut track);
+    assert_eq!(gcs.seen.errors_comm, 0, "no link errors before the injection");
+    let good = encode_frame_v2(GCS, &command_long(gcs.sysid, 1, MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [0.0; 7]));
+    let mut bad_crc = good.clone();
+    *bad_crc.last_mut().expect("a frame") ^= 0xff;
+    let truncated = good[..good.len() - 5].to_vec();
+    for junk in [&bad_crc, &truncated] {
+        gcs.socket.send_to(junk, &gcs.autopilot).expect("inject into the ground-station link");
+        gcs.socket.send_to(junk, ("127.0.0.1", 4560 + n)).expect("inject into the plant link");
+    }
+    gcs.run_s(10.0, &mut track);
     assert!(armed(&gcs.seen), "still armed in the hover");
+    assert!(gcs.seen.errors_comm >= 2, "SYS_STATUS errors_comm {} counts the malformed frames", gcs.seen.errors_comm);
 
     // WHEN told to land, THEN it lands and disarms by itself.
     assert_eq!(gcs.command(MavCmd::MAV_CMD_NAV_LAND, [0.0; 7]), MavResult::MAV_RESULT_ACCEPTED);
@@ -225,6 +260,29 @@ fn fly(extra_args: &[&str]) {
     gcs.wait_until(3.0, "EXTENDED_SYS_STATE ON_GROUND", |s| {
         s.landed_state == Some(MavLandedState::MAV_LANDED_STATE_ON_GROUND)
     });
+
+    // WHEN stopped with Ctrl-C (SIGINT to the group, as a terminal sends it), THEN both stop and the plant
+    // reports the malformed frames it dropped.
+    let pgid = guard.0.id();
+    Command::new("kill").args(["-s", "INT", "--", &format!("-{pgid}")]).status().expect("kill");
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let status = loop {
+        if let Some(status) = guard.0.try_wait().expect("wait") {
+            break status;
+        }
+        assert!(Instant::now() < deadline, "sitl run did not stop within 10 s of Ctrl-C");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let mut stderr = String::new();
+    std::io::Read::read_to_string(&mut guard.0.stderr.take().expect("piped"), &mut stderr).expect("stderr");
+    assert!(status.success(), "sitl run exit {status}: {stderr}");
+    let summary = stderr.lines().find(|l| l.contains("plant link:")).unwrap_or_else(|| panic!("no summary: {stderr}"));
+    let junk: u64 = summary
+        .split(", ")
+        .find_map(|part| part.strip_suffix(" junk datagrams"))
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no junk count in `{summary}`"));
+    assert_eq!(junk, 2, "{summary}");
 
     let wall_s = wall_start.elapsed().as_secs_f64();
     let sim_s = f64::from(gcs.seen.time_ms - gcs.first_time_ms.unwrap_or(0)) * 1e-3;
@@ -235,4 +293,110 @@ fn fly(extra_args: &[&str]) {
         sim_s * 500.0 / wall_s
     );
     assert!(hover_err_m <= 0.10, "hover error {hover_err_m:.3} m > 0.10 m");
+}
+
+/// Heartbeat sequence numbers from system `sysid` in one datagram.
+fn heartbeat_seqs(decoder: &mut FrameDecoder, datagram: &[u8], sysid: u8) -> Vec<u8> {
+    decoder
+        .decode_datagram(datagram)
+        .into_iter()
+        .filter(|f| f.header.system_id == u32::from(sysid) && matches!(f.message, MavMessage::HEARTBEAT(_)))
+        .map(|f| f.header.sequence)
+        .collect()
+}
+
+#[test]
+fn two_ground_station_peers_both_receive_every_heartbeat() {
+    // GIVEN `sitl run`, a script that only listens on the MAVSDK port 14540+N (a fixed target, never
+    // speaking), and a ground station that speaks from a port of its own with 1 Hz heartbeats (a peer).
+    let (n, qgc, silent) = free_instance();
+    let _guard = start_sitl_run(n, &[]);
+    let sysid = u8::try_from(n + 1).expect("sysid");
+    let peer = UdpSocket::bind("127.0.0.1:0").expect("bind peer");
+    peer.set_read_timeout(Some(Duration::from_millis(100))).expect("timeout");
+    let autopilot = format!("127.0.0.1:{}", 18570 + n);
+    let gcs_heartbeat = MavMessage::HEARTBEAT(autopilot::core::mavlink::common::HEARTBEAT_DATA {
+        custom_mode: 0,
+        mavtype: autopilot::core::mavlink::common::MavType::MAV_TYPE_GCS,
+        autopilot: autopilot::core::mavlink::common::MavAutopilot::MAV_AUTOPILOT_INVALID,
+        base_mode: MavModeFlag::empty(),
+        system_status: autopilot::core::mavlink::common::MavState::MAV_STATE_ACTIVE,
+        mavlink_version: 3,
+    });
+    let hello = encode_frame_v2(GCS, &gcs_heartbeat);
+
+    // WHEN the vehicle has run 30 s of its time after the peer joined (the QGroundControl port tells time).
+    let wall_start = Instant::now();
+    let mut decoders = [FrameDecoder::new(), FrameDecoder::new(), FrameDecoder::new()];
+    let mut seen: [Vec<u8>; 2] = [Vec::new(), Vec::new()];
+    let mut last_hello: Option<Instant> = None;
+    let mut joined_ms: Option<u32> = None;
+    let mut now_ms = 0_u32;
+    let mut buf = [0u8; 65_536];
+    while joined_ms.is_none_or(|t| now_ms < t + 30_000) {
+        assert!(wall_start.elapsed() < WALL_LIMIT, "no 30 s of vehicle time within {WALL_LIMIT:?}");
+        if last_hello.is_none_or(|t| t.elapsed() >= Duration::from_secs(1)) {
+            peer.send_to(&hello, &autopilot).expect("peer heartbeat");
+            last_hello = Some(Instant::now());
+        }
+        if let Ok(len) = qgc.recv(&mut buf) {
+            for f in decoders[2].decode_datagram(&buf[..len]) {
+                let t = match f.message {
+                    MavMessage::ATTITUDE(a) => a.time_boot_ms,
+                    MavMessage::LOCAL_POSITION_NED(p) => p.time_boot_ms,
+                    _ => continue,
+                };
+                now_ms = now_ms.max(t);
+            }
+        }
+        for (i, socket) in [&silent, &peer].into_iter().enumerate() {
+            socket.set_nonblocking(true).expect("nonblocking");
+            while let Ok(len) = socket.recv(&mut buf) {
+                let seqs = heartbeat_seqs(&mut decoders[i], &buf[..len], sysid);
+                if i == 1 && !seqs.is_empty() {
+                    joined_ms.get_or_insert(now_ms);
+                }
+                seen[i].extend(seqs);
+            }
+        }
+    }
+    // THEN the peer got every heartbeat since it joined, in order, as the silent script did (about one per
+    // second of vehicle time: nothing lost on either path).
+    let [silent_seen, peer_seen] = seen;
+    assert!(peer_seen.len() >= 29, "the peer got {} heartbeats in 30 s of vehicle time", peer_seen.len());
+    let at = silent_seen
+        .windows(peer_seen.len())
+        .position(|w| w == peer_seen.as_slice())
+        .unwrap_or_else(|| panic!("the peer's heartbeats {peer_seen:?} are not a run of the script's {silent_seen:?}"));
+    assert!(silent_seen.len() - at - peer_seen.len() <= 2, "the peer stopped getting heartbeats early");
+    println!("two peers: script {} heartbeats, peer {} (from its join on)", silent_seen.len(), peer_seen.len());
+}
+
+#[test]
+fn gust_hover_through_two_processes_reproduces_the_in_process_metrics_within_5_percent() {
+    // GIVEN the gust-hover scenario (Beaufort-4 gust, mismatch plant, the paper's state noise), ACO,
+    // truth-fed: once in-process, once through the plant server and the autopilot process in lockstep.
+    let (n, _qgc, _api) = free_instance();
+    let out = Command::new(sitl_binary())
+        .args(["run", "--scenario", "gust-hover", "--controller", "aco", "--json", "-i", &n.to_string()])
+        .output()
+        .expect("sitl run --scenario");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let two: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    let scenario = sitl::scenario::Scenario::load("gust-hover").expect("built-in");
+    let opts = sitl::scenario::runner::RunOptions::new(autopilot::core::control::ControllerKind::Aco);
+    let one = sitl::scenario::runner::run(&scenario, &opts).expect("in-process run").metrics;
+    let one = serde_json::to_value(one.gust.expect("gust metrics")).expect("JSON");
+    // THEN every gust metric agrees within 5 % (and nothing was resent or went non-finite).
+    assert_eq!((two["processes"].as_u64(), two["resends"].as_u64()), (Some(2), Some(0)), "{two}");
+    assert_eq!(two["non_finite"], false);
+    let mut report = Vec::new();
+    for key in ["recovery_onset_s", "recovery_release_s", "peak_m", "rms_xy_m", "steady_err_m", "rms_z_m"] {
+        let a = two["gust"][key].as_f64().unwrap_or_else(|| panic!("{key} in {two}"));
+        let b = one[key].as_f64().unwrap_or_else(|| panic!("{key} in {one}"));
+        let rel = (a - b).abs() / b.abs();
+        report.push(format!("{key} {a:.4} vs {b:.4} ({:+.2} %)", 100.0 * (a - b) / b));
+        assert!(rel <= 0.05, "{key}: two processes {a} against in-process {b}");
+    }
+    println!("gust-hover two processes vs in-process: {}", report.join(", "));
 }

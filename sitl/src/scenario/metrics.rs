@@ -133,6 +133,22 @@ pub fn gust_metrics(t: &[f64], err_xy_m: &[f64], err_z_m: &[f64], onset_s: f64, 
     }
 }
 
+/// [`gust_metrics`] of a hover: `pos_ned_m` and `ref_ned_m` are per-axis series (N, E, D in m) sampled at
+/// `t`; the errors are the horizontal distance and the down error to the reference.
+#[must_use]
+pub fn hover_gust_metrics(
+    t: &[f64],
+    pos_ned_m: &[Vec<f64>; 3],
+    ref_ned_m: &[Vec<f64>; 3],
+    onset_s: f64,
+    release_s: f64,
+) -> GustMetrics {
+    let err_xy: Vec<f64> =
+        (0..t.len()).map(|k| (pos_ned_m[0][k] - ref_ned_m[0][k]).hypot(pos_ned_m[1][k] - ref_ned_m[1][k])).collect();
+    let err_z: Vec<f64> = (0..t.len()).map(|k| pos_ned_m[2][k] - ref_ned_m[2][k]).collect();
+    gust_metrics(t, &err_xy, &err_z, onset_s, release_s)
+}
+
 /// Track-following metrics over the track's active window.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct TrackMetrics {

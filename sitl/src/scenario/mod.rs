@@ -26,6 +26,7 @@ pub mod metrics;
 pub mod plot;
 pub mod reference;
 pub mod runner;
+pub mod two_process;
 
 use std::path::Path;
 

@@ -290,13 +290,8 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
     }
     if scenario.metrics.contains(&MetricKind::Gust) {
         let gust = scenario.wind.gust.as_ref().expect("validated: the gust metric has a gust");
-        let err_xy: Vec<f64> = (0..series.t.len())
-            .map(|k| {
-                Vector2::new(series.pos[0][k] - series.ref_pos[0][k], series.pos[1][k] - series.ref_pos[1][k]).norm()
-            })
-            .collect();
-        let err_z: Vec<f64> = (0..series.t.len()).map(|k| series.pos[2][k] - series.ref_pos[2][k]).collect();
-        m.gust = Some(metrics::gust_metrics(&series.t, &err_xy, &err_z, gust.onset_s, gust.release_s));
+        m.gust =
+            Some(metrics::hover_gust_metrics(&series.t, &series.pos, &series.ref_pos, gust.onset_s, gust.release_s));
     }
     if let (true, ReferenceSpec::Track(spec)) = (scenario.metrics.contains(&MetricKind::Track), &scenario.reference) {
         let track = TrackGen::new(spec, opts.mode);

@@ -1,0 +1,286 @@
+//! The two-process SITL: the plant server on this process's thread plus the `autopilot` binary as a
+//! child, as `sitl run` and `sitl bench` start them. In: a [`PlantServer`] bound on UDP, the autopilot's
+//! path and arguments, an optional duration in simulated seconds, and an observer called after every
+//! plant step (for a scenario's metrics). Out: a [`LaunchReport`] (steps, simulated and wall seconds, the
+//! link's counters, both processes' CPU seconds).
+//!
+//! The child's standard input is a pipe that only this process holds and the child is started with
+//! `--stop-on-stdin-eof`: however this process ends (Ctrl-C, an error, SIGKILL), the pipe closes and the
+//! autopilot shuts itself down, so it never outlives the plant. Ctrl-C (SIGINT to the terminal's process
+//! group) stops both: the autopilot on its own handler, the plant here through [`ctrl_c_flag`].
+
+use std::ffi::OsString;
+use std::path::{Path, PathBuf};
+use std::process::{Child, ChildStdin, Command, ExitStatus, Stdio};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use autopilot::core::hil::ActuatorCommand;
+
+use crate::link::{LinkError, LinkStats, PlantServer, UdpTransport};
+use crate::plant::Plant;
+
+/// Why a launch failed.
+#[derive(Debug, thiserror::Error)]
+pub enum LaunchError {
+    #[error(
+        "autopilot binary not found at {0}: build it next to sitl with `cargo build --release` (or `cargo build` \
+         for a debug sitl)"
+    )]
+    NoAutopilot(PathBuf),
+    #[error("cannot start {path}: {source}")]
+    Spawn {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("the autopilot exited ({0}) while the plant was running")]
+    AutopilotExited(ExitStatus),
+    #[error(transparent)]
+    Link(#[from] LinkError),
+    #[error("the plant server thread panicked")]
+    Panicked,
+}
+
+/// The `autopilot` binary next to the running `sitl`.
+///
+/// # Errors
+/// [`LaunchError::NoAutopilot`] if it is not there.
+pub fn autopilot_binary() -> Result<PathBuf, LaunchError> {
+    let exe = std::env::current_exe().unwrap_or_else(|_| PathBuf::from("sitl"));
+    let path = exe.with_file_name("autopilot");
+    if path.exists() { Ok(path) } else { Err(LaunchError::NoAutopilot(path)) }
+}
+
+/// A flag set by the first Ctrl-C (SIGINT) this process receives.
+#[must_use]
+pub fn ctrl_c_flag() -> Arc<AtomicBool> {
+    let flag = Arc::new(AtomicBool::new(false));
+    let set = flag.clone();
+    std::thread::spawn(move || {
+        let Ok(rt) = tokio::runtime::Builder::new_current_thread().enable_io().build() else { return };
+        if rt.block_on(tokio::signal::ctrl_c()).is_ok() {
+            set.store(true, Ordering::Relaxed);
+        }
+    });
+    flag
+}
+
+/// The autopilot child and the pipe that keeps it alive.
+#[derive(Debug)]
+pub struct AutopilotChild {
+    child: Child,
+    stdin: Option<ChildStdin>,
+}
+
+impl AutopilotChild {
+    /// Start `path` with `args` (plus `--stop-on-stdin-eof`).
+    ///
+    /// # Errors
+    /// [`LaunchError::Spawn`].
+    pub fn spawn(path: &Path, args: &[OsString]) -> Result<Self, LaunchError> {
+        Self::spawn_with(path, args, None)
+    }
+
+    /// As [`AutopilotChild::spawn`], with `RUST_LOG` set to `log_filter` unless the environment sets it.
+    ///
+    /// # Errors
+    /// [`LaunchError::Spawn`].
+    pub fn spawn_with(path: &Path, args: &[OsString], log_filter: Option<&str>) -> Result<Self, LaunchError> {
+        let mut command = Command::new(path);
+        if let Some(filter) = log_filter
+            && std::env::var_os("RUST_LOG").is_none()
+        {
+            command.env("RUST_LOG", filter);
+        }
+        let mut child = command
+            .args(args)
+            .arg("--stop-on-stdin-eof")
+            .stdin(Stdio::piped())
+            .spawn()
+            .map_err(|source| LaunchError::Spawn { path: path.to_owned(), source })?;
+        let stdin = child.stdin.take();
+        Ok(Self { child, stdin })
+    }
+
+    #[must_use]
+    pub fn id(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// User plus system CPU seconds the child has used so far (Linux `/proc`; `None` elsewhere).
+    #[must_use]
+    pub fn cpu_s(&self) -> Option<f64> {
+        cpu_seconds(&format!("/proc/{}/stat", self.child.id()))
+    }
+
+    /// Whether it has exited, and how.
+    pub fn exited(&mut self) -> Option<ExitStatus> {
+        self.child.try_wait().ok().flatten()
+    }
+
+    /// Close its standard input (it shuts down cleanly and closes its log), wait up to 5 s, then kill it.
+    pub fn stop(mut self) -> Option<ExitStatus> {
+        drop(self.stdin.take());
+        let deadline = Instant::now() + Duration::from_secs(5);
+        while Instant::now() < deadline {
+            if let Some(status) = self.exited() {
+                return Some(status);
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        tracing::warn!(pid = self.child.id(), "the autopilot did not stop within 5 s; killing it");
+        let _ = self.child.kill();
+        self.child.wait().ok()
+    }
+}
+
+/// User plus system CPU seconds from a `/proc/<pid>/stat` file (fields 14 and 15, in USER_HZ = 100
+/// ticks per second, fixed by the Linux ABI).
+#[must_use]
+pub fn cpu_seconds(stat_path: &str) -> Option<f64> {
+    let text = std::fs::read_to_string(stat_path).ok()?;
+    // The command name (field 2) is in parentheses and may hold spaces: count fields after it.
+    let rest = &text[text.rfind(')')? + 1..];
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    let utime: f64 = fields.get(11)?.parse().ok()?;
+    let stime: f64 = fields.get(12)?.parse().ok()?;
+    Some((utime + stime) / 100.0)
+}
+
+/// CPU seconds this process has used so far.
+#[must_use]
+pub fn own_cpu_s() -> Option<f64> {
+    cpu_seconds("/proc/self/stat")
+}
+
+/// What a launch measured.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LaunchReport {
+    pub steps: u64,
+    /// Plant time at the end (s).
+    pub sim_s: f64,
+    /// Wall time from the first step to the last (s).
+    pub wall_s: f64,
+    pub link: LinkStats,
+    /// CPU seconds over the run: the autopilot child, and this process (the plant).
+    pub autopilot_cpu_s: Option<f64>,
+    pub plant_cpu_s: Option<f64>,
+    /// Set when the run ended on `stop` (Ctrl-C) rather than its duration.
+    pub stopped: bool,
+}
+
+impl LaunchReport {
+    #[must_use]
+    pub fn realtime_factor(&self) -> f64 {
+        if self.wall_s > 0.0 { self.sim_s / self.wall_s } else { 0.0 }
+    }
+}
+
+/// Step `server` in lockstep with `child` until `duration_us` of plant time (`None`: no limit) or until
+/// `stop` is set, calling `observe` after every step; then stop the child. Wall and CPU time are counted
+/// from the end of the first step (the autopilot's start-up is not in them).
+///
+/// # Errors
+/// The link's error, or [`LaunchError::AutopilotExited`] if the child died first.
+pub fn run_with_child(
+    server: &mut PlantServer<UdpTransport>,
+    mut child: AutopilotChild,
+    duration_us: Option<u64>,
+    stop: &AtomicBool,
+    mut observe: impl FnMut(&Plant, &ActuatorCommand) + Send,
+) -> Result<LaunchReport, LaunchError> {
+    let halt = AtomicBool::new(false);
+    let started = AtomicBool::new(false);
+    let (plant_result, child_exit, child_cpu) = std::thread::scope(|scope| {
+        let plant = scope.spawn(|| -> Result<Measured, LinkError> {
+            let mut first: Option<(Instant, Option<f64>)> = None;
+            let stopped = loop {
+                if duration_us.is_some_and(|d| server.plant().time_us() >= d) {
+                    break false;
+                }
+                match server.step(&halt) {
+                    Ok(cmd) => observe(server.plant(), &cmd),
+                    Err(LinkError::Stopped) => break true,
+                    Err(e) => return Err(e),
+                }
+                if first.is_none() {
+                    first = Some((Instant::now(), own_cpu_s()));
+                    started.store(true, Ordering::Relaxed);
+                }
+            };
+            let (t0, cpu0) = first.unwrap_or((Instant::now(), None));
+            let plant_cpu_s = cpu0.zip(own_cpu_s()).map(|(a, b)| b - a);
+            Ok(Measured { wall_s: t0.elapsed().as_secs_f64(), plant_cpu_s, stopped })
+        });
+        let mut child_cpu0 = None;
+        let mut child_exit = None;
+        while !plant.is_finished() {
+            if child_cpu0.is_none() && started.load(Ordering::Relaxed) {
+                child_cpu0 = child.cpu_s();
+            }
+            if child_exit.is_none() {
+                child_exit = child.exited();
+            }
+            if stop.load(Ordering::Relaxed) || child_exit.is_some() {
+                halt.store(true, Ordering::Relaxed);
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let child_cpu = child_cpu0.zip(child.cpu_s()).map(|(a, b)| b - a);
+        (plant.join(), child_exit, child_cpu)
+    });
+    let measured = match plant_result {
+        Ok(Ok(m)) => m,
+        Ok(Err(e)) => {
+            child.stop();
+            return Err(e.into());
+        }
+        Err(_) => {
+            child.stop();
+            return Err(LaunchError::Panicked);
+        }
+    };
+    // The autopilot failing ends the run as an error; a clean exit (its own Ctrl-C) ends it as stopped.
+    if let Some(status) = child_exit
+        && !status.success()
+    {
+        return Err(LaunchError::AutopilotExited(status));
+    }
+    child.stop();
+    let stats = server.stats();
+    Ok(LaunchReport {
+        steps: stats.steps,
+        sim_s: server.plant().time_us() as f64 * 1e-6,
+        wall_s: measured.wall_s,
+        link: stats,
+        autopilot_cpu_s: child_cpu,
+        plant_cpu_s: measured.plant_cpu_s,
+        stopped: measured.stopped,
+    })
+}
+
+/// What the plant thread measured.
+struct Measured {
+    wall_s: f64,
+    plant_cpu_s: Option<f64>,
+    stopped: bool,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cpu_seconds_reads_utime_and_stime_after_a_name_with_spaces() {
+        let dir = std::env::temp_dir().join(format!("sitl-stat-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("dir");
+        let path = dir.join("stat");
+        std::fs::write(&path, "42 (my prog) S 1 42 42 0 -1 4194560 100 0 0 0 250 75 0 0 20 0 1 0").expect("write");
+        assert_eq!(cpu_seconds(path.to_str().expect("utf-8")), Some(3.25));
+        assert_eq!(cpu_seconds("/nonexistent/stat"), None);
+        assert!(own_cpu_s().is_some_and(|s| s >= 0.0), "this process's own /proc entry reads");
+        let _ = std::fs::remove_dir_all(dir);
+    }
+}
