@@ -5,4 +5,5 @@ pub mod control;
 pub mod estimator;
 pub mod hil;
 pub mod mavlink;
+pub mod navigator;
 pub mod vehicle;

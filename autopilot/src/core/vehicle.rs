@@ -31,6 +31,7 @@ use crate::core::estimator::{
     TruthSample,
 };
 use crate::core::mavlink::{CommandContext, CommandEffect, Home, MavlinkService, TelemetrySnapshot, command_replies};
+use crate::core::navigator::NavigatorConfig;
 
 /// Motor command with the motors stopped (µs).
 pub const PWM_MIN_US: f64 = 1000.0;
@@ -47,6 +48,7 @@ pub struct VehicleConfig {
     pub control: ControllerConfig,
     pub estimator: EstimatorConfig,
     pub commander: CommanderConfig,
+    pub navigator: NavigatorConfig,
     /// Climb speed of the takeoff reference (m/s; PX4 MPC_TKO_SPEED).
     pub takeoff_speed_mps: f64,
     /// How far below the ground the landing reference may ramp (m), bounding the push into the ground.
@@ -73,6 +75,7 @@ impl Default for VehicleConfig {
             control: ControllerConfig::default(),
             estimator: EstimatorConfig::default(),
             commander: CommanderConfig::default(),
+            navigator: NavigatorConfig::default(),
             takeoff_speed_mps: 1.0,
             land_ramp_below_ground_m: 0.5,
             start_airborne: None,
