@@ -8,6 +8,10 @@
 //! averaged moment), 4 position loop every `inner_hz / position_hz`-th tick (Eqs 19-21, limiter, attitude
 //! extraction), 5 collective (Eq 20 z row), 6 attitude law (Eqs 22-24), 7 rate loop (Eq 9 inverted),
 //! 8 distributor (Eqs 26-27) and lift curve (Eq 10).
+//!
+//! [`AcoController::reconfigure`] takes new gains, limits, adaptation rates, bounds, filter cutoffs and
+//! nominal model while flying and keeps the identified weights, the filter histories, the rotor model and
+//! the position integral; the loop rates are fixed at construction.
 
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
@@ -131,6 +135,8 @@ pub struct AcoWeights {
 #[derive(Debug, Clone)]
 pub struct AcoController {
     cfg: AcoConfig,
+    /// Inner-loop rate f_s (Hz) and period Δ (s).
+    sample_hz: f64,
     dt_s: f64,
     pos_divider: u64,
     pos_dt_s: f64,
@@ -188,21 +194,17 @@ impl AcoController {
         lpf_specific_force.reset_to(&Vector3::new(0.0, 0.0, -g));
         let mut lpf_thrust_force = LowPass2Vec3::new(cfg.lpf_translation_hz, fs);
         lpf_thrust_force.reset_to(&Vector3::new(0.0, 0.0, -a.mass_kg * g));
-        let t_bounds =
-            LmsBounds { w_min: cfg.w_t_bounds_g[0] * g, w_max: cfg.w_t_bounds_g[1] * g, b_abs_max: cfg.b_t_max_mps2 };
+        let t_bounds = translation_bounds(&cfg);
         let lms_t = [LmsChannel::new(g, 0.0, cfg.gamma_w_t_per_s, cfg.gamma_b_t_per_s, fs, t_bounds); 3];
 
         let mut lpf_moment = LowPass2Vec3::new(cfg.lpf_rotation_hz, fs);
         lpf_moment.reset_to(&moment0);
-        let r_bounds = LmsBounds {
-            w_min: cfg.c_r_bounds_alpha_ref[0] * cfg.alpha_ref_radps2,
-            w_max: cfg.c_r_bounds_alpha_ref[1] * cfg.alpha_ref_radps2,
-            b_abs_max: cfg.d_r_max_radps2,
-        };
+        let r_bounds = rotation_bounds(&cfg);
         let lms_r =
             [LmsChannel::new(cfg.alpha_ref_radps2, 0.0, cfg.gamma_c_r_per_s, cfg.gamma_d_r_per_s, fs, r_bounds); 3];
 
         Self {
+            sample_hz: fs,
             dt_s,
             pos_divider: rates.position_divider(),
             pos_dt_s: rates.position_dt_s(),
@@ -231,6 +233,43 @@ impl AcoController {
             last_saturation: MixerSaturation { roll_pitch_scale: 1.0, yaw_factor: 1.0, ..Default::default() },
             last_pwm_us: [a.hover_pwm_us(); 4],
             cfg,
+        }
+    }
+
+    /// Take `config` from the next [`Controller::update`] on, keeping the adaptive state: the LMS weights
+    /// (projected onto new, tighter bounds, which marks them as clipped), the filter histories (the LPFs
+    /// are retuned, not restarted), the rotor-lag model, the position integral (kept, and not applied
+    /// while `pos_integral_enabled` is false) and the last setpoints. A new `alpha_ref_radps2` rescales the
+    /// rotation gain weights `c_j` by the ratio of the new to the old value, so the identified model
+    /// `c_j psi_j` is unchanged (alpha_ref only normalises the regressor). A new nominal model is used as
+    /// given: the translation weights stay relative to it (`m̂ = m̄ g / w`) and the LMS re-identifies.
+    /// The loop rates are those of [`AcoController::new`]; rebuild the controller to change them.
+    pub fn reconfigure(&mut self, config: &AcoConfig) {
+        let old = std::mem::replace(&mut self.cfg, config.clone());
+        let cfg = &self.cfg;
+        let fs = self.sample_hz;
+        self.rotor_lag_factor = 1.0 - (-self.dt_s / cfg.airframe.rotor_tau_s).exp();
+        if cfg.lpf_translation_hz != old.lpf_translation_hz {
+            self.lpf_specific_force.retune(cfg.lpf_translation_hz, fs);
+            self.lpf_thrust_force.retune(cfg.lpf_translation_hz, fs);
+        }
+        if cfg.lpf_rotation_hz != old.lpf_rotation_hz {
+            self.lpf_gyro.retune(cfg.lpf_rotation_hz, fs);
+            self.lpf_moment.retune(cfg.lpf_rotation_hz, fs);
+        }
+        if cfg.alpha_ref_radps2 != old.alpha_ref_radps2 {
+            let ratio = cfg.alpha_ref_radps2 / old.alpha_ref_radps2;
+            for ch in &mut self.lms_r {
+                ch.rescale_w(ratio);
+            }
+        }
+        let t_bounds = translation_bounds(cfg);
+        for ch in &mut self.lms_t {
+            ch.reconfigure(cfg.gamma_w_t_per_s, cfg.gamma_b_t_per_s, fs, t_bounds);
+        }
+        let r_bounds = rotation_bounds(cfg);
+        for ch in &mut self.lms_r {
+            ch.reconfigure(cfg.gamma_c_r_per_s, cfg.gamma_d_r_per_s, fs, r_bounds);
         }
     }
 
@@ -315,7 +354,8 @@ impl AcoController {
                 }
             }
         }
-        let e_p_eff = e_p + c.ki_pos_per_s * self.pos_integral_m_s;
+        // A disabled integral is not applied (it is zero unless a reconfigure turned it off).
+        let e_p_eff = if c.pos_integral_enabled { e_p + c.ki_pos_per_s * self.pos_integral_m_s } else { e_p };
         let v_lim = [c.vel_limit_ne_mps, c.vel_limit_ne_mps, c.vel_limit_d_mps];
         let v_c = clip_abs(&(c.kp_pos_per_s * e_p_eff + reference.vel_ned_mps), &v_lim);
         let mut a_d = c.kv_vel_per_s * (v_c - input.vel_ned_mps) + reference.acc_ned_mps2;
@@ -345,6 +385,22 @@ impl AcoController {
         };
         self.last_limit = Some(limited);
         self.position_loop_ran = true;
+    }
+}
+
+/// Projection bounds of the translation LMS: `w_i` in `w_t_bounds_g` times g, `|b_i| <= b_t_max_mps2`.
+fn translation_bounds(cfg: &AcoConfig) -> LmsBounds {
+    let g = cfg.airframe.gravity_mps2;
+    LmsBounds { w_min: cfg.w_t_bounds_g[0] * g, w_max: cfg.w_t_bounds_g[1] * g, b_abs_max: cfg.b_t_max_mps2 }
+}
+
+/// Projection bounds of the rotation LMS: `c_j` in `c_r_bounds_alpha_ref` times alpha_ref,
+/// `|d_j| <= d_r_max_radps2`.
+fn rotation_bounds(cfg: &AcoConfig) -> LmsBounds {
+    LmsBounds {
+        w_min: cfg.c_r_bounds_alpha_ref[0] * cfg.alpha_ref_radps2,
+        w_max: cfg.c_r_bounds_alpha_ref[1] * cfg.alpha_ref_radps2,
+        b_abs_max: cfg.d_r_max_radps2,
     }
 }
 
@@ -407,6 +463,10 @@ impl Controller for AcoController {
         self.last_pwm_us
     }
 
+    fn reconfigure(&mut self, config: &super::ControllerConfig) {
+        AcoController::reconfigure(self, &config.aco);
+    }
+
     fn kind(&self) -> ControllerKind {
         ControllerKind::Aco
     }
@@ -460,10 +520,121 @@ impl Controller for AcoController {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::core::control::toy_plant::{ToyPlant, at, fly, hover_input, max_after, mismatch};
+    use crate::core::control::ControllerConfig;
+    use crate::core::control::toy_plant::{Sample, ToyPlant, at, fly, hover_input, max_after, mismatch};
 
     fn aco() -> AcoController {
         AcoController::new(&AcoConfig::default(), LoopRates::default())
+    }
+
+    /// A run of the default controller around the mismatch plant: 4 s holding `(0, 0, -1.5)` (the weights
+    /// adapt away from the nominal), then `reconfigure(config)` when given, then 3 s flying to
+    /// `target`. Returns the second leg, the weights just before and just after the reconfigure,
+    /// and the controller.
+    fn fly_reconfigured(
+        config: Option<&AcoConfig>,
+        target: Vector3<f64>,
+    ) -> (Vec<Sample>, AcoWeights, AcoWeights, AcoController) {
+        let p = Vector3::new(0.0, 0.0, -1.5);
+        let mut plant = ToyPlant::new(p, Vector3::zeros());
+        mismatch(&mut plant);
+        let mut c = aco();
+        fly(&mut c, &mut plant, 500, 4.0, |_| Reference::position(p, 0.0));
+        let before = c.weights();
+        if let Some(config) = config {
+            Controller::reconfigure(&mut c, &ControllerConfig { aco: config.clone(), ..ControllerConfig::default() });
+        }
+        let after = c.weights();
+        let tr = fly(&mut c, &mut plant, 500, 3.0, |_| Reference::position(target, 0.0));
+        (tr, before, after, c)
+    }
+
+    /// Second-leg targets: a diagonal step (everything moves) and a 1 m climb (the D loop alone).
+    const DIAGONAL: Vector3<f64> = Vector3::new(1.0, 0.5, -2.5);
+    const CLIMB: Vector3<f64> = Vector3::new(0.0, 0.0, -2.5);
+
+    fn bits(trace: &[Sample]) -> Vec<[u64; 4]> {
+        trace.iter().map(|s| s.pwm_us.map(f64::to_bits)).collect()
+    }
+
+    #[test]
+    fn given_adapted_controller_when_reconfigured_with_same_config_then_trajectory_bit_identical() {
+        let (plain, before, _, c_plain) = fly_reconfigured(None, DIAGONAL);
+        let (same, _, after, c_same) = fly_reconfigured(Some(&AcoConfig::default()), DIAGONAL);
+        assert_eq!(before, after);
+        assert_ne!(before.w_t, [9.81; 3], "the weights adapted before the reconfigure");
+        assert_eq!(bits(&plain), bits(&same));
+        assert!(plain.iter().zip(same.iter()).all(|(a, b)| a.input == b.input));
+        assert_eq!(c_plain.telemetry(), c_same.telemetry());
+    }
+
+    #[test]
+    fn given_adapted_controller_when_position_gain_raised_then_weights_kept_and_target_reached_sooner() {
+        let (plain, _, _, _) = fly_reconfigured(None, CLIMB);
+        let stiffer = AcoConfig { kp_pos_per_s: 2.0, ..AcoConfig::default() };
+        let (fast, before, after, c) = fly_reconfigured(Some(&stiffer), CLIMB);
+        assert_eq!(before, after, "reconfigure does not reset the weights");
+        assert_eq!(c.cfg.kp_pos_per_s, 2.0);
+        let err = |tr: &[Sample], t: f64| (at(tr, t).input.pos_ned_m - CLIMB).norm();
+        assert!(err(&fast, 2.0) < 0.5 * err(&plain, 2.0), "{} vs {}", err(&fast, 2.0), err(&plain, 2.0));
+        assert!(!c.weights_at_bounds());
+    }
+
+    #[test]
+    fn given_adapted_controller_when_bounds_tightened_then_weights_projected_and_flagged() {
+        let mut c = aco();
+        let p = Vector3::new(0.0, 0.0, -1.5);
+        let mut plant = ToyPlant::new(p, Vector3::zeros());
+        mismatch(&mut plant);
+        fly(&mut c, &mut plant, 500, 4.0, |_| Reference::position(p, 0.0));
+        let w_d = c.weights().w_t[2];
+        assert!(w_d < 0.97 * 9.81 && !c.weights_at_bounds(), "{w_d}");
+        c.reconfigure(&AcoConfig { w_t_bounds_g: [0.97, 2.0], ..AcoConfig::default() });
+        assert_eq!(c.weights().w_t[2], 0.97 * 9.81);
+        assert!(c.weights_at_bounds());
+    }
+
+    #[test]
+    fn given_new_alpha_ref_when_reconfigured_then_rotation_weights_rescaled_and_command_unchanged() {
+        let p = Vector3::new(0.0, 0.0, -1.5);
+        let mut plant = ToyPlant::new(p, Vector3::zeros());
+        mismatch(&mut plant);
+        let mut c = aco();
+        fly(&mut c, &mut plant, 500, 4.0, |_| Reference::position(p, 0.0));
+        let mut scaled = c.clone();
+        scaled.reconfigure(&AcoConfig { alpha_ref_radps2: 20.0, ..AcoConfig::default() });
+        for (a, b) in c.weights().c_r.iter().zip(scaled.weights().c_r.iter()) {
+            assert!((2.0 * a - b).abs() < 1e-12, "{a} -> {b}");
+        }
+        let input = plant.sense();
+        let r = Reference::position(p, 0.0);
+        // The same command up to rounding and the (now slower, in c/alpha_ref terms) LMS step of this tick.
+        let (u, v) = (c.update(&input, &r), scaled.update(&input, &r));
+        for (x, y) in u.iter().zip(v.iter()) {
+            assert!((x - y).abs() < 1e-4, "{u:?} vs {v:?}");
+        }
+    }
+
+    #[test]
+    fn given_new_filter_cutoffs_when_reconfigured_then_filters_retuned_not_restarted() {
+        let mut c = aco();
+        let p = Vector3::new(0.0, 0.0, -2.0);
+        for _ in 0..100 {
+            c.update(&hover_input(p, 0.0), &Reference::position(p, 0.0));
+        }
+        let out = c.lpf_thrust_force.output();
+        c.reconfigure(&AcoConfig { lpf_translation_hz: 12.0, lpf_rotation_hz: 20.0, ..AcoConfig::default() });
+        assert_eq!(c.lpf_thrust_force.output(), out, "history kept");
+        let pwm = c.update(&hover_input(p, 0.0), &Reference::position(p, 0.0));
+        let hover = Airframe::default().hover_pwm_us();
+        assert!(pwm.iter().all(|x| (x - hover).abs() < 1.0), "{pwm:?}");
+        let fresh = LowPass2Vec3::new(12.0, 500.0);
+        let mut probe = c.lpf_thrust_force;
+        let mut reference = fresh;
+        let step = Vector3::new(1.0, 0.0, 0.0);
+        probe.reset_to(&Vector3::zeros());
+        reference.reset_to(&Vector3::zeros());
+        assert_eq!(probe.update(&step), reference.update(&step), "12 Hz design in place");
     }
 
     #[test]

@@ -7,7 +7,8 @@
 //! In: the (normalised, dimensionless or in the target's unit) regressor `phi` and the measured target
 //! `d`, once per tick at `sample_hz`. Out: the prediction error and the updated weights. The step sizes
 //! are given as continuous-time rates `gamma` (1/s) and converted per tick as `mu = gamma / (2 f_s)`
-//! (spec A.1 item 4), so the adaptation speed does not change with the loop rate.
+//! (spec A.1 item 4), so the adaptation speed does not change with the loop rate. `reconfigure` changes
+//! the rates and bounds of a running channel and keeps its weights (projected onto the new bounds).
 
 /// Per-tick step size for a continuous-time adaptation rate: `mu = gamma / (2 f_s)` (spec A.1 item 4).
 #[must_use]
@@ -47,6 +48,31 @@ impl LmsChannel {
             mu_b: step_size_per_tick(gamma_b_per_s, sample_hz),
             bounds,
             hit_bound: false,
+        }
+    }
+
+    /// New adaptation rates (1/s, at `sample_hz`) and bounds, keeping the weights: a weight outside the
+    /// new bounds is projected onto them, which counts as a clip for [`LmsChannel::hit_bound`].
+    pub fn reconfigure(&mut self, gamma_w_per_s: f64, gamma_b_per_s: f64, sample_hz: f64, bounds: LmsBounds) {
+        self.mu_w = step_size_per_tick(gamma_w_per_s, sample_hz);
+        self.mu_b = step_size_per_tick(gamma_b_per_s, sample_hz);
+        self.bounds = bounds;
+        // max/min rather than clamp: no panic even on inverted bounds (config validation reports them).
+        let w = self.w.max(bounds.w_min).min(bounds.w_max);
+        let b = self.b.max(-bounds.b_abs_max).min(bounds.b_abs_max);
+        if w != self.w || b != self.b {
+            self.hit_bound = true;
+        }
+        self.w = w;
+        self.b = b;
+    }
+
+    /// Multiply the gain weight by `factor` (a change of the regressor's normalisation, so that `w phi`
+    /// stays the same); no projection (follow with [`LmsChannel::reconfigure`]). A non-finite or
+    /// non-positive factor is ignored.
+    pub fn rescale_w(&mut self, factor: f64) {
+        if factor.is_finite() && factor > 0.0 {
+            self.w *= factor;
         }
     }
 
@@ -163,6 +189,30 @@ mod tests {
         ch.update(f64::NAN, 1.0, true);
         ch.update(1.0, f64::INFINITY, true);
         assert_eq!((ch.w(), ch.b()), (9.81, 0.0));
+    }
+
+    #[test]
+    fn given_adapted_channel_when_reconfigured_then_weights_kept_rates_changed_and_tighter_bounds_project() {
+        let mut ch = LmsChannel::new(9.81, 0.0, 10.0, 5.0, 500.0, WIDE);
+        for k in 0..5000 {
+            let phi = phi_at(f64::from(k) / 500.0);
+            ch.update(phi, 8.0 * phi + 1.5, true);
+        }
+        let (w, b) = (ch.w(), ch.b());
+        let mut same = ch;
+        same.reconfigure(10.0, 5.0, 500.0, WIDE);
+        assert_eq!(same, ch, "same settings: nothing changes");
+        ch.reconfigure(20.0, 1.0, 500.0, WIDE);
+        assert_eq!((ch.w(), ch.b()), (w, b));
+        assert_eq!(ch.step_sizes(), (0.02, 0.001));
+        assert!(!ch.hit_bound());
+        ch.reconfigure(20.0, 1.0, 500.0, LmsBounds { w_min: 9.0, w_max: 20.0, b_abs_max: 1.0 });
+        assert_eq!((ch.w(), ch.b()), (9.0, 1.0));
+        assert!(ch.hit_bound());
+        ch.rescale_w(2.0);
+        assert_eq!(ch.w(), 18.0);
+        ch.rescale_w(f64::NAN);
+        assert_eq!(ch.w(), 18.0);
     }
 
     #[test]

@@ -246,6 +246,13 @@ impl Airframe {
 pub trait Controller: Send {
     /// One inner tick: the state sampled at this tick -> four PWM commands (µs), never NaN.
     fn update(&mut self, input: &ControlInput, reference: &Reference) -> [f64; 4];
+    /// Live reconfiguration: take the gains, adaptation rates, bounds, limits, filter cutoffs and nominal
+    /// model of this controller's section of `config` from the next [`Controller::update`] on, keeping
+    /// the adaptive state (LMS weights, MRAC gains, PID integrators, filter histories); a value outside
+    /// new, tighter bounds is projected onto them. `config.rates` is NOT applied: the loop periods are
+    /// fixed when the controller is built (the inner loop runs once per plant sample), so a rate change
+    /// needs a new controller. Reconfiguring with the configuration in use changes nothing.
+    fn reconfigure(&mut self, config: &ControllerConfig);
     fn kind(&self) -> ControllerKind;
     /// Named internal values for telemetry/logging (adaptive weights, mass estimate, integrators).
     fn telemetry(&self) -> Vec<(&'static str, f64)>;
@@ -402,6 +409,32 @@ mod tests {
             let mut c = new_controller(kind, &ControllerConfig::default());
             let bad_ref = Reference { yaw_rad: f64::NAN, ..r };
             assert_eq!(c.update(&good, &bad_ref), [hover; 4], "{kind}: bad reference");
+        }
+    }
+
+    /// Every controller, through the trait: a reconfigure with the configuration in use mid-flight leaves
+    /// the closed loop bit-identical, and a rate change in `config.rates` is not applied.
+    #[test]
+    fn given_each_kind_when_reconfigured_mid_flight_with_same_config_then_bit_identical() {
+        use toy_plant::{ToyPlant, fly};
+        let p = Vector3::new(0.0, 0.0, -2.0);
+        let target = Vector3::new(0.5, -0.5, -2.5);
+        let run = |kind: ControllerKind, reconfigure: Option<&ControllerConfig>| {
+            let mut plant = ToyPlant::new(p, Vector3::zeros());
+            let mut c = new_controller(kind, &ControllerConfig::default());
+            fly(c.as_mut(), &mut plant, 500, 1.0, |_| Reference::position(target, 0.0));
+            if let Some(config) = reconfigure {
+                c.reconfigure(config);
+            }
+            let tr = fly(c.as_mut(), &mut plant, 500, 1.0, |_| Reference::position(target, 0.0));
+            (tr.iter().map(|s| s.pwm_us.map(f64::to_bits)).collect::<Vec<_>>(), c.telemetry())
+        };
+        let other_rates =
+            ControllerConfig { rates: LoopRates { inner_hz: 1000, position_hz: 50 }, ..ControllerConfig::default() };
+        for kind in ControllerKind::ALL {
+            let plain = run(kind, None);
+            assert_eq!(plain, run(kind, Some(&ControllerConfig::default())), "{kind}");
+            assert_eq!(plain, run(kind, Some(&other_rates)), "{kind}: rates are not applied live");
         }
     }
 

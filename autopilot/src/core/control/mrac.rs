@@ -12,6 +12,9 @@
 //! `A_mᵀP + P A_m = -I`, gradient laws with projection, and the adaptation frozen while that channel's
 //! actuator was saturated at the previous output (yaw, N/E, D; roll and pitch only with
 //! `MracConfig::freeze_roll_pitch`, which the reference prototype's results show it did not do).
+//!
+//! [`MracController::reconfigure`] takes new reference models, adaptation rates, bounds, limits and
+//! nominal model while flying and keeps every channel's adapted gains and reference-model state.
 
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
@@ -109,21 +112,17 @@ impl MracChannel {
     /// `k1 = -wn², k2 = -2 zeta wn, kr = wn², theta = 0`.
     #[must_use]
     pub fn new(wn: f64, zeta: f64, gamma_k: f64, gamma_theta: f64, theta_max: f64, projection: [f64; 2]) -> Self {
-        let gains = [-wn * wn, -2.0 * zeta * wn, wn * wn];
-        let bound = |g0: f64| {
-            let (a, b) = (projection[0] * g0, projection[1] * g0);
-            [a.min(b), a.max(b)]
-        };
-        let p12 = 1.0 / (2.0 * wn * wn);
+        let gains = Self::nominal_gains(wn, zeta);
+        let (gain_bounds, p12, p22) = Self::design(wn, zeta, projection);
         Self {
             gains,
             theta: 0.0,
-            gain_bounds: [bound(gains[0]), bound(gains[1]), bound(gains[2])],
+            gain_bounds,
             theta_max,
             wn,
             zeta,
             p12,
-            p22: (p12 + 0.5) / (2.0 * zeta * wn),
+            p22,
             gamma_k,
             gamma_theta,
             xm: 0.0,
@@ -131,6 +130,49 @@ impl MracChannel {
             active: false,
             hit_bound: false,
         }
+    }
+
+    /// The matching gains of the reference model `(wn, zeta)`: `[k1, k2, kr] = [-wn², -2 zeta wn, wn²]`.
+    fn nominal_gains(wn: f64, zeta: f64) -> [f64; 3] {
+        [-wn * wn, -2.0 * zeta * wn, wn * wn]
+    }
+
+    /// The gain bounds (`projection` times the matching gains) and the Lyapunov weights `(p12, p22)`.
+    fn design(wn: f64, zeta: f64, projection: [f64; 2]) -> ([[f64; 2]; 3], f64, f64) {
+        let bound = |g0: f64| {
+            let (a, b) = (projection[0] * g0, projection[1] * g0);
+            [a.min(b), a.max(b)]
+        };
+        let [k1, k2, kr] = Self::nominal_gains(wn, zeta);
+        let p12 = 1.0 / (2.0 * wn * wn);
+        ([bound(k1), bound(k2), bound(kr)], p12, (p12 + 0.5) / (2.0 * zeta * wn))
+    }
+
+    /// New reference model, adaptation rates and bounds, keeping the adapted `[k1, k2, kr, theta]` and the
+    /// reference-model state: the gain bounds follow the new matching gains, and a parameter outside the
+    /// new bounds is projected onto them (which counts as a clip for [`MracChannel::hit_bound`]).
+    pub fn reconfigure(
+        &mut self,
+        wn: f64,
+        zeta: f64,
+        gamma_k: f64,
+        gamma_theta: f64,
+        theta_max: f64,
+        projection: [f64; 2],
+    ) {
+        let (gain_bounds, p12, p22) = Self::design(wn, zeta, projection);
+        (self.wn, self.zeta, self.p12, self.p22) = (wn, zeta, p12, p22);
+        (self.gamma_k, self.gamma_theta, self.gain_bounds, self.theta_max) =
+            (gamma_k, gamma_theta, gain_bounds, theta_max);
+        for (gain, [lo, hi]) in self.gains.iter_mut().zip(gain_bounds) {
+            // max/min rather than clamp: no panic on a non-finite bound.
+            let projected = gain.max(lo).min(hi);
+            self.hit_bound |= projected != *gain;
+            *gain = projected;
+        }
+        let theta = self.theta.max(-theta_max).min(theta_max);
+        self.hit_bound |= theta != self.theta;
+        self.theta = theta;
     }
 
     /// `(p12, p22)` of the Lyapunov matrix.
@@ -267,6 +309,34 @@ impl MracController {
         }
     }
 
+    /// Take `config` from the next [`Controller::update`] on, keeping every channel's adapted gains and
+    /// reference-model state (see [`MracChannel::reconfigure`]), the yaw unwrapping and the last
+    /// setpoints. The loop rates are those of [`MracController::new`]; rebuild to change them.
+    pub fn reconfigure(&mut self, config: &MracConfig) {
+        let c = config.clone();
+        for (j, ch) in self.att.iter_mut().enumerate() {
+            ch.reconfigure(
+                c.wn_att_radps[j],
+                c.zeta_att[j],
+                c.gamma_k_att,
+                c.gamma_theta_att,
+                c.theta_max_att,
+                c.gain_projection,
+            );
+        }
+        for ch in &mut self.pos {
+            ch.reconfigure(
+                c.wn_pos_radps,
+                c.zeta_pos,
+                c.gamma_k_pos,
+                c.gamma_theta_pos,
+                c.theta_max_pos,
+                c.gain_projection,
+            );
+        }
+        self.cfg = c;
+    }
+
     /// The attitude channels (roll, pitch, yaw).
     #[must_use]
     pub fn attitude_channels(&self) -> &[MracChannel; 3] {
@@ -358,6 +428,10 @@ impl Controller for MracController {
         self.last_pwm_us
     }
 
+    fn reconfigure(&mut self, config: &super::ControllerConfig) {
+        MracController::reconfigure(self, &config.mrac);
+    }
+
     fn kind(&self) -> ControllerKind {
         ControllerKind::Ca
     }
@@ -395,10 +469,104 @@ impl Controller for MracController {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::core::control::toy_plant::{ToyPlant, at, fly, hover_input, max_after};
+    use crate::core::control::ControllerConfig;
+    use crate::core::control::toy_plant::{Sample, ToyPlant, at, fly, hover_input, max_after, mismatch};
 
     fn ca() -> MracController {
         MracController::new(&MracConfig::default(), LoopRates::default())
+    }
+
+    /// Every channel's `[k1, k2, kr, theta]`, attitude then position.
+    fn parameters(c: &MracController) -> Vec<[f64; 4]> {
+        c.att.iter().chain(c.pos.iter()).map(MracChannel::parameters).collect()
+    }
+
+    /// A second leg, every channel's parameters just before and just after the reconfigure, the controller.
+    type Run = (Vec<Sample>, Vec<[f64; 4]>, Vec<[f64; 4]>, MracController);
+
+    /// The default CA around the mismatch plant: 4 s flying to `(0.5, 0, -2)` (the gains adapt), then
+    /// `reconfigure(config)` when given, then 4 s flying to `(1, 0.5, -2.5)`. Returns the second leg, the
+    /// parameters just before and just after the reconfigure, and the controller.
+    fn fly_reconfigured(config: Option<&MracConfig>) -> Run {
+        let mut plant = ToyPlant::new(Vector3::new(0.0, 0.0, -1.5), Vector3::zeros());
+        mismatch(&mut plant);
+        let mut c = ca();
+        fly(&mut c, &mut plant, 500, 4.0, |_| Reference::position(Vector3::new(0.5, 0.0, -2.0), 0.0));
+        let before = parameters(&c);
+        if let Some(config) = config {
+            Controller::reconfigure(&mut c, &ControllerConfig { mrac: config.clone(), ..ControllerConfig::default() });
+        }
+        let after = parameters(&c);
+        let target = Vector3::new(1.0, 0.5, -2.5);
+        let tr = fly(&mut c, &mut plant, 500, 4.0, |_| Reference::position(target, 0.0));
+        (tr, before, after, c)
+    }
+
+    fn bits(trace: &[Sample]) -> Vec<[u64; 4]> {
+        trace.iter().map(|s| s.pwm_us.map(f64::to_bits)).collect()
+    }
+
+    #[test]
+    fn given_adapted_ca_when_reconfigured_with_same_config_then_trajectory_bit_identical() {
+        let (plain, before, _, c_plain) = fly_reconfigured(None);
+        let (same, _, after, c_same) = fly_reconfigured(Some(&MracConfig::default()));
+        assert_eq!(before, after);
+        assert_ne!(before, parameters(&ca()), "the gains adapted before the reconfigure");
+        assert_eq!(bits(&plain), bits(&same));
+        assert_eq!(c_plain.telemetry(), c_same.telemetry());
+    }
+
+    #[test]
+    fn given_adapted_ca_when_position_offset_rate_raised_then_gains_kept_and_new_rate_adapts_faster() {
+        let (plain, _, _, _) = fly_reconfigured(None);
+        let fast_cfg = MracConfig { gamma_theta_pos: 3.0, ..MracConfig::default() };
+        let (fast, before, after, _) = fly_reconfigured(Some(&fast_cfg));
+        assert_eq!(before, after, "reconfigure does not reset the adapted gains");
+        assert_ne!(bits(&plain), bits(&fast));
+        let target = Vector3::new(1.0, 0.5, -2.5);
+        assert!((at(&fast, 4.0).input.pos_ned_m - target).norm() < (at(&fast, 0.0).input.pos_ned_m - target).norm());
+        // One position step from the same state: the offsets move three times as far at three times the rate.
+        let mut plant = ToyPlant::new(Vector3::new(0.0, 0.0, -1.5), Vector3::zeros());
+        mismatch(&mut plant);
+        let mut c = ca();
+        let r = Reference::position(Vector3::new(0.5, 0.0, -2.0), 0.0);
+        fly(&mut c, &mut plant, 500, 4.0, |_| r);
+        let mut c3 = c.clone();
+        c3.reconfigure(&fast_cfg);
+        let theta = |c: &MracController| c.pos.map(|ch| ch.parameters()[3]);
+        let theta0 = theta(&c);
+        let input = plant.sense();
+        c.update(&input, &r);
+        c3.update(&input, &r);
+        for (i, ((t1, t3), t0)) in theta(&c).iter().zip(theta(&c3)).zip(theta0).enumerate() {
+            let (d1, d3) = (t1 - t0, t3 - t0);
+            assert!(d1 != 0.0 && (d3 - 3.0 * d1).abs() < 1e-9 * d1.abs(), "axis {i}: {d1} vs {d3}");
+        }
+    }
+
+    #[test]
+    fn given_adapted_channel_when_reconfigured_with_tighter_bounds_then_projected_and_flagged() {
+        let mut ch = MracChannel::new(1.2, 0.9, 0.3, 1.0, 4.0, [0.2, 5.0]);
+        ch.step(0.0, 0.0, 0.0, 0.01, false);
+        for _ in 0..200 {
+            ch.step(0.5, 0.2, 1.0, 0.01, false);
+        }
+        let [_, _, _, theta] = ch.parameters();
+        assert!(theta.abs() > 0.01 && !ch.hit_bound(), "{theta}");
+        let mut same = ch;
+        same.reconfigure(1.2, 0.9, 0.3, 1.0, 4.0, [0.2, 5.0]);
+        assert_eq!(same, ch);
+        ch.reconfigure(1.2, 0.9, 0.3, 1.0, 0.005, [0.2, 5.0]);
+        assert_eq!(ch.parameters()[3].abs(), 0.005);
+        assert!(ch.hit_bound());
+        let mut moved = MracChannel::new(5.0, 0.9, 1000.0, 1000.0, 8.0, [0.2, 5.0]);
+        moved.reconfigure(2.0, 0.9, 1000.0, 1000.0, 8.0, [0.2, 5.0]);
+        assert_eq!(
+            moved.lyapunov_weights(),
+            MracChannel::new(2.0, 0.9, 1000.0, 1000.0, 8.0, [0.2, 5.0]).lyapunov_weights()
+        );
+        // The kept k1 = -25 lies outside the new bounds [-20, -0.8] and is projected.
+        assert_eq!(moved.parameters()[0], -20.0);
     }
 
     #[test]

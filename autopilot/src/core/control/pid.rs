@@ -8,6 +8,9 @@
 //! (`M = Ī ⊙ (Kω e_ω + Kri ∫e_ω)`, |I torque| ≤ 0.3 N·m, frozen per saturated axis), and the shared
 //! distributor (Eqs 26-27) and lift curve (Eq 10). The derivative gains Kvd and Krd are 0 in the spec
 //! and are not implemented.
+//!
+//! [`PidController::reconfigure`] takes new gains, limits and nominal model while flying and keeps the
+//! integrators (clamped to new, tighter limits).
 
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
@@ -122,6 +125,18 @@ impl PidController {
         }
     }
 
+    /// Take `config` from the next [`Controller::update`] on, keeping both integrators (each term
+    /// clamped to the new `vel_integral_max_mps2` / `rate_integral_max_nm`) and the last setpoints. The
+    /// integrators hold their values, not their gain-scaled history: a new integral gain applies to the
+    /// error integrated from now on. The loop rates are those of [`PidController::new`].
+    pub fn reconfigure(&mut self, config: &PidConfig) {
+        self.cfg = config.clone();
+        let (v_max, m_max) = (self.cfg.vel_integral_max_mps2, self.cfg.rate_integral_max_nm);
+        // max/min rather than clamp: no panic on a non-finite or negative limit.
+        self.vel_integral_mps2 = self.vel_integral_mps2.map(|x| x.max(-v_max).min(v_max));
+        self.rate_integral_nm = self.rate_integral_nm.map(|x| x.max(-m_max).min(m_max));
+    }
+
     /// Velocity integral terms (m/s²), NED.
     #[must_use]
     pub fn velocity_integral_mps2(&self) -> Vector3<f64> {
@@ -233,6 +248,10 @@ impl Controller for PidController {
         self.last_pwm_us
     }
 
+    fn reconfigure(&mut self, config: &super::ControllerConfig) {
+        PidController::reconfigure(self, &config.pid);
+    }
+
     fn kind(&self) -> ControllerKind {
         ControllerKind::Pid
     }
@@ -269,10 +288,79 @@ impl Controller for PidController {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::core::control::toy_plant::{ToyPlant, at, fly, hover_input, max_after};
+    use crate::core::control::ControllerConfig;
+    use crate::core::control::toy_plant::{Sample, ToyPlant, at, fly, hover_input, max_after, mismatch};
 
     fn pid() -> PidController {
         PidController::new(&PidConfig::default(), LoopRates::default())
+    }
+
+    /// The integrators: velocity (m/s², NED) and rate (N·m, FRD).
+    type Integrators = (Vector3<f64>, Vector3<f64>);
+    /// A second leg, the integrators just before and just after the reconfigure, the controller.
+    type Run = (Vec<Sample>, Integrators, Integrators, PidController);
+
+    /// The default PID around the mismatch plant: 4 s holding `(0, 0, -1.5)` (the integrators take up the
+    /// extra mass and the torque disturbance), then `reconfigure(config)` when given, then 4 s flying to
+    /// `target`. Returns the second leg, the integrators `(velocity, rate)` just before and just
+    /// after the reconfigure, and the controller.
+    fn fly_reconfigured(config: Option<&PidConfig>, target: Vector3<f64>) -> Run {
+        let p = Vector3::new(0.0, 0.0, -1.5);
+        let mut plant = ToyPlant::new(p, Vector3::zeros());
+        mismatch(&mut plant);
+        let mut c = pid();
+        fly(&mut c, &mut plant, 500, 4.0, |_| Reference::position(p, 0.0));
+        let before = (c.velocity_integral_mps2(), c.rate_integral_nm());
+        if let Some(config) = config {
+            Controller::reconfigure(&mut c, &ControllerConfig { pid: config.clone(), ..ControllerConfig::default() });
+        }
+        let after = (c.velocity_integral_mps2(), c.rate_integral_nm());
+        let tr = fly(&mut c, &mut plant, 500, 4.0, |_| Reference::position(target, 0.0));
+        (tr, before, after, c)
+    }
+
+    /// Second-leg targets: a diagonal step (everything moves) and a 1 m climb (the D loop alone).
+    const DIAGONAL: Vector3<f64> = Vector3::new(1.0, 0.5, -2.5);
+    const CLIMB: Vector3<f64> = Vector3::new(0.0, 0.0, -2.5);
+
+    fn bits(trace: &[Sample]) -> Vec<[u64; 4]> {
+        trace.iter().map(|s| s.pwm_us.map(f64::to_bits)).collect()
+    }
+
+    #[test]
+    fn given_flying_pid_when_reconfigured_with_same_config_then_trajectory_bit_identical() {
+        let (plain, before, _, c_plain) = fly_reconfigured(None, DIAGONAL);
+        let (same, _, after, c_same) = fly_reconfigured(Some(&PidConfig::default()), DIAGONAL);
+        assert_eq!(before, after);
+        assert!(before.0.z.abs() > 0.05 && before.1.x.abs() > 0.01, "integrators took up the mismatch: {before:?}");
+        assert_eq!(bits(&plain), bits(&same));
+        assert_eq!(c_plain.telemetry(), c_same.telemetry());
+    }
+
+    #[test]
+    fn given_flying_pid_when_position_gain_raised_then_integrators_kept_and_target_reached_sooner() {
+        let (plain, _, _, _) = fly_reconfigured(None, CLIMB);
+        let stiffer = PidConfig { kp_pos_per_s: 2.0, ..PidConfig::default() };
+        let (fast, before, after, c) = fly_reconfigured(Some(&stiffer), CLIMB);
+        assert_eq!(before, after, "reconfigure does not reset the integrators");
+        assert_eq!(c.cfg.kp_pos_per_s, 2.0);
+        let err = |tr: &[Sample], t: f64| (at(tr, t).input.pos_ned_m - CLIMB).norm();
+        assert!(err(&fast, 2.0) < 0.5 * err(&plain, 2.0), "{} vs {}", err(&fast, 2.0), err(&plain, 2.0));
+    }
+
+    #[test]
+    fn given_integrators_when_limits_tightened_then_clamped() {
+        let mut c = pid();
+        let p = Vector3::new(0.0, 0.0, -2.0);
+        let mut input = hover_input(p, 0.0);
+        input.rate_frd_radps.x = -0.1;
+        input.vel_ned_mps.x = -0.5;
+        for _ in 0..20_000 {
+            c.update(&input, &Reference::position(p, 0.0));
+        }
+        assert!(c.rate_integral_nm().x > 0.29 && c.velocity_integral_mps2().x > 2.9);
+        c.reconfigure(&PidConfig { rate_integral_max_nm: 0.1, vel_integral_max_mps2: 1.0, ..PidConfig::default() });
+        assert_eq!((c.rate_integral_nm().x, c.velocity_integral_mps2().x), (0.1, 1.0));
     }
 
     #[test]

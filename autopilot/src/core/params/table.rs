@@ -1,0 +1,626 @@
+//! The parameter table: every parameter of the vehicle, declared once, with the config field(s) it maps
+//! onto. In: nothing (static data). Out: [`PARAMS`], in the order of their MAVLink `param_index`.
+//!
+//! Each entry names its [`VehicleConfig`](crate::core::vehicle::VehicleConfig) field; the macros derive
+//! both directions of the mapping from that one path. Add new parameters at the END of the table, so that
+//! the indices of the existing ones stay what ground stations have cached (ArduPilot's rule); the docs
+//! group them by [`ParamGroup`] whatever their position.
+
+use super::{Binding, ParamDef, ParamGroup, ParamKind};
+
+/// A live REAL32 parameter on one f64 config field.
+macro_rules! real {
+    ($group:ident, $name:literal, $default:literal, [$min:literal, $max:literal], $unit:literal, $desc:literal,
+     $($field:tt)+) => {
+        ParamDef {
+            name: $name,
+            group: ParamGroup::$group,
+            kind: ParamKind::Real,
+            default: $default,
+            min: $min,
+            max: $max,
+            unit: $unit,
+            restart: false,
+            description: $desc,
+            binding: Binding::Config { get: |c| c.$($field)+, set: |c, v| c.$($field)+ = v },
+        }
+    };
+}
+
+/// A whole-number parameter on one u32 config field (`set` has checked it is whole and in range).
+macro_rules! whole {
+    ($group:ident, $name:literal, $default:literal, [$min:literal, $max:literal], $unit:literal,
+     restart = $restart:literal, $desc:literal, $($field:tt)+) => {
+        ParamDef {
+            name: $name,
+            group: ParamGroup::$group,
+            kind: ParamKind::Integer,
+            default: $default,
+            min: $min,
+            max: $max,
+            unit: $unit,
+            restart: $restart,
+            description: $desc,
+            binding: Binding::Config { get: |c| f64::from(c.$($field)+), set: |c, v| c.$($field)+ = v as u32 },
+        }
+    };
+}
+
+/// A live boolean parameter (0 or 1) on one bool config field.
+macro_rules! flag {
+    ($group:ident, $name:literal, $default:literal, $desc:literal, $($field:tt)+) => {
+        ParamDef {
+            name: $name,
+            group: ParamGroup::$group,
+            kind: ParamKind::Boolean,
+            default: $default,
+            min: 0.0,
+            max: 1.0,
+            unit: "0/1",
+            restart: false,
+            description: $desc,
+            binding: Binding::Config {
+                get: |c| if c.$($field)+ { 1.0 } else { 0.0 },
+                set: |c, v| c.$($field)+ = v != 0.0,
+            },
+        }
+    };
+}
+
+/// A live REAL32 parameter of the nominal airframe: read from the ACO's, written to all three
+/// controllers' (`control.aco`, `control.mrac`, `control.pid`).
+macro_rules! airframe {
+    ($name:literal, $default:literal, [$min:literal, $max:literal], $unit:literal, $desc:literal, $($field:tt)+) => {
+        ParamDef {
+            name: $name,
+            group: ParamGroup::Airframe,
+            kind: ParamKind::Real,
+            default: $default,
+            min: $min,
+            max: $max,
+            unit: $unit,
+            restart: false,
+            description: $desc,
+            binding: Binding::Config {
+                get: |c| c.control.aco.airframe.$($field)+,
+                set: |c, v| {
+                    c.control.aco.airframe.$($field)+ = v;
+                    c.control.mrac.airframe.$($field)+ = v;
+                    c.control.pid.airframe.$($field)+ = v;
+                },
+            },
+        }
+    };
+}
+
+/// Every parameter, in `param_index` order.
+pub static PARAMS: &[ParamDef] = &[
+    // ACO controller: the cascade (spec A.4 steps 4-7).
+    real!(
+        Aco,
+        "ACO_POS_P",
+        0.6667,
+        [0.05, 5.0],
+        "1/s",
+        "Position gain Kp: velocity command per metre of position error.",
+        control.aco.kp_pos_per_s
+    ),
+    real!(
+        Aco,
+        "ACO_VEL_P",
+        2.16,
+        [0.1, 20.0],
+        "1/s",
+        "Velocity gain Kv: acceleration demand per m/s of velocity error.",
+        control.aco.kv_vel_per_s
+    ),
+    real!(
+        Aco,
+        "ACO_ROLL_P",
+        2.778,
+        [0.1, 20.0],
+        "1/s",
+        "Roll attitude gain Kη (Eqs 22-24).",
+        control.aco.k_att_per_s[0]
+    ),
+    real!(
+        Aco,
+        "ACO_PITCH_P",
+        2.778,
+        [0.1, 20.0],
+        "1/s",
+        "Pitch attitude gain Kη (Eqs 22-24).",
+        control.aco.k_att_per_s[1]
+    ),
+    real!(Aco, "ACO_YAW_P", 1.389, [0.1, 20.0], "1/s", "Yaw attitude gain Kη (Eqs 22-24).", control.aco.k_att_per_s[2]),
+    real!(
+        Aco,
+        "ACO_ROLLRATE_P",
+        9.0,
+        [0.5, 50.0],
+        "1/s",
+        "Roll rate gain Kω (Eq 9 inverted).",
+        control.aco.k_rate_per_s[0]
+    ),
+    real!(
+        Aco,
+        "ACO_PITCHRATE_P",
+        9.0,
+        [0.5, 50.0],
+        "1/s",
+        "Pitch rate gain Kω (Eq 9 inverted).",
+        control.aco.k_rate_per_s[1]
+    ),
+    real!(
+        Aco,
+        "ACO_YAWRATE_P",
+        4.5,
+        [0.5, 50.0],
+        "1/s",
+        "Yaw rate gain Kω (Eq 9 inverted).",
+        control.aco.k_rate_per_s[2]
+    ),
+    real!(
+        Aco,
+        "ACO_ROLL_RMAX",
+        3.5,
+        [0.1, 10.0],
+        "rad/s",
+        "Limit on the desired roll rate.",
+        control.aco.rate_limit_radps[0]
+    ),
+    real!(
+        Aco,
+        "ACO_PITCH_RMAX",
+        3.5,
+        [0.1, 10.0],
+        "rad/s",
+        "Limit on the desired pitch rate.",
+        control.aco.rate_limit_radps[1]
+    ),
+    real!(
+        Aco,
+        "ACO_YAW_RMAX",
+        1.5,
+        [0.1, 10.0],
+        "rad/s",
+        "Limit on the desired yaw rate.",
+        control.aco.rate_limit_radps[2]
+    ),
+    real!(
+        Aco,
+        "ACO_VEL_MAX_NE",
+        3.0,
+        [0.1, 20.0],
+        "m/s",
+        "Limit on the velocity command, north and east (per axis).",
+        control.aco.vel_limit_ne_mps
+    ),
+    real!(
+        Aco,
+        "ACO_VEL_MAX_D",
+        2.0,
+        [0.1, 10.0],
+        "m/s",
+        "Limit on the vertical velocity command.",
+        control.aco.vel_limit_d_mps
+    ),
+    real!(
+        Aco,
+        "ACO_ACC_MAX_NE",
+        5.0,
+        [0.1, 20.0],
+        "m/s²",
+        "Limit on the horizontal norm of the desired acceleration.",
+        control.aco.acc_limit_ne_mps2
+    ),
+    real!(
+        Aco,
+        "ACO_ACC_MAX_D",
+        4.0,
+        [0.1, 15.0],
+        "m/s²",
+        "Limit on the vertical desired acceleration.",
+        control.aco.acc_limit_d_mps2
+    ),
+    // ACO controller: the LMS identification (spec A.1, Eqs 11-18).
+    real!(
+        Aco,
+        "ACO_GAM_W_T",
+        10.0,
+        [0.0, 100.0],
+        "1/s",
+        "Adaptation rate of the translation gain weights w_i (gamma = 2 mu f_s).",
+        control.aco.gamma_w_t_per_s
+    ),
+    real!(
+        Aco,
+        "ACO_GAM_B_T",
+        5.0,
+        [0.0, 100.0],
+        "1/s",
+        "Adaptation rate of the translation bias weights b_i.",
+        control.aco.gamma_b_t_per_s
+    ),
+    real!(
+        Aco,
+        "ACO_GAM_C_R",
+        20.0,
+        [0.0, 100.0],
+        "1/s",
+        "Adaptation rate of the rotation gain weights c_j.",
+        control.aco.gamma_c_r_per_s
+    ),
+    real!(
+        Aco,
+        "ACO_GAM_D_R",
+        5.0,
+        [0.0, 100.0],
+        "1/s",
+        "Adaptation rate of the rotation bias weights d_j.",
+        control.aco.gamma_d_r_per_s
+    ),
+    real!(
+        Aco,
+        "ACO_LPF_T_HZ",
+        8.0,
+        [0.5, 40.0],
+        "Hz",
+        "Cutoff of the 2nd-order low-pass on both sides of the translation LMS.",
+        control.aco.lpf_translation_hz
+    ),
+    real!(
+        Aco,
+        "ACO_LPF_R_HZ",
+        15.0,
+        [0.5, 40.0],
+        "Hz",
+        "Cutoff of the 2nd-order low-pass on both sides of the rotation LMS.",
+        control.aco.lpf_rotation_hz
+    ),
+    real!(
+        Aco,
+        "ACO_W_T_MIN",
+        0.5,
+        [0.05, 1.0],
+        "g",
+        "Lower bound of the translation gain weights w_i, in units of g.",
+        control.aco.w_t_bounds_g[0]
+    ),
+    real!(
+        Aco,
+        "ACO_W_T_MAX",
+        2.0,
+        [1.0, 10.0],
+        "g",
+        "Upper bound of the translation gain weights w_i, in units of g.",
+        control.aco.w_t_bounds_g[1]
+    ),
+    real!(
+        Aco,
+        "ACO_B_T_MAX",
+        4.0,
+        [0.0, 20.0],
+        "m/s²",
+        "Bound on the magnitude of the translation bias weights b_i.",
+        control.aco.b_t_max_mps2
+    ),
+    real!(
+        Aco,
+        "ACO_C_R_MIN",
+        0.5,
+        [0.05, 1.0],
+        "alpha_ref",
+        "Lower bound of the rotation gain weights c_j, in units of ACO_ALPHA_REF.",
+        control.aco.c_r_bounds_alpha_ref[0]
+    ),
+    real!(
+        Aco,
+        "ACO_C_R_MAX",
+        2.0,
+        [1.0, 10.0],
+        "alpha_ref",
+        "Upper bound of the rotation gain weights c_j, in units of ACO_ALPHA_REF.",
+        control.aco.c_r_bounds_alpha_ref[1]
+    ),
+    real!(
+        Aco,
+        "ACO_D_R_MAX",
+        8.0,
+        [0.0, 50.0],
+        "rad/s²",
+        "Bound on the magnitude of the rotation bias weights d_j.",
+        control.aco.d_r_max_radps2
+    ),
+    real!(
+        Aco,
+        "ACO_ALPHA_REF",
+        10.0,
+        [0.1, 1000.0],
+        "rad/s²",
+        "Normalisation of the rotation regressor (the nominal c_j); a change rescales the c_j.",
+        control.aco.alpha_ref_radps2
+    ),
+    flag!(
+        Aco,
+        "ACO_ADAPT_EN",
+        1.0,
+        "LMS adaptation on; 0 freezes every weight where it is.",
+        control.aco.adaptation_enabled
+    ),
+    flag!(
+        Aco,
+        "ACO_POS_I_EN",
+        0.0,
+        "Zoned position integral on (spec A.4, optional on hardware).",
+        control.aco.pos_integral_enabled
+    ),
+    real!(
+        Aco,
+        "ACO_POS_I",
+        0.1,
+        [0.0, 5.0],
+        "1/s",
+        "Position integral gain Ki: v_c = Kp (e_p + Ki ∫e_p dt) + v_ref.",
+        control.aco.ki_pos_per_s
+    ),
+    real!(
+        Aco,
+        "ACO_POS_I_ZONE",
+        0.25,
+        [0.01, 10.0],
+        "m",
+        "The position integral accumulates on an axis only while its error is below this.",
+        control.aco.pos_integral_zone_m
+    ),
+    // Loop rates.
+    whole!(
+        Loop,
+        "LOOP_INNER_HZ",
+        500.0,
+        [100.0, 2000.0],
+        "Hz",
+        restart = true,
+        "Rate of the inner loops (rate, attitude, LMS); one tick per plant sample.",
+        control.rates.inner_hz
+    ),
+    whole!(
+        Loop,
+        "LOOP_POS_HZ",
+        100.0,
+        [10.0, 500.0],
+        "Hz",
+        restart = true,
+        "Rate of the position loop; must divide LOOP_INNER_HZ.",
+        control.rates.position_hz
+    ),
+    // Nominal airframe, shared by the three controllers.
+    airframe!("AF_MASS", 5.2, [0.1, 100.0], "kg", "Nominal mass m̄.", mass_kg),
+    airframe!("AF_IXX", 0.08, [0.0001, 10.0], "kg·m²", "Nominal inertia Īx about the FRD x axis.", inertia_kgm2[0]),
+    airframe!("AF_IYY", 0.08, [0.0001, 10.0], "kg·m²", "Nominal inertia Īy about the FRD y axis.", inertia_kgm2[1]),
+    airframe!("AF_IZZ", 0.12, [0.0001, 10.0], "kg·m²", "Nominal inertia Īz about the FRD z axis.", inertia_kgm2[2]),
+    airframe!("AF_ARM", 0.24, [0.02, 5.0], "m", "Arm length l, rotor to centre.", arm_m),
+    airframe!(
+        "AF_YAW_MOM",
+        0.02703,
+        [0.0001, 1.0],
+        "m",
+        "Yaw-moment coefficient λ: rotor yaw torque per newton of lift.",
+        yaw_moment_m
+    ),
+    airframe!("AF_ROTOR_TAU", 0.04, [0.001, 1.0], "s", "Rotor first-order lag τ̄ (the ACO's rotor model).", rotor_tau_s),
+    // PID baseline.
+    real!(Pid, "PID_POS_P", 0.6667, [0.05, 5.0], "1/s", "Position gain Kp.", control.pid.kp_pos_per_s),
+    real!(Pid, "PID_VEL_P", 2.16, [0.1, 20.0], "1/s", "Velocity gain Kv.", control.pid.kv_vel_per_s),
+    ParamDef {
+        name: "PID_VEL_I_NE",
+        group: ParamGroup::Pid,
+        kind: ParamKind::Real,
+        default: 0.4,
+        min: 0.0,
+        max: 20.0,
+        unit: "1/s²",
+        restart: false,
+        description: "Velocity integral gain Kvi, north and east (both).",
+        binding: Binding::Config {
+            get: |c| c.control.pid.kvi_vel_per_s2[0],
+            set: |c, v| {
+                c.control.pid.kvi_vel_per_s2[0] = v;
+                c.control.pid.kvi_vel_per_s2[1] = v;
+            },
+        },
+    },
+    real!(
+        Pid,
+        "PID_VEL_I_D",
+        2.0,
+        [0.0, 20.0],
+        "1/s²",
+        "Velocity integral gain Kvi, down.",
+        control.pid.kvi_vel_per_s2[2]
+    ),
+    real!(Pid, "PID_ROLL_P", 2.778, [0.1, 20.0], "1/s", "Roll attitude gain Kη.", control.pid.k_att_per_s[0]),
+    real!(Pid, "PID_PITCH_P", 2.778, [0.1, 20.0], "1/s", "Pitch attitude gain Kη.", control.pid.k_att_per_s[1]),
+    real!(Pid, "PID_YAW_P", 1.389, [0.1, 20.0], "1/s", "Yaw attitude gain Kη.", control.pid.k_att_per_s[2]),
+    real!(Pid, "PID_ROLLRATE_P", 9.0, [0.5, 50.0], "1/s", "Roll rate gain Kω.", control.pid.k_rate_per_s[0]),
+    real!(Pid, "PID_PITCHRATE_P", 9.0, [0.5, 50.0], "1/s", "Pitch rate gain Kω.", control.pid.k_rate_per_s[1]),
+    real!(Pid, "PID_YAWRATE_P", 4.5, [0.5, 50.0], "1/s", "Yaw rate gain Kω.", control.pid.k_rate_per_s[2]),
+    real!(
+        Pid,
+        "PID_ROLLRATE_I",
+        12.0,
+        [0.0, 100.0],
+        "1/s²",
+        "Roll rate integral gain Kri.",
+        control.pid.kri_rate_per_s2[0]
+    ),
+    real!(
+        Pid,
+        "PID_PITCHRATE_I",
+        12.0,
+        [0.0, 100.0],
+        "1/s²",
+        "Pitch rate integral gain Kri.",
+        control.pid.kri_rate_per_s2[1]
+    ),
+    real!(
+        Pid,
+        "PID_YAWRATE_I",
+        2.25,
+        [0.0, 100.0],
+        "1/s²",
+        "Yaw rate integral gain Kri.",
+        control.pid.kri_rate_per_s2[2]
+    ),
+    // MRAC ("CA") baseline.
+    real!(
+        Mrac,
+        "MRAC_GAM_K_ATT",
+        1000.0,
+        [0.0, 10000.0],
+        "",
+        "Gain adaptation rate Γk of the attitude channels.",
+        control.mrac.gamma_k_att
+    ),
+    real!(
+        Mrac,
+        "MRAC_GAM_TH_ATT",
+        1000.0,
+        [0.0, 10000.0],
+        "",
+        "Offset adaptation rate Γθ of the attitude channels.",
+        control.mrac.gamma_theta_att
+    ),
+    real!(
+        Mrac,
+        "MRAC_GAM_K_POS",
+        0.3,
+        [0.0, 100.0],
+        "",
+        "Gain adaptation rate Γk of the position channels.",
+        control.mrac.gamma_k_pos
+    ),
+    real!(
+        Mrac,
+        "MRAC_GAM_TH_POS",
+        1.0,
+        [0.0, 100.0],
+        "",
+        "Offset adaptation rate Γθ of the position channels (CA-fast: 3).",
+        control.mrac.gamma_theta_pos
+    ),
+    flag!(
+        Mrac,
+        "MRAC_FREEZE_SAT",
+        1.0,
+        "Stop adapting a channel while its actuator saturates (0: CA-raw).",
+        control.mrac.freeze_on_saturation
+    ),
+    // Commander.
+    real!(
+        Commander,
+        "MIS_TAKEOFF_ALT",
+        2.5,
+        [0.5, 100.0],
+        "m",
+        "Takeoff altitude above home when the request names none.",
+        commander.takeoff_alt_m
+    ),
+    real!(Commander, "MPC_TKO_SPEED", 1.0, [0.1, 5.0], "m/s", "Climb speed of the takeoff.", takeoff_speed_mps),
+    real!(Commander, "MPC_LAND_SPEED", 0.7, [0.1, 3.0], "m/s", "Descent speed when landing.", commander.land_speed_mps),
+    real!(
+        Commander,
+        "COM_DISARM_LAND",
+        2.0,
+        [-1.0, 20.0],
+        "s",
+        "Disarm this long after touchdown (negative: never).",
+        commander.disarm_land_s
+    ),
+    real!(
+        Commander,
+        "COM_DISARM_PRFLT",
+        10.0,
+        [-1.0, 60.0],
+        "s",
+        "Disarm when armed this long without taking off (negative: never).",
+        commander.disarm_preflight_s
+    ),
+    real!(
+        Commander,
+        "NAV_MC_ALT_RAD",
+        0.1,
+        [0.01, 10.0],
+        "m",
+        "The takeoff is complete within this distance of its altitude.",
+        commander.takeoff_acceptance_m
+    ),
+    // Navigator.
+    real!(
+        Navigator,
+        "MPC_XY_CRUISE",
+        1.0,
+        [0.1, 5.0],
+        "m/s",
+        "Horizontal cruise speed of missions, goto and return.",
+        navigator.cruise_speed_mps
+    ),
+    real!(
+        Navigator,
+        "MPC_Z_VEL_MAX_UP",
+        1.0,
+        [0.1, 5.0],
+        "m/s",
+        "Vertical speed of altitude changes between items.",
+        navigator.climb_speed_mps
+    ),
+    real!(
+        Navigator,
+        "MPC_ACC_HOR",
+        1.0,
+        [0.1, 10.0],
+        "m/s²",
+        "Acceleration of the path's speed profile.",
+        navigator.accel_mps2
+    ),
+    real!(
+        Navigator,
+        "NAV_ACC_RAD",
+        0.2,
+        [0.05, 50.0],
+        "m",
+        "Waypoint acceptance radius when the item names none.",
+        navigator.acceptance_radius_m
+    ),
+    real!(
+        Navigator,
+        "RTL_RETURN_ALT",
+        3.0,
+        [0.5, 150.0],
+        "m",
+        "Altitude above home to climb to before returning.",
+        navigator.rtl_return_alt_m
+    ),
+    real!(
+        Navigator,
+        "COM_OF_LOSS_T",
+        0.5,
+        [0.1, 60.0],
+        "s",
+        "Offboard setpoints older than this end offboard control.",
+        navigator.offboard_timeout_s
+    ),
+    // Telemetry: kept in the store only (no config field).
+    ParamDef {
+        name: "ACO_WEIGHTS_HZ",
+        group: ParamGroup::Telemetry,
+        kind: ParamKind::Real,
+        default: 2.0,
+        min: 0.0,
+        max: 50.0,
+        unit: "Hz",
+        restart: false,
+        description: "Rate of the stream of the controller's adaptive weights (0: off).",
+        binding: Binding::StoreOnly,
+    },
+];
