@@ -243,6 +243,7 @@ pub fn encode_hil_sensor(fields: &HilSensorFields) -> HIL_SENSOR_DATA {
         pressure_alt,
         temperature,
         fields_updated,
+        ..Default::default()
     }
 }
 
@@ -312,6 +313,7 @@ pub fn encode_hil_gps(gps: &GpsSample) -> HIL_GPS_DATA {
         cog: if v.iter().all(|x| x.is_finite()) { cog_cdeg } else { UNKNOWN_U16 },
         fix_type: gps.fix_type,
         satellites_visible: gps.satellites,
+        ..Default::default()
     }
 }
 
@@ -437,6 +439,7 @@ pub fn encode_odometry(truth: &TruthSample) -> ODOMETRY_DATA {
         velocity_covariance: unknown,
         frame_id: MavFrame::MAV_FRAME_LOCAL_NED,
         child_frame_id: MavFrame::MAV_FRAME_BODY_FRD,
+        ..Default::default()
     }
 }
 

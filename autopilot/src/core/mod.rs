@@ -5,5 +5,7 @@ pub mod control;
 pub mod estimator;
 pub mod hil;
 pub mod mavlink;
+pub mod mission;
 pub mod navigator;
+pub mod params;
 pub mod vehicle;

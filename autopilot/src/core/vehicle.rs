@@ -15,13 +15,13 @@
 //! ground; it is clamped to [1000, 2000] and never NaN.
 
 use ::mavlink::MavHeader;
-use ::mavlink::dialects::common::MavMessage;
-use nalgebra::Vector3;
+use ::mavlink::dialects::common::{MISSION_CURRENT_DATA, MISSION_ITEM_REACHED_DATA, MavMessage, MavSeverity};
+use nalgebra::{Vector2, Vector3};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::core::commander::{
-    self, Commander, CommanderConfig, CommanderInputs, CommanderOutput, Estimate, Event, LandedState, Setpoint,
+    self, Commander, CommanderConfig, CommanderInputs, CommanderOutput, Estimate, Event, LandedState, Request, Setpoint,
 };
 use crate::core::control::{
     self, ControlInput, Controller, ControllerConfig, ControllerKind, Reference, distributor, try_new_controller,
@@ -30,8 +30,17 @@ use crate::core::estimator::{
     self, BaroSample, Estimator, EstimatorConfig, EstimatorSource, EstimatorState, GpsSample, ImuSample, MagSample,
     TruthSample,
 };
-use crate::core::mavlink::{CommandContext, CommandEffect, Home, MavlinkService, TelemetrySnapshot, command_replies};
-use crate::core::navigator::NavigatorConfig;
+use crate::core::mavlink::command::AUTOPILOT_VERSION_ID;
+use crate::core::mavlink::mission::{MissionEvent, MissionService};
+use crate::core::mavlink::offboard::{self, OffboardContext};
+use crate::core::mavlink::params::{ParamChange, ParamService, param_value};
+use crate::core::mavlink::{
+    CommandContext, CommandEffect, CommandPoint, Home, MavlinkService, Stream, TelemetrySnapshot, VehicleCommand,
+    command_replies, housekeeping, statustext,
+};
+use crate::core::mission::{Mission, MissionError};
+use crate::core::navigator::{NavEvent, NavInput, NavSetpoint, Navigator, NavigatorConfig, nav_items};
+use crate::core::params::ParamStore;
 
 /// Motor command with the motors stopped (µs).
 pub const PWM_MIN_US: f64 = 1000.0;
@@ -120,6 +129,53 @@ pub struct VehicleOutputs {
     pub messages: Vec<MavMessage>,
 }
 
+/// What the controller flies at one step (NED m, m/s, m/s², rad).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Target {
+    Idle,
+    Track { pos_ned_m: Vector3<f64>, vel_ned_mps: Vector3<f64>, acc_ned_mps2: Vector3<f64>, yaw_rad: f64 },
+    Climb { pos_ned_m: Vector3<f64>, yaw_rad: f64 },
+    Descend { pos_ne_m: Vector2<f64>, yaw_rad: f64, speed_mps: f64 },
+    Attitude { euler_rad: Vector3<f64>, pos_d_m: f64 },
+}
+
+impl Target {
+    fn from_nav(sp: NavSetpoint, land_speed_mps: f64) -> Self {
+        match sp {
+            NavSetpoint::Track { pos_ned_m, vel_ned_mps, acc_ned_mps2, yaw_rad } => {
+                Self::Track { pos_ned_m, vel_ned_mps, acc_ned_mps2, yaw_rad }
+            }
+            NavSetpoint::Climb { pos_ned_m, yaw_rad } => Self::Climb { pos_ned_m, yaw_rad },
+            NavSetpoint::Descend { pos_ne_m, yaw_rad } => {
+                Self::Descend { pos_ne_m, yaw_rad, speed_mps: land_speed_mps }
+            }
+            NavSetpoint::Attitude { euler_rad, pos_d_m } => Self::Attitude { euler_rad, pos_d_m },
+        }
+    }
+}
+
+/// What the vehicle asks of the shell around it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ShellEffect {
+    /// Restart the autopilot (PREFLIGHT_REBOOT_SHUTDOWN): rebuild the vehicle from its configuration and
+    /// what is persisted.
+    Reboot,
+    /// Persist the mission: its QGC WPL 110 text (empty mission: only the header).
+    SaveMission(String),
+    /// Persist the parameters: their text (`NAME<TAB>VALUE` lines, those that differ from the defaults).
+    SaveParams(String),
+}
+
+/// The interval (µs) of the adaptive-weight stream at `hz` (0 or less: off).
+fn weights_interval_us(hz: f32) -> u64 {
+    if hz > 0.0 { (1e6 / f64::from(hz)).round() as u64 } else { 0 }
+}
+
+/// Whether `msg` belongs to the parameter protocol.
+fn is_param_message(msg: &MavMessage) -> bool {
+    matches!(msg, MavMessage::PARAM_REQUEST_LIST(_) | MavMessage::PARAM_REQUEST_READ(_) | MavMessage::PARAM_SET(_))
+}
+
 /// Which ramp the down reference is on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Ramp {
@@ -148,6 +204,14 @@ pub struct Vehicle {
     last_ref_d_m: Option<f64>,
     throttle_low_pwm_us: f64,
     comm_errors: u64,
+    navigator: Navigator,
+    last_nav_us: Option<u64>,
+    home_changed: bool,
+    offboard_error: Option<String>,
+    effects: Vec<ShellEffect>,
+    missions: MissionService,
+    params: ParamStore,
+    param_service: ParamService,
 }
 
 impl std::fmt::Debug for Vehicle {
@@ -161,16 +225,45 @@ impl std::fmt::Debug for Vehicle {
     }
 }
 
+/// Whether `msg` belongs to the mission protocol.
+// The legacy float items and MISSION_SET_CURRENT are deprecated, but older clients still send them.
+#[allow(deprecated)]
+fn is_mission_message(msg: &MavMessage) -> bool {
+    matches!(
+        msg,
+        MavMessage::MISSION_COUNT(_)
+            | MavMessage::MISSION_ITEM(_)
+            | MavMessage::MISSION_ITEM_INT(_)
+            | MavMessage::MISSION_REQUEST(_)
+            | MavMessage::MISSION_REQUEST_INT(_)
+            | MavMessage::MISSION_REQUEST_LIST(_)
+            | MavMessage::MISSION_ACK(_)
+            | MavMessage::MISSION_CLEAR_ALL(_)
+            | MavMessage::MISSION_SET_CURRENT(_)
+    )
+}
+
 fn finite3(v: &Vector3<f64>) -> bool {
     v.iter().all(|x| x.is_finite())
 }
 
 impl Vehicle {
-    /// A disarmed vehicle on the ground.
+    /// A disarmed vehicle on the ground, its parameters those of `config`.
     ///
     /// # Errors
     /// [`VehicleError`] naming the first unusable part of `config`.
     pub fn new(config: VehicleConfig) -> Result<Self, VehicleError> {
+        let params = ParamStore::from_config(&config);
+        Self::with_params(config, params)
+    }
+
+    /// A disarmed vehicle on the ground with the parameters `params` applied over `config` (parameters
+    /// persisted by an earlier run, restart-only ones included).
+    ///
+    /// # Errors
+    /// [`VehicleError`] naming the first unusable part of the resulting configuration.
+    pub fn with_params(mut config: VehicleConfig, params: ParamStore) -> Result<Self, VehicleError> {
+        params.apply(&mut config);
         if config.sysid == 0 {
             return Err(VehicleError::Sysid);
         }
@@ -197,12 +290,14 @@ impl Vehicle {
         }
         let airframe = &config.control.aco.airframe;
         let throttle_low_pwm_us = distributor::pwm_from_lift_us(0.3 * airframe.hover_rotor_lift_n());
+        let mut mavlink = MavlinkService::new(config.sysid);
+        mavlink.streams_mut().set_interval_us(Stream::AdaptiveWeights, weights_interval_us(params.aco_weights_hz()));
         Ok(Self {
             estimator: Estimator::new(config.estimator.clone()),
             controller,
             controller_dirty: false,
             commander,
-            mavlink: MavlinkService::new(config.sysid),
+            mavlink,
             output,
             last_gps: None,
             home,
@@ -213,6 +308,22 @@ impl Vehicle {
             last_ref_d_m: None,
             throttle_low_pwm_us,
             comm_errors: 0,
+            navigator: {
+                let mut navigator = Navigator::new(config.navigator);
+                if let Some(start) = config.start_airborne {
+                    // The hold starts exactly at its point (not from a first, noisy estimate).
+                    let pos_ned_m = Vector3::from(start.hold_ned_m);
+                    navigator.remember(&NavSetpoint::Climb { pos_ned_m, yaw_rad: start.yaw_rad });
+                }
+                navigator
+            },
+            last_nav_us: None,
+            home_changed: false,
+            offboard_error: None,
+            effects: Vec::new(),
+            missions: MissionService::default(),
+            params,
+            param_service: ParamService::new(),
             config,
         })
     }
@@ -269,18 +380,267 @@ impl Vehicle {
     }
 
     /// A message from a ground station at `now_us`: commands are applied at once and answered (ACK, and
-    /// STATUSTEXT on refusal) to the sender; anything else, or anything for another system, gets nothing.
+    /// STATUSTEXT on refusal, then any message the command asked for) to the sender; PING and FTP get
+    /// their replies; offboard setpoints are taken; anything else, or anything for another system, gets
+    /// nothing.
     pub fn handle_message(&mut self, now_us: u64, header: &MavHeader, msg: &MavMessage) -> Vec<MavMessage> {
+        let sysid = self.config.sysid;
+        if let Some(reply) = housekeeping::reply(sysid, header, msg) {
+            return vec![reply];
+        }
+        let est = *self.estimator.state();
+        let octx =
+            OffboardContext { origin: est.origin, home_alt_amsl_m: self.home_alt_amsl_m(), yaw_rad: est.euler_rad.z };
+        if let Some(setpoint) = offboard::decode(sysid, msg, &octx) {
+            return match setpoint {
+                Ok(sp) => {
+                    self.navigator.set_offboard(now_us, sp);
+                    self.offboard_error = None;
+                    Vec::new()
+                }
+                // A refused stream would repeat its refusal 20 times a second: say it once.
+                Err(text) if self.offboard_error.as_deref() != Some(text.as_str()) => {
+                    self.offboard_error = Some(text.clone());
+                    vec![statustext(MavSeverity::MAV_SEVERITY_WARNING, &text)]
+                }
+                Err(_) => Vec::new(),
+            };
+        }
+        if is_param_message(msg) {
+            let before = self.params.clone();
+            let reply = self.param_service.on_message(sysid, header, msg, &mut self.params);
+            let mut messages = reply.messages;
+            if let Some(change) = reply.changed {
+                match self.on_param_change(&change) {
+                    Ok(extra) => messages.extend(extra),
+                    Err(text) => {
+                        // In range, but the configuration it makes is not flyable: undo it, in words.
+                        self.params = before;
+                        messages = vec![statustext(MavSeverity::MAV_SEVERITY_WARNING, &text)];
+                        messages.extend(param_value(&self.params, change.index));
+                    }
+                }
+            }
+            return messages;
+        }
+        if is_mission_message(msg) {
+            let reply = self.missions.on_message(now_us, sysid, header, msg);
+            let mut messages = reply.messages;
+            if let Some(event) = reply.event {
+                messages.extend(self.on_mission_event(event));
+            }
+            return messages;
+        }
         let ctx = CommandContext { home_alt_amsl_m: self.home_alt_amsl_m() };
         let Some(cmd) = self.mavlink.on_message(header, msg, &ctx) else {
             return Vec::new();
         };
-        let outcome = match cmd.effect {
+        let mut extra = Vec::new();
+        self.navigator.refresh(now_us, est.origin);
+        self.commander.set_nav_status(self.navigator.status());
+        let outcome = match cmd.effect.clone() {
             CommandEffect::Request(req) => self.commander.request(now_us, req).map_err(|r| Some(r.to_string())),
+            CommandEffect::Vehicle(command) => self.vehicle_command(now_us, command, &mut extra),
             CommandEffect::Deny(text) => Err(Some(text)),
             CommandEffect::Unsupported => Err(None),
         };
-        command_replies(cmd.command, outcome)
+        let accepted = outcome.is_ok();
+        let mut replies = command_replies(&cmd, outcome);
+        if accepted {
+            replies.extend(extra);
+        }
+        replies
+    }
+
+    /// The snapshot the streams and requested messages are built from, as of the last step.
+    fn snapshot(&self, now_us: u64) -> TelemetrySnapshot<'_> {
+        TelemetrySnapshot {
+            now_us,
+            estimate: self.estimator.state(),
+            gps: self.last_gps.as_ref(),
+            home: self.home.as_ref(),
+            commander: &self.output,
+            pwm_us: self.pwm_us,
+            comm_errors: self.comm_errors,
+            mission_seq: (self.navigator.mission_len() > 0).then(|| self.navigator.current_seq()),
+            controller: Some(self.controller.as_ref()),
+        }
+    }
+
+    /// A geodetic point of a command in local NED (altitude NaN: the vehicle's).
+    fn local_point(&self, point: &CommandPoint) -> Result<Vector3<f64>, Option<String>> {
+        let est = self.estimator.state();
+        let origin = est.origin.ok_or_else(|| Some("No global position yet".to_owned()))?;
+        let alt_amsl_m = if point.alt_m.is_nan() {
+            origin.alt_amsl_m - est.pos_ned_m.z
+        } else if point.relative_alt {
+            self.home_alt_amsl_m().ok_or_else(|| Some("No home altitude yet".to_owned()))? + point.alt_m
+        } else {
+            point.alt_m
+        };
+        let p = origin.ned_from_geodetic(point.lat_deg, point.lon_deg, alt_amsl_m);
+        if finite3(&p) { Ok(p) } else { Err(Some("Invalid position".to_owned())) }
+    }
+
+    /// A command the vehicle answers itself; `extra` gets the messages it asked for (sent after the ACK).
+    fn vehicle_command(
+        &mut self,
+        now_us: u64,
+        command: VehicleCommand,
+        extra: &mut Vec<MavMessage>,
+    ) -> Result<(), Option<String>> {
+        match command {
+            VehicleCommand::RequestMessage { message_id } => {
+                if message_id == AUTOPILOT_VERSION_ID {
+                    extra.push(housekeeping::autopilot_version(self.config.sysid));
+                    return Ok(());
+                }
+                let stream = Stream::of_message(message_id).ok_or(None)?;
+                let messages = stream.messages(&self.snapshot(now_us));
+                if messages.is_empty() {
+                    return Err(Some(format!("Message {message_id} not available yet")));
+                }
+                extra.extend(messages);
+                Ok(())
+            }
+            VehicleCommand::SetMessageInterval { message_id, interval_us } => {
+                let stream = Stream::of_message(message_id).ok_or(None)?;
+                let us = if interval_us < 0.0 {
+                    0
+                } else if interval_us == 0.0 {
+                    stream.default_interval_us()
+                } else {
+                    interval_us.round() as u64
+                };
+                self.mavlink.streams_mut().set_interval_us(stream, us);
+                Ok(())
+            }
+            VehicleCommand::GetMessageInterval { message_id } => {
+                let stream = Stream::of_message(message_id).ok_or(None)?;
+                extra
+                    .push(housekeeping::message_interval(message_id, Some(self.mavlink.streams().interval_us(stream))));
+                Ok(())
+            }
+            VehicleCommand::ChangeSpeed { speed_mps } => {
+                self.navigator.set_speed(speed_mps);
+                Ok(())
+            }
+            VehicleCommand::SetHome { point } => {
+                let est = *self.estimator.state();
+                let pos_ned_m = match point {
+                    None if finite3(&est.pos_ned_m) => est.pos_ned_m,
+                    None => return Err(Some("Set home: no position".to_owned())),
+                    Some(p) => self.local_point(&p)?,
+                };
+                self.home = Some(Home { pos_ned_m, geodetic: est.origin.map(|o| o.geodetic_from_ned(&pos_ned_m)) });
+                self.home_changed = true;
+                Ok(())
+            }
+            VehicleCommand::Reposition { point, yaw_rad } => {
+                let pos_ned_m = point.map(|p| self.local_point(&p)).transpose()?;
+                self.commander.request(now_us, Request::Goto { pos_ned_m, yaw_rad }).map_err(|r| Some(r.to_string()))
+            }
+            VehicleCommand::MissionStart { first } => {
+                if self.navigator.mission_len() == 0 {
+                    return Err(Some("Mission start: no mission".to_owned()));
+                }
+                self.navigator.set_current(first);
+                self.commander.request(now_us, Request::Mission).map_err(|r| Some(r.to_string()))
+            }
+            VehicleCommand::Reboot => {
+                if self.commander.armed() {
+                    return Err(Some("Reboot denied: armed".to_owned()));
+                }
+                self.effects.push(ShellEffect::Reboot);
+                Ok(())
+            }
+            VehicleCommand::NoOp => Ok(()),
+        }
+    }
+
+    /// Applies a changed parameter from the next step (gains, rates, limits, timers, speeds; the loop
+    /// rates only after a restart), and asks for the parameters to be persisted. Returns the messages to
+    /// send (a STATUSTEXT when the change needs a restart).
+    ///
+    /// # Errors
+    /// The reason, when the configuration the parameter makes is not flyable; nothing changed then.
+    fn on_param_change(&mut self, change: &ParamChange) -> Result<Vec<MavMessage>, String> {
+        let mut next = self.config.clone();
+        self.params.apply(&mut next);
+        // The loop rates apply only when the vehicle is rebuilt with the stored parameters (a restart).
+        next.control.rates = self.config.control.rates;
+        next.control.validate().map_err(|e| format!("{}: {e}", change.name))?;
+        next.commander.validate().map_err(|e| format!("{}: {e}", change.name))?;
+        self.commander.set_config(next.commander).map_err(|e| format!("{}: {e}", change.name))?;
+        self.controller.reconfigure(&next.control);
+        self.navigator.set_config(next.navigator);
+        self.mavlink
+            .streams_mut()
+            .set_interval_us(Stream::AdaptiveWeights, weights_interval_us(self.params.aco_weights_hz()));
+        self.config = next;
+        self.effects.push(ShellEffect::SaveParams(self.params.to_text()));
+        Ok(if change.restart_required {
+            vec![statustext(MavSeverity::MAV_SEVERITY_NOTICE, &format!("{} applies after a restart", change.name))]
+        } else {
+            Vec::new()
+        })
+    }
+
+    /// The parameters.
+    #[must_use]
+    pub fn params(&self) -> &ParamStore {
+        &self.params
+    }
+
+    /// Applies a mission upload, clear or set-current; returns the messages to send (MISSION_CURRENT).
+    fn on_mission_event(&mut self, event: MissionEvent) -> Vec<MavMessage> {
+        match event {
+            MissionEvent::Replaced(mission) => {
+                self.navigator.set_mission(nav_items(&mission));
+                self.missions.set_current_seq(0);
+                self.effects.push(ShellEffect::SaveMission(mission.to_wpl()));
+                Vec::new()
+            }
+            MissionEvent::Cleared => {
+                self.navigator.set_mission(Vec::new());
+                self.missions.set_current_seq(0);
+                self.effects.push(ShellEffect::SaveMission(self.missions.mission().to_wpl()));
+                Vec::new()
+            }
+            MissionEvent::SetCurrent(seq) => {
+                self.navigator.set_current(seq);
+                self.missions.set_current_seq(seq);
+                vec![MavMessage::MISSION_CURRENT(MISSION_CURRENT_DATA { seq, ..Default::default() })]
+            }
+        }
+    }
+
+    /// A mission loaded at start (persisted by an earlier run).
+    ///
+    /// # Errors
+    /// The mission's first invalid item; the vehicle then has no mission.
+    pub fn load_mission(&mut self, mission: Mission) -> Result<(), MissionError> {
+        let items = nav_items(&mission);
+        self.missions.set_mission(mission)?;
+        self.navigator.set_mission(items);
+        Ok(())
+    }
+
+    /// The mission as uploaded.
+    #[must_use]
+    pub fn mission(&self) -> &Mission {
+        self.missions.mission()
+    }
+
+    /// What the vehicle asks of the shell (restart, save parameters or the mission), since the last call.
+    pub fn take_effects(&mut self) -> Vec<ShellEffect> {
+        std::mem::take(&mut self.effects)
+    }
+
+    /// The navigator (mission, offboard).
+    #[must_use]
+    pub fn navigator(&self) -> &Navigator {
+        &self.navigator
     }
 
     /// One step at `now_us`. See the module docs.
@@ -308,6 +668,7 @@ impl Vehicle {
             tick |= truth_source;
         }
         let state = *self.estimator.state();
+        self.navigator.refresh(now_us, state.origin);
         let mean_pwm_us = self.pwm_us.iter().sum::<f64>() / 4.0;
         let estimate = Estimate {
             pos_ned_m: state.pos_ned_m,
@@ -321,12 +682,14 @@ impl Vehicle {
             estimate,
             throttle_low: mean_pwm_us.is_nan() || mean_pwm_us <= self.throttle_low_pwm_us,
             home_ned_m: self.home.map(|h| h.pos_ned_m),
+            nav: self.navigator.status(),
         });
         if out.events.iter().any(|e| matches!(e, Event::Armed { .. })) && finite3(&state.pos_ned_m) {
             self.home = Some(Home {
                 pos_ned_m: state.pos_ned_m,
                 geodetic: state.origin.map(|o| o.geodetic_from_ned(&state.pos_ned_m)),
             });
+            self.home_changed = true;
         }
         if let Some(home) = &mut self.home
             && home.geodetic.is_none()
@@ -334,25 +697,87 @@ impl Vehicle {
         {
             home.geodetic = Some(origin.geodetic_from_ned(&home.pos_ned_m));
         }
+        let target = self.target(now_us, &state, &out);
         if tick {
-            self.pwm_us = self.control(now_us, &state, &out);
+            self.pwm_us = self.control(now_us, &state, &out, target);
         }
         if !out.motors_enabled {
             self.pwm_us = [PWM_MIN_US; 4];
         }
+        self.output = out;
+        let events = std::mem::take(&mut self.output.events);
         let snapshot = TelemetrySnapshot {
             now_us,
-            estimate: &state,
+            estimate: self.estimator.state(),
             gps: self.last_gps.as_ref(),
             home: self.home.as_ref(),
-            commander: &out,
+            commander: &self.output,
             pwm_us: self.pwm_us,
             comm_errors: self.comm_errors,
+            mission_seq: (self.navigator.mission_len() > 0).then(|| self.navigator.current_seq()),
+            controller: Some(self.controller.as_ref()),
         };
-        let messages = self.mavlink.outbound(now_us, &snapshot, &out.events);
-        let armed = out.armed;
-        self.output = out;
-        VehicleOutputs { pwm_us: self.pwm_us, armed, messages }
+        let mut messages = self.mavlink.outbound(now_us, &snapshot, &events);
+        if std::mem::take(&mut self.home_changed) {
+            messages.extend(Stream::HomePosition.message(&self.snapshot(now_us)));
+        }
+        messages.extend(self.missions.poll(now_us).messages);
+        messages.extend(self.param_service.due(&self.params));
+        for event in self.navigator.take_events() {
+            messages.push(match event {
+                NavEvent::Current(seq) => {
+                    self.missions.set_current_seq(seq);
+                    MavMessage::MISSION_CURRENT(MISSION_CURRENT_DATA { seq, ..Default::default() })
+                }
+                NavEvent::Reached(seq) => MavMessage::MISSION_ITEM_REACHED(MISSION_ITEM_REACHED_DATA { seq }),
+                NavEvent::Text(text) => statustext(MavSeverity::MAV_SEVERITY_INFO, &text),
+            });
+        }
+        self.output.events = events;
+        VehicleOutputs { pwm_us: self.pwm_us, armed: self.output.armed, messages }
+    }
+
+    /// What the controller flies this step: the commander's setpoint, through the navigator for holds and
+    /// the automatic modes.
+    fn target(&mut self, now_us: u64, state: &EstimatorState, out: &CommanderOutput) -> Target {
+        let dt_s = self.last_nav_us.map_or(0.0, |t| now_us.saturating_sub(t) as f64 * 1e-6).min(0.05);
+        self.last_nav_us = Some(now_us);
+        let input = NavInput {
+            now_us,
+            dt_s,
+            pos_ned_m: state.pos_ned_m,
+            vel_ned_mps: state.vel_ned_mps,
+            yaw_rad: state.euler_rad.z,
+            origin: state.origin,
+            home_ned_m: self.home.map(|h| h.pos_ned_m),
+            home_alt_amsl_m: self.home_alt_amsl_m(),
+            landed: out.landed_state == LandedState::OnGround.mavlink(),
+            takeoff_alt_m: self.config.commander.takeoff_alt_m,
+            takeoff_acceptance_m: self.config.commander.takeoff_acceptance_m,
+        };
+        let land_speed_mps = self.config.commander.land_speed_mps;
+        match out.setpoint {
+            Setpoint::Idle => {
+                self.navigator.forget();
+                Target::Idle
+            }
+            Setpoint::Hold { pos_ned_m, yaw_rad } if finite3(&state.pos_ned_m) => {
+                Target::from_nav(self.navigator.hold(&input, pos_ned_m, yaw_rad), land_speed_mps)
+            }
+            Setpoint::Hold { pos_ned_m, yaw_rad } => {
+                Target::Track { pos_ned_m, vel_ned_mps: Vector3::zeros(), acc_ned_mps2: Vector3::zeros(), yaw_rad }
+            }
+            Setpoint::Climb { pos_ned_m, yaw_rad } => {
+                self.navigator.forget();
+                self.navigator.remember(&NavSetpoint::Climb { pos_ned_m, yaw_rad });
+                Target::Climb { pos_ned_m, yaw_rad }
+            }
+            Setpoint::Descend { pos_ne_m, yaw_rad, speed_mps } => {
+                self.navigator.forget();
+                Target::Descend { pos_ne_m, yaw_rad, speed_mps }
+            }
+            Setpoint::Auto(mode) => Target::from_nav(self.navigator.update(mode, &input), land_speed_mps),
+        }
     }
 
     /// Rebuilds the controller if it has run, so that no adaptation or integrator carries over.
@@ -385,20 +810,24 @@ impl Vehicle {
         }
     }
 
-    fn control(&mut self, now_us: u64, state: &EstimatorState, out: &CommanderOutput) -> [f64; 4] {
+    fn control(&mut self, now_us: u64, state: &EstimatorState, out: &CommanderOutput, target: Target) -> [f64; 4] {
         let dt_s = self.last_tick_us.map_or(0.0, |t| now_us.saturating_sub(t) as f64 * 1e-6).min(0.05);
         self.last_tick_us = Some(now_us);
         let est_d_m = if state.pos_ned_m.z.is_finite() { state.pos_ned_m.z } else { 0.0 };
-        let reference = match out.setpoint {
-            Setpoint::Idle => {
+        let reference = match target {
+            Target::Idle => {
                 self.reset_controller();
                 return [PWM_MIN_US; 4];
             }
-            Setpoint::Hold { pos_ned_m, yaw_rad } => {
+            Target::Track { pos_ned_m, vel_ned_mps, acc_ned_mps2, yaw_rad } => {
                 self.ramp = Ramp::None;
-                Reference::position(pos_ned_m, yaw_rad)
+                Reference { vel_ned_mps, acc_ned_mps2, ..Reference::position(pos_ned_m, yaw_rad) }
             }
-            Setpoint::Climb { pos_ned_m, yaw_rad } => {
+            Target::Attitude { euler_rad, pos_d_m } => {
+                self.ramp = Ramp::None;
+                Reference::attitude(euler_rad, pos_d_m)
+            }
+            Target::Climb { pos_ned_m, yaw_rad } => {
                 let speed = self.config.takeoff_speed_mps;
                 let (d, vd) = self.ramp_d(Ramp::Climb, est_d_m, pos_ned_m.z, speed, dt_s);
                 Reference {
@@ -406,7 +835,7 @@ impl Vehicle {
                     ..Reference::position(Vector3::new(pos_ned_m.x, pos_ned_m.y, d), yaw_rad)
                 }
             }
-            Setpoint::Descend { pos_ne_m, yaw_rad, speed_mps } => {
+            Target::Descend { pos_ne_m, yaw_rad, speed_mps } => {
                 let ground_d_m = self.home.map_or(0.0, |h| h.pos_ned_m.z);
                 let floor_d_m = ground_d_m + self.config.land_ramp_below_ground_m;
                 let (d, vd) = self.ramp_d(Ramp::Descend, est_d_m, floor_d_m, speed_mps, dt_s);

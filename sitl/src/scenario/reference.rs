@@ -10,7 +10,9 @@
 //! acceleration `P''(s) s_dot^2 + P'(s) s_ddot` are exact feed-forward for it.
 
 use autopilot::core::control::Reference;
-use nalgebra::{DMatrix, DVector, Vector2, Vector3};
+use autopilot::core::navigator::spline::ProgressFilter;
+pub use autopilot::core::navigator::spline::SplinePath;
+use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
 use super::ScenarioError;
@@ -167,7 +169,7 @@ fn invalid(msg: &str) -> ScenarioError {
 pub enum ReferenceGen {
     Attitude { pos_d_m: f64, steps: Vec<AttitudeStep> },
     Position { steps: Vec<PositionStep> },
-    Track(TrackGen),
+    Track(Box<TrackGen>),
 }
 
 impl ReferenceGen {
@@ -177,7 +179,7 @@ impl ReferenceGen {
         match spec {
             ReferenceSpec::Attitude { pos_d_m, steps } => Self::Attitude { pos_d_m: *pos_d_m, steps: steps.clone() },
             ReferenceSpec::Position { steps } => Self::Position { steps: steps.clone() },
-            ReferenceSpec::Track(track) => Self::Track(TrackGen::new(track, mode)),
+            ReferenceSpec::Track(track) => Self::Track(Box::new(TrackGen::new(track, mode))),
         }
     }
 
@@ -210,9 +212,8 @@ pub struct TrackGen {
     pub path: SplinePath,
     spec: TrackSpec,
     mode: ReferenceMode,
-    /// Prefilter state: progress (m) and its rate (m/s), after `filter_steps` steps.
-    s_m: f64,
-    s_dot_mps: f64,
+    /// The progress (m, m/s) after `filter_steps` steps.
+    filter: ProgressFilter,
     filter_steps: u64,
 }
 
@@ -227,8 +228,7 @@ impl TrackGen {
             path: SplinePath::new(&spec.waypoints_ne_m),
             spec: spec.clone(),
             mode,
-            s_m: 0.0,
-            s_dot_mps: 0.0,
+            filter: ProgressFilter::at_rest(spec.prefilter_wn_radps, 0.0),
             filter_steps: 0,
         }
     }
@@ -251,19 +251,15 @@ impl TrackGen {
 
     /// Progress along the path (m) of the prefiltered reference at `t_s`.
     pub fn progress_m(&mut self, t_s: f64) -> f64 {
-        let wf = self.spec.prefilter_wn_radps;
         // Steps are counted, not summed as time, so every tick integrates exactly its share.
         let target_steps = (t_s / PREFILTER_STEP_S + 1e-6).floor().max(0.0) as u64;
         while self.filter_steps < target_steps {
-            // Semi-implicit Euler at 0.1 ms on s_ddot = wf^2 (r - s) - 2 wf s_dot: error far below
-            // anything a metric resolves.
+            // Semi-implicit Euler at 0.1 ms: error far below anything a metric resolves.
             let r = self.raw_progress_m(self.filter_time_s());
-            let s_ddot = wf * wf * (r - self.s_m) - 2.0 * wf * self.s_dot_mps;
-            self.s_dot_mps += s_ddot * PREFILTER_STEP_S;
-            self.s_m += self.s_dot_mps * PREFILTER_STEP_S;
+            self.filter.step(r, PREFILTER_STEP_S);
             self.filter_steps += 1;
         }
-        self.s_m
+        self.filter.s_m
     }
 
     fn filter_time_s(&self) -> f64 {
@@ -272,177 +268,19 @@ impl TrackGen {
 
     pub fn at(&mut self, t_s: f64) -> Reference {
         let s = self.progress_m(t_s);
-        let wf = self.spec.prefilter_wn_radps;
-        let s_ddot = wf * wf * (self.raw_progress_m(self.filter_time_s()) - s) - 2.0 * wf * self.s_dot_mps;
+        let s_ddot = self.filter.accel_mps2(self.raw_progress_m(self.filter_time_s()));
+        let s_dot = self.filter.s_dot_mps;
         let (p, dp_ds, d2p_ds2) = self.path.eval(s);
         let d = self.spec.pos_d_m;
         let mut reference = Reference::position(Vector3::new(p.x, p.y, d), self.spec.yaw_rad);
         if self.mode == ReferenceMode::FeedForward {
-            let v = dp_ds * self.s_dot_mps;
-            let a = d2p_ds2 * self.s_dot_mps.powi(2) + dp_ds * s_ddot;
+            let v = dp_ds * s_dot;
+            let a = d2p_ds2 * s_dot.powi(2) + dp_ds * s_ddot;
             reference.vel_ned_mps = Vector3::new(v.x, v.y, 0.0);
             reference.acc_ned_mps2 = Vector3::new(a.x, a.y, 0.0);
         }
         reference
     }
-}
-
-/// A C2 cubic spline through waypoints (periodic if closed, natural if open), with an arc-length table.
-#[derive(Debug, Clone)]
-pub struct SplinePath {
-    points: Vec<Vector2<f64>>,
-    /// Second derivatives at the knots (uniform knot parameter u = 0, 1, ..., n_seg).
-    second: Vec<Vector2<f64>>,
-    closed: bool,
-    /// Arc length at u = j / SAMPLES_PER_SEGMENT.
-    arc_m: Vec<f64>,
-    /// Points every `POLYLINE_STEP_M` of arc length, for distance queries.
-    polyline: Vec<Vector2<f64>>,
-}
-
-const POLYLINE_STEP_M: f64 = 0.005;
-
-const SAMPLES_PER_SEGMENT: usize = 400;
-
-impl SplinePath {
-    /// # Panics
-    /// If fewer than 3 waypoints are given ([`ReferenceSpec::validate`] refuses that first).
-    #[must_use]
-    pub fn new(waypoints_ne_m: &[[f64; 2]]) -> Self {
-        assert!(waypoints_ne_m.len() >= 3, "a spline path needs >= 3 waypoints");
-        let mut points: Vec<Vector2<f64>> = waypoints_ne_m.iter().map(|w| Vector2::new(w[0], w[1])).collect();
-        let closed = points.first() == points.last();
-        if closed {
-            points.pop();
-        }
-        let n = points.len();
-        // Solve for knot second derivatives M: M[i-1] + 4 M[i] + M[i+1] = 6 (P[i-1] - 2 P[i] + P[i+1]).
-        let mut a = DMatrix::<f64>::zeros(n, n);
-        let mut rhs = [DVector::<f64>::zeros(n), DVector::<f64>::zeros(n)];
-        for i in 0..n {
-            if !closed && (i == 0 || i == n - 1) {
-                a[(i, i)] = 1.0; // natural end: M = 0
-                continue;
-            }
-            let (im, ip) = ((i + n - 1) % n, (i + 1) % n);
-            a[(i, im)] += 1.0;
-            a[(i, i)] += 4.0;
-            a[(i, ip)] += 1.0;
-            let d = points[im] - 2.0 * points[i] + points[ip];
-            rhs[0][i] = 6.0 * d.x;
-            rhs[1][i] = 6.0 * d.y;
-        }
-        let lu = a.lu();
-        let mx = lu.solve(&rhs[0]).expect("spline system is diagonally dominant");
-        let my = lu.solve(&rhs[1]).expect("spline system is diagonally dominant");
-        let second = (0..n).map(|i| Vector2::new(mx[i], my[i])).collect();
-        let mut path = Self { points, second, closed, arc_m: Vec::new(), polyline: Vec::new() };
-        let samples = path.segments() * SAMPLES_PER_SEGMENT;
-        let mut arc = Vec::with_capacity(samples + 1);
-        arc.push(0.0);
-        let mut prev = path.point_u(0.0).0;
-        for j in 1..=samples {
-            let p = path.point_u(j as f64 / SAMPLES_PER_SEGMENT as f64).0;
-            arc.push(arc[j - 1] + (p - prev).norm());
-            prev = p;
-        }
-        path.arc_m = arc;
-        let count = (path.length_m() / POLYLINE_STEP_M).ceil() as usize;
-        let step = path.length_m() / count as f64;
-        path.polyline = (0..=count).map(|k| path.eval(k as f64 * step).0).collect();
-        path
-    }
-
-    fn segments(&self) -> usize {
-        if self.closed { self.points.len() } else { self.points.len() - 1 }
-    }
-
-    #[must_use]
-    pub fn closed(&self) -> bool {
-        self.closed
-    }
-
-    /// Length of one lap (m).
-    #[must_use]
-    pub fn length_m(&self) -> f64 {
-        *self.arc_m.last().expect("arc table is non-empty")
-    }
-
-    /// Position, first and second derivative with respect to the knot parameter u.
-    fn point_u(&self, u: f64) -> (Vector2<f64>, Vector2<f64>, Vector2<f64>) {
-        let n = self.points.len();
-        let seg_count = self.segments();
-        let u = u.clamp(0.0, seg_count as f64);
-        let i = (u.floor() as usize).min(seg_count - 1);
-        let x = u - i as f64;
-        let (p0, p1) = (self.points[i], self.points[(i + 1) % n]);
-        let (m0, m1) = (self.second[i], self.second[(i + 1) % n]);
-        let y = 1.0 - x;
-        let p = y * p0 + x * p1 + ((y.powi(3) - y) * m0 + (x.powi(3) - x) * m1) / 6.0;
-        let dp = p1 - p0 + ((-3.0 * y * y + 1.0) * m0 + (3.0 * x * x - 1.0) * m1) / 6.0;
-        let d2p = y * m0 + x * m1;
-        (p, dp, d2p)
-    }
-
-    /// Knot parameter u at arc length s within one lap.
-    fn u_at(&self, s_m: f64) -> f64 {
-        let s = s_m.clamp(0.0, self.length_m());
-        let j = self.arc_m.partition_point(|&a| a <= s).clamp(1, self.arc_m.len() - 1);
-        let (a0, a1) = (self.arc_m[j - 1], self.arc_m[j]);
-        let frac = if a1 > a0 { (s - a0) / (a1 - a0) } else { 0.0 };
-        (j as f64 - 1.0 + frac) / SAMPLES_PER_SEGMENT as f64
-    }
-
-    /// Position and its first and second derivatives with respect to arc length, at progress `s_m`
-    /// (wrapping over laps when closed; clamped at the ends when open).
-    #[must_use]
-    pub fn eval(&self, s_m: f64) -> (Vector2<f64>, Vector2<f64>, Vector2<f64>) {
-        let len = self.length_m();
-        let s = if self.closed && s_m >= len { s_m.rem_euclid(len) } else { s_m };
-        let (p, dp, d2p) = self.point_u(self.u_at(s));
-        let speed = dp.norm();
-        let t = dp / speed;
-        // d2P/ds2 = (P'' - (t . P'') t) / |P'|^2: the curvature vector.
-        let k = (d2p - t * t.dot(&d2p)) / (speed * speed);
-        (p, t, k)
-    }
-
-    /// Distance (m) from `p_ne_m` to the path within `window_m` of arc length around `s_m` (so a point
-    /// near a crossing is measured against its own branch), on a polyline of 5 mm segments, and the arc
-    /// length (m, unwrapped like `s_m`) of the nearest point.
-    #[must_use]
-    pub fn nearest_near(&self, p_ne_m: Vector2<f64>, s_m: f64, window_m: f64) -> (f64, f64) {
-        let segments = self.polyline.len() - 1;
-        let step = self.length_m() / segments as f64;
-        let lo = ((s_m - window_m) / step).floor() as i64;
-        let hi = ((s_m + window_m) / step).ceil() as i64;
-        let (lo, hi) = if self.closed { (lo, hi) } else { (lo.max(0), hi.min(segments as i64)) };
-        let n = segments as i64;
-        let point = |k: i64| self.polyline[usize::try_from(k.rem_euclid(n)).expect("rem_euclid is non-negative")];
-        let mut best = (f64::INFINITY, s_m);
-        for k in lo..hi {
-            let (a, b) = (point(k), point(k + 1));
-            let (d, x) = point_segment(p_ne_m, a, b);
-            if d < best.0 {
-                best = (d, (k as f64 + x) * step);
-            }
-        }
-        best
-    }
-
-    /// [`SplinePath::nearest_near`], the distance only.
-    #[must_use]
-    pub fn distance_near(&self, p_ne_m: Vector2<f64>, s_m: f64, window_m: f64) -> f64 {
-        self.nearest_near(p_ne_m, s_m, window_m).0
-    }
-}
-
-/// Distance from `p` to segment `ab` and the fraction along it of the nearest point.
-fn point_segment(p: Vector2<f64>, a: Vector2<f64>, b: Vector2<f64>) -> (f64, f64) {
-    let ab = b - a;
-    let len2 = ab.norm_squared();
-    let x = if len2 > 0.0 { ((p - a).dot(&ab) / len2).clamp(0.0, 1.0) } else { 0.0 };
-    ((p - (a + ab * x)).norm(), x)
 }
 
 #[cfg(test)]
@@ -461,39 +299,6 @@ mod tests {
             [-0.6, -0.6],
             [0.0, 0.0],
         ]
-    }
-
-    #[test]
-    fn given_closed_waypoints_when_evaluated_then_the_spline_passes_through_each_and_is_unit_speed() {
-        let path = SplinePath::new(&figure8());
-        assert!(path.closed());
-        for (i, w) in figure8().iter().enumerate().take(8) {
-            let (p, _, _) = path.point_u(i as f64);
-            assert!((p - Vector2::new(w[0], w[1])).norm() < 1e-12, "knot {i}");
-        }
-        for k in 0..50 {
-            let (_, t, _) = path.eval(path.length_m() * k as f64 / 50.0);
-            assert!((t.norm() - 1.0).abs() < 1e-9);
-        }
-        // A periodic spline is C1 across the seam.
-        let (_, t0, _) = path.eval(1e-6);
-        let (_, t1, _) = path.eval(path.length_m() - 1e-6);
-        assert!((t0 - t1).norm() < 1e-4);
-    }
-
-    #[test]
-    fn given_a_circle_of_points_when_evaluated_then_curvature_is_one_over_radius() {
-        let r = 2.0;
-        let pts: Vec<[f64; 2]> = (0..=24)
-            .map(|k| {
-                let a = std::f64::consts::TAU * f64::from(k % 24) / 24.0;
-                [r * a.cos(), r * a.sin()]
-            })
-            .collect();
-        let path = SplinePath::new(&pts);
-        assert!((path.length_m() - std::f64::consts::TAU * r).abs() < 1e-3);
-        let (_, _, k) = path.eval(1.234);
-        assert!((k.norm() - 1.0 / r).abs() < 2e-3, "curvature {}", k.norm());
     }
 
     #[test]
@@ -550,15 +355,6 @@ mod tests {
         assert!(a.vel_ned_mps.norm() > 0.2);
         assert_eq!(b.vel_ned_mps, Vector3::zeros());
         assert_eq!(b.acc_ned_mps2, Vector3::zeros());
-    }
-
-    #[test]
-    fn given_a_point_off_the_path_then_distance_near_measures_it() {
-        let path = SplinePath::new(&figure8());
-        let (p, t, _) = path.eval(1.0);
-        let normal = Vector2::new(-t.y, t.x);
-        let d = path.distance_near(p + 0.05 * normal, 1.0, 0.5);
-        assert!((d - 0.05).abs() < 1e-3, "{d}");
     }
 
     #[test]

@@ -89,6 +89,11 @@ impl LandDetector {
         Self { config, landed: true, contact_since_us: None, landed_since_us: None, updated: false }
     }
 
+    /// New thresholds, from the next update (the landed state and its timers carry on).
+    pub fn set_config(&mut self, config: LandDetectorConfig) {
+        self.config = config;
+    }
+
     /// Takes one sample; returns whether landed.
     pub fn update(&mut self, now_us: u64, s: &LandDetectorSample) -> bool {
         self.updated = true;

@@ -32,6 +32,7 @@ pub use land_detector::{LandDetector, LandDetectorConfig, LandedState};
 pub use mode::{FlightMode, Px4Mode};
 pub use state_machine::{Conditions, State};
 
+use crate::core::navigator::{AutoMode, NavStatus};
 use land_detector::{LandDetectorSample, Phase, seconds_to_us};
 use mode::system_status;
 
@@ -140,6 +141,8 @@ pub struct CommanderInputs {
     pub throttle_low: bool,
     /// Home (m, NED); its down coordinate is the ground. None: the ground is where the vehicle armed.
     pub home_ned_m: Option<Vector3<f64>>,
+    /// The navigator's status of the previous step (mission valid and done, landing, offboard fresh).
+    pub nav: NavStatus,
 }
 
 /// What a ground station (through the MAVLink handlers) asks of the commander.
@@ -162,8 +165,15 @@ pub enum Request {
     Hold,
     /// DO_SET_MODE / SET_MODE with PX4's (main, sub).
     SetMode { main: u8, sub: u8 },
-    /// NAV_RETURN_TO_LAUNCH (refused for now).
+    /// NAV_RETURN_TO_LAUNCH or AUTO RTL: climb, return, land (from the air).
     ReturnToLaunch,
+    /// AUTO MISSION or MISSION_START: fly the mission (asked for while disarmed: starts on arming).
+    Mission,
+    /// OFFBOARD: follow the streamed setpoints (only while they flow).
+    Offboard,
+    /// DO_REPOSITION: hold at `pos_ned_m` (None: here, QGroundControl's pause) with `yaw_rad` (None:
+    /// keep), flown to from where the vehicle is; in the air only.
+    Goto { pos_ned_m: Option<Vector3<f64>>, yaw_rad: Option<f64> },
 }
 
 /// What was refused, for the words of a [`Refusal`].
@@ -174,6 +184,10 @@ pub enum Action {
     Takeoff,
     Land,
     Hold,
+    Mission,
+    Return,
+    Offboard,
+    Reposition,
 }
 
 impl fmt::Display for Action {
@@ -184,6 +198,10 @@ impl fmt::Display for Action {
             Self::Takeoff => "Takeoff",
             Self::Land => "Land",
             Self::Hold => "Hold",
+            Self::Mission => "Mission",
+            Self::Return => "RTL",
+            Self::Offboard => "Offboard",
+            Self::Reposition => "Reposition",
         })
     }
 }
@@ -203,6 +221,12 @@ pub enum Refusal {
     ModeNotSupported { name: &'static str, reason: &'static str },
     #[error("Mode not supported: main {main} sub {sub}")]
     UnknownMode { main: u8, sub: u8 },
+    #[error("{0} denied: no mission")]
+    NoMission(Action),
+    #[error("{0} denied: no offboard setpoints")]
+    NoSetpoints(Action),
+    #[error("{0} denied: landed")]
+    Landed(Action),
 }
 
 /// What the controller should fly (NED, m, rad, m/s). The vehicle core turns it into a controller
@@ -217,6 +241,8 @@ pub enum Setpoint {
     Climb { pos_ned_m: Vector3<f64>, yaw_rad: f64 },
     /// Hold north/east and yaw, descend at `speed_mps` until on the ground.
     Descend { pos_ne_m: Vector2<f64>, yaw_rad: f64, speed_mps: f64 },
+    /// The navigator decides (mission, return, offboard).
+    Auto(AutoMode),
 }
 
 /// Why the vehicle disarmed.
@@ -302,6 +328,9 @@ pub struct Commander {
     /// The hold-like mode a Hold state shows (AUTO LOITER, POSCTL or ALTCTL).
     hold_mode: FlightMode,
     pending_takeoff_alt_m: Option<f64>,
+    /// Mission mode asked for while disarmed: the mission starts on arming.
+    pending_mission: bool,
+    nav: NavStatus,
     land_detector: LandDetector,
     /// The latest finite estimate.
     est: Estimate,
@@ -331,6 +360,8 @@ impl Commander {
             mode: FlightMode::Hold,
             hold_mode: FlightMode::Hold,
             pending_takeoff_alt_m: None,
+            pending_mission: false,
+            nav: NavStatus::default(),
             land_detector: LandDetector::new(config.land_detector),
             est: Estimate::default(),
             est_ok: false,
@@ -349,6 +380,20 @@ impl Commander {
     #[must_use]
     pub fn config(&self) -> &CommanderConfig {
         &self.config
+    }
+
+    /// New parameters (a PARAM_SET), from the next step: timers, speeds and altitudes; a takeoff or
+    /// landing under way keeps the target it latched.
+    ///
+    /// # Errors
+    /// [`ConfigError`] when out of range; nothing changes then.
+    pub fn set_config(&mut self, config: CommanderConfig) -> Result<(), ConfigError> {
+        config.validate()?;
+        if config.land_detector != self.config.land_detector {
+            self.land_detector.set_config(config.land_detector);
+        }
+        self.config = config;
+        Ok(())
     }
 
     #[must_use]
@@ -399,6 +444,7 @@ impl Commander {
         let phase = match self.state {
             State::Takeoff => Phase::Takeoff,
             State::Land => Phase::Landing,
+            State::Mission | State::Rtl if self.nav.landing => Phase::Landing,
             _ => Phase::Other,
         };
         if self.state == State::Disarmed { LandedState::OnGround } else { self.land_detector.landed_state(phase) }
@@ -416,6 +462,9 @@ impl Commander {
             State::Land => {
                 Setpoint::Descend { pos_ne_m: self.land_ne_m, yaw_rad, speed_mps: self.config.land_speed_mps }
             }
+            State::Mission => Setpoint::Auto(AutoMode::Mission),
+            State::Rtl => Setpoint::Auto(AutoMode::ReturnToLaunch),
+            State::Offboard => Setpoint::Auto(AutoMode::Offboard),
         }
     }
 
@@ -428,6 +477,12 @@ impl Commander {
         self.yaw_sp_rad = yaw_rad;
         self.hold_mode = FlightMode::Hold;
         self.set_mode(FlightMode::Hold);
+    }
+
+    /// The navigator's status now (a mission just uploaded, a first offboard setpoint), for a request
+    /// that comes before the next step.
+    pub fn set_nav_status(&mut self, nav: NavStatus) {
+        self.nav = nav;
     }
 
     /// Handles a request at `now_us`, at once.
@@ -457,10 +512,9 @@ impl Commander {
         if landed && !was_landed && self.state != State::Disarmed {
             self.events.push(Event::Landed);
         }
-        self.touchdown_us = match (self.state, landed) {
-            (State::Land, true) => Some(self.touchdown_us.unwrap_or(now)),
-            _ => None,
-        };
+        let landing =
+            self.state == State::Land || (matches!(self.state, State::Mission | State::Rtl) && self.nav.landing);
+        self.touchdown_us = if landing && landed { Some(self.touchdown_us.unwrap_or(now)) } else { None };
         // A few rounds at most: arming with a pending takeoff goes ArmedIdle -> Takeoff on the next step.
         for _ in 0..State::ALL.len() {
             let c = self.conditions(now);
@@ -484,6 +538,7 @@ impl Commander {
     }
 
     fn take_estimate(&mut self, inputs: &CommanderInputs) {
+        self.nav = inputs.nav;
         let e = &inputs.estimate;
         let finite = e.pos_ned_m.iter().chain(e.vel_ned_mps.iter()).all(|x| x.is_finite());
         if finite {
@@ -514,7 +569,7 @@ impl Commander {
         };
         let auto_disarm = match self.state {
             State::ArmedIdle => expired(self.config.disarm_preflight_s, Some(self.armed_idle_since_us)),
-            State::Land => expired(self.config.disarm_land_s, self.touchdown_us),
+            State::Land | State::Mission | State::Rtl => expired(self.config.disarm_land_s, self.touchdown_us),
             _ => false,
         };
         let alt_reached = self.state == State::Takeoff
@@ -525,6 +580,12 @@ impl Commander {
             .with(C::TAKEOFF_ALT_REACHED, alt_reached)
             .with(C::ESTIMATOR_OK, self.est_ok)
             .with(C::AUTO_DISARM_EXPIRED, auto_disarm)
+            .with(C::MISSION_REQUESTED, self.pending_mission)
+            .with(C::MISSION_VALID, self.nav.mission_valid)
+            .with(C::MISSION_DONE, self.nav.mission_done)
+            .with(C::OFFBOARD_OK, self.nav.offboard_fresh)
+            .with(C::OFFBOARD_LOST, !self.nav.offboard_fresh)
+            .with(C::AUTO_LANDING, self.nav.landing)
     }
 
     fn apply(&mut self, now: u64, req: Request) -> Result<(), Refusal> {
@@ -553,6 +614,7 @@ impl Commander {
                 match state {
                     State::Killed => Err(Refusal::NotInState { action: Action::Takeoff, state }),
                     State::Disarmed => {
+                        self.pending_mission = false;
                         self.set_mode(FlightMode::Takeoff);
                         Ok(())
                     }
@@ -568,12 +630,53 @@ impl Commander {
             Request::SetMode { main, sub } => match Px4Mode::decode(main, sub) {
                 Px4Mode::Supported(FlightMode::Takeoff) => self.apply(now, Request::Takeoff { alt_rel_m: None }),
                 Px4Mode::Supported(FlightMode::Land) => self.apply(now, Request::Land),
+                Px4Mode::Supported(FlightMode::Mission) => self.apply(now, Request::Mission),
+                Px4Mode::Supported(FlightMode::ReturnToLaunch) => self.apply(now, Request::ReturnToLaunch),
+                Px4Mode::Supported(FlightMode::Offboard) => self.apply(now, Request::Offboard),
                 Px4Mode::Supported(m) => self.hold_like(now, m),
-                Px4Mode::ReturnToLaunch => self.apply(now, Request::ReturnToLaunch),
                 Px4Mode::Unsupported { name, reason } => Err(Refusal::ModeNotSupported { name, reason }),
                 Px4Mode::Unknown => Err(Refusal::UnknownMode { main, sub }),
             },
-            Request::ReturnToLaunch => Err(Refusal::ModeNotSupported { name: "RTL", reason: "not implemented yet" }),
+            Request::ReturnToLaunch => match state {
+                State::Rtl => Ok(()),
+                State::Disarmed | State::ArmedIdle => Err(Refusal::Landed(Action::Return)),
+                State::Killed => Err(Refusal::NotInState { action: Action::Return, state }),
+                _ => self.transition(now, C::RTL_REQUESTED, Action::Return),
+            },
+            Request::Mission => match state {
+                State::Mission => Ok(()),
+                State::Killed => Err(Refusal::NotInState { action: Action::Mission, state }),
+                State::Disarmed if !self.nav.mission_valid => Err(Refusal::NoMission(Action::Mission)),
+                State::Disarmed => {
+                    self.pending_takeoff_alt_m = None;
+                    self.pending_mission = true;
+                    self.set_mode(FlightMode::Mission);
+                    Ok(())
+                }
+                _ => self.transition(now, C::MISSION_REQUESTED, Action::Mission),
+            },
+            Request::Offboard => match state {
+                State::Offboard => Ok(()),
+                State::Disarmed | State::Killed => Err(Refusal::NotInState { action: Action::Offboard, state }),
+                _ => self.transition(now, C::OFFBOARD_REQUESTED, Action::Offboard),
+            },
+            Request::Goto { pos_ned_m, yaw_rad } => {
+                if !self.state.is_armed() || self.state == State::ArmedIdle || self.land_detector.landed() {
+                    return Err(Refusal::Landed(Action::Reposition));
+                }
+                self.hold_mode = FlightMode::Hold;
+                if self.state != State::Hold {
+                    self.transition(now, C::HOLD_REQUESTED, Action::Reposition)?;
+                }
+                self.set_mode(FlightMode::Hold);
+                if let Some(p) = pos_ned_m.filter(|p| p.iter().all(|x| x.is_finite())) {
+                    self.hold_ned_m = p;
+                }
+                if let Some(y) = yaw_rad.filter(|y| y.is_finite()) {
+                    self.yaw_sp_rad = y;
+                }
+                Ok(())
+            }
         }
     }
 
@@ -585,10 +688,13 @@ impl Commander {
             State::Killed => Err(Refusal::NotInState { action: Action::Hold, state: self.state }),
             State::Disarmed | State::ArmedIdle | State::Hold => {
                 self.pending_takeoff_alt_m = None;
+                self.pending_mission = false;
                 self.set_mode(mode);
                 Ok(())
             }
-            State::Takeoff | State::Land => self.transition(now, Conditions::HOLD_REQUESTED, Action::Hold),
+            State::Takeoff | State::Land | State::Mission | State::Rtl | State::Offboard => {
+                self.transition(now, Conditions::HOLD_REQUESTED, Action::Hold)
+            }
         }
     }
 
@@ -602,6 +708,12 @@ impl Commander {
         let blocked = state_machine::blocked_by(self.state, c);
         Err(if blocked.contains(Conditions::ESTIMATOR_OK) {
             Refusal::EstimatorNotConverged(action)
+        } else if blocked.contains(Conditions::MISSION_VALID) {
+            Refusal::NoMission(action)
+        } else if blocked.contains(Conditions::OFFBOARD_OK) {
+            Refusal::NoSetpoints(action)
+        } else if blocked.contains(Conditions::LANDED) && action == Action::Return {
+            Refusal::Landed(action)
         } else if blocked.contains(Conditions::LANDED) {
             Refusal::InAir(action)
         } else {
@@ -627,6 +739,9 @@ impl Commander {
         if to != State::ArmedIdle && to != State::Takeoff {
             self.pending_takeoff_alt_m = None;
         }
+        if to != State::ArmedIdle {
+            self.pending_mission = false;
+        }
         self.state = to;
         match to {
             State::Disarmed => {
@@ -636,7 +751,7 @@ impl Commander {
                     } else {
                         DisarmReason::Requested
                     }
-                } else if from == State::Land {
+                } else if matches!(from, State::Land | State::Mission | State::Rtl) {
                     DisarmReason::AutoLanded
                 } else {
                     DisarmReason::AutoPreflight
@@ -677,6 +792,9 @@ impl Commander {
                 }
                 self.events.push(Event::Killed);
             }
+            State::Mission => self.set_mode(FlightMode::Mission),
+            State::Rtl => self.set_mode(FlightMode::ReturnToLaunch),
+            State::Offboard => self.set_mode(FlightMode::Offboard),
         }
     }
 }

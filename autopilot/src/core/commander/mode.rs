@@ -45,7 +45,7 @@ pub mod system_status {
     pub const EMERGENCY: u8 = 6;
 }
 
-/// The flight modes this commander can be in. Modes it refuses (MANUAL, MISSION, RTL, OFFBOARD, ...) are
+/// The flight modes this commander can be in. Modes it refuses (MANUAL, ACRO, STABILIZED, AUTO READY) are
 /// not here: [`Px4Mode::decode`] names them for the refusal.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum FlightMode {
@@ -59,6 +59,12 @@ pub enum FlightMode {
     Hold,
     /// AUTO LAND.
     Land,
+    /// AUTO MISSION: fly the uploaded mission.
+    Mission,
+    /// AUTO RTL: climb, return above home, land.
+    ReturnToLaunch,
+    /// OFFBOARD: fly the setpoints a companion or ground station streams.
+    Offboard,
 }
 
 impl FlightMode {
@@ -71,6 +77,9 @@ impl FlightMode {
             Self::Takeoff => (main_mode::AUTO, auto_sub_mode::TAKEOFF),
             Self::Hold => (main_mode::AUTO, auto_sub_mode::LOITER),
             Self::Land => (main_mode::AUTO, auto_sub_mode::LAND),
+            Self::Mission => (main_mode::AUTO, auto_sub_mode::MISSION),
+            Self::ReturnToLaunch => (main_mode::AUTO, auto_sub_mode::RTL),
+            Self::Offboard => (main_mode::OFFBOARD, 0),
         }
     }
 
@@ -89,7 +98,9 @@ impl FlightMode {
         let mode_flags = match self {
             Self::Altitude => f::MANUAL_INPUT_ENABLED | f::STABILIZE_ENABLED,
             Self::Position => f::MANUAL_INPUT_ENABLED | f::STABILIZE_ENABLED | f::GUIDED_ENABLED,
-            Self::Takeoff | Self::Hold | Self::Land => f::AUTO_ENABLED | f::GUIDED_ENABLED | f::STABILIZE_ENABLED,
+            Self::Takeoff | Self::Hold | Self::Land | Self::Mission | Self::ReturnToLaunch | Self::Offboard => {
+                f::AUTO_ENABLED | f::GUIDED_ENABLED | f::STABILIZE_ENABLED
+            }
         };
         f::CUSTOM_MODE_ENABLED | mode_flags | if armed { f::SAFETY_ARMED } else { 0 }
     }
@@ -109,6 +120,9 @@ impl fmt::Display for FlightMode {
             Self::Takeoff => "Takeoff",
             Self::Hold => "Hold",
             Self::Land => "Land",
+            Self::Mission => "Mission",
+            Self::ReturnToLaunch => "Return",
+            Self::Offboard => "Offboard",
         })
     }
 }
@@ -124,8 +138,6 @@ pub const fn custom_mode(main: u8, sub: u8) -> u32 {
 pub enum Px4Mode {
     /// A mode this commander flies.
     Supported(FlightMode),
-    /// AUTO RTL (a request of its own, [`super::Request::ReturnToLaunch`]).
-    ReturnToLaunch,
     /// A known PX4 mode this commander does not fly yet: its name and why.
     Unsupported { name: &'static str, reason: &'static str },
     /// Not a PX4 mode.
@@ -144,10 +156,10 @@ impl Px4Mode {
             (m::AUTO, a::TAKEOFF) => Self::Supported(FlightMode::Takeoff),
             (m::AUTO, a::LOITER) => Self::Supported(FlightMode::Hold),
             (m::AUTO, a::LAND) => Self::Supported(FlightMode::Land),
-            (m::AUTO, a::RTL) => Self::ReturnToLaunch,
-            (m::AUTO, a::MISSION) => Self::Unsupported { name: "MISSION", reason: "not implemented yet" },
+            (m::AUTO, a::RTL) => Self::Supported(FlightMode::ReturnToLaunch),
+            (m::AUTO, a::MISSION) => Self::Supported(FlightMode::Mission),
             (m::AUTO, a::READY) => Self::Unsupported { name: "AUTO READY", reason: "use Hold" },
-            (m::OFFBOARD, _) => Self::Unsupported { name: "OFFBOARD", reason: "needs setpoints" },
+            (m::OFFBOARD, _) => Self::Supported(FlightMode::Offboard),
             (m::MANUAL, _) => Self::Unsupported { name: "MANUAL", reason: "needs RC sticks" },
             (m::ACRO, _) => Self::Unsupported { name: "ACRO", reason: "needs RC sticks" },
             (m::STABILIZED, _) => Self::Unsupported { name: "STABILIZED", reason: "needs RC sticks" },
@@ -175,17 +187,28 @@ mod tests {
 
     #[test]
     fn given_each_supported_mode_when_decoded_from_its_encoding_then_it_round_trips() {
-        for m in [FlightMode::Altitude, FlightMode::Position, FlightMode::Takeoff, FlightMode::Hold, FlightMode::Land] {
+        for m in [
+            FlightMode::Altitude,
+            FlightMode::Position,
+            FlightMode::Takeoff,
+            FlightMode::Hold,
+            FlightMode::Land,
+            FlightMode::Mission,
+            FlightMode::ReturnToLaunch,
+            FlightMode::Offboard,
+        ] {
             let (main, sub) = m.px4();
             assert_eq!(Px4Mode::decode(main, sub), Px4Mode::Supported(m));
         }
     }
 
     #[test]
-    fn given_modes_not_flown_yet_when_decoded_then_they_are_named_not_supported() {
-        assert!(matches!(Px4Mode::decode(6, 0), Px4Mode::Unsupported { name: "OFFBOARD", .. }));
-        assert!(matches!(Px4Mode::decode(4, 4), Px4Mode::Unsupported { name: "MISSION", .. }));
-        assert_eq!(Px4Mode::decode(4, 5), Px4Mode::ReturnToLaunch);
+    fn given_modes_not_flown_when_decoded_then_they_are_named_not_supported() {
+        assert!(matches!(Px4Mode::decode(1, 0), Px4Mode::Unsupported { name: "MANUAL", .. }));
+        assert!(matches!(Px4Mode::decode(4, 1), Px4Mode::Unsupported { name: "AUTO READY", .. }));
+        assert_eq!(Px4Mode::decode(4, 4), Px4Mode::Supported(FlightMode::Mission));
+        assert_eq!(Px4Mode::decode(4, 5), Px4Mode::Supported(FlightMode::ReturnToLaunch));
+        assert_eq!(Px4Mode::decode(6, 0), Px4Mode::Supported(FlightMode::Offboard));
         assert_eq!(Px4Mode::decode(9, 0), Px4Mode::Unknown);
         assert_eq!(Px4Mode::decode(4, 0), Px4Mode::Unknown);
         assert_eq!(Px4Mode::decode(3, 1), Px4Mode::Unknown);

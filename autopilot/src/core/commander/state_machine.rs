@@ -24,22 +24,41 @@ pub enum State {
     Land,
     /// Motors stopped by a kill; stays until a disarm request.
     Killed,
+    /// Flying the mission (AUTO MISSION).
+    Mission,
+    /// Returning to launch and landing there (AUTO RTL).
+    Rtl,
+    /// Following offboard setpoints (OFFBOARD).
+    Offboard,
 }
 
 impl State {
     /// Every state, in declaration order.
-    pub const ALL: [Self; 6] = [Self::Disarmed, Self::ArmedIdle, Self::Takeoff, Self::Hold, Self::Land, Self::Killed];
+    pub const ALL: [Self; 9] = [
+        Self::Disarmed,
+        Self::ArmedIdle,
+        Self::Takeoff,
+        Self::Hold,
+        Self::Land,
+        Self::Killed,
+        Self::Mission,
+        Self::Rtl,
+        Self::Offboard,
+    ];
 
     /// This state as a one-bit [`StateSet`].
     #[must_use]
     pub const fn set(self) -> StateSet {
-        StateSet(1 << self as u8)
+        StateSet(1 << self as u16)
     }
 
     /// Whether the vehicle is armed in this state (motors may turn).
     #[must_use]
     pub const fn is_armed(self) -> bool {
-        matches!(self, Self::ArmedIdle | Self::Takeoff | Self::Hold | Self::Land)
+        matches!(
+            self,
+            Self::ArmedIdle | Self::Takeoff | Self::Hold | Self::Land | Self::Mission | Self::Rtl | Self::Offboard
+        )
     }
 }
 
@@ -52,17 +71,27 @@ impl fmt::Display for State {
             Self::Hold => "holding",
             Self::Land => "landing",
             Self::Killed => "kill engaged (disarm to reset)",
+            Self::Mission => "flying the mission",
+            Self::Rtl => "returning",
+            Self::Offboard => "in offboard control",
         })
     }
 }
 
 /// A set of states (bit `s as u8` for state `s`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct StateSet(pub u8);
+pub struct StateSet(pub u16);
 
 impl StateSet {
-    pub const ARMED: Self =
-        Self(State::ArmedIdle.set().0 | State::Takeoff.set().0 | State::Hold.set().0 | State::Land.set().0);
+    pub const ARMED: Self = Self(
+        State::ArmedIdle.set().0
+            | State::Takeoff.set().0
+            | State::Hold.set().0
+            | State::Land.set().0
+            | State::Mission.set().0
+            | State::Rtl.set().0
+            | State::Offboard.set().0,
+    );
     pub const NOT_KILLED: Self = Self(Self::ARMED.0 | State::Disarmed.set().0);
 
     #[must_use]
@@ -102,9 +131,25 @@ impl Conditions {
     pub const AUTO_DISARM_EXPIRED: Self = Self(1 << 9);
     /// Kill: stop the motors now.
     pub const KILL: Self = Self(1 << 10);
+    /// Mission mode is requested or pending (asked for while disarmed).
+    pub const MISSION_REQUESTED: Self = Self(1 << 11);
+    pub const RTL_REQUESTED: Self = Self(1 << 12);
+    pub const OFFBOARD_REQUESTED: Self = Self(1 << 13);
+    /// A mission is loaded and can be flown (the navigator says so).
+    pub const MISSION_VALID: Self = Self(1 << 14);
+    /// The mission flew its last item in the air.
+    pub const MISSION_DONE: Self = Self(1 << 15);
+    /// Offboard setpoints are fresh.
+    pub const OFFBOARD_OK: Self = Self(1 << 16);
+    /// Offboard setpoints stopped (the negation of `OFFBOARD_OK`, as a trigger).
+    pub const OFFBOARD_LOST: Self = Self(1 << 17);
+    /// An automatic mode is descending to land.
+    pub const AUTO_LANDING: Self = Self(1 << 18);
 
     /// Every bit any row reads.
-    pub const ALL: Self = Self((1 << 11) - 1);
+    pub const ALL: Self = Self((1 << 19) - 1);
+    /// How many bits there are.
+    pub const COUNT: u32 = 19;
 
     #[must_use]
     pub const fn or(self, other: Self) -> Self {
@@ -162,11 +207,12 @@ const fn row(from: StateSet, trigger: Conditions, required: Conditions, to: Stat
 use Conditions as C;
 use State as S;
 
-const TAKEOFF_HOLD_LAND: StateSet = S::Takeoff.set().or(S::Hold.set()).or(S::Land.set());
+const AUTO: StateSet = S::Mission.set().or(S::Rtl.set()).or(S::Offboard.set());
+const TAKEOFF_HOLD_LAND: StateSet = S::Takeoff.set().or(S::Hold.set()).or(S::Land.set()).or(AUTO);
 
-/// The transitions, in priority order: requests first (kill, disarm, arm, takeoff, hold, land), then the
-/// automatic ones (takeoff complete, auto-disarm). Force is its own row rather than an "or" in a blocker,
-/// so each row stays a conjunction.
+/// The transitions, in priority order: requests first (kill, disarm, arm, takeoff, mode changes, hold,
+/// land), then the automatic ones (takeoff complete, mission done, offboard lost, auto-disarm). Force is
+/// its own row rather than an "or" in a blocker, so each row stays a conjunction.
 pub const TRANSITIONS: &[Transition] = &[
     // Kill stops the motors from anywhere.
     row(StateSet::NOT_KILLED, C::KILL, C::NONE, S::Killed),
@@ -187,12 +233,43 @@ pub const TRANSITIONS: &[Transition] = &[
     // Takeoff (a pending one starts once armed); again in the air: climb or descend to the new altitude.
     row(S::ArmedIdle.set(), C::TAKEOFF_REQUESTED, C::ESTIMATOR_OK, S::Takeoff),
     row(TAKEOFF_HOLD_LAND, C::TAKEOFF_REQUESTED, C::ESTIMATOR_OK, S::Takeoff),
-    // Hold (or a hold-like mode) interrupts a takeoff or a landing where the vehicle is.
-    row(S::Takeoff.set().or(S::Land.set()), C::HOLD_REQUESTED, C::NONE, S::Hold),
-    row(S::ArmedIdle.set().or(S::Takeoff.set()).or(S::Hold.set()), C::LAND_REQUESTED, C::NONE, S::Land),
+    // Mission (a pending one starts once armed), with a mission to fly.
+    row(
+        S::ArmedIdle.set().or(TAKEOFF_HOLD_LAND),
+        C::MISSION_REQUESTED,
+        C::MISSION_VALID.or(C::ESTIMATOR_OK),
+        S::Mission,
+    ),
+    // Return, from the air only.
+    Transition {
+        from: TAKEOFF_HOLD_LAND,
+        trigger: C::RTL_REQUESTED,
+        blockers: C::LANDED,
+        required: C::ESTIMATOR_OK,
+        to: S::Rtl,
+    },
+    // Offboard, only while setpoints flow.
+    row(
+        S::ArmedIdle.set().or(TAKEOFF_HOLD_LAND),
+        C::OFFBOARD_REQUESTED,
+        C::OFFBOARD_OK.or(C::ESTIMATOR_OK),
+        S::Offboard,
+    ),
+    // Hold (or a hold-like mode) interrupts a takeoff, a landing or an automatic mode where the vehicle is.
+    row(S::Takeoff.set().or(S::Land.set()).or(AUTO), C::HOLD_REQUESTED, C::NONE, S::Hold),
+    row(S::ArmedIdle.set().or(S::Takeoff.set()).or(S::Hold.set()).or(AUTO), C::LAND_REQUESTED, C::NONE, S::Land),
     // Automatic.
     row(S::Takeoff.set(), C::TAKEOFF_ALT_REACHED, C::NONE, S::Hold),
+    Transition {
+        from: S::Mission.set(),
+        trigger: C::MISSION_DONE,
+        blockers: C::AUTO_LANDING,
+        required: C::NONE,
+        to: S::Hold,
+    },
+    row(S::Offboard.set(), C::OFFBOARD_LOST, C::NONE, S::Hold),
     row(S::Land.set(), C::AUTO_DISARM_EXPIRED, C::LANDED, S::Disarmed),
+    row(S::Mission.set().or(S::Rtl.set()), C::AUTO_DISARM_EXPIRED, C::LANDED.or(C::AUTO_LANDING), S::Disarmed),
     row(S::ArmedIdle.set(), C::AUTO_DISARM_EXPIRED, C::NONE, S::Disarmed),
 ];
 
@@ -234,7 +311,7 @@ mod tests {
     use super::*;
 
     fn all_bits() -> impl Iterator<Item = Conditions> {
-        (0..11).map(|i| Conditions(1 << i))
+        (0..Conditions::COUNT).map(|i| Conditions(1 << i))
     }
 
     #[test]
@@ -290,6 +367,18 @@ mod tests {
             (S::Land, C::AUTO_DISARM_EXPIRED | C::LANDED, S::Disarmed),
             (S::ArmedIdle, C::AUTO_DISARM_EXPIRED, S::Disarmed),
             (S::ArmedIdle, C::AUTO_DISARM_EXPIRED | C::TAKEOFF_REQUESTED | C::ESTIMATOR_OK, S::Takeoff),
+            (S::ArmedIdle, C::MISSION_REQUESTED | C::MISSION_VALID | C::ESTIMATOR_OK, S::Mission),
+            (S::Hold, C::MISSION_REQUESTED | C::MISSION_VALID | C::ESTIMATOR_OK, S::Mission),
+            (S::Hold, C::RTL_REQUESTED | C::ESTIMATOR_OK, S::Rtl),
+            (S::Mission, C::RTL_REQUESTED | C::ESTIMATOR_OK, S::Rtl),
+            (S::Hold, C::OFFBOARD_REQUESTED | C::OFFBOARD_OK | C::ESTIMATOR_OK, S::Offboard),
+            (S::Offboard, C::OFFBOARD_LOST, S::Hold),
+            (S::Mission, C::MISSION_DONE, S::Hold),
+            (S::Mission, C::AUTO_DISARM_EXPIRED | C::LANDED | C::AUTO_LANDING, S::Disarmed),
+            (S::Rtl, C::AUTO_DISARM_EXPIRED | C::LANDED | C::AUTO_LANDING, S::Disarmed),
+            (S::Rtl, C::HOLD_REQUESTED, S::Hold),
+            (S::Mission, C::LAND_REQUESTED, S::Land),
+            (S::Offboard, C::TAKEOFF_REQUESTED | C::ESTIMATOR_OK, S::Takeoff),
         ];
         for &(from, c, to) in cases {
             assert_eq!(next(from, c), to, "{from:?} under {c:?}");
@@ -306,6 +395,11 @@ mod tests {
             (S::ArmedIdle, C::TAKEOFF_REQUESTED, C::ESTIMATOR_OK),
             (S::Land, C::AUTO_DISARM_EXPIRED, C::LANDED),
             (S::Killed, C::DISARM_REQUESTED | C::KILL, C::KILL),
+            (S::Hold, C::MISSION_REQUESTED | C::ESTIMATOR_OK, C::MISSION_VALID),
+            (S::Hold, C::RTL_REQUESTED | C::ESTIMATOR_OK | C::LANDED, C::LANDED),
+            (S::Hold, C::OFFBOARD_REQUESTED | C::ESTIMATOR_OK, C::OFFBOARD_OK),
+            (S::Mission, C::MISSION_DONE | C::AUTO_LANDING, C::AUTO_LANDING),
+            (S::Mission, C::AUTO_DISARM_EXPIRED | C::LANDED, C::AUTO_LANDING),
         ];
         for &(from, c, missing) in cases {
             assert_eq!(next(from, c), from, "{from:?} under {c:?}");
@@ -337,7 +431,7 @@ mod tests {
     #[test]
     fn given_any_state_and_any_conditions_with_kill_then_the_motors_stop() {
         for s in State::ALL {
-            for bits in 0..(1u32 << 11) {
+            for bits in 0..(1u32 << Conditions::COUNT) {
                 let to = next(s, Conditions(bits) | Conditions::KILL);
                 assert_eq!(to, S::Killed, "{s:?} under {bits:#b}");
             }
@@ -346,7 +440,7 @@ mod tests {
 
     #[test]
     fn given_every_state_when_all_bits_but_kill_are_tried_then_killed_is_left_only_by_a_disarm() {
-        for bits in 0..(1u32 << 11) {
+        for bits in 0..(1u32 << Conditions::COUNT) {
             let c = Conditions(bits & !Conditions::KILL.0);
             let to = next(S::Killed, c);
             let expect = if c.contains(Conditions::DISARM_REQUESTED) { S::Disarmed } else { S::Killed };

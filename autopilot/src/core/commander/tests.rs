@@ -5,6 +5,7 @@ use nalgebra::Vector3;
 
 use super::mode::{base_mode_flag, system_status};
 use super::*;
+use crate::core::navigator::{AutoMode, NavStatus};
 
 const STEP_US: u64 = 10_000;
 const G: f64 = 9.81;
@@ -18,11 +19,12 @@ struct Sim {
     vel_d_mps: f64,
     converged: bool,
     throttle_low: bool,
+    nav: NavStatus,
 }
 
 impl Sim {
     fn new() -> Self {
-        Self { now_us: 0, pos_d_m: 0.0, vel_d_mps: 0.0, converged: true, throttle_low: true }
+        Self { now_us: 0, pos_d_m: 0.0, vel_d_mps: 0.0, converged: true, throttle_low: true, nav: NavStatus::default() }
     }
 
     fn inputs(&self) -> CommanderInputs {
@@ -37,6 +39,7 @@ impl Sim {
             },
             throttle_low: self.throttle_low,
             home_ned_m: Some(Vector3::new(1.0, -2.0, 0.0)),
+            nav: self.nav,
         }
     }
 
@@ -48,6 +51,8 @@ impl Sim {
                 Some((1.5 * (pos_ned_m.z - self.pos_d_m)).clamp(-1.5, 1.5))
             }
             Setpoint::Descend { speed_mps, .. } => Some(speed_mps),
+            // The navigator's part: descend while it lands, hold the altitude otherwise.
+            Setpoint::Auto(_) => Some(if self.nav.landing { 0.7 } else { 0.0 }),
             Setpoint::Idle => None,
         };
         let acc = match vel_cmd {
@@ -349,9 +354,9 @@ fn given_set_mode_requests_then_supported_modes_switch_and_others_are_refused_in
     let mut c = armed_on_ground(&mut sim);
     let before = c.clone();
     let cases = [
-        (6, 0, "Mode not supported: OFFBOARD needs setpoints"),
-        (4, 4, "Mode not supported: MISSION not implemented yet"),
-        (4, 5, "Mode not supported: RTL not implemented yet"),
+        (6, 0, "Offboard denied: no offboard setpoints"),
+        (4, 4, "Mission denied: no mission"),
+        (4, 5, "RTL denied: landed"),
         (1, 0, "Mode not supported: MANUAL needs RC sticks"),
         (9, 9, "Mode not supported: main 9 sub 9"),
     ];
@@ -478,4 +483,95 @@ fn given_the_same_inputs_when_run_twice_then_the_outputs_are_identical() {
     let (b, sb) = whole_flight();
     assert_eq!(a, b);
     assert_eq!(sa.now_us, sb.now_us);
+}
+
+#[test]
+fn given_a_mission_asked_for_while_disarmed_when_armed_then_it_starts_and_without_one_it_is_refused() {
+    let mut sim = Sim::new();
+    let mut c = commander();
+    sim.run(&mut c, 1);
+    let err = c.request(sim.now_us, Request::Mission).unwrap_err();
+    assert_eq!(err.to_string(), "Mission denied: no mission");
+    sim.nav.mission_valid = true;
+    sim.run(&mut c, 1);
+    c.request(sim.now_us, Request::Mission).expect("pending mission");
+    assert_eq!((c.state(), c.custom_mode()), (State::Disarmed, 0x0404_0000));
+    c.request(sim.now_us, Request::Arm { force: false }).expect("arm");
+    let outs = sim.run(&mut c, 2);
+    assert_eq!(outs[1].state, State::Mission);
+    assert_eq!(outs[1].setpoint, Setpoint::Auto(AutoMode::Mission));
+    assert_eq!(outs[1].base_mode & 0x80, 0x80, "armed");
+}
+
+#[test]
+fn given_a_mission_when_done_in_the_air_then_hold_and_when_it_lands_then_disarm_after_com_disarm_land() {
+    let mut sim = Sim::new();
+    let mut c = holding(&mut sim);
+    sim.nav.mission_valid = true;
+    sim.run(&mut c, 1);
+    c.request(sim.now_us, Request::Mission).expect("mission from hold");
+    sim.run(&mut c, 5);
+    assert_eq!(c.state(), State::Mission);
+    sim.nav.mission_done = true;
+    let out = sim.run(&mut c, 2).pop().expect("outputs");
+    assert_eq!((out.state, out.custom_mode), (State::Hold, AUTO_LOITER));
+    sim.nav.mission_done = false;
+    c.request(sim.now_us, Request::Mission).expect("again");
+    sim.nav.landing = true;
+    let outs = sim.run_until(&mut c, 30.0, |o| o.state == State::Disarmed);
+    let landed_at = outs.iter().position(|o| o.events.contains(&Event::Landed)).expect("touchdown");
+    let disarmed_after_s = (outs.len() - 1 - landed_at) as f64 * STEP_US as f64 * 1e-6;
+    assert!((disarmed_after_s - 2.0).abs() < 0.05, "{disarmed_after_s} s after touchdown");
+    assert!(outs.last().expect("out").events.contains(&Event::Disarmed { reason: DisarmReason::AutoLanded }));
+}
+
+#[test]
+fn given_return_to_launch_then_refused_landed_accepted_in_the_air_and_interrupted_by_hold() {
+    let mut sim = Sim::new();
+    let mut c = armed_on_ground(&mut sim);
+    assert_eq!(c.request(sim.now_us, Request::ReturnToLaunch).unwrap_err().to_string(), "RTL denied: landed");
+    let mut c2 = holding(&mut sim);
+    c2.request(sim.now_us, Request::SetMode { main: 4, sub: 5 }).expect("RTL mode");
+    assert_eq!((c2.state(), c2.custom_mode()), (State::Rtl, 0x0504_0000));
+    assert_eq!(c2.setpoint(), Setpoint::Auto(AutoMode::ReturnToLaunch));
+    c2.request(sim.now_us, Request::Hold).expect("pause");
+    assert_eq!(c2.state(), State::Hold);
+    c.request(sim.now_us, Request::Disarm { force: false }).expect("disarm on the ground");
+}
+
+#[test]
+fn given_offboard_then_only_with_fresh_setpoints_and_back_to_hold_when_they_stop() {
+    let mut sim = Sim::new();
+    let mut c = holding(&mut sim);
+    let before = c.clone();
+    let err = c.request(sim.now_us, Request::Offboard).unwrap_err();
+    assert_eq!(err.to_string(), "Offboard denied: no offboard setpoints");
+    assert_eq!(c, before);
+    sim.nav.offboard_fresh = true;
+    sim.run(&mut c, 1);
+    c.request(sim.now_us, Request::SetMode { main: 6, sub: 0 }).expect("offboard");
+    assert_eq!((c.state(), c.custom_mode()), (State::Offboard, 0x0006_0000));
+    sim.run(&mut c, 10);
+    assert_eq!(c.state(), State::Offboard);
+    sim.nav.offboard_fresh = false;
+    let out = sim.run(&mut c, 1).pop().expect("out");
+    assert_eq!((out.state, out.custom_mode), (State::Hold, AUTO_LOITER));
+}
+
+#[test]
+fn given_a_reposition_then_hold_at_the_new_point_in_the_air_only() {
+    let mut sim = Sim::new();
+    let mut ground = armed_on_ground(&mut sim);
+    let target = Vector3::new(5.0, 6.0, -3.0);
+    let err = ground.request(sim.now_us, Request::Goto { pos_ned_m: Some(target), yaw_rad: None }).unwrap_err();
+    assert_eq!(err.to_string(), "Reposition denied: landed");
+    let mut c = holding(&mut sim);
+    c.request(sim.now_us, Request::Goto { pos_ned_m: Some(target), yaw_rad: Some(1.0) }).expect("goto");
+    assert_eq!(c.setpoint(), Setpoint::Hold { pos_ned_m: target, yaw_rad: 1.0 });
+    // QGroundControl's pause: no point, hold where it is.
+    sim.nav.mission_valid = true;
+    sim.run(&mut c, 1);
+    c.request(sim.now_us, Request::Mission).expect("mission");
+    c.request(sim.now_us, Request::Goto { pos_ned_m: None, yaw_rad: None }).expect("pause");
+    assert_eq!(c.state(), State::Hold);
 }

@@ -11,10 +11,14 @@
 //! - NAV_LAND (21): land here.
 //! - DO_SET_MODE (176) and SET_MODE: PX4 main = param2 (custom_mode bits 16-23), sub = param3 (bits 24-31);
 //!   only the CUSTOM_MODE_ENABLED bit of base_mode is read, so arming never comes from a mode change.
+//! - NAV_RETURN_TO_LAUNCH (20), MISSION_START (300), DO_FLIGHTTERMINATION (185, param1 1: a kill).
+//! - Answered by the vehicle ([`VehicleCommand`]): REQUEST_MESSAGE (512) and
+//!   REQUEST_AUTOPILOT_CAPABILITIES (520), SET_/GET_MESSAGE_INTERVAL (511/510), DO_CHANGE_SPEED (178),
+//!   DO_SET_HOME (179), DO_REPOSITION (192: all-NaN position = pause here), PREFLIGHT_REBOOT_SHUTDOWN (246).
 //! - Anything else: UNSUPPORTED.
 //!
-//! The mavlink crate (without `mav2-message-extensions`) has no target fields in COMMAND_ACK; the reply
-//! goes back to the sender because the caller sends `command_replies` to the peer the command came from.
+//! The ACK carries the sender in its target fields, and the caller sends it only to the peer the command
+//! came from.
 
 use ::mavlink::MavHeader;
 use ::mavlink::dialects::common::{
@@ -40,10 +44,44 @@ pub struct CommandContext {
 pub enum CommandEffect {
     /// Ask the commander; ACCEPTED if it agrees, DENIED with its refusal text otherwise.
     Request(Request),
+    /// Handled by the vehicle itself (messages, stream rates, home, speed, mission start, reboot).
+    Vehicle(VehicleCommand),
     /// Refused here (bad parameters), with the STATUSTEXT.
     Deny(String),
     /// Not a command this vehicle knows.
     Unsupported,
+}
+
+/// A geodetic point of a command: latitude, longitude (deg), altitude (m) AMSL or above home.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CommandPoint {
+    pub lat_deg: f64,
+    pub lon_deg: f64,
+    pub alt_m: f64,
+    pub relative_alt: bool,
+}
+
+/// The commands the vehicle answers itself.
+#[derive(Debug, Clone, PartialEq)]
+pub enum VehicleCommand {
+    /// REQUEST_MESSAGE (512) or REQUEST_AUTOPILOT_CAPABILITIES (520, as message 148).
+    RequestMessage { message_id: u32 },
+    /// SET_MESSAGE_INTERVAL (511): `interval_us` -1 off, 0 default.
+    SetMessageInterval { message_id: u32, interval_us: f64 },
+    /// GET_MESSAGE_INTERVAL (510).
+    GetMessageInterval { message_id: u32 },
+    /// DO_CHANGE_SPEED (178): ground speed (m/s); None: back to cruise.
+    ChangeSpeed { speed_mps: Option<f64> },
+    /// DO_SET_HOME (179): here (`None`) or a point.
+    SetHome { point: Option<CommandPoint> },
+    /// DO_REPOSITION (192): hold at the point (`None`: here, QGroundControl's pause), yaw (rad).
+    Reposition { point: Option<CommandPoint>, yaw_rad: Option<f64> },
+    /// MISSION_START (300): fly the mission from item `first`.
+    MissionStart { first: u16 },
+    /// PREFLIGHT_REBOOT_SHUTDOWN (246) param1 1: restart the autopilot (disarmed only).
+    Reboot,
+    /// Accepted, nothing to do (PREFLIGHT_REBOOT_SHUTDOWN param1 0).
+    NoOp,
 }
 
 /// A command for this vehicle, decoded.
@@ -82,8 +120,39 @@ fn f32_to_u8(x: f32) -> Option<u8> {
     ((0.0..=255.0).contains(&x) && x.fract() == 0.0).then_some(x as u8)
 }
 
-/// The effect of a command with its parameters (`alt_m` = COMMAND_LONG param7 / COMMAND_INT z).
-fn effect(command: MavCmd, p: [f32; 4], alt_m: f32, relative_frame: bool, ctx: &CommandContext) -> CommandEffect {
+/// A command's parameters, as COMMAND_LONG and COMMAND_INT both give them: `p[0..4]` = param1..4,
+/// `x`/`y` = param5/6 (COMMAND_INT: degE7 as degrees), `z` = param7, and whether the altitude is
+/// relative (COMMAND_INT's relative-altitude frames).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Params {
+    p: [f32; 4],
+    x: f64,
+    y: f64,
+    z: f32,
+    relative: bool,
+}
+
+impl Params {
+    /// The point of params 5-7, or None when latitude and longitude are NaN (or both 0: "here").
+    fn point(&self) -> Option<CommandPoint> {
+        let (lat, lon) = (self.x, self.y);
+        if !(lat.is_finite() && lon.is_finite()) || (lat == 0.0 && lon == 0.0) {
+            return None;
+        }
+        Some(CommandPoint { lat_deg: lat, lon_deg: lon, alt_m: f64::from(self.z), relative_alt: self.relative })
+    }
+}
+
+fn finite(x: f32) -> Option<f64> {
+    x.is_finite().then_some(f64::from(x))
+}
+
+/// The effect of a command with its parameters.
+// REQUEST_AUTOPILOT_CAPABILITIES and GET_MESSAGE_INTERVAL are deprecated, but MAVSDK falls back to them.
+#[allow(deprecated)]
+fn effect(command: MavCmd, a: &Params, ctx: &CommandContext) -> CommandEffect {
+    let p = a.p;
+    let vehicle = CommandEffect::Vehicle;
     match command {
         MavCmd::MAV_CMD_COMPONENT_ARM_DISARM => {
             let force = p[1] == ARM_FORCE_MAGIC;
@@ -96,9 +165,10 @@ fn effect(command: MavCmd, p: [f32; 4], alt_m: f32, relative_frame: bool, ctx: &
             }
         }
         MavCmd::MAV_CMD_NAV_TAKEOFF => CommandEffect::Request(Request::Takeoff {
-            alt_rel_m: takeoff_alt_rel_m(alt_m, relative_frame, ctx.home_alt_amsl_m),
+            alt_rel_m: takeoff_alt_rel_m(a.z, a.relative, ctx.home_alt_amsl_m),
         }),
         MavCmd::MAV_CMD_NAV_LAND => CommandEffect::Request(Request::Land),
+        MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH => CommandEffect::Request(Request::ReturnToLaunch),
         MavCmd::MAV_CMD_DO_SET_MODE => {
             let base = f32_to_u8(p[0]).map_or(MavModeFlag::empty(), MavModeFlag::from_bits_truncate);
             match (f32_to_u8(p[1]), f32_to_u8(p[2])) {
@@ -109,8 +179,83 @@ fn effect(command: MavCmd, p: [f32; 4], alt_m: f32, relative_frame: bool, ctx: &
                 (None, _) => CommandEffect::Deny(format!("Mode: invalid main mode {}", p[1])),
             }
         }
+        MavCmd::MAV_CMD_DO_FLIGHTTERMINATION => {
+            if p[0] > 0.5 {
+                CommandEffect::Request(Request::Kill)
+            } else {
+                CommandEffect::Deny("Flight termination: param1 must be 1".into())
+            }
+        }
+        MavCmd::MAV_CMD_MISSION_START => match f32_to_u16(p[0].max(0.0)) {
+            Some(first) => vehicle(VehicleCommand::MissionStart { first }),
+            None => CommandEffect::Deny(format!("Mission start: invalid item {}", p[0])),
+        },
+        MavCmd::MAV_CMD_DO_CHANGE_SPEED => {
+            // param2 -1 (no change) or -2 (default) and 0 all mean the cruise speed.
+            let speed_mps = finite(p[1]).filter(|s| *s > 0.0);
+            if speed_mps.is_some_and(|s| s > MAX_SPEED_MPS) {
+                return CommandEffect::Deny(format!("Speed {} m/s above {MAX_SPEED_MPS}", p[1]));
+            }
+            vehicle(VehicleCommand::ChangeSpeed { speed_mps })
+        }
+        MavCmd::MAV_CMD_DO_SET_HOME => {
+            if p[0] == 1.0 {
+                vehicle(VehicleCommand::SetHome { point: None })
+            } else {
+                match a.point() {
+                    Some(point) if point.alt_m.is_finite() => vehicle(VehicleCommand::SetHome { point: Some(point) }),
+                    _ => CommandEffect::Deny("Set home: no position given".into()),
+                }
+            }
+        }
+        MavCmd::MAV_CMD_DO_REPOSITION => {
+            let point = a
+                .point()
+                .map(|pt| CommandPoint { alt_m: if pt.alt_m.is_finite() { pt.alt_m } else { f64::NAN }, ..pt });
+            vehicle(VehicleCommand::Reposition { point, yaw_rad: finite(p[3]) })
+        }
+        MavCmd::MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN => {
+            if p[0] == 1.0 {
+                vehicle(VehicleCommand::Reboot)
+            } else if p[0] == 0.0 {
+                vehicle(VehicleCommand::NoOp)
+            } else {
+                CommandEffect::Unsupported
+            }
+        }
+        MavCmd::MAV_CMD_REQUEST_MESSAGE => match f32_to_u32(p[0]) {
+            Some(message_id) => vehicle(VehicleCommand::RequestMessage { message_id }),
+            None => CommandEffect::Deny(format!("Request message: invalid id {}", p[0])),
+        },
+        MavCmd::MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES => {
+            vehicle(VehicleCommand::RequestMessage { message_id: AUTOPILOT_VERSION_ID })
+        }
+        MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL => match f32_to_u32(p[0]) {
+            Some(message_id) if p[1].is_finite() => {
+                vehicle(VehicleCommand::SetMessageInterval { message_id, interval_us: f64::from(p[1]) })
+            }
+            _ => CommandEffect::Deny(format!("Message interval: invalid id {} or interval {}", p[0], p[1])),
+        },
+        MavCmd::MAV_CMD_GET_MESSAGE_INTERVAL => match f32_to_u32(p[0]) {
+            Some(message_id) => vehicle(VehicleCommand::GetMessageInterval { message_id }),
+            None => CommandEffect::Deny(format!("Message interval: invalid id {}", p[0])),
+        },
         _ => CommandEffect::Unsupported,
     }
+}
+
+/// Largest speed DO_CHANGE_SPEED accepts (m/s): the controllers' horizontal velocity limit.
+pub const MAX_SPEED_MPS: f64 = 3.0;
+
+/// AUTOPILOT_VERSION's message id.
+pub const AUTOPILOT_VERSION_ID: u32 = 148;
+
+fn f32_to_u16(x: f32) -> Option<u16> {
+    ((0.0..=65_535.0).contains(&x) && x.fract() == 0.0).then_some(x as u16)
+}
+
+fn f32_to_u32(x: f32) -> Option<u32> {
+    ((0.0..=16_777_216.0).contains(&x) && x.fract() == 0.0).then_some(x as u32)
 }
 
 /// Decodes a received message into a command for system `sysid`; `None` when it is not a command or is
@@ -125,7 +270,14 @@ pub fn decode_command(sysid: u8, header: &MavHeader, msg: &MavMessage, ctx: &Com
             if !addressed_to_us(sysid, c.target_system, c.target_component) {
                 return None;
             }
-            (c.command, effect(c.command, [c.param1, c.param2, c.param3, c.param4], c.param7, false, ctx))
+            let a = Params {
+                p: [c.param1, c.param2, c.param3, c.param4],
+                x: f64::from(c.param5),
+                y: f64::from(c.param6),
+                z: c.param7,
+                relative: false,
+            };
+            (c.command, effect(c.command, &a, ctx))
         }
         MavMessage::COMMAND_INT(c) => {
             if !addressed_to_us(sysid, c.target_system, c.target_component) {
@@ -135,7 +287,14 @@ pub fn decode_command(sysid: u8, header: &MavHeader, msg: &MavMessage, ctx: &Com
                 c.frame,
                 MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT | MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
             );
-            (c.command, effect(c.command, [c.param1, c.param2, c.param3, c.param4], c.z, relative, ctx))
+            let a = Params {
+                p: [c.param1, c.param2, c.param3, c.param4],
+                x: crate::core::hil::dege7_to_deg(c.x),
+                y: crate::core::hil::dege7_to_deg(c.y),
+                z: c.z,
+                relative,
+            };
+            (c.command, effect(c.command, &a, ctx))
         }
         MavMessage::SET_MODE(m) => {
             if !addressed_to_us(sysid, m.target_system, 0) {
@@ -143,7 +302,8 @@ pub fn decode_command(sysid: u8, header: &MavHeader, msg: &MavMessage, ctx: &Com
             }
             let (main, sub) = px4_main_sub(m.custom_mode);
             let p = [f32::from(m.base_mode.bits()), f32::from(main), f32::from(sub), 0.0];
-            (MavCmd::MAV_CMD_DO_SET_MODE, effect(MavCmd::MAV_CMD_DO_SET_MODE, p, f32::NAN, false, ctx))
+            let a = Params { p, x: f64::NAN, y: f64::NAN, z: f32::NAN, relative: false };
+            (MavCmd::MAV_CMD_DO_SET_MODE, effect(MavCmd::MAV_CMD_DO_SET_MODE, &a, ctx))
         }
         _ => return None,
     };
@@ -175,16 +335,23 @@ pub fn command_long(target_system: u8, target_component: u8, command: MavCmd, pa
     })
 }
 
-/// A COMMAND_ACK.
+/// A COMMAND_ACK for the command's sender.
 #[must_use]
-pub fn command_ack(command: MavCmd, result: MavResult) -> MavMessage {
-    MavMessage::COMMAND_ACK(COMMAND_ACK_DATA { command, result })
+pub fn command_ack(command: &InboundCommand, result: MavResult) -> MavMessage {
+    MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+        command: command.command,
+        result,
+        target_system: command.sender_system,
+        target_component: command.sender_component,
+        ..Default::default()
+    })
 }
 
-/// The replies to a command whose effect came out as `outcome`: `Ok` -> ACK ACCEPTED; `Err(Some(text))`
-/// -> ACK DENIED and a STATUSTEXT (warning) with `text`; `Err(None)` -> ACK UNSUPPORTED.
+/// The replies to `command` whose effect came out as `outcome`: `Ok` -> ACK ACCEPTED; `Err(Some(text))`
+/// -> ACK DENIED and a STATUSTEXT (warning) with `text`; `Err(None)` -> ACK UNSUPPORTED. The ACK is
+/// addressed to the command's sender.
 #[must_use]
-pub fn command_replies(command: MavCmd, outcome: Result<(), Option<String>>) -> Vec<MavMessage> {
+pub fn command_replies(command: &InboundCommand, outcome: Result<(), Option<String>>) -> Vec<MavMessage> {
     match outcome {
         Ok(()) => vec![command_ack(command, MavResult::MAV_RESULT_ACCEPTED)],
         Err(Some(text)) => vec![

@@ -17,14 +17,21 @@ use ::mavlink::dialects::common::MavMessage;
 use crate::core::commander::Event;
 
 pub mod command;
+pub mod housekeeping;
 pub mod identity;
+pub mod mission;
+pub mod offboard;
+pub mod params;
 pub mod telemetry;
 
 /// The wire types of this API (so users need no direct dependency on the same `mavlink` version).
 pub use ::mavlink::MavHeader;
 pub use ::mavlink::dialects::common;
 
-pub use command::{CommandContext, CommandEffect, InboundCommand, command_long, command_replies, decode_command};
+pub use command::{
+    CommandContext, CommandEffect, CommandPoint, InboundCommand, VehicleCommand, command_long, command_replies,
+    decode_command,
+};
 pub use identity::heartbeat;
 pub use telemetry::{Home, Stream, StreamScheduler, TelemetrySnapshot, statustext};
 
@@ -73,6 +80,11 @@ impl MavlinkService {
         &mut self.streams
     }
 
+    #[must_use]
+    pub fn streams(&self) -> &StreamScheduler {
+        &self.streams
+    }
+
     /// A received message: `Some` command to apply and answer, `None` when it is not for us or not a
     /// command (telemetry of other systems, GCS heartbeats).
     #[must_use]
@@ -90,7 +102,7 @@ impl MavlinkService {
             self.heartbeat_due_us = Some(next_due_us(self.heartbeat_due_us, now_us, HEARTBEAT_INTERVAL_US, changed));
         }
         out.extend(events.iter().map(|e| statustext(telemetry::event_severity(e), &e.text())));
-        out.extend(self.streams.due(now_us).into_iter().filter_map(|s| s.message(snapshot)));
+        out.extend(self.streams.due(now_us).into_iter().flat_map(|s| s.messages(snapshot)));
         out
     }
 }

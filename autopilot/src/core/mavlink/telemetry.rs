@@ -4,7 +4,10 @@
 //! ([`Stream::default_interval_us`]): SYS_STATUS 1 Hz, ATTITUDE and ATTITUDE_QUATERNION 20 Hz,
 //! LOCAL_POSITION_NED 10 Hz, GLOBAL_POSITION_INT 10 Hz (once an origin exists), GPS_RAW_INT 5 Hz (once a fix
 //! arrived), EXTENDED_SYS_STATE 1 Hz, HOME_POSITION 0.5 Hz (once home is set), VFR_HUD 4 Hz,
-//! BATTERY_STATUS 1 Hz. A stream due without its data is skipped, not queued.
+//! BATTERY_STATUS 1 Hz, MISSION_CURRENT 1 Hz (once a mission is loaded), and the controller's adaptive
+//! weights and mass estimate as NAMED_VALUE_FLOATs (2 Hz by default, the ACO_WEIGHTS_HZ parameter). A
+//! stream due without its data is skipped, not queued. Every rate can be changed per message id
+//! (SET_MESSAGE_INTERVAL).
 //!
 //! Units on the wire: angles rad (ATTITUDE) or cdeg, positions degE7 and mm, speeds cm/s. Nothing here
 //! measures the battery: SYS_STATUS and BATTERY_STATUS carry MAVLink's "unknown" values (voltage
@@ -12,14 +15,15 @@
 
 use ::mavlink::dialects::common::{
     ATTITUDE_DATA, ATTITUDE_QUATERNION_DATA, BATTERY_STATUS_DATA, EXTENDED_SYS_STATE_DATA, GLOBAL_POSITION_INT_DATA,
-    GPS_RAW_INT_DATA, GpsFixType, HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA, MavBatteryFunction, MavBatteryType,
-    MavLandedState, MavMessage, MavSeverity, MavSysStatusSensor, MavVtolState, STATUSTEXT_DATA, SYS_STATUS_DATA,
-    VFR_HUD_DATA,
+    GPS_RAW_INT_DATA, GpsFixType, HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA, MISSION_CURRENT_DATA,
+    MavBatteryFunction, MavBatteryType, MavLandedState, MavMessage, MavSeverity, MavSysStatusSensor, MavVtolState,
+    NAMED_VALUE_FLOAT_DATA, STATUSTEXT_DATA, SYS_STATUS_DATA, VFR_HUD_DATA,
 };
 use nalgebra::Vector3;
 
 use super::next_due_us;
 use crate::core::commander::{CommanderOutput, Event};
+use crate::core::control::Controller;
 use crate::core::estimator::{EstimatorState, GpsSample};
 
 /// Home: where the vehicle armed (m, NED about the estimator's origin) and, with an origin, geodetic.
@@ -31,7 +35,7 @@ pub struct Home {
 }
 
 /// What the streams report, at one vehicle step.
-#[derive(Debug, Clone, Copy)]
+#[derive(Clone, Copy)]
 pub struct TelemetrySnapshot<'a> {
     pub now_us: u64,
     pub estimate: &'a EstimatorState,
@@ -42,6 +46,16 @@ pub struct TelemetrySnapshot<'a> {
     pub pwm_us: [f64; 4],
     /// Malformed frames dropped so far on every link (plant and ground stations): SYS_STATUS errors_comm.
     pub comm_errors: u64,
+    /// The mission item being flown towards, when a mission is loaded (MISSION_CURRENT).
+    pub mission_seq: Option<u16>,
+    /// The controller, for the adaptive-weight stream.
+    pub controller: Option<&'a dyn Controller>,
+}
+
+impl std::fmt::Debug for TelemetrySnapshot<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("TelemetrySnapshot").field("now_us", &self.now_us).finish_non_exhaustive()
+    }
 }
 
 /// The periodic streams.
@@ -57,10 +71,13 @@ pub enum Stream {
     HomePosition,
     VfrHud,
     BatteryStatus,
+    MissionCurrent,
+    /// The controller's adaptive weights and mass estimate, as NAMED_VALUE_FLOATs.
+    AdaptiveWeights,
 }
 
 impl Stream {
-    pub const ALL: [Self; 10] = [
+    pub const ALL: [Self; 12] = [
         Self::SysStatus,
         Self::Attitude,
         Self::AttitudeQuaternion,
@@ -71,6 +88,8 @@ impl Stream {
         Self::HomePosition,
         Self::VfrHud,
         Self::BatteryStatus,
+        Self::MissionCurrent,
+        Self::AdaptiveWeights,
     ];
 
     /// The MAVLink message id.
@@ -87,6 +106,8 @@ impl Stream {
             Self::HomePosition => 242,
             Self::VfrHud => 74,
             Self::BatteryStatus => 147,
+            Self::MissionCurrent => 42,
+            Self::AdaptiveWeights => 251,
         }
     }
 
@@ -94,7 +115,8 @@ impl Stream {
     #[must_use]
     pub const fn default_interval_us(self) -> u64 {
         match self {
-            Self::SysStatus | Self::ExtendedSysState | Self::BatteryStatus => 1_000_000,
+            Self::SysStatus | Self::ExtendedSysState | Self::BatteryStatus | Self::MissionCurrent => 1_000_000,
+            Self::AdaptiveWeights => 500_000,
             Self::Attitude | Self::AttitudeQuaternion => 50_000,
             Self::LocalPositionNed | Self::GlobalPositionInt => 100_000,
             Self::GpsRawInt => 200_000,
@@ -103,7 +125,24 @@ impl Stream {
         }
     }
 
-    /// The message for `snap`, or `None` when its data does not exist yet (no origin, no fix, no home).
+    /// The stream of a MAVLink message id.
+    #[must_use]
+    pub fn of_message(message_id: u32) -> Option<Self> {
+        Self::ALL.into_iter().find(|s| s.message_id() == message_id)
+    }
+
+    /// The messages of one emission for `snap` (several NAMED_VALUE_FLOATs for the weights, one for the
+    /// others; none when the data does not exist yet).
+    #[must_use]
+    pub fn messages(self, snap: &TelemetrySnapshot<'_>) -> Vec<MavMessage> {
+        match self {
+            Self::AdaptiveWeights => snap.controller.map(|c| adaptive_weights(snap.now_us, c)).unwrap_or_default(),
+            _ => self.message(snap).into_iter().collect(),
+        }
+    }
+
+    /// The message for `snap`, or `None` when its data does not exist yet (no origin, no fix, no home, no
+    /// mission); the first weight for [`Stream::AdaptiveWeights`].
     #[must_use]
     pub fn message(self, snap: &TelemetrySnapshot<'_>) -> Option<MavMessage> {
         match self {
@@ -117,8 +156,49 @@ impl Stream {
             Self::HomePosition => snap.home.and_then(home_position),
             Self::VfrHud => Some(vfr_hud(snap)),
             Self::BatteryStatus => Some(battery_status()),
+            Self::MissionCurrent => snap
+                .mission_seq
+                .map(|seq| MavMessage::MISSION_CURRENT(MISSION_CURRENT_DATA { seq, ..Default::default() })),
+            Self::AdaptiveWeights => snap.controller.and_then(|c| adaptive_weights(snap.now_us, c).into_iter().next()),
         }
     }
+}
+
+/// The NAMED_VALUE_FLOAT name (at most 10 characters) of a controller telemetry value, for the values
+/// the weight stream carries: ACO's LMS weights `w_t_*`, `b_t_*`, `c_r_*`, `d_r_*` and mass estimate
+/// `m_est_*` (units dropped); for the other controllers every value, its name cut to 10 characters.
+#[must_use]
+pub fn weight_name(full_name: &str) -> Option<String> {
+    let (controller, rest) = full_name.split_once('.')?;
+    if controller == "aco" {
+        let axis = |prefix: &str| rest.strip_prefix(prefix).and_then(|r| r.split('_').next()).map(str::to_owned);
+        for (prefix, short) in
+            [("w_t_", "w_t_"), ("b_t_", "b_t_"), ("c_r_", "c_r_"), ("d_r_", "d_r_"), ("mass_est_", "m_est_")]
+        {
+            if let Some(a) = axis(prefix) {
+                return Some(format!("{short}{a}"));
+            }
+        }
+        return None;
+    }
+    Some(rest.chars().take(10).collect())
+}
+
+/// One NAMED_VALUE_FLOAT per adaptive weight of `controller`.
+#[must_use]
+pub fn adaptive_weights(now_us: u64, controller: &dyn Controller) -> Vec<MavMessage> {
+    controller
+        .telemetry()
+        .into_iter()
+        .filter_map(|(name, value)| {
+            let short = weight_name(name)?;
+            Some(MavMessage::NAMED_VALUE_FLOAT(NAMED_VALUE_FLOAT_DATA {
+                time_boot_ms: time_boot_ms(now_us),
+                value: value as f32,
+                name: short.as_str().into(),
+            }))
+        })
+        .collect()
 }
 
 /// Per-stream intervals and due times on vehicle time. A stream is first sent at the first step, then
@@ -256,6 +336,7 @@ fn attitude_quaternion(snap: &TelemetrySnapshot<'_>) -> MavMessage {
         rollspeed: w.x as f32,
         pitchspeed: w.y as f32,
         yawspeed: w.z as f32,
+        ..Default::default()
     })
 }
 
@@ -317,6 +398,7 @@ fn gps_raw_int(gps: &GpsSample) -> MavMessage {
         cog: if ground_mps > 0.1 { cdeg_0_360(v.y.atan2(v.x)) } else { u16::MAX },
         fix_type,
         satellites_visible: gps.satellites,
+        ..Default::default()
     })
 }
 
@@ -383,6 +465,7 @@ fn battery_status() -> MavMessage {
         battery_function: MavBatteryFunction::MAV_BATTERY_FUNCTION_ALL,
         mavtype: MavBatteryType::MAV_BATTERY_TYPE_UNKNOWN,
         battery_remaining: -1,
+        ..Default::default()
     })
 }
 
@@ -393,7 +476,7 @@ pub fn statustext(severity: MavSeverity, text: &str) -> MavMessage {
     while !text.is_char_boundary(end) {
         end -= 1;
     }
-    MavMessage::STATUSTEXT(STATUSTEXT_DATA { severity, text: text[..end].into() })
+    MavMessage::STATUSTEXT(STATUSTEXT_DATA { severity, text: text[..end].into(), ..Default::default() })
 }
 
 /// The severity of an event's STATUSTEXT: a kill is critical, a disarm a notice, the rest info.
