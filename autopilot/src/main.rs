@@ -40,6 +40,10 @@ struct Cli {
     /// Directory for `.tlog` flight logs (none if omitted).
     #[arg(long)]
     log_dir: Option<PathBuf>,
+    /// Directory where parameters and the mission persist across restarts, or `off` (default:
+    /// ~/.local/state/aco-autopilot/iN).
+    #[arg(long)]
+    state_dir: Option<String>,
     /// Stop when standard input closes (how `sitl run` keeps its autopilot from outliving it).
     #[arg(long, hide = true)]
     stop_on_stdin_eof: bool,
@@ -58,7 +62,12 @@ fn main() -> Result<()> {
         Some(path) => ConfigFile::load(path)?,
         None => ConfigFile::default(),
     };
-    let overrides = Overrides { plant: cli.plant, log_dir: cli.log_dir, stop_on_stdin_eof: cli.stop_on_stdin_eof };
+    let overrides = Overrides {
+        plant: cli.plant,
+        log_dir: cli.log_dir,
+        stop_on_stdin_eof: cli.stop_on_stdin_eof,
+        state_dir: cli.state_dir,
+    };
     let mut config = RuntimeConfig::resolve(file, cli.instance, overrides)?;
     if let Some(e) = cli.estimator {
         config.vehicle.estimator.source = match e {

@@ -15,6 +15,10 @@
 //! [log]
 //! dir = "logs"                         # .tlog of all ground-station traffic per run (none by default)
 //!
+//! [state]
+//! dir = "state"                        # parameters and mission kept across restarts; "off": none
+//!                                      # (default: $XDG_STATE_HOME or ~/.local/state, aco-autopilot/iN)
+//!
 //! [vehicle]                            # autopilot::core::vehicle::VehicleConfig, every field optional
 //! controller = "aco"
 //! [vehicle.estimator]
@@ -78,6 +82,14 @@ pub struct LogSection {
     pub dir: Option<PathBuf>,
 }
 
+/// `[state]`.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct StateSection {
+    /// A directory, or `off`.
+    pub dir: Option<String>,
+}
+
 /// The configuration file as written.
 #[derive(Debug, Clone, Default, PartialEq, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -85,6 +97,7 @@ pub struct ConfigFile {
     pub plant: PlantSection,
     pub gcs: GcsSection,
     pub log: LogSection,
+    pub state: StateSection,
     pub vehicle: VehicleConfig,
 }
 
@@ -164,6 +177,8 @@ pub struct RuntimeConfig {
     pub log_dir: Option<PathBuf>,
     /// Stop when standard input closes (set by `sitl run`, so that the autopilot never outlives it).
     pub stop_on_stdin_eof: bool,
+    /// Where parameters and the mission persist across restarts; `None`: nowhere.
+    pub state_dir: Option<PathBuf>,
 }
 
 /// What the command line adds to (and overrides in) the file.
@@ -172,6 +187,18 @@ pub struct Overrides {
     pub plant: Option<String>,
     pub log_dir: Option<PathBuf>,
     pub stop_on_stdin_eof: bool,
+    /// A state directory, or `off`.
+    pub state_dir: Option<String>,
+}
+
+/// The default state directory of instance `instance`: `$XDG_STATE_HOME/aco-autopilot/iN`, else
+/// `$HOME/.local/state/aco-autopilot/iN`; `None` without either.
+#[must_use]
+pub fn default_state_dir(instance: u16) -> Option<PathBuf> {
+    let base = std::env::var_os("XDG_STATE_HOME").filter(|v| !v.is_empty()).map(PathBuf::from).or_else(|| {
+        std::env::var_os("HOME").filter(|v| !v.is_empty()).map(|h| PathBuf::from(h).join(".local/state"))
+    })?;
+    Some(base.join("aco-autopilot").join(format!("i{instance}")))
 }
 
 fn shifted(base: u16, instance: u16, what: &'static str) -> Result<u16, ConfigError> {
@@ -230,6 +257,11 @@ impl RuntimeConfig {
             .map(|spec| parse_serial_spec(&spec).map_err(|message| ConfigError::Invalid { key: "gcs.serial", message }))
             .transpose()?;
         let vehicle = VehicleConfig { sysid, ..file.vehicle };
+        let state_dir = match overrides.state_dir.or(file.state.dir).as_deref().map(str::trim) {
+            Some("off") => None,
+            Some(dir) => Some(PathBuf::from(dir)),
+            None => default_state_dir(instance),
+        };
         Ok(Self {
             plant,
             instance,
@@ -239,6 +271,7 @@ impl RuntimeConfig {
             serial,
             log_dir: overrides.log_dir.or(file.log.dir),
             stop_on_stdin_eof: overrides.stop_on_stdin_eof,
+            state_dir,
         })
     }
 }
@@ -252,6 +285,7 @@ mod tests {
     #[test]
     fn defaults_follow_the_instance() {
         let c = RuntimeConfig::resolve(ConfigFile::default(), 3, Overrides::default()).expect("defaults");
+        assert!(c.state_dir.as_ref().is_none_or(|d| d.ends_with("aco-autopilot/i3")), "{:?}", c.state_dir);
         assert_eq!(c.plant, PlantEndpoint::Udp("127.0.0.1:4563".parse().expect("addr")));
         assert_eq!(c.vehicle.sysid, 4);
         assert_eq!(c.udp.bind, "0.0.0.0:18573".parse().expect("addr"));
@@ -272,6 +306,8 @@ mod tests {
             serial = "/dev/ttyUSB0:57600"
             [log]
             dir = "flights"
+            [state]
+            dir = "off"
             [vehicle]
             controller = "pid"
             [vehicle.estimator]
@@ -284,6 +320,7 @@ mod tests {
         assert_eq!(c.tcp, None);
         assert_eq!(c.serial, Some(("/dev/ttyUSB0".into(), 57_600)));
         assert_eq!(c.log_dir, Some(PathBuf::from("flights")));
+        assert_eq!(c.state_dir, None);
         assert_eq!((c.vehicle.controller, c.vehicle.estimator.source), (ControllerKind::Pid, EstimatorSource::Truth));
         let o =
             Overrides { plant: Some("udp://127.0.0.1:5000".into()), log_dir: Some("x".into()), ..Overrides::default() };

@@ -10,6 +10,7 @@
 pub mod config;
 pub mod frame;
 pub mod link;
+pub mod persist;
 pub mod plant_link;
 pub mod serial;
 pub mod shutdown;
@@ -28,7 +29,8 @@ use tokio::task::JoinSet;
 
 pub use config::{ConfigError, ConfigFile, Overrides, PlantEndpoint, RuntimeConfig};
 use link::{CHANNEL_CAPACITY, LinkError};
-use plant_link::{GcsOutputs, PlantLinkError, PlantLinkStats, TlogFrame};
+use persist::{PersistError, Persister};
+use plant_link::{GcsOutputs, MISSION_FILE, PARAMS_FILE, Persisted, PlantLinkError, PlantLinkStats, TlogFrame};
 use serial::{SerialConfig, SerialLink};
 use tcp::TcpLink;
 use tlog::{TlogError, TlogWriter};
@@ -51,6 +53,10 @@ pub enum RuntimeError {
     Plant(#[from] PlantLinkError),
     #[error(transparent)]
     Tlog(#[from] TlogError),
+    #[error(transparent)]
+    Persist(#[from] PersistError),
+    #[error("{path}: {message}")]
+    StateFile { path: PathBuf, message: String },
     #[error("cannot create log directory {path}: {source}")]
     LogDir {
         path: PathBuf,
@@ -89,6 +95,41 @@ fn open_plant(endpoint: &PlantEndpoint) -> Result<Box<dyn Transport + Send>, Pla
             Box::new(SerialTransport::open(path, *baud, transport::POLL_INTERVAL).map_err(open)?)
         }
     })
+}
+
+/// What an earlier run left in `dir` (parameters over `vehicle`'s, the mission), and the saver.
+///
+/// # Errors
+/// [`RuntimeError::StateFile`] naming the file and line of a malformed or out-of-range entry (nothing is
+/// loaded then: the autopilot does not start on a half-read state), or the directory's I/O error.
+fn load_state(dir: &std::path::Path, vehicle: &crate::core::vehicle::VehicleConfig) -> Result<Persisted, RuntimeError> {
+    let file_error = |name: &str, message: String| RuntimeError::StateFile { path: dir.join(name), message };
+    let persister = Persister::start(dir)?;
+    let params = match persist::load(dir, PARAMS_FILE)? {
+        Some(text) => {
+            let base = crate::core::params::ParamStore::from_config(vehicle);
+            let (store, warnings) = crate::core::params::ParamStore::from_text(&text, base)
+                .map_err(|e| file_error(PARAMS_FILE, e.to_string()))?;
+            for w in warnings {
+                tracing::warn!(file = %dir.join(PARAMS_FILE).display(), "{w}");
+            }
+            Some(store)
+        }
+        None => None,
+    };
+    let mission = match persist::load(dir, MISSION_FILE)? {
+        Some(text) => {
+            Some(crate::core::mission::Mission::from_wpl(&text).map_err(|e| file_error(MISSION_FILE, e.to_string()))?)
+        }
+        None => None,
+    };
+    tracing::info!(
+        dir = %dir.display(),
+        params = params.is_some(),
+        mission_items = mission.as_ref().map_or(0, crate::core::mission::Mission::len),
+        "state directory"
+    );
+    Ok(Persisted { params, mission, persister: Some(persister) })
 }
 
 /// Resolves when standard input reaches its end (a detached thread reads it, so a pending read never
@@ -153,14 +194,19 @@ pub async fn run(config: RuntimeConfig) -> Result<PlantLinkStats, RuntimeError> 
         None => (None, None),
     };
 
+    let persisted = match &config.state_dir {
+        Some(dir) => load_state(dir, &config.vehicle)?,
+        None => Persisted::default(),
+    };
     let mut plant = open_plant(&config.plant)?;
     tracing::info!(plant = %config.plant, "plant link open");
     let stop = Arc::new(AtomicBool::new(false));
     let plant_stop = stop.clone();
     let vehicle = config.vehicle.clone();
     let outputs = GcsOutputs { links: out_links, tlog: tlog_tx, counters };
-    let mut plant_task =
-        tokio::task::spawn_blocking(move || plant_link::run(plant.as_mut(), vehicle, in_rx, outputs, &plant_stop));
+    let mut plant_task = tokio::task::spawn_blocking(move || {
+        plant_link::run(plant.as_mut(), vehicle, persisted, in_rx, outputs, &plant_stop)
+    });
 
     let mut first_error: Option<RuntimeError> = None;
     let mut plant_done = None;

@@ -35,9 +35,12 @@ use crate::core::hil::{
     encode_actuator_controls, encode_frame_v2, mm_to_m,
 };
 use crate::core::mavlink::{own_header, statustext};
-use crate::core::vehicle::{PWM_MIN_US, Vehicle, VehicleConfig, VehicleError, VehicleInputs};
+use crate::core::mission::Mission;
+use crate::core::params::ParamStore;
+use crate::core::vehicle::{PWM_MIN_US, ShellEffect, Vehicle, VehicleConfig, VehicleError, VehicleInputs};
 use crate::runtime::frame::{self, LinkCounters};
 use crate::runtime::link::{Destination, Incoming, LinkId, Outgoing};
+use crate::runtime::persist::Persister;
 use crate::runtime::transport::Transport;
 
 /// Wall time without a sensor sample after which the plant link counts as lost.
@@ -94,6 +97,21 @@ pub struct PlantLinkStats {
     pub last_time_us: Option<u64>,
 }
 
+/// What an earlier run left in the state directory, and where to save: the parameters (applied over the
+/// configuration when the vehicle is built) and the mission.
+#[derive(Debug, Default)]
+pub struct Persisted {
+    pub params: Option<ParamStore>,
+    pub mission: Option<Mission>,
+    /// Where parameter and mission changes are saved; `None`: not saved.
+    pub persister: Option<Persister>,
+}
+
+/// The parameter file in the state directory.
+pub const PARAMS_FILE: &str = "params.txt";
+/// The mission file in the state directory (QGC WPL 110).
+pub const MISSION_FILE: &str = "mission.waypoints";
+
 /// The senders towards each ground-station link (index = [`LinkId`]) and the `.tlog`, and the links'
 /// counters (their malformed frames are reported in SYS_STATUS).
 #[derive(Debug, Default)]
@@ -118,6 +136,7 @@ struct Driver {
     /// A reply is pending: flush at once.
     urgent: bool,
     last_flush: Instant,
+    persisted: Persisted,
     stats: PlantLinkStats,
 }
 
@@ -190,9 +209,42 @@ impl Driver {
                 let Some(home) = self.home else { return Ok(None) };
                 config.estimator.truth_origin = Some(home);
             }
-            self.vehicle = Some(Vehicle::new(config)?);
+            let params = self.persisted.params.clone().unwrap_or_else(|| ParamStore::from_config(&config));
+            let mut vehicle = Vehicle::with_params(config, params)?;
+            if let Some(mission) = self.persisted.mission.clone()
+                && let Err(e) = vehicle.load_mission(mission)
+            {
+                tracing::error!(error = %e, "the saved mission is not valid any more; starting without one");
+            }
+            self.vehicle = Some(vehicle);
         }
         Ok(self.vehicle.as_mut())
+    }
+
+    /// Carries out what the vehicle asked of the shell: save its parameters or mission, restart it.
+    fn apply_effects(&mut self) {
+        let Some(vehicle) = self.vehicle.as_mut() else { return };
+        for effect in vehicle.take_effects() {
+            match effect {
+                ShellEffect::SaveParams(text) => {
+                    self.persisted.params = Some(vehicle.params().clone());
+                    if let Some(p) = &self.persisted.persister {
+                        p.save(PARAMS_FILE, text);
+                    }
+                }
+                ShellEffect::SaveMission(text) => {
+                    self.persisted.mission = Some(vehicle.mission().clone());
+                    if let Some(p) = &self.persisted.persister {
+                        p.save(MISSION_FILE, text);
+                    }
+                }
+                ShellEffect::Reboot => {
+                    tracing::info!("reboot requested: the vehicle restarts from its stored parameters and mission");
+                    self.vehicle = None;
+                    return;
+                }
+            }
+        }
     }
 
     /// One plant frame; returns the actuator reply to send if it carried a `HIL_SENSOR`. `plant_malformed`
@@ -241,6 +293,7 @@ impl Driver {
                 for message in outputs.messages {
                     self.send_gcs(None, Destination::All, message);
                 }
+                self.apply_effects();
                 return Ok(Some(ActuatorCommand { time_us: now_us, pwm_us: outputs.pwm_us, armed: outputs.armed }));
             }
             _ => {}
@@ -259,6 +312,7 @@ impl Driver {
         for reply in replies {
             self.send_gcs(Some(incoming.link), Destination::Peer(incoming.peer), reply);
         }
+        self.apply_effects();
         Ok(())
     }
 }
@@ -284,11 +338,13 @@ fn announcement() -> MavMessage {
 pub fn run(
     transport: &mut dyn Transport,
     vehicle: VehicleConfig,
+    persisted: Persisted,
     mut incoming: mpsc::Receiver<Incoming>,
     out: GcsOutputs,
     stop: &AtomicBool,
 ) -> Result<PlantLinkStats, PlantLinkError> {
-    Vehicle::new(vehicle.clone())?;
+    let params = persisted.params.clone().unwrap_or_else(|| ParamStore::from_config(&vehicle));
+    Vehicle::with_params(vehicle.clone(), params)?;
     let link = transport.describe();
     let io = |source| PlantLinkError::Io { link: link.clone(), source };
     let mut driver = Driver {
@@ -303,6 +359,7 @@ pub fn run(
         pending: Vec::new(),
         urgent: false,
         last_flush: Instant::now(),
+        persisted,
         stats: PlantLinkStats::default(),
     };
     let mut decoder = FrameDecoder::new();
@@ -419,7 +476,7 @@ mod tests {
             let mut transport = UdpPeerTransport::connect(plant_addr, Duration::from_millis(5)).expect("connect");
             let config = VehicleConfig { sysid, ..VehicleConfig::default() };
             let out = GcsOutputs { links: vec![out_tx], ..GcsOutputs::default() };
-            run(&mut transport, config, in_rx, out, &thread_stop)
+            run(&mut transport, config, Persisted::default(), in_rx, out, &thread_stop)
         });
         Harness { plant, out_rx, _in_tx: in_tx, stop, thread }
     }

@@ -431,6 +431,7 @@ mod tests {
         let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
             command: MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
             result: MavResult::MAV_RESULT_ACCEPTED,
+            ..Default::default()
         });
         h.outgoing
             .send(Outgoing { to: Destination::Peer(from), header: VEHICLE, message: ack.clone() })
