@@ -1,0 +1,215 @@
+//! The whole vehicle core in-process, in lockstep with the real plant (`sitl::plant`) at 500 Hz, driven
+//! by MAVLink messages as a ground station sends them (`Vehicle::handle_message`). Sensor samples are
+//! converted directly (no HIL encode/decode round trip). Pure simulated time: no sleeps.
+
+use autopilot::core::estimator::{
+    BaroSample, EstimatorSource, GeoOrigin, GpsSample, ImuSample, MagSample, TruthSample,
+};
+use autopilot::core::mavlink::MavHeader;
+use autopilot::core::mavlink::command_long;
+use autopilot::core::mavlink::common::{MavCmd, MavLandedState, MavMessage, MavModeFlag, MavResult};
+use autopilot::core::vehicle::{Vehicle, VehicleConfig, VehicleInputs};
+use sitl::plant::{InitialState, Plant, PlantConfig, SensorConfig};
+
+/// The plant step and control period (µs).
+pub const DT_US: u64 = 2_000;
+/// The ground station the rig speaks as.
+pub const GCS: MavHeader = MavHeader { system_id: 255, component_id: 190, sequence: 0 };
+
+/// Plant and vehicle in lockstep.
+pub struct Rig {
+    pub plant: Plant,
+    pub vehicle: Vehicle,
+    pub now_us: u64,
+    /// Last HEARTBEAT base_mode and EXTENDED_SYS_STATE landed_state seen.
+    pub base_mode: MavModeFlag,
+    pub landed_state: Option<MavLandedState>,
+    /// Every message the vehicle sent, with its time (µs), since the last `take_messages`.
+    pub messages: Vec<(u64, MavMessage)>,
+}
+
+impl Rig {
+    /// The nominal plant with modest sensor noise, seed 7, and a default vehicle with `source`.
+    #[must_use]
+    pub fn new(source: EstimatorSource) -> Self {
+        Self::with(PlantConfig { sensors: SensorConfig::modest_noise(), ..PlantConfig::default() }, source, |_| {})
+    }
+
+    /// `config` for the plant, a vehicle with `source` adjusted by `adjust`.
+    #[must_use]
+    pub fn with(config: PlantConfig, source: EstimatorSource, adjust: impl FnOnce(&mut VehicleConfig)) -> Self {
+        let home = config.sensors.home;
+        let plant = Plant::new(config, &InitialState::default(), 7).expect("plant");
+        let mut vc = VehicleConfig::default();
+        vc.estimator.source = source;
+        vc.estimator.truth_origin =
+            Some(GeoOrigin { lat_deg: home.lat_deg, lon_deg: home.lon_deg, alt_amsl_m: home.alt_amsl_m });
+        adjust(&mut vc);
+        let vehicle = Vehicle::new(vc).expect("vehicle");
+        Self { plant, vehicle, now_us: 0, base_mode: MavModeFlag::empty(), landed_state: None, messages: Vec::new() }
+    }
+
+    /// One lockstep tick: sensors -> vehicle -> plant.
+    ///
+    /// # Panics
+    /// If the vehicle commands a PWM outside 1000-2000 µs or not finite.
+    pub fn tick(&mut self) {
+        let s = self.plant.sample_sensors();
+        let t = self.plant.truth();
+        let inputs = VehicleInputs {
+            imu: Some(ImuSample {
+                time_us: s.time_us,
+                accel_frd_mps2: s.accel_frd_mps2,
+                gyro_frd_radps: s.gyro_frd_radps,
+            }),
+            mag: Some(MagSample { field_frd_gauss: s.mag_frd_gauss }),
+            baro: Some(BaroSample { pressure_alt_m: s.baro.pressure_alt_m }),
+            gps: s.gps.map(|g| GpsSample {
+                time_us: g.time_us,
+                lat_deg: g.lat_deg,
+                lon_deg: g.lon_deg,
+                alt_amsl_m: g.alt_amsl_m,
+                vel_ned_mps: g.vel_ned_mps,
+                fix_type: g.fix_type,
+                satellites: g.satellites_visible,
+                eph_m: g.eph_m,
+                epv_m: g.epv_m,
+            }),
+            truth: Some(TruthSample {
+                time_us: t.time_us,
+                pos_ned_m: t.pos_ned_m,
+                vel_ned_mps: t.vel_ned_mps,
+                q_ned_frd: t.q_ned_frd,
+                rate_frd_radps: t.rate_frd_radps,
+                specific_force_frd_mps2: t.specific_force_frd_mps2,
+            }),
+        };
+        self.now_us = s.time_us;
+        let out = self.vehicle.step(self.now_us, &inputs);
+        assert!(out.pwm_us.iter().all(|p| p.is_finite() && (1000.0..=2000.0).contains(p)), "pwm {:?}", out.pwm_us);
+        for m in out.messages {
+            match &m {
+                MavMessage::HEARTBEAT(h) => self.base_mode = h.base_mode,
+                MavMessage::EXTENDED_SYS_STATE(e) => self.landed_state = Some(e.landed_state),
+                _ => {}
+            }
+            self.messages.push((self.now_us, m));
+        }
+        self.plant.step(out.pwm_us, DT_US);
+    }
+
+    /// Ticks for `seconds` of vehicle time, calling `each` after every tick.
+    pub fn run_s(&mut self, seconds: f64, mut each: impl FnMut(&Self)) {
+        let end = self.now_us + (seconds * 1e6) as u64;
+        while self.now_us < end {
+            self.tick();
+            each(self);
+        }
+    }
+
+    /// Ticks until `cond` holds, at most `timeout_s` of vehicle time; returns the vehicle time it took (s).
+    ///
+    /// # Panics
+    /// When `cond` does not hold within `timeout_s`.
+    pub fn wait_until(&mut self, timeout_s: f64, what: &str, cond: impl Fn(&Self) -> bool) -> f64 {
+        let start = self.now_us;
+        while !cond(self) {
+            assert!(self.now_us - start < (timeout_s * 1e6) as u64, "timed out waiting for {what}");
+            self.tick();
+        }
+        (self.now_us - start) as f64 * 1e-6
+    }
+
+    /// A COMMAND_LONG to the vehicle; its ACK result.
+    ///
+    /// # Panics
+    /// When the first reply is not the command's ACK.
+    pub fn command(&mut self, command: MavCmd, params: [f32; 7]) -> MavResult {
+        let msg = command_long(1, 1, command, params);
+        let replies = self.vehicle.handle_message(self.now_us, &GCS, &msg);
+        match replies.first() {
+            Some(MavMessage::COMMAND_ACK(a)) if a.command == command => a.result,
+            other => panic!("no ACK for {command:?}: {other:?}"),
+        }
+    }
+
+    /// A message to the vehicle now; its replies.
+    pub fn send(&mut self, msg: &MavMessage) -> Vec<MavMessage> {
+        self.vehicle.handle_message(self.now_us, &GCS, msg)
+    }
+
+    /// The messages sent since the last call.
+    pub fn take_messages(&mut self) -> Vec<(u64, MavMessage)> {
+        std::mem::take(&mut self.messages)
+    }
+
+    /// Whether the last HEARTBEAT showed the vehicle armed.
+    #[must_use]
+    pub fn armed(&self) -> bool {
+        self.base_mode.contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED)
+    }
+}
+
+/// A mission item as a ground station builds it: `command` at `lat_deg`/`lon_deg` (NaN: unset) and
+/// `alt_m` above home (MAV_FRAME_GLOBAL_RELATIVE_ALT_INT), params 1-4.
+#[must_use]
+// The *_INT frames are deprecated in the dialect, but MAVSDK and QGroundControl send them.
+#[allow(deprecated)]
+pub fn mission_item(
+    seq: u16,
+    command: MavCmd,
+    params: [f32; 4],
+    lat_deg: f64,
+    lon_deg: f64,
+    alt_m: f32,
+) -> autopilot::core::mavlink::common::MISSION_ITEM_INT_DATA {
+    let dege7 = |deg: f64| if deg.is_nan() { i32::MAX } else { (deg * 1e7).round() as i32 };
+    autopilot::core::mavlink::common::MISSION_ITEM_INT_DATA {
+        param1: params[0],
+        param2: params[1],
+        param3: params[2],
+        param4: params[3],
+        x: dege7(lat_deg),
+        y: dege7(lon_deg),
+        z: alt_m,
+        seq,
+        command,
+        target_system: 1,
+        target_component: 1,
+        frame: autopilot::core::mavlink::common::MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+        current: 0,
+        autocontinue: 1,
+        ..Default::default()
+    }
+}
+
+impl Rig {
+    /// Uploads `items` with the mission protocol as a ground station does (COUNT, then each requested
+    /// item, until the ACK); returns the ACK result.
+    ///
+    /// # Panics
+    /// When the vehicle asks for something else than the next item, or does not answer.
+    pub fn upload(
+        &mut self,
+        items: &[autopilot::core::mavlink::common::MISSION_ITEM_INT_DATA],
+    ) -> autopilot::core::mavlink::common::MavMissionResult {
+        use autopilot::core::mavlink::common::{MISSION_COUNT_DATA, MavMessage};
+        let count = u16::try_from(items.len()).expect("fits a u16");
+        let mut replies = self.send(&MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
+            count,
+            target_system: 1,
+            target_component: 1,
+            ..Default::default()
+        }));
+        for _ in 0..=items.len() {
+            match replies.first() {
+                Some(MavMessage::MISSION_REQUEST_INT(r)) => {
+                    replies = self.send(&MavMessage::MISSION_ITEM_INT(items[usize::from(r.seq)].clone()));
+                }
+                Some(MavMessage::MISSION_ACK(a)) => return a.mavtype,
+                other => panic!("unexpected mission reply {other:?}"),
+            }
+        }
+        panic!("no MISSION_ACK after {} items", items.len());
+    }
+}

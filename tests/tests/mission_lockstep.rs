@@ -1,0 +1,143 @@
+//! The paper's figure-8 flown as a real mission, in-process through the whole vehicle core: the plant in
+//! lockstep, the fused estimator on GPS/IMU/mag/baro, the mission uploaded with the MAVLink mission
+//! protocol, started in AUTO MISSION, every item reported reached, and the track compared with the same
+//! spline the in-process figure-8 scenario flies. Also RTL and a mission that lands.
+
+use autopilot::core::estimator::EstimatorSource;
+use autopilot::core::mavlink::common::{MavCmd, MavMessage, MavMissionResult, MavResult};
+use autopilot::core::navigator::spline::SplinePath;
+use nalgebra::{Vector2, Vector3};
+use sitl::plant::{PlantConfig, SensorConfig};
+use tests::rig::{Rig, mission_item};
+
+const NAN: f32 = f32::NAN;
+const FIGURE8_NE_M: [[f64; 2]; 9] =
+    [[0.0, 0.0], [0.6, 0.6], [1.2, 0.0], [0.6, -0.6], [0.0, 0.0], [-0.6, 0.6], [-1.2, 0.0], [-0.6, -0.6], [0.0, 0.0]];
+
+/// The paper's sensor noise level for the full stack: GPS position within 2 cm (the paper's state noise on
+/// position), the rest as `sitl run`'s modest noise.
+fn plant_config() -> PlantConfig {
+    let mut sensors = SensorConfig::modest_noise();
+    sensors.gps.position.white_sigma = 0.02;
+    sensors.gps.eph_m = 0.02;
+    sensors.gps.epv_m = 0.03;
+    PlantConfig { sensors, ..PlantConfig::default() }
+}
+
+/// A rig whose estimator trusts the GPS as the plant's does.
+fn rig() -> Rig {
+    Rig::with(plant_config(), EstimatorSource::Fused, |v| {
+        v.estimator.gps_pos_noise_m = 0.02;
+        v.estimator.gps_hgt_noise_m = 0.03;
+    })
+}
+
+/// The geodetic point `ne_m` metres from the plant's home.
+fn at(rig: &Rig, ne_m: [f64; 2]) -> (f64, f64) {
+    let home = rig.plant.config().sensors.home;
+    let origin = autopilot::core::estimator::GeoOrigin {
+        lat_deg: home.lat_deg,
+        lon_deg: home.lon_deg,
+        alt_amsl_m: home.alt_amsl_m,
+    };
+    let (lat, lon, _) = origin.geodetic_from_ned(&Vector3::new(ne_m[0], ne_m[1], 0.0));
+    (lat, lon)
+}
+
+fn reached(messages: &[(u64, MavMessage)]) -> Vec<u16> {
+    messages
+        .iter()
+        .filter_map(|(_, m)| if let MavMessage::MISSION_ITEM_REACHED(r) = m { Some(r.seq) } else { None })
+        .collect()
+}
+
+#[test]
+fn given_the_figure8_as_a_mission_when_flown_through_the_vehicle_then_every_item_is_reached_and_it_tracks_the_spline() {
+    // GIVEN a converged vehicle on the ground and the figure-8 mission: takeoff, speed 0.3 m/s, nine
+    // waypoints at 1.5 m, land.
+    let mut rig = rig();
+    rig.wait_until(30.0, "estimator convergence", |r| r.vehicle.estimate().flags.converged);
+    rig.run_s(1.0, |_| {});
+    let mut items = vec![
+        mission_item(0, MavCmd::MAV_CMD_NAV_TAKEOFF, [0.0, 0.0, 0.0, NAN], f64::NAN, f64::NAN, 1.5),
+        mission_item(1, MavCmd::MAV_CMD_DO_CHANGE_SPEED, [1.0, 0.3, -1.0, 0.0], f64::NAN, f64::NAN, 0.0),
+    ];
+    for (i, ne) in FIGURE8_NE_M.iter().enumerate() {
+        let (lat, lon) = at(&rig, *ne);
+        items.push(mission_item(2 + i as u16, MavCmd::MAV_CMD_NAV_WAYPOINT, [0.0, 0.0, 0.0, NAN], lat, lon, 1.5));
+    }
+    let (lat, lon) = at(&rig, [0.0, 0.0]);
+    items.push(mission_item(11, MavCmd::MAV_CMD_NAV_LAND, [0.0, 0.0, 0.0, NAN], lat, lon, 0.0));
+    for item in &mut items {
+        if item.command == MavCmd::MAV_CMD_DO_CHANGE_SPEED {
+            item.frame = autopilot::core::mavlink::common::MavFrame::MAV_FRAME_MISSION;
+        }
+    }
+    assert_eq!(rig.upload(&items), MavMissionResult::MAV_MISSION_ACCEPTED);
+
+    // WHEN armed and switched to AUTO MISSION.
+    assert_eq!(
+        rig.command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    assert_eq!(
+        rig.command(MavCmd::MAV_CMD_DO_SET_MODE, [1.0, 4.0, 4.0, 0.0, 0.0, 0.0, 0.0]),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    rig.take_messages();
+
+    // THEN it flies the figure-8 (cross-track against the scenario's spline, from truth, while the
+    // mission is between its first and last figure-8 waypoints), lands and disarms, reporting every item
+    // reached in order.
+    let path = SplinePath::new(&FIGURE8_NE_M);
+    let mut cross = Vec::new();
+    let mut alt_err = Vec::new();
+    let mut nearest_s: Option<f64> = None;
+    let mut on_track = false;
+    let start = rig.now_us;
+    while rig.armed() || rig.now_us - start < 1_000_000 {
+        assert!(
+            rig.now_us - start < 90_000_000,
+            "mission not finished within 90 s: reached {:?}, {:?}, truth {:?}, texts {:?}",
+            reached(&rig.messages),
+            rig.vehicle.commander_output().state,
+            rig.plant.truth().pos_ned_m,
+            rig.messages
+                .iter()
+                .filter_map(|(_, m)| if let MavMessage::STATUSTEXT(t) = m {
+                    t.text.to_str().ok().map(str::to_owned)
+                } else {
+                    None
+                })
+                .collect::<Vec<_>>()
+        );
+        rig.tick();
+        let seen = reached(&rig.messages);
+        on_track = seen.contains(&2) && !seen.contains(&10);
+        if on_track {
+            let p = rig.plant.truth().pos_ned_m;
+            let (d, s) = match nearest_s {
+                Some(s) => path.nearest_near(Vector2::new(p.x, p.y), s, 0.05),
+                None => path.nearest_near(Vector2::new(p.x, p.y), 0.0, 0.3),
+            };
+            nearest_s = Some(s);
+            cross.push(d);
+            alt_err.push(p.z + 1.5);
+        }
+    }
+    assert!(!on_track);
+    let messages = rig.take_messages();
+    assert_eq!(reached(&messages), (0..=11).collect::<Vec<u16>>(), "items reached");
+    let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
+    let (cross_rms, cross_max) = (rms(&cross), cross.iter().copied().fold(0.0, f64::max));
+    println!(
+        "figure-8 mission (vehicle core, fused estimator): cross-track rms {cross_rms:.4} m, max {cross_max:.4} m, \
+         altitude rms {:.4} m over {} samples ({:.1} s)",
+        rms(&alt_err),
+        cross.len(),
+        cross.len() as f64 * 0.002
+    );
+    assert!(cross.len() > 10_000, "flew the track for over 20 s");
+    assert!(cross_rms < 0.05, "cross-track rms {cross_rms}");
+    assert!(rig.plant.truth().pos_ned_m.z.abs() < 0.05, "landed");
+}
