@@ -498,7 +498,8 @@ impl Vehicle {
                 let stream = Stream::of_message(message_id).ok_or(None)?;
                 let messages = stream.messages(&self.snapshot(now_us));
                 if messages.is_empty() {
-                    return Err(Some(format!("Message {message_id} not available yet")));
+                    // Not yet (no home, no fix): DENIED, quietly (MAVSDK asks three times a second).
+                    return Err(Some(String::new()));
                 }
                 extra.extend(messages);
                 Ok(())
@@ -684,7 +685,10 @@ impl Vehicle {
             home_ned_m: self.home.map(|h| h.pos_ned_m),
             nav: self.navigator.status(),
         });
-        if out.events.iter().any(|e| matches!(e, Event::Armed { .. })) && finite3(&state.pos_ned_m) {
+        // Home: where the vehicle first has a converged global position on the ground (as PX4: ground
+        // stations and MAVSDK want it before arming), then where it arms.
+        let first_fix = self.home.is_none() && !out.armed && state.flags.converged && state.origin.is_some();
+        if (first_fix || out.events.iter().any(|e| matches!(e, Event::Armed { .. }))) && finite3(&state.pos_ned_m) {
             self.home = Some(Home {
                 pos_ned_m: state.pos_ned_m,
                 geodetic: state.origin.map(|o| o.geodetic_from_ned(&state.pos_ned_m)),
@@ -1201,5 +1205,113 @@ mod tests {
         assert_eq!(Vehicle::new(bad_sysid).err(), Some(VehicleError::Sysid));
         let bad_speed = VehicleConfig { takeoff_speed_mps: f64::NAN, ..VehicleConfig::default() };
         assert!(matches!(Vehicle::new(bad_speed), Err(VehicleError::NotPositive { .. })));
+    }
+
+    /// The first message of `replies` after the ACK, and the ACK's result.
+    fn ack_and_rest(replies: &[MavMessage]) -> (Option<MavResult>, Vec<MavMessage>) {
+        let ack = replies.iter().find_map(|m| if let MavMessage::COMMAND_ACK(a) = m { Some(a.result) } else { None });
+        (ack, replies.iter().filter(|m| !matches!(m, MavMessage::COMMAND_ACK(_))).cloned().collect())
+    }
+
+    #[test]
+    fn given_request_message_when_asked_for_the_version_home_and_unknowns_then_answered_or_unsupported() {
+        let (mut v, mut t) = (truth_vehicle(), 0);
+        run(&mut v, &mut t, 0.1);
+        let request = |id: f32| long(MavCmd::MAV_CMD_REQUEST_MESSAGE, [id, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], 1);
+        let (ack, rest) = ack_and_rest(&v.handle_message(t, &GCS, &request(148.0)));
+        assert_eq!(ack, Some(MavResult::MAV_RESULT_ACCEPTED));
+        assert!(matches!(rest.as_slice(), [MavMessage::AUTOPILOT_VERSION(_)]), "{rest:?}");
+        // The ACK goes back to its sender.
+        let replies = v.handle_message(t, &GCS, &request(148.0));
+        let Some(MavMessage::COMMAND_ACK(a)) = replies.first() else { panic!("{replies:?}") };
+        assert_eq!((a.target_system, a.target_component), (255, 190));
+        // HOME_POSITION exists once the estimate has converged with a global position (here at once, on
+        // truth), before arming; without it the request is denied.
+        let mut blind = Vehicle::new(VehicleConfig::default()).expect("defaults are valid");
+        blind.step(0, &VehicleInputs::default());
+        let (ack, _) = ack_and_rest(&blind.handle_message(0, &GCS, &request(242.0)));
+        assert_eq!(ack, Some(MavResult::MAV_RESULT_DENIED), "no home yet");
+        assert!(!v.commander().armed());
+        let (ack, rest) = ack_and_rest(&v.handle_message(t, &GCS, &request(242.0)));
+        assert_eq!(ack, Some(MavResult::MAV_RESULT_ACCEPTED));
+        assert!(matches!(rest.as_slice(), [MavMessage::HOME_POSITION(_)]), "{rest:?}");
+        let (ack, rest) = ack_and_rest(&v.handle_message(t, &GCS, &request(9999.0)));
+        assert_eq!((ack, rest.len()), (Some(MavResult::MAV_RESULT_UNSUPPORTED), 0));
+        // The deprecated REQUEST_AUTOPILOT_CAPABILITIES MAVSDK falls back to is answered too.
+        #[allow(deprecated)]
+        let caps = long(MavCmd::MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], 1);
+        let (ack, rest) = ack_and_rest(&v.handle_message(t, &GCS, &caps));
+        assert!(
+            ack == Some(MavResult::MAV_RESULT_ACCEPTED)
+                && matches!(rest.as_slice(), [MavMessage::AUTOPILOT_VERSION(_)])
+        );
+    }
+
+    #[test]
+    fn given_set_message_interval_when_applied_then_that_stream_runs_at_its_new_rate_off_and_back_to_default() {
+        let (mut v, mut t) = (truth_vehicle(), 0);
+        run(&mut v, &mut t, 0.1);
+        let interval =
+            |id: f32, us: f32| long(MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL, [id, us, 0.0, 0.0, 0.0, 0.0, 0.0], 1);
+        let count = |msgs: &[(u64, MavMessage)], id: u32| msgs.iter().filter(|(_, m)| m.message_id() == id).count();
+        let (ack, _) = ack_and_rest(&v.handle_message(t, &GCS, &interval(30.0, 10_000.0)));
+        assert_eq!(ack, Some(MavResult::MAV_RESULT_ACCEPTED));
+        assert_eq!(count(&run(&mut v, &mut t, 2.0), 30), 200, "ATTITUDE at 100 Hz");
+        v.handle_message(t, &GCS, &interval(30.0, -1.0));
+        assert_eq!(count(&run(&mut v, &mut t, 2.0), 30), 0, "ATTITUDE off");
+        v.handle_message(t, &GCS, &interval(30.0, 0.0));
+        assert_eq!(count(&run(&mut v, &mut t, 2.0), 30), 40, "ATTITUDE back at its default 20 Hz");
+        let (ack, _) = ack_and_rest(&v.handle_message(t, &GCS, &interval(9999.0, 1e5)));
+        assert_eq!(ack, Some(MavResult::MAV_RESULT_UNSUPPORTED));
+        #[allow(deprecated)]
+        let get = long(MavCmd::MAV_CMD_GET_MESSAGE_INTERVAL, [30.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], 1);
+        let (_, rest) = ack_and_rest(&v.handle_message(t, &GCS, &get));
+        assert!(matches!(rest.as_slice(), [MavMessage::MESSAGE_INTERVAL(m)] if m.interval_us == 50_000), "{rest:?}");
+    }
+
+    #[test]
+    fn given_parameters_when_set_then_applied_echoed_saved_and_out_of_range_refused_unchanged() {
+        use ::mavlink::dialects::common::{MavParamType, PARAM_SET_DATA};
+        let (mut v, mut t) = (truth_vehicle(), 0);
+        run(&mut v, &mut t, 0.1);
+        let set = |name: &str, value: f32| {
+            MavMessage::PARAM_SET(PARAM_SET_DATA {
+                param_value: value,
+                target_system: 1,
+                target_component: 1,
+                param_id: name.into(),
+                param_type: MavParamType::MAV_PARAM_TYPE_REAL32,
+            })
+        };
+        let replies = v.handle_message(t, &GCS, &set("MPC_XY_CRUISE", 2.0));
+        assert!(matches!(replies.as_slice(), [MavMessage::PARAM_VALUE(p)] if p.param_value == 2.0), "{replies:?}");
+        assert_eq!(v.config().navigator.cruise_speed_mps, 2.0, "applied at once");
+        assert!(
+            matches!(v.take_effects().as_slice(), [ShellEffect::SaveParams(text)] if text.contains("MPC_XY_CRUISE"))
+        );
+        let before = v.params().clone();
+        let replies = v.handle_message(t, &GCS, &set("MPC_XY_CRUISE", 99.0));
+        assert!(replies.iter().any(|m| matches!(m, MavMessage::STATUSTEXT(_))), "{replies:?}");
+        assert!(replies.iter().any(|m| matches!(m, MavMessage::PARAM_VALUE(p) if p.param_value == 2.0)));
+        assert_eq!(v.params(), &before);
+        assert_eq!(v.config().navigator.cruise_speed_mps, 2.0);
+        assert!(v.take_effects().is_empty(), "a refusal saves nothing");
+        // The weight stream follows ACO_WEIGHTS_HZ.
+        v.handle_message(t, &GCS, &set("ACO_WEIGHTS_HZ", 10.0));
+        assert_eq!(v.mavlink_mut().streams().interval_us(Stream::AdaptiveWeights), 100_000);
+    }
+
+    #[test]
+    fn given_a_reboot_when_disarmed_then_the_shell_is_asked_and_when_armed_refused() {
+        let (mut v, mut t) = (truth_vehicle(), 0);
+        run(&mut v, &mut t, 0.1);
+        let reboot = long(MavCmd::MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], 1);
+        let (ack, _) = ack_and_rest(&v.handle_message(t, &GCS, &reboot));
+        assert_eq!(ack, Some(MavResult::MAV_RESULT_ACCEPTED));
+        assert_eq!(v.take_effects(), vec![ShellEffect::Reboot]);
+        v.handle_message(t, &GCS, &long(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, ARM, 1));
+        let (ack, _) = ack_and_rest(&v.handle_message(t, &GCS, &reboot));
+        assert_eq!(ack, Some(MavResult::MAV_RESULT_DENIED));
+        assert!(v.take_effects().is_empty());
     }
 }

@@ -106,7 +106,13 @@ impl LandDetector {
             self.landed_since_us.get_or_insert(now_us);
             return true;
         }
-        if self.ground_contact(s) {
+        let contact = self.ground_contact(s);
+        if self.landed && !contact && s.throttle_low {
+            // Landed with the motors at their minimum: a bounce or a slide is still a landing, not a
+            // takeoff (which needs thrust).
+            return true;
+        }
+        if contact {
             let since = *self.contact_since_us.get_or_insert(now_us);
             if !self.landed && now_us.saturating_sub(since) >= seconds_to_us(self.config.dwell_s) {
                 self.landed = true;

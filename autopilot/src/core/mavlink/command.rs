@@ -348,12 +348,14 @@ pub fn command_ack(command: &InboundCommand, result: MavResult) -> MavMessage {
 }
 
 /// The replies to `command` whose effect came out as `outcome`: `Ok` -> ACK ACCEPTED; `Err(Some(text))`
-/// -> ACK DENIED and a STATUSTEXT (warning) with `text`; `Err(None)` -> ACK UNSUPPORTED. The ACK is
-/// addressed to the command's sender.
+/// -> ACK DENIED and a STATUSTEXT (warning) with `text` (none for an empty text: a refusal clients repeat
+/// several times a second, such as a message not available yet, would flood the text stream);
+/// `Err(None)` -> ACK UNSUPPORTED. The ACK is addressed to the command's sender.
 #[must_use]
 pub fn command_replies(command: &InboundCommand, outcome: Result<(), Option<String>>) -> Vec<MavMessage> {
     match outcome {
         Ok(()) => vec![command_ack(command, MavResult::MAV_RESULT_ACCEPTED)],
+        Err(Some(text)) if text.is_empty() => vec![command_ack(command, MavResult::MAV_RESULT_DENIED)],
         Err(Some(text)) => vec![
             command_ack(command, MavResult::MAV_RESULT_DENIED),
             statustext(MavSeverity::MAV_SEVERITY_WARNING, &text),

@@ -291,6 +291,9 @@ pub fn sys_status(est: &EstimatorState, comm_errors: u64) -> MavMessage {
         | S::MAV_SYS_STATUS_PREARM_CHECK;
     let f = &est.flags;
     let health = sensors(&[
+        // No geofence exists, so none is breached: healthy, neither present nor enabled (MAVProxy reads
+        // a clear health bit as a breach).
+        (true, S::MAV_SYS_STATUS_GEOFENCE),
         (f.attitude_valid, S::MAV_SYS_STATUS_SENSOR_3D_GYRO),
         (f.attitude_valid, S::MAV_SYS_STATUS_SENSOR_3D_ACCEL),
         (f.mag_ok, S::MAV_SYS_STATUS_SENSOR_3D_MAG),

@@ -444,7 +444,8 @@ enum After {
 /// Return-to-launch progress.
 #[derive(Debug, Clone)]
 enum RtlPhase {
-    Climb(Vector3<f64>),
+    /// A vertical leg up to the return altitude (prefiltered, so it stops without overshoot).
+    Climb(Leg),
     Return(Leg),
     Descend(Vector2<f64>),
 }
@@ -984,18 +985,22 @@ impl Navigator {
         let return_d = (home.z - self.config.rtl_return_alt_m).min(here.z);
         let phase = self.rtl.take().unwrap_or_else(|| {
             if here.z > return_d + input.takeoff_acceptance_m {
-                RtlPhase::Climb(Vector3::new(here.x, here.y, return_d))
+                let to = Vector3::new(here.x, here.y, return_d);
+                RtlPhase::Climb(Leg::line(here, to, &self.config, self.config.climb_speed_mps, self.yaw_rad, None))
             } else {
                 self.rtl_return_leg(here, home)
             }
         });
         let (next, sp) = match phase {
-            RtlPhase::Climb(to) => {
-                if (input.pos_ned_m.z - to.z).abs() <= input.takeoff_acceptance_m {
+            RtlPhase::Climb(mut leg) => {
+                leg.advance(input.dt_s);
+                let sp = leg.setpoint();
+                let to = leg.end();
+                if leg.at_end() && (input.pos_ned_m.z - to.z).abs() <= input.takeoff_acceptance_m {
                     self.last_ref_ned_m = Some(to);
-                    (self.rtl_return_leg(to, home), self.still(to))
+                    (self.rtl_return_leg(to, home), sp)
                 } else {
-                    (RtlPhase::Climb(to), NavSetpoint::Climb { pos_ned_m: to, yaw_rad: self.yaw_rad })
+                    (RtlPhase::Climb(leg), sp)
                 }
             }
             RtlPhase::Return(mut leg) => {
