@@ -37,10 +37,6 @@ pub const API_PORT: u16 = 14540;
 pub const PEER_EXPIRY: Duration = Duration::from_secs(10);
 /// Largest UDP payload, in bytes: a datagram may hold several frames.
 const MAX_DATAGRAM_BYTES: usize = 65_536;
-/// Broadcast frames queued together are packed into datagrams of at most this many bytes (below a 1500
-/// byte MTU), as PX4 does: ground stations parse every frame of a datagram, and one `sendto` per
-/// datagram and target instead of per message is most of the link's cost at lockstep speeds.
-pub const MAX_PACKED_BYTES: usize = 1400;
 /// Messages taken from the core's queue at once.
 const MAX_BATCH: usize = 256;
 
@@ -224,31 +220,17 @@ impl UdpLink {
         Ok(())
     }
 
-    /// Sends `batch` in order: consecutive broadcasts packed into datagrams of at most
-    /// [`MAX_PACKED_BYTES`] to every broadcast target, each reply on its own to its peer.
+    /// Sends `batch` in order, one frame per datagram: to every broadcast target, or a reply to its peer.
+    /// (Packing several frames into one datagram, as PX4 does, saves system calls, but pymavlink parses
+    /// one frame per datagram it reads and falls ever further behind a vehicle that runs faster than real
+    /// time.)
     async fn send(&mut self, batch: &[Outgoing]) {
-        let mut packed: Vec<u8> = Vec::new();
         for out in batch {
             let bytes = encode_v2(out.header, &out.message);
             match out.to {
-                Destination::All => {
-                    if !packed.is_empty() && packed.len() + bytes.len() > MAX_PACKED_BYTES {
-                        self.broadcast(&packed).await;
-                        packed.clear();
-                    }
-                    packed.extend_from_slice(&bytes);
-                }
-                Destination::Peer(peer) => {
-                    if !packed.is_empty() {
-                        self.broadcast(&packed).await;
-                        packed.clear();
-                    }
-                    self.send_to(&bytes, peer).await;
-                }
+                Destination::All => self.broadcast(&bytes).await,
+                Destination::Peer(peer) => self.send_to(&bytes, peer).await,
             }
-        }
-        if !packed.is_empty() {
-            self.broadcast(&packed).await;
         }
     }
 
