@@ -5,3 +5,4 @@ pub mod launch;
 pub mod link;
 pub mod plant;
 pub mod scenario;
+pub mod sim_params;

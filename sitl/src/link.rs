@@ -18,6 +18,12 @@
 //! sending any MAVLink message (e.g. `HEARTBEAT`) to 4560. Until then the plant waits (`connect_timeout`,
 //! default forever). Afterwards the plant answers the sender of the last matching actuator message, so an
 //! autopilot restarted on another port is followed. Serial ([`SerialTransport`]) is point to point.
+//!
+//! A [`PlantHook`] (the SIM_ parameter service, `crate::sim_params`) may change the plant between
+//! steps. It is polled every [`HOOK_EVERY_STEPS`] plant steps (0.1 s of plant time at 2 ms), and at
+//! least every [`HOOK_WAIT_INTERVAL`] of wall time while the server waits (for the autopilot's reply, its
+//! first datagram, or the real-time pacing): never once per step, which would cost the lockstep loop a
+//! system call per step.
 
 use std::io;
 use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
@@ -44,6 +50,22 @@ pub const PLANT_COMPONENT_ID: u8 = 51;
 
 use autopilot::runtime::transport::{POLL_INTERVAL, SpinReceiver, is_transient};
 pub use autopilot::runtime::transport::{SerialTransport, Transport};
+
+/// Plant steps between two polls of the [`PlantHook`] (50 steps = 0.1 s of plant time at 2 ms).
+pub const HOOK_EVERY_STEPS: u64 = 50;
+/// Longest wall time between two polls of the [`PlantHook`] while the server waits.
+pub const HOOK_WAIT_INTERVAL: Duration = Duration::from_millis(20);
+
+/// Something polled between plant steps that may change the plant (its wind) before the next step, such
+/// as the SIM_ parameter service. A poll must not block.
+pub trait PlantHook: Send + std::fmt::Debug {
+    /// Called with the plant between two steps: every [`HOOK_EVERY_STEPS`] steps and at least every
+    /// [`HOOK_WAIT_INTERVAL`] while the server waits.
+    ///
+    /// # Errors
+    /// An I/O error that is not transient; it ends the server's run as [`LinkError::Hook`].
+    fn poll(&mut self, plant: &mut Plant) -> io::Result<()>;
+}
 
 /// UDP: bound to the plant's port, sending to the autopilot that spoke last.
 #[derive(Debug)]
@@ -195,6 +217,8 @@ pub enum LinkError {
     NoPeer { waited: Duration },
     #[error("stopped")]
     Stopped,
+    #[error("plant hook: {0}")]
+    Hook(#[source] io::Error),
 }
 
 /// What the link saw; every field only grows.
@@ -286,6 +310,8 @@ pub struct PlantServer<T: Transport> {
     pending: Option<(u64, Vec<u8>)>,
     /// Wall time and plant time at the first paced step.
     pace_origin: Option<(Instant, u64)>,
+    /// Polled between steps (see [`PlantHook`]), with the wall time of its last poll.
+    hook: Option<(Box<dyn PlantHook>, Instant)>,
 }
 
 impl PlantServer<UdpTransport> {
@@ -313,6 +339,31 @@ impl<T: Transport> PlantServer<T> {
             last_command: None,
             pending: None,
             pace_origin: None,
+            hook: None,
+        }
+    }
+
+    /// Poll `hook` between steps from now on (replacing any earlier one).
+    pub fn set_hook(&mut self, hook: Box<dyn PlantHook>) {
+        self.hook = Some((hook, Instant::now()));
+    }
+
+    /// Poll the hook now, if there is one.
+    fn poll_hook(&mut self, now: Instant) -> Result<(), LinkError> {
+        if let Some((hook, polled_at)) = &mut self.hook {
+            *polled_at = now;
+            hook.poll(&mut self.plant).map_err(LinkError::Hook)?;
+        }
+        Ok(())
+    }
+
+    /// Poll the hook if it has not been polled for [`HOOK_WAIT_INTERVAL`] (the server is waiting).
+    fn poll_hook_if_due(&mut self, now: Instant) -> Result<(), LinkError> {
+        match &self.hook {
+            Some((_, polled_at)) if now.saturating_duration_since(*polled_at) >= HOOK_WAIT_INTERVAL => {
+                self.poll_hook(now)
+            }
+            _ => Ok(()),
         }
     }
 
@@ -406,10 +457,13 @@ impl<T: Transport> PlantServer<T> {
         self.pending = Some((t, datagram));
         let command = reply?;
         self.pending = None;
-        self.pace(t);
+        self.pace(t)?;
         self.plant.step(command.effective_pwm_us(), self.config.dt_us);
         self.stats.steps += 1;
         self.last_command = Some(command);
+        if self.hook.is_some() && self.stats.steps.is_multiple_of(HOOK_EVERY_STEPS) {
+            self.poll_hook(Instant::now())?;
+        }
         Ok(command)
     }
 
@@ -450,6 +504,7 @@ impl<T: Transport> PlantServer<T> {
                     LinkError::NoPeer { waited }
                 });
             }
+            self.poll_hook_if_due(now)?;
             if now - last_send >= self.config.resend_timeout {
                 if has_peer {
                     self.transport.send(datagram)?;
@@ -483,18 +538,24 @@ impl<T: Transport> PlantServer<T> {
         }
     }
 
-    /// Real-time pacing: sleep until plant time `t + dt` is due at `speed` times wall time.
-    fn pace(&mut self, t: u64) {
-        let Pacing::RealTime { speed } = self.config.pacing else { return };
+    /// Real-time pacing: sleep until plant time `t + dt` is due at `speed` times wall time (polling the
+    /// hook through a long sleep).
+    fn pace(&mut self, t: u64) -> Result<(), LinkError> {
+        let Pacing::RealTime { speed } = self.config.pacing else { return Ok(()) };
         if !(speed.is_finite() && speed > 0.0) {
-            return;
+            return Ok(());
         }
         let (wall0, t0) = *self.pace_origin.get_or_insert((Instant::now(), t));
         let due_s = (t + self.config.dt_us).saturating_sub(t0) as f64 * 1e-6 / speed;
         let due = wall0 + Duration::from_secs_f64(due_s);
-        let now = Instant::now();
-        if due > now {
-            std::thread::sleep(due - now);
+        loop {
+            let now = Instant::now();
+            if due <= now {
+                return Ok(());
+            }
+            let sleep = if self.hook.is_some() { (due - now).min(HOOK_WAIT_INTERVAL) } else { due - now };
+            std::thread::sleep(sleep);
+            self.poll_hook_if_due(Instant::now())?;
         }
     }
 }
@@ -693,6 +754,44 @@ mod tests {
         assert!(started.elapsed() >= Duration::from_millis(150));
         assert_eq!(server.plant().time_us(), 0, "no step without a reply");
         assert!(server.stats().resends >= 3, "{:?}", server.stats());
+    }
+
+    /// A hook that counts its polls and sets a steady wind at its first.
+    #[derive(Debug)]
+    struct CountingHook(Arc<std::sync::atomic::AtomicU64>);
+
+    impl PlantHook for CountingHook {
+        fn poll(&mut self, plant: &mut Plant) -> io::Result<()> {
+            if self.0.fetch_add(1, Ordering::Relaxed) == 0 {
+                plant.wind_mut().set_steady_ned_mps(Vector3::new(0.0, 3.0, 0.0));
+            }
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn link_polls_its_hook_every_50_steps_and_while_waiting() {
+        let polls = Arc::new(std::sync::atomic::AtomicU64::new(0));
+        let config = LinkConfig { connect_timeout: Some(Duration::from_millis(100)), ..LinkConfig::default() };
+        let mut server = PlantServer::bind_udp(hover_plant(), "127.0.0.1:0", config).expect("bind plant");
+        server.set_hook(Box::new(CountingHook(polls.clone())));
+        // No autopilot yet: polled every 20 ms of the 100 ms wait.
+        assert!(matches!(server.step(&AtomicBool::new(false)), Err(LinkError::NoPeer { .. })));
+        let waiting = polls.load(Ordering::Relaxed);
+        assert!((3..=6).contains(&waiting), "{waiting} polls in 100 ms");
+        assert_eq!(server.plant().truth().wind_ned_mps, Vector3::zeros(), "acts from the next step");
+
+        let plant_addr = server.transport().local_addr().expect("addr");
+        let pwm = server.plant().config().airframe.hover_pwm_us();
+        let ap = autopilot(plant_addr, 200, pwm, |_, _| {}, |_| false);
+        let started = Instant::now();
+        assert_eq!(server.run(Some(200), &AtomicBool::new(false)).expect("run"), 200);
+        let elapsed = started.elapsed();
+        ap.join().expect("autopilot");
+        let stepping = polls.load(Ordering::Relaxed) - waiting;
+        let waits = (elapsed.as_secs_f64() / HOOK_WAIT_INTERVAL.as_secs_f64()).ceil() as u64;
+        assert!(stepping >= 4 && stepping <= 4 + waits, "{stepping} polls in 200 steps ({elapsed:?})");
+        assert_eq!(server.plant().truth().wind_ned_mps, Vector3::new(0.0, 3.0, 0.0));
     }
 
     #[test]

@@ -2,8 +2,10 @@
 //! lockstep (headless, faster than real time) and writes metrics JSON, CSV traces and PNG plots;
 //! `sitl serve` serves the plant to an autopilot over the MAVLink HIL plant protocol (UDP or serial);
 //! `sitl run` is the one-command SITL: the plant server plus the `autopilot` binary as a child process
-//! (optionally flying a hover scenario through both, with its metrics); `sitl bench` measures the
-//! two-process real-time factor in lockstep and the CPU cost of the SITL and its telemetry in real time.
+//! (optionally flying a hover scenario through both, with its metrics). Both `serve` and `run` answer the
+//! plant's SIM_ parameters (wind and gusts at run time, `sitl::sim_params`) on UDP 19550+N. `sitl bench`
+//! measures the two-process real-time factor in lockstep and the CPU cost of the SITL and its telemetry in
+//! real time.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -21,6 +23,7 @@ use sitl::scenario::reference::{ReferenceMode, ReferenceSpec, SplinePath};
 use sitl::scenario::runner::{self, RunOptions, RunOutput};
 use sitl::scenario::two_process::{self, TwoProcessOptions};
 use sitl::scenario::{BUILT_INS, MetricKind, Scenario};
+use sitl::sim_params::{SimParamLink, sim_param_port};
 use std::ffi::OsString;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -50,7 +53,7 @@ struct RunArgs {
     #[command(flatten)]
     plant: PlantArgs,
     /// Instance N: plant on UDP 4560+N, autopilot on 18570+N, ground stations on 14550+N / 14540+N,
-    /// system id N+1.
+    /// system id N+1; the plant's SIM_ parameters (wind, gusts) on UDP 19550+N.
     #[arg(short = 'i', long, default_value_t = 0)]
     instance: u16,
     /// Autopilot estimator (fused, truth).
@@ -65,11 +68,16 @@ struct RunArgs {
     /// Autopilot configuration file (TOML; see `autopilot --help`).
     #[arg(long, conflicts_with = "scenario")]
     autopilot_config: Option<PathBuf>,
+    /// Where the autopilot keeps its parameters and mission across restarts, or `off` (default:
+    /// ~/.local/state/aco-autopilot/iN; scenarios always run without).
+    #[arg(long, conflicts_with = "scenario")]
+    state_dir: Option<String>,
     /// Stop after this many simulated seconds (default: run until Ctrl-C).
     #[arg(long)]
     duration: Option<f64>,
-    /// Fly a hover scenario (gust-hover, turbulence-hover, or a file) through both processes, starting in
-    /// the air as the in-process runner does, and report its metrics at the end.
+    /// Fly a scenario through both processes and report its metrics at the end: a hover (gust-hover,
+    /// turbulence-hover) starting in the air as the in-process runner does, truth-fed; a track (figure8)
+    /// as a mission from the ground, on the fused estimator.
     #[arg(long)]
     scenario: Option<String>,
     /// With --scenario: print the metrics as one JSON object.
@@ -135,7 +143,7 @@ impl PlantArgs {
 struct ServeArgs {
     #[command(flatten)]
     plant: PlantArgs,
-    /// Instance: the UDP port becomes 4560 + N.
+    /// Instance: the UDP port becomes 4560 + N, the SIM_ parameter port 19550 + N (system N + 1).
     #[arg(short = 'i', long, default_value_t = 0)]
     instance: u16,
     /// UDP address to listen on; the autopilot announces itself with any MAVLink message.
@@ -416,18 +424,25 @@ fn serve(args: &ServeArgs) -> Result<()> {
     }
     let link = LinkConfig { dt_us: args.dt_us, pacing, ..LinkConfig::default() };
     let stop = launch::ctrl_c_flag();
+    let (sim_params, sim_port) = bind_sim_params(args.instance, &plant)?;
     let steps = if let Some(spec) = &args.serial {
         let (device, baud) = parse_serial_spec(spec).map_err(anyhow::Error::msg).context("--serial")?;
         let transport =
             SerialTransport::open(&device, baud, POLL_INTERVAL).with_context(|| format!("opening {device}"))?;
-        eprintln!("sitl: plant on serial {device} at {baud} baud");
-        PlantServer::new(plant, transport, link).run(None, &stop)?
+        eprintln!("sitl: plant on serial {device} at {baud} baud; SIM_ parameters on udp 127.0.0.1:{sim_port}");
+        let mut server = PlantServer::new(plant, transport, link);
+        server.set_hook(Box::new(sim_params));
+        server.run(None, &stop)?
     } else {
-        let port = 4560 + args.instance;
+        let port = instance_ports(args.instance)?.0;
         let listen = args.listen.clone().unwrap_or_else(|| format!("127.0.0.1:{port}"));
         let mut server =
             PlantServer::bind_udp(plant, listen.as_str(), link).with_context(|| format!("binding {listen}"))?;
-        eprintln!("sitl: plant listening on udp {listen}; waiting for an autopilot");
+        server.set_hook(Box::new(sim_params));
+        eprintln!(
+            "sitl: plant listening on udp {listen}; SIM_ parameters on udp 127.0.0.1:{sim_port}; waiting for an \
+             autopilot"
+        );
         server.run(None, &stop)?
     };
     eprintln!("sitl: {steps} steps served");
@@ -438,6 +453,15 @@ fn serve(args: &ServeArgs) -> Result<()> {
 /// estimator has work to do.
 fn realistic_plant_config() -> PlantConfig {
     PlantConfig { sensors: SensorConfig::modest_noise(), ..PlantConfig::default() }
+}
+
+/// The plant's SIM_ parameter service for instance `n` (system n+1) on 127.0.0.1:19550+n, and its port.
+fn bind_sim_params(n: u16, plant: &Plant) -> Result<(SimParamLink, u16)> {
+    let port = sim_param_port(n).context("instance too large: the SIM_ parameter port would exceed 65535")?;
+    let system_id = u8::try_from(u32::from(n) + 1).context("instance too large: system id above 255")?;
+    let link = SimParamLink::bind(("127.0.0.1", port), system_id, plant)
+        .with_context(|| format!("binding the SIM_ parameter port udp 127.0.0.1:{port}"))?;
+    Ok((link, port))
 }
 
 /// The instance's ports: plant, autopilot, QGroundControl, MAVSDK.
@@ -474,6 +498,15 @@ fn print_two_process(m: &two_process::TwoProcessMetrics, json: bool) -> Result<(
             g.rms_z_m
         );
     }
+    if let Some(t) = &m.track {
+        line += &format!(
+            "\n  track: cross-track rms {:.3} m  max {:.3} m  alt rms {:.4} m",
+            t.cross_track_rms_m, t.cross_track_max_m, t.alt_rms_m
+        );
+    }
+    if let Some((reached, total)) = m.items_reached {
+        line += &format!("\n  mission: {reached} of {total} items reached");
+    }
     line += &format!(
         "\n  non-finite: {}  pwm activity {:.2} us/tick  {:.1} sim s in {:.2} s wall ({:.0}x real time)",
         m.non_finite, m.pwm_activity_us, m.sim_s, m.wall_s, m.realtime_factor
@@ -499,8 +532,9 @@ fn run(args: &RunArgs) -> Result<()> {
             None => scenario.controllers.first().copied().unwrap_or(ControllerKind::Aco),
         };
         let estimator = match args.estimator.as_deref() {
-            None | Some("truth") => EstimatorSource::Truth,
-            Some("fused") => EstimatorSource::Fused,
+            None => None,
+            Some("truth") => Some(EstimatorSource::Truth),
+            Some("fused") => Some(EstimatorSource::Fused),
             Some(other) => bail!("--estimator must be fused or truth, got `{other}`"),
         };
         if args.plant.config.is_some() || args.plant.speed.is_some() || args.duration.is_some() {
@@ -531,6 +565,10 @@ fn run(args: &RunArgs) -> Result<()> {
         ap_args.push("--config".into());
         ap_args.push(path.into());
     }
+    if let Some(dir) = &args.state_dir {
+        ap_args.push("--state-dir".into());
+        ap_args.push(dir.into());
+    }
     let link = LinkConfig {
         pacing,
         connect_timeout: Some(Duration::from_secs(30)),
@@ -538,18 +576,23 @@ fn run(args: &RunArgs) -> Result<()> {
         ..LinkConfig::default()
     };
     let listen = format!("127.0.0.1:{plant_port}");
+    let (sim_params, sim_port) = bind_sim_params(n, &plant)?;
     let mut server =
         PlantServer::bind_udp(plant, listen.as_str(), link).with_context(|| format!("binding {listen}"))?;
+    server.set_hook(Box::new(sim_params));
     ap_args.extend(["--plant".into(), format!("udp://{listen}").into(), "-i".into(), n.to_string().into()]);
     let child = AutopilotChild::spawn(&autopilot, &ap_args)?;
     eprintln!(
-        "sitl: instance {n}: plant on udp {listen} ({}), autopilot pid {} (system id {}) listening on udp \
-         {ap_port} and tcp {}; ground stations: listen on udp {qgc_port} (QGroundControl) or {api_port} \
-         (MAVSDK/API), or send to 127.0.0.1:{ap_port}. Ctrl-C stops both.",
+        "sitl: instance {n}: plant on udp {listen} ({}), SIM_ parameters on udp 127.0.0.1:{sim_port} (system {}, \
+         component {}), autopilot pid {} (system id {}) listening on udp {ap_port} and tcp {}; ground stations: \
+         listen on udp {qgc_port} (QGroundControl) or {api_port} (MAVSDK/API), or send to 127.0.0.1:{ap_port}. \
+         Ctrl-C stops both.",
         match pacing {
             Pacing::Lockstep => "lockstep, as fast as possible".to_owned(),
             Pacing::RealTime { speed } => format!("lockstep at {speed}x real time"),
         },
+        u32::from(n) + 1,
+        sitl::link::PLANT_COMPONENT_ID,
         child.id(),
         u32::from(n) + 1,
         5760 + u32::from(n),
@@ -613,11 +656,20 @@ fn bench_once(n: u16, pacing: Pacing, duration_s: f64, stop: &AtomicBool) -> Res
     let plant = Plant::new(realistic_plant_config(), &InitialState::default(), 1)?;
     let link = LinkConfig { pacing, connect_timeout: Some(Duration::from_secs(30)), ..LinkConfig::default() };
     let listen = format!("127.0.0.1:{plant_port}");
+    // As `sitl run`: the SIM_ parameter service polled between steps.
+    let (sim_params, _) = bind_sim_params(n, &plant)?;
     let mut server =
         PlantServer::bind_udp(plant, listen.as_str(), link).with_context(|| format!("binding {listen}"))?;
+    server.set_hook(Box::new(sim_params));
     let gcs = TelemetryCounter::listen(qgc_port)?;
-    let args: Vec<OsString> =
-        vec!["--plant".into(), format!("udp://{listen}").into(), "-i".into(), n.to_string().into()];
+    let args: Vec<OsString> = vec![
+        "--plant".into(),
+        format!("udp://{listen}").into(),
+        "-i".into(),
+        n.to_string().into(),
+        "--state-dir".into(),
+        "off".into(),
+    ];
     let child = AutopilotChild::spawn_with(&launch::autopilot_binary()?, &args, Some("warn"))?;
     let report = launch::run_with_child(&mut server, child, duration_us(Some(duration_s))?, stop, |_, _| {})?;
     let (messages, bytes) = gcs.finish();

@@ -160,27 +160,26 @@ fn free_instance() -> (u16, UdpSocket, UdpSocket) {
     panic!("no free ground-station ports 14550+N / 14540+N");
 }
 
-/// The `sitl` binary, with the `autopilot` binary built next to it.
+/// The `sitl` binary, with an up-to-date `autopilot` binary built next to it.
 fn sitl_binary() -> &'static str {
+    static BUILT: std::sync::Once = std::sync::Once::new();
     let sitl = env!("CARGO_BIN_EXE_sitl");
-    let autopilot_bin = std::path::Path::new(sitl).with_file_name("autopilot");
-    if !autopilot_bin.exists() {
-        // `cargo test -p sitl` alone does not build the other crate's binary; build it (same profile).
+    BUILT.call_once(|| {
+        // `cargo test -p sitl` alone neither builds nor refreshes the other crate's binary: build it in
+        // the profile of this test (a no-op when it is current).
         let profile_release = std::path::Path::new(sitl).parent().is_some_and(|d| d.ends_with("release"));
         let mut build = Command::new(env!("CARGO"));
         build.args(["build", "-p", "autopilot", "--bin", "autopilot"]);
-        if profile_release {
-            build.arg("--release");
-        }
+        build.args(if profile_release { ["--profile", "release"] } else { ["--profile", "test"] });
         assert!(build.status().expect("cargo build").success(), "building the autopilot binary failed");
-    }
+    });
     sitl
 }
 
 /// `sitl run -i n` with `extra_args`, its standard error piped, in a process group of its own.
 fn start_sitl_run(n: u16, extra_args: &[&str]) -> Guard {
     let child = Command::new(sitl_binary())
-        .args(["run", "-i", &n.to_string()])
+        .args(["run", "-i", &n.to_string(), "--state-dir", "off"])
         .args(extra_args)
         .stderr(std::process::Stdio::piped())
         .process_group(0)
@@ -399,4 +398,212 @@ fn gust_hover_through_two_processes_reproduces_the_in_process_metrics_within_5_p
         assert!(rel <= 0.05, "{key}: two processes {a} against in-process {b}");
     }
     println!("gust-hover two processes vs in-process: {}", report.join(", "));
+}
+
+#[test]
+fn figure8_flown_as_a_mission_through_two_processes_tracks_within_1_5x_of_the_in_process_scenario() {
+    // GIVEN the figure-8 scenario (mismatch plant, the paper's 2 cm position noise), ACO: once in-process
+    // (the runner's reference, truth plus noise to the controller), once as a mission uploaded to the
+    // autopilot process, flown from the ground on its fused estimator (GPS at 2 cm).
+    let (n, _qgc, _api) = free_instance();
+    let out = Command::new(sitl_binary())
+        .args(["run", "--scenario", "figure8", "--controller", "aco", "--json", "-i", &n.to_string()])
+        .output()
+        .expect("sitl run --scenario figure8");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let two: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    let scenario = sitl::scenario::Scenario::load("figure8").expect("built-in");
+    let opts = sitl::scenario::runner::RunOptions::new(autopilot::core::control::ControllerKind::Aco);
+    let one = sitl::scenario::runner::run(&scenario, &opts).expect("in-process run").metrics;
+    let one = one.track.expect("track metrics");
+    // THEN every mission item is reported reached and the cross-track RMS is within 1.5x.
+    assert_eq!(two["items_reached"], serde_json::json!([12, 12]), "{two}");
+    assert_eq!((two["estimator"].as_str(), two["non_finite"].as_bool()), (Some("fused"), Some(false)));
+    let rms = two["track"]["cross_track_rms_m"].as_f64().expect("cross-track rms");
+    println!(
+        "figure-8: mission through two processes {rms:.4} m cross-track rms (max {}), in-process {:.4} m ({:.2}x)",
+        two["track"]["cross_track_max_m"],
+        one.cross_track_rms_m,
+        rms / one.cross_track_rms_m
+    );
+    assert!(rms <= 1.5 * one.cross_track_rms_m, "{rms} m against {} m in-process", one.cross_track_rms_m);
+}
+
+/// Sends `msg` from `socket` to the autopilot of instance `n` and collects the frames of system `sysid`
+/// that `want` picks, for up to `wall` of wall time.
+fn exchange<T>(
+    socket: &UdpSocket,
+    n: u16,
+    sysid: u8,
+    msg: Option<&MavMessage>,
+    wall: Duration,
+    mut want: impl FnMut(&MavMessage) -> Option<T>,
+) -> Option<T> {
+    if let Some(msg) = msg {
+        socket.send_to(&encode_frame_v2(GCS, msg), ("127.0.0.1", 18570 + n)).expect("send");
+    }
+    let deadline = Instant::now() + wall;
+    let mut decoder = FrameDecoder::new();
+    let mut buf = [0u8; 65_536];
+    while Instant::now() < deadline {
+        let Ok(len) = socket.recv(&mut buf) else { continue };
+        for f in decoder.decode_datagram(&buf[..len]) {
+            if f.header.system_id == u32::from(sysid)
+                && let Some(v) = want(&f.message)
+            {
+                return Some(v);
+            }
+        }
+    }
+    None
+}
+
+#[test]
+fn parameters_and_the_mission_survive_a_restart_of_the_autopilot() {
+    use autopilot::core::mavlink::common::{
+        MISSION_COUNT_DATA, MISSION_ITEM_INT_DATA, MISSION_REQUEST_INT_DATA, MISSION_REQUEST_LIST_DATA, MavFrame,
+        MavMissionResult, MavParamType, PARAM_REQUEST_READ_DATA, PARAM_SET_DATA,
+    };
+    let (n, socket, _api) = free_instance();
+    let sysid = u8::try_from(n + 1).expect("sysid");
+    let state = std::env::temp_dir().join(format!("sitl-e2e-state-{}-{n}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&state);
+    let start = |n: u16| {
+        Guard(
+            Command::new(sitl_binary())
+                .args(["run", "-i", &n.to_string(), "--state-dir", state.to_str().expect("utf-8")])
+                .stderr(std::process::Stdio::null())
+                .process_group(0)
+                .spawn()
+                .expect("spawn sitl"),
+        )
+    };
+    let stop = |mut g: Guard| {
+        Command::new("kill").args(["-s", "INT", "--", &format!("-{}", g.0.id())]).status().expect("kill");
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while g.0.try_wait().expect("wait").is_none() {
+            assert!(Instant::now() < deadline, "sitl run did not stop");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    };
+    let param_set = |name: &str, value: f32| {
+        MavMessage::PARAM_SET(PARAM_SET_DATA {
+            param_value: value,
+            target_system: sysid,
+            target_component: 1,
+            param_id: name.into(),
+            param_type: MavParamType::MAV_PARAM_TYPE_REAL32,
+        })
+    };
+    let param_read = |name: &str| {
+        MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
+            param_index: -1,
+            target_system: sysid,
+            target_component: 1,
+            param_id: name.into(),
+        })
+    };
+    let value_of = |name: &'static str| {
+        move |m: &MavMessage| match m {
+            MavMessage::PARAM_VALUE(p) if p.param_id.to_str().is_ok_and(|id| id == name) => Some(p.param_value),
+            _ => None,
+        }
+    };
+    let wall = Duration::from_secs(10);
+    // GIVEN a running SITL: set two parameters and upload a three-item mission.
+    let sitl = start(n);
+    assert!(
+        exchange(&socket, n, sysid, None, Duration::from_secs(30), |m| matches!(m, MavMessage::HEARTBEAT(_))
+            .then_some(()))
+        .is_some()
+    );
+    assert_eq!(
+        exchange(&socket, n, sysid, Some(&param_set("MPC_XY_CRUISE", 2.5)), wall, value_of("MPC_XY_CRUISE")),
+        Some(2.5)
+    );
+    assert_eq!(
+        exchange(&socket, n, sysid, Some(&param_set("RTL_RETURN_ALT", 7.0)), wall, value_of("RTL_RETURN_ALT")),
+        Some(7.0)
+    );
+    #[allow(deprecated)]
+    let item = |seq: u16, lat: i32| MISSION_ITEM_INT_DATA {
+        x: lat,
+        y: 85_455_940,
+        z: 2.0,
+        seq,
+        command: MavCmd::MAV_CMD_NAV_WAYPOINT,
+        target_system: sysid,
+        target_component: 1,
+        frame: MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+        autocontinue: 1,
+        ..Default::default()
+    };
+    let items = [item(0, 473_977_420), item(1, 473_977_520), item(2, 473_977_620)];
+    let count = MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
+        count: 3,
+        target_system: sysid,
+        target_component: 1,
+        ..Default::default()
+    });
+    let mut next = Some(count);
+    let ack = loop {
+        let reply = exchange(&socket, n, sysid, next.as_ref(), wall, |m| match m {
+            MavMessage::MISSION_REQUEST_INT(r) => Some(Err(r.seq)),
+            MavMessage::MISSION_ACK(a) => Some(Ok(a.mavtype)),
+            _ => None,
+        });
+        match reply.expect("the vehicle answers the upload") {
+            Err(seq) => next = Some(MavMessage::MISSION_ITEM_INT(items[usize::from(seq)].clone())),
+            Ok(result) => break result,
+        }
+    };
+    assert_eq!(ack, MavMissionResult::MAV_MISSION_ACCEPTED);
+    // WHEN the SITL (and its autopilot) is stopped and started again on the same state directory.
+    std::thread::sleep(Duration::from_millis(200));
+    stop(sitl);
+    assert!(state.join("params.txt").exists() && state.join("mission.waypoints").exists(), "saved");
+    // What the old autopilot sent is still queued on the socket: drop it.
+    socket.set_nonblocking(true).expect("nonblocking");
+    let mut buf = [0u8; 65_536];
+    while socket.recv(&mut buf).is_ok() {}
+    socket.set_nonblocking(false).expect("blocking");
+    socket.set_read_timeout(Some(Duration::from_millis(100))).expect("timeout");
+    let _sitl = start(n);
+    // THEN the parameters and the mission are as they were.
+    assert!(
+        exchange(&socket, n, sysid, None, Duration::from_secs(30), |m| matches!(m, MavMessage::HEARTBEAT(_))
+            .then_some(()))
+        .is_some()
+    );
+    assert_eq!(
+        exchange(&socket, n, sysid, Some(&param_read("MPC_XY_CRUISE")), wall, value_of("MPC_XY_CRUISE")),
+        Some(2.5)
+    );
+    assert_eq!(
+        exchange(&socket, n, sysid, Some(&param_read("RTL_RETURN_ALT")), wall, value_of("RTL_RETURN_ALT")),
+        Some(7.0)
+    );
+    let list = MavMessage::MISSION_REQUEST_LIST(MISSION_REQUEST_LIST_DATA {
+        target_system: sysid,
+        target_component: 1,
+        ..Default::default()
+    });
+    let count = exchange(&socket, n, sysid, Some(&list), wall, |m| {
+        if let MavMessage::MISSION_COUNT(c) = m { Some(c.count) } else { None }
+    });
+    assert_eq!(count, Some(3));
+    for (seq, want) in items.iter().enumerate() {
+        let request = MavMessage::MISSION_REQUEST_INT(MISSION_REQUEST_INT_DATA {
+            seq: seq as u16,
+            target_system: sysid,
+            target_component: 1,
+            ..Default::default()
+        });
+        let got = exchange(&socket, n, sysid, Some(&request), wall, |m| {
+            if let MavMessage::MISSION_ITEM_INT(i) = m { Some(i.clone()) } else { None }
+        })
+        .expect("the item");
+        assert_eq!((got.seq, got.x, got.y, got.z, got.command), (want.seq, want.x, want.y, want.z, want.command));
+    }
+    let _ = std::fs::remove_dir_all(&state);
 }

@@ -468,6 +468,18 @@ impl Wind {
         self.gust.as_ref()
     }
 
+    /// The steady wind (m/s NED, toward).
+    #[must_use]
+    pub fn steady_ned_mps(&self) -> Vector3<f64> {
+        self.steady_ned_mps
+    }
+
+    /// Whether a turbulence model is on.
+    #[must_use]
+    pub fn has_turbulence(&self) -> bool {
+        self.turbulence.is_some()
+    }
+
     /// Replace the steady wind (m/s NED), e.g. from a fault-injection command.
     pub fn set_steady_ned_mps(&mut self, steady_ned_mps: Vector3<f64>) {
         self.steady_ned_mps = steady_ned_mps;

@@ -22,6 +22,7 @@
 //! [controller]                    # optional overrides of the controllers' configuration
 //! ```
 
+pub mod gcs;
 pub mod metrics;
 pub mod plot;
 pub mod reference;

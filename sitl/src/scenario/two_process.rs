@@ -1,32 +1,48 @@
 //! A scenario flown through the whole stack: the plant served over UDP in lockstep to the real
 //! `autopilot` process (`sitl run --scenario`), rather than the in-process runner's controller. In: a
-//! hover scenario (a position reference with one step: `gust-hover`, `turbulence-hover`), the controller,
-//! seed and instance. Out: the scenario's metrics from the plant's truth, sampled at every plant step as
-//! the in-process runner samples it, so the two can be compared number for number.
+//! scenario, the controller, seed and instance. Out: the scenario's metrics from the plant's truth, so the
+//! two can be compared number for number.
 //!
-//! The autopilot is configured to start as the runner does: in the air at the scenario's initial point,
-//! armed and holding the reference (`start_airborne`), truth-fed (the plant's truth in
-//! `HIL_STATE_QUATERNION`, with the scenario's state noise added by the plant) and with the plant's home as
-//! its truth origin, so its NED frame is the plant's. It runs the vehicle core's commander, MAVLink
-//! services and telemetry as in any flight.
+//! - **Hover scenarios** (a position reference with one step: `gust-hover`, `turbulence-hover`): the
+//!   autopilot starts as the runner does, in the air at the scenario's initial point, armed and holding
+//!   the reference (`start_airborne`); truth-fed (the plant's truth in `HIL_STATE_QUATERNION` and
+//!   `ODOMETRY`, with the scenario's state noise added by the plant) and with the plant's home as its
+//!   truth origin, so its NED frame is the plant's. Truth is sampled before every plant step, as the
+//!   runner samples it.
+//! - **Track scenarios** (`figure8`): flown as a real mission by a ground station (`gcs`) over the
+//!   autopilot's UDP port: from the ground, the fused estimator on the plant's sensors, the track's
+//!   waypoints uploaded with the mission protocol (takeoff to its altitude, DO_CHANGE_SPEED to its speed,
+//!   the waypoints relative to home, land at the last), armed, AUTO MISSION, until landed and disarmed.
+//!   The scenario's state noise becomes sensor noise: the paper's 2 cm on position is the GPS's
+//!   (σ 0.02 m, eph 0.02 m) and the estimator is told so; the other sensors carry `sitl run`'s modest
+//!   noise. Cross-track and altitude errors are measured from truth against the scenario's spline while
+//!   the mission is between its first and last waypoint, as the runner measures its reference's lap.
+//!
+//! Either way the autopilot runs its commander, MAVLink services and telemetry as in any flight, with no
+//! state directory (no saved parameters or mission).
 
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
 use autopilot::core::control::ControllerKind;
 use autopilot::core::estimator::EstimatorSource;
+use autopilot::core::estimator::GeoOrigin;
+use autopilot::core::hil::deg_to_dege7;
+use autopilot::core::mavlink::common::{MISSION_ITEM_INT_DATA, MavCmd, MavFrame};
+use autopilot::core::navigator::spline::SplinePath;
 use autopilot::core::vehicle::{AirborneStart, VehicleConfig};
-use nalgebra::Vector3;
+use nalgebra::{Vector2, Vector3};
 use serde::Serialize;
 
-use super::metrics::{self, GustMetrics};
-use super::reference::ReferenceSpec;
+use super::gcs::Gcs;
+use super::metrics::{self, GustMetrics, TrackMetrics};
+use super::reference::{ReferenceSpec, TrackSpec};
 use super::runner::plant_config;
 use super::{Scenario, ScenarioError, StateNoiseKind};
 use crate::launch::{AutopilotChild, LaunchError, LaunchReport, run_with_child};
-use crate::link::{LinkConfig, PlantServer, home_origin};
-use crate::plant::{InitialState, Plant, StateNoise};
+use crate::link::{LinkConfig, PlantServer, UdpTransport, home_origin};
+use crate::plant::{InitialState, Plant, SensorConfig, StateNoise};
 
 /// Why a two-process scenario run failed.
 #[derive(Debug, thiserror::Error)]
@@ -35,9 +51,11 @@ pub enum TwoProcessError {
     Scenario(#[from] ScenarioError),
     #[error(
         "scenario {0}: only hover scenarios (a position reference with one step, e.g. gust-hover, \
-         turbulence-hover) fly through two processes"
+         turbulence-hover) and tracks (figure8) fly through two processes"
     )]
     NotHover(String),
+    #[error("the ground station: {0}")]
+    Gcs(#[from] super::gcs::GcsError),
     #[error("cannot write the autopilot configuration {path}: {source}")]
     Config {
         path: PathBuf,
@@ -64,8 +82,8 @@ pub struct TwoProcessOptions {
     pub plant: Option<String>,
     pub seed: u64,
     pub instance: u16,
-    /// The autopilot's estimator (truth by default, as the paper's runs).
-    pub estimator: EstimatorSource,
+    /// The autopilot's estimator; `None`: truth for hovers (as the paper's runs), fused for tracks.
+    pub estimator: Option<EstimatorSource>,
     /// Extra autopilot arguments (e.g. `--log-dir`).
     pub autopilot_args: Vec<OsString>,
 }
@@ -81,6 +99,11 @@ pub struct TwoProcessMetrics {
     pub processes: u8,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gust: Option<GustMetrics>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub track: Option<TrackMetrics>,
+    /// Track scenarios: the mission items reported reached, and how many the mission had.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub items_reached: Option<(usize, usize)>,
     pub non_finite: bool,
     /// Mean |PWM change| per tick over the run and rotors (µs), from the commands the plant applied.
     pub pwm_activity_us: f64,
@@ -92,26 +115,41 @@ pub struct TwoProcessMetrics {
     pub resends: u64,
 }
 
-/// The autopilot configuration file (TOML) for a run of `scenario`.
+/// The estimator a run uses.
+fn estimator_of(scenario: &Scenario, opts: &TwoProcessOptions) -> EstimatorSource {
+    opts.estimator.unwrap_or(match scenario.reference {
+        ReferenceSpec::Track(_) => EstimatorSource::Fused,
+        _ => EstimatorSource::Truth,
+    })
+}
+
+/// The autopilot configuration file (TOML) for a run of `scenario`: the scenario's controller
+/// configuration; hovers start airborne at their hold point; truth-fed runs take the plant's home as
+/// their origin; track runs with the paper's noise trust the 2 cm GPS.
 ///
 /// # Errors
-/// [`TwoProcessError::NotHover`] when the scenario is not a hover.
+/// [`TwoProcessError::NotHover`] when the scenario is neither a hover nor a track.
 pub fn autopilot_config(
     scenario: &Scenario,
     opts: &TwoProcessOptions,
     plant: &Plant,
 ) -> Result<String, TwoProcessError> {
-    let ReferenceSpec::Position { steps } = &scenario.reference else {
-        return Err(TwoProcessError::NotHover(scenario.name.clone()));
-    };
-    let [hold] = steps.as_slice() else { return Err(TwoProcessError::NotHover(scenario.name.clone())) };
-    let mut vehicle = VehicleConfig {
-        controller: opts.controller,
-        control: scenario.controller.clone(),
-        start_airborne: Some(AirborneStart { hold_ned_m: hold.pos_ned_m, yaw_rad: hold.yaw_rad }),
-        ..VehicleConfig::default()
-    };
-    vehicle.estimator.source = opts.estimator;
+    let mut vehicle =
+        VehicleConfig { controller: opts.controller, control: scenario.controller.clone(), ..VehicleConfig::default() };
+    match &scenario.reference {
+        ReferenceSpec::Position { steps } => {
+            let [hold] = steps.as_slice() else { return Err(TwoProcessError::NotHover(scenario.name.clone())) };
+            vehicle.start_airborne = Some(AirborneStart { hold_ned_m: hold.pos_ned_m, yaw_rad: hold.yaw_rad });
+        }
+        ReferenceSpec::Track(_) => {
+            if scenario.state_noise == StateNoiseKind::Paper {
+                vehicle.estimator.gps_pos_noise_m = PAPER_GPS_SIGMA_M;
+                vehicle.estimator.gps_hgt_noise_m = PAPER_GPS_SIGMA_M * 1.5;
+            }
+        }
+        ReferenceSpec::Attitude { .. } => return Err(TwoProcessError::NotHover(scenario.name.clone())),
+    }
+    vehicle.estimator.source = estimator_of(scenario, opts);
     vehicle.estimator.truth_origin = Some(home_origin(&plant.config().sensors.home));
     #[derive(Serialize)]
     struct File<'a> {
@@ -119,6 +157,24 @@ pub fn autopilot_config(
     }
     toml::to_string(&File { vehicle: &vehicle })
         .map_err(|e| TwoProcessError::Config { path: PathBuf::from("(memory)"), source: std::io::Error::other(e) })
+}
+
+/// The paper's position noise (m) as the GPS's, for track runs through the estimator.
+pub const PAPER_GPS_SIGMA_M: f64 = 0.02;
+
+/// The plant's sensors for a track run: `sitl run`'s modest noise, the GPS at the paper's 2 cm (or no
+/// noise at all without state noise).
+fn track_sensors(noise: StateNoiseKind) -> SensorConfig {
+    match noise {
+        StateNoiseKind::None => SensorConfig::default(),
+        StateNoiseKind::Paper => {
+            let mut s = SensorConfig::modest_noise();
+            s.gps.position.white_sigma = PAPER_GPS_SIGMA_M;
+            s.gps.eph_m = PAPER_GPS_SIGMA_M;
+            s.gps.epv_m = PAPER_GPS_SIGMA_M * 1.5;
+            s
+        }
+    }
 }
 
 /// Per-axis series of one run, sampled before every plant step.
@@ -147,9 +203,53 @@ impl Recorded {
 /// Fly `scenario` through the plant server and the `autopilot` binary at `autopilot`.
 ///
 /// # Errors
-/// [`TwoProcessError`]: not a hover scenario, a bad plant, a port in use, the autopilot failing, or
-/// `stop` set before the end.
+/// [`TwoProcessError`]: not a hover or track scenario, a bad plant, a port in use, the autopilot or the
+/// ground station failing, or `stop` set before the end.
 pub fn run(
+    scenario: &Scenario,
+    opts: &TwoProcessOptions,
+    autopilot: &Path,
+    stop: &AtomicBool,
+) -> Result<TwoProcessMetrics, TwoProcessError> {
+    match &scenario.reference {
+        ReferenceSpec::Track(track) => run_track(scenario, track, opts, autopilot, stop),
+        _ => run_hover(scenario, opts, autopilot, stop),
+    }
+}
+
+/// A launched run: the plant server, the autopilot child (or why it did not start) and its configuration
+/// file (removed at the end).
+type Launched = (PlantServer<UdpTransport>, Result<AutopilotChild, LaunchError>, PathBuf);
+
+/// The plant server on 127.0.0.1:4560+N and the autopilot child configured for `scenario`.
+fn launch(
+    scenario: &Scenario,
+    opts: &TwoProcessOptions,
+    autopilot: &Path,
+    plant: Plant,
+    link: LinkConfig,
+) -> Result<Launched, TwoProcessError> {
+    let config_text = autopilot_config(scenario, opts, &plant)?;
+    let config_path =
+        std::env::temp_dir().join(format!("sitl-{}-i{}-autopilot.toml", std::process::id(), opts.instance));
+    std::fs::write(&config_path, config_text)
+        .map_err(|source| TwoProcessError::Config { path: config_path.clone(), source })?;
+    let addr = format!("127.0.0.1:{}", 4560 + opts.instance);
+    let server = PlantServer::bind_udp(plant, addr.as_str(), link)
+        .map_err(|source| TwoProcessError::Bind { addr: addr.clone(), source })?;
+    let mut args: Vec<OsString> =
+        vec!["--plant".into(), format!("udp://{addr}").into(), "-i".into(), opts.instance.to_string().into()];
+    args.push("--config".into());
+    args.push(config_path.clone().into());
+    // A scenario runs on the defaults and its own configuration, never on parameters saved by a flight.
+    args.push("--state-dir".into());
+    args.push("off".into());
+    args.extend(opts.autopilot_args.iter().cloned());
+    let child = AutopilotChild::spawn(autopilot, &args);
+    Ok((server, child, config_path))
+}
+
+fn run_hover(
     scenario: &Scenario,
     opts: &TwoProcessOptions,
     autopilot: &Path,
@@ -169,12 +269,6 @@ pub fn run(
         rotor_lift_n: None,
     };
     let plant = Plant::new(config, &initial, opts.seed).map_err(ScenarioError::from)?;
-    let config_text = autopilot_config(scenario, opts, &plant)?;
-    let config_path =
-        std::env::temp_dir().join(format!("sitl-{}-i{}-autopilot.toml", std::process::id(), opts.instance));
-    std::fs::write(&config_path, config_text)
-        .map_err(|source| TwoProcessError::Config { path: config_path.clone(), source })?;
-
     let truth_noise = match scenario.state_noise {
         StateNoiseKind::None => None,
         StateNoiseKind::Paper => Some(StateNoise::paper()),
@@ -185,16 +279,7 @@ pub fn run(
         connect_timeout: Some(std::time::Duration::from_secs(30)),
         ..LinkConfig::default()
     };
-    let port = 4560 + opts.instance;
-    let addr = format!("127.0.0.1:{port}");
-    let mut server = PlantServer::bind_udp(plant, addr.as_str(), link)
-        .map_err(|source| TwoProcessError::Bind { addr: addr.clone(), source })?;
-    let mut args: Vec<OsString> =
-        vec!["--plant".into(), format!("udp://{addr}").into(), "-i".into(), opts.instance.to_string().into()];
-    args.push("--config".into());
-    args.push(config_path.clone().into());
-    args.extend(opts.autopilot_args.iter().cloned());
-    let child = AutopilotChild::spawn(autopilot, &args);
+    let (mut server, child, config_path) = launch(scenario, opts, autopilot, plant, link)?;
     let duration_us = (scenario.duration_s * 1e6).round() as u64;
     let mut rec = Recorded::default();
     rec.sample(0.0, &server.plant().truth().pos_ned_m, &hold);
@@ -228,11 +313,227 @@ pub fn run(
         controller: opts.controller.to_string(),
         plant: opts.plant.clone().unwrap_or_else(|| scenario.plant.clone()),
         seed: opts.seed,
-        estimator: format!("{:?}", opts.estimator).to_lowercase(),
+        estimator: format!("{:?}", estimator_of(scenario, opts)).to_lowercase(),
         processes: 2,
         gust,
+        track: None,
+        items_reached: None,
         non_finite: rec.non_finite,
         pwm_activity_us: rec.pwm_change_sum / rec.ticks.saturating_sub(1).max(1) as f64,
+        steps: report.steps,
+        sim_s: report.sim_s,
+        wall_s: report.wall_s,
+        realtime_factor: report.realtime_factor(),
+        resends: report.link.resends,
+    })
+}
+
+/// A mission item of a track run: `command` at `ne_m` from the plant's home (NaN: unset) and `alt_m` above
+/// home, params 1-4.
+#[allow(deprecated)]
+fn track_item(
+    seq: u16,
+    command: MavCmd,
+    params: [f32; 4],
+    home: &GeoOrigin,
+    ne_m: Option<[f64; 2]>,
+    alt_m: f32,
+) -> MISSION_ITEM_INT_DATA {
+    let (x, y) = match ne_m {
+        Some([n, e]) => {
+            let (lat, lon, _) = home.geodetic_from_ned(&Vector3::new(n, e, 0.0));
+            (deg_to_dege7(lat), deg_to_dege7(lon))
+        }
+        None => (i32::MAX, i32::MAX),
+    };
+    let frame = if command == MavCmd::MAV_CMD_DO_CHANGE_SPEED {
+        MavFrame::MAV_FRAME_MISSION
+    } else {
+        MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+    };
+    MISSION_ITEM_INT_DATA {
+        param1: params[0],
+        param2: params[1],
+        param3: params[2],
+        param4: params[3],
+        x,
+        y,
+        z: alt_m,
+        seq,
+        command,
+        target_system: 1,
+        target_component: 1,
+        frame,
+        current: 0,
+        autocontinue: 1,
+        ..Default::default()
+    }
+}
+
+/// The track as a mission: takeoff, speed, every waypoint of every lap, land at the last. Returns the
+/// items and the sequence numbers of the first and last waypoint.
+fn track_mission(track: &TrackSpec, home: &GeoOrigin) -> (Vec<MISSION_ITEM_INT_DATA>, u16, u16) {
+    let alt_m = (-track.pos_d_m) as f32;
+    let nan = f32::NAN;
+    let mut items = vec![
+        track_item(0, MavCmd::MAV_CMD_NAV_TAKEOFF, [0.0, 0.0, 0.0, nan], home, None, alt_m),
+        track_item(1, MavCmd::MAV_CMD_DO_CHANGE_SPEED, [1.0, track.speed_mps as f32, -1.0, 0.0], home, None, 0.0),
+    ];
+    let first = 2;
+    for lap in 0..track.laps {
+        for (i, w) in track.waypoints_ne_m.iter().enumerate() {
+            // A closed track's laps share their seam point.
+            if lap > 0 && i == 0 {
+                continue;
+            }
+            let seq = u16::try_from(items.len()).unwrap_or(u16::MAX);
+            items.push(track_item(seq, MavCmd::MAV_CMD_NAV_WAYPOINT, [0.0, 0.0, 0.0, nan], home, Some(*w), alt_m));
+        }
+    }
+    let last = u16::try_from(items.len() - 1).unwrap_or(u16::MAX);
+    let end = *track.waypoints_ne_m.last().unwrap_or(&[0.0, 0.0]);
+    let seq = last + 1;
+    items.push(track_item(seq, MavCmd::MAV_CMD_NAV_LAND, [0.0, 0.0, 0.0, nan], home, Some(end), 0.0));
+    (items, first, last)
+}
+
+/// Fly the mission with the ground station: wait for the estimator, upload, arm, AUTO MISSION, until
+/// every item is reached and the vehicle has disarmed. `reached` follows MISSION_ITEM_REACHED.
+fn fly_mission(
+    instance: u16,
+    items: &[MISSION_ITEM_INT_DATA],
+    reached: &AtomicU32,
+    timeout_s: f64,
+) -> Result<usize, TwoProcessError> {
+    let sysid = u8::try_from(instance + 1).unwrap_or(u8::MAX);
+    let autopilot = std::net::SocketAddr::from(([127, 0, 0, 1], 18570 + instance));
+    let mut gcs = Gcs::new(autopilot, sysid)?;
+    gcs.wait_until(60.0, "estimator convergence", |s| s.converged)?;
+    gcs.upload(items)?;
+    gcs.command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])?;
+    gcs.command(MavCmd::MAV_CMD_DO_SET_MODE, [1.0, 4.0, 4.0, 0.0, 0.0, 0.0, 0.0])?;
+    let mut last_len = 0;
+    let start = gcs.seen.time_ms;
+    loop {
+        gcs.wait_until(timeout_s, "mission progress", |s| s.reached.len() > last_len || !s.armed)?;
+        last_len = gcs.seen.reached.len();
+        if let Some(&seq) = gcs.seen.reached.last() {
+            reached.store(u32::from(seq), Ordering::Relaxed);
+        }
+        if !gcs.seen.armed {
+            break;
+        }
+        if f64::from(gcs.seen.time_ms - start) > timeout_s * 1e3 {
+            return Err(super::gcs::GcsError::Timeout("the mission".into(), timeout_s).into());
+        }
+    }
+    Ok(gcs.seen.reached.len())
+}
+
+/// No MISSION_ITEM_REACHED yet.
+const NONE_REACHED: u32 = u32::MAX;
+
+fn run_track(
+    scenario: &Scenario,
+    track: &TrackSpec,
+    opts: &TwoProcessOptions,
+    autopilot: &Path,
+    stop: &AtomicBool,
+) -> Result<TwoProcessMetrics, TwoProcessError> {
+    let mut config = plant_config(scenario, opts.plant.as_deref())?;
+    config.sensors = track_sensors(scenario.state_noise);
+    let plant = Plant::new(config, &InitialState::default(), opts.seed).map_err(ScenarioError::from)?;
+    let home = home_origin(&plant.config().sensors.home);
+    let truth_fed = estimator_of(scenario, opts) == EstimatorSource::Truth;
+    let link = LinkConfig {
+        truth_odometry: truth_fed,
+        connect_timeout: Some(std::time::Duration::from_secs(30)),
+        ..LinkConfig::default()
+    };
+    let (mut server, child, config_path) = launch(scenario, opts, autopilot, plant, link)?;
+    let (items, first_wp, last_wp) = track_mission(track, &home);
+    let path = SplinePath::new(&track.waypoints_ne_m);
+    let lap_m = path.length_m();
+    let reached = AtomicU32::new(NONE_REACHED);
+    let finished = AtomicBool::new(false);
+    let mut cross = Vec::new();
+    let mut alt = Vec::new();
+    let mut nearest_s: Option<f64> = None;
+    let mut non_finite = false;
+    let mut last_pwm: Option<[f64; 4]> = None;
+    let (mut pwm_change_sum, mut ticks) = (0.0, 0_u64);
+    let timeout_s = scenario.duration_s + 120.0;
+    let halt = AtomicBool::new(false);
+    let outcome = std::thread::scope(|scope| {
+        let gcs = scope.spawn(|| {
+            let result = fly_mission(opts.instance, &items, &reached, timeout_s);
+            finished.store(true, Ordering::Relaxed);
+            result
+        });
+        let watch = scope.spawn(|| {
+            while !finished.load(Ordering::Relaxed) {
+                if stop.load(Ordering::Relaxed) {
+                    halt.store(true, Ordering::Relaxed);
+                }
+                std::thread::sleep(std::time::Duration::from_millis(20));
+            }
+            halt.store(true, Ordering::Relaxed);
+        });
+        let report = child.and_then(|child| {
+            run_with_child(&mut server, child, None, &halt, |plant, cmd| {
+                let pwm = cmd.effective_pwm_us();
+                non_finite |= !pwm.iter().all(|p| p.is_finite());
+                if let Some(prev) = last_pwm {
+                    pwm_change_sum += prev.iter().zip(&pwm).map(|(a, b)| (a - b).abs()).sum::<f64>() / 4.0;
+                }
+                last_pwm = Some(pwm);
+                ticks += 1;
+                let seq = reached.load(Ordering::Relaxed);
+                let on_track = seq != NONE_REACHED && seq >= u32::from(first_wp) && seq < u32::from(last_wp);
+                if on_track {
+                    let p = plant.truth().pos_ned_m;
+                    non_finite |= !p.iter().all(|v| v.is_finite());
+                    let ne = Vector2::new(p.x, p.y);
+                    let (d, s) = match nearest_s {
+                        Some(s) => path.nearest_near(ne, s, 0.05),
+                        None => path.nearest_near(ne, 0.0, 0.3),
+                    };
+                    nearest_s = Some(s.min(lap_m * f64::from(track.laps)));
+                    cross.push(d);
+                    alt.push(p.z - track.pos_d_m);
+                }
+            })
+        });
+        finished.store(true, Ordering::Relaxed);
+        let gcs_result = gcs.join();
+        let _ = watch.join();
+        (report, gcs_result)
+    });
+    let _ = std::fs::remove_file(&config_path);
+    let (report, gcs_result) = outcome;
+    let report: LaunchReport = report?;
+    let items_reached = match gcs_result {
+        Ok(Ok(n)) => n,
+        Ok(Err(e)) => return Err(e),
+        Err(_) => {
+            return Err(TwoProcessError::Gcs(super::gcs::GcsError::Timeout("ground station panicked".into(), 0.0)));
+        }
+    };
+    if stop.load(Ordering::Relaxed) {
+        return Err(TwoProcessError::Stopped(report.sim_s));
+    }
+    Ok(TwoProcessMetrics {
+        scenario: scenario.name.clone(),
+        controller: opts.controller.to_string(),
+        plant: opts.plant.clone().unwrap_or_else(|| scenario.plant.clone()),
+        seed: opts.seed,
+        estimator: format!("{:?}", estimator_of(scenario, opts)).to_lowercase(),
+        processes: 2,
+        gust: None,
+        track: (!cross.is_empty()).then(|| metrics::track_metrics(&cross, &alt)),
+        items_reached: Some((items_reached, items.len())),
+        non_finite,
+        pwm_activity_us: pwm_change_sum / ticks.saturating_sub(1).max(1) as f64,
         steps: report.steps,
         sim_s: report.sim_s,
         wall_s: report.wall_s,

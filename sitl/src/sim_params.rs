@@ -1,0 +1,908 @@
+//! The plant as its own MAVLink component: SIM_ parameters that change the wind while the SITL runs, as
+//! ArduPilot users set `SIM_*` parameters (e.g. a Beaufort-4 gust from a ground-station script).
+//!
+//! In: MAVLink datagrams on UDP 127.0.0.1:[`SIM_PARAM_PORT_BASE`] + N (instance N) addressed to system
+//! N+1 (or 0), component [`crate::link::PLANT_COMPONENT_ID`] (or 0): PARAM_REQUEST_LIST, PARAM_REQUEST_READ
+//! (by `param_index` when >= 0, else by `param_id`) and PARAM_SET; any other message (a client's
+//! HEARTBEAT) only makes its sender a peer. Out, to the sender's address in the MAVLink version it used:
+//! PARAM_VALUE (every parameter REAL32, `param_count` = [`SIM_PARAMS`]`.len()`, `param_index` = its table
+//! index), STATUSTEXT for a refused set (then the unchanged value echoed) and for a gust started or
+//! released (INFO, with the plant time `t=`, sent before the echo); and a HEARTBEAT
+//! (MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID) once per wall second to every peer heard in the
+//! last [`PEER_EXPIRY`], so `wait_heartbeat` works on the port.
+//!
+//! Why that heartbeat type: the plant is not a vehicle. MAV_AUTOPILOT_INVALID says "not a flight
+//! controller", and MAV_TYPE_ONBOARD_CONTROLLER is one of the types ground stations already class as a
+//! component rather than a vehicle (pymavlink's `probably_vehicle_heartbeat` skips it, as it skips
+//! INVALID), so a ground station pointed at this port never shows a phantom second vehicle. A client
+//! addresses the plant as (N+1, 51), or with target 0 / 0.
+//!
+//! A set takes effect at the next plant step (the wind is evaluated at the start of each step). The
+//! [`SimParamService`] is pure (messages and a plant in, replies out); [`SimParamLink`] is its socket,
+//! polled by the plant server between steps (see [`crate::link::PlantHook`]: every 50 steps and at least
+//! every 20 ms of wall time while the plant waits, never once per step).
+//!
+//! The gust: SIM_GUST_ON = 1 starts the spec's 1-cos gust at the current plant time with the current
+//! SIM_GUST_SPD (m/s), SIM_GUST_DIR (deg, the direction it blows toward, 0 = north, 90 = east) and
+//! SIM_GUST_RISE (s); SIM_GUST_ON = 0 releases it: it falls over its rise time from now (or from the end
+//! of its rise, if released while still rising). Changing SPD, DIR or RISE while a gust blows changes the
+//! next gust, not this one (a step in the wind would defeat the 1-cos shape); a new gust replaces any
+//! earlier one, even one still falling. SIM_TURB = 1 adds the spec's Gauss-Markov turbulence (σ = 1.3,
+//! 1.3, 0.67 m/s; τ = 1.76, 1.76, 0.22 s) scaled by the gust profile, so it only blows while a gust does
+//! (it replaces a configured turbulence model; 0 switches any off). SIM_BEAUFORT = n sets SIM_GUST_SPD to
+//! force n's mid-range speed; it follows SIM_GUST_SPD (the highest force whose range starts at or below
+//! the speed). At start every value reflects the plant's configured wind (the table's default otherwise),
+//! SIM_GUST_ON = 1 only if a configured gust blows at that moment, SIM_TURB = 1 if any turbulence model is
+//! on.
+
+use std::io;
+use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
+use std::time::{Duration, Instant};
+
+use autopilot::core::hil::{FrameDecoder, encode_frame_v1, encode_frame_v2};
+use mavlink::dialects::common::{
+    HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavParamType, MavSeverity, MavState, MavType,
+    PARAM_SET_DATA, PARAM_VALUE_DATA, STATUSTEXT_DATA,
+};
+use mavlink::types::CharArray;
+use mavlink::{MavHeader, MavlinkVersion};
+use nalgebra::Vector3;
+
+use crate::link::{PLANT_COMPONENT_ID, PlantHook};
+use crate::plant::wind::{BEAUFORT, GaussMarkovConfig, beaufort};
+use crate::plant::{GustConfig, Plant, TurbulenceConfig, Wind};
+
+/// Instance N's SIM_ parameter port is this + N (on 127.0.0.1).
+pub const SIM_PARAM_PORT_BASE: u16 = 19550;
+/// A peer that has not spoken for this long gets no more heartbeats.
+pub const PEER_EXPIRY: Duration = Duration::from_secs(10);
+/// Wall time between two heartbeats to the peers.
+pub const HEARTBEAT_PERIOD: Duration = Duration::from_secs(1);
+/// Plant time of a gust that is installed but never blows (s): a gust must exist for the turbulence to
+/// be scaled by it, and "no gust yet" is a gust whose onset is 30 years away.
+const DORMANT_ONSET_S: f64 = 1e9;
+/// Release time of a gust that holds until SIM_GUST_ON = 0 (s of plant time).
+const HOLD_UNTIL_S: f64 = 2e9;
+
+/// Instance N's SIM_ parameter port, or `None` past 65535.
+#[must_use]
+pub fn sim_param_port(instance: u16) -> Option<u16> {
+    SIM_PARAM_PORT_BASE.checked_add(instance)
+}
+
+/// What values a parameter takes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ParamKind {
+    /// Any finite value in the range.
+    Real,
+    /// A whole number in the range (0/1 for a switch).
+    Integer,
+}
+
+/// One SIM_ parameter: declared once, here.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimParamDef {
+    /// At most 16 characters.
+    pub name: &'static str,
+    /// The value with no wind configured (the plant's configured wind overrides it at start).
+    pub default: f32,
+    pub min: f32,
+    pub max: f32,
+    pub kind: ParamKind,
+    pub unit: &'static str,
+    pub description: &'static str,
+}
+
+/// Index of each parameter in [`SIM_PARAMS`] (its `param_index`; never reused).
+mod idx {
+    pub const WIND_N: usize = 0;
+    pub const WIND_E: usize = 1;
+    pub const WIND_D: usize = 2;
+    pub const GUST_SPD: usize = 3;
+    pub const GUST_DIR: usize = 4;
+    pub const GUST_RISE: usize = 5;
+    pub const GUST_ON: usize = 6;
+    pub const TURB: usize = 7;
+    pub const BEAUFORT: usize = 8;
+}
+
+/// The SIM_ parameters.
+pub const SIM_PARAMS: [SimParamDef; 9] = [
+    SimParamDef {
+        name: "SIM_WIND_N",
+        default: 0.0,
+        min: -30.0,
+        max: 30.0,
+        kind: ParamKind::Real,
+        unit: "m/s",
+        description: "Steady wind toward north (NED)",
+    },
+    SimParamDef {
+        name: "SIM_WIND_E",
+        default: 0.0,
+        min: -30.0,
+        max: 30.0,
+        kind: ParamKind::Real,
+        unit: "m/s",
+        description: "Steady wind toward east (NED)",
+    },
+    SimParamDef {
+        name: "SIM_WIND_D",
+        default: 0.0,
+        min: -10.0,
+        max: 10.0,
+        kind: ParamKind::Real,
+        unit: "m/s",
+        description: "Steady wind downward (NED)",
+    },
+    SimParamDef {
+        name: "SIM_GUST_SPD",
+        default: 6.7,
+        min: 0.0,
+        max: 30.0,
+        kind: ParamKind::Real,
+        unit: "m/s",
+        description: "Peak speed of the next gust (6.7 = Beaufort 4, the spec's gust)",
+    },
+    SimParamDef {
+        name: "SIM_GUST_DIR",
+        default: 90.0,
+        min: 0.0,
+        max: 360.0,
+        kind: ParamKind::Real,
+        unit: "deg",
+        description: "Direction the next gust blows toward (0 north, 90 east)",
+    },
+    SimParamDef {
+        name: "SIM_GUST_RISE",
+        default: 1.0,
+        min: 0.1,
+        max: 10.0,
+        kind: ParamKind::Real,
+        unit: "s",
+        description: "Rise and fall time of the next 1-cos gust",
+    },
+    SimParamDef {
+        name: "SIM_GUST_ON",
+        default: 0.0,
+        min: 0.0,
+        max: 1.0,
+        kind: ParamKind::Integer,
+        unit: "",
+        description: "1 starts a gust now with SIM_GUST_SPD/DIR/RISE; 0 releases it",
+    },
+    SimParamDef {
+        name: "SIM_TURB",
+        default: 0.0,
+        min: 0.0,
+        max: 1.0,
+        kind: ParamKind::Integer,
+        unit: "",
+        description: "1: the spec's Gauss-Markov turbulence, scaled by the gust profile",
+    },
+    SimParamDef {
+        name: "SIM_BEAUFORT",
+        default: 4.0,
+        min: 0.0,
+        max: 8.0,
+        kind: ParamKind::Integer,
+        unit: "",
+        description: "Beaufort force of SIM_GUST_SPD; setting it sets SIM_GUST_SPD to the force's mid speed",
+    },
+];
+
+/// The index of parameter `name`.
+#[must_use]
+pub fn index_of(name: &str) -> Option<usize> {
+    SIM_PARAMS.iter().position(|d| d.name == name)
+}
+
+/// Why a set was refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SimParamError {
+    #[error("{name}: no such parameter")]
+    Unknown { name: String },
+    #[error("{name}: {value} is not a number")]
+    NotFinite { name: &'static str, value: f32 },
+    #[error("{name}: {value} out of range {min}..{max}")]
+    OutOfRange { name: &'static str, value: f32, min: f32, max: f32 },
+    #[error("{name}: {value} is not a whole number")]
+    NotWhole { name: &'static str, value: f32 },
+    #[error("{name}: the plant refused it: {reason}")]
+    Plant { name: &'static str, reason: String },
+}
+
+/// Checks `value` against parameter `index`'s range and kind.
+///
+/// # Errors
+/// [`SimParamError::NotFinite`], [`SimParamError::OutOfRange`] or [`SimParamError::NotWhole`].
+pub fn check(index: usize, value: f32) -> Result<(), SimParamError> {
+    let d = &SIM_PARAMS[index];
+    if !value.is_finite() {
+        return Err(SimParamError::NotFinite { name: d.name, value });
+    }
+    if !(d.min..=d.max).contains(&value) {
+        return Err(SimParamError::OutOfRange { name: d.name, value, min: d.min, max: d.max });
+    }
+    if d.kind == ParamKind::Integer && value.fract() != 0.0 {
+        return Err(SimParamError::NotWhole { name: d.name, value });
+    }
+    Ok(())
+}
+
+/// The Beaufort force of a wind speed (m/s): the highest force whose range starts at or below it.
+#[must_use]
+pub fn beaufort_force_of(speed_mps: f64) -> u8 {
+    BEAUFORT.iter().rev().find(|b| b.min_mps <= speed_mps).map_or(0, |b| b.force)
+}
+
+/// The unit vector (NED) of a direction toward `deg` (0 north, 90 east), horizontal.
+#[must_use]
+pub fn direction_ned(deg: f64) -> Vector3<f64> {
+    let rad = deg.to_radians();
+    Vector3::new(rad.cos(), rad.sin(), 0.0)
+}
+
+/// The parameter protocol's state: the values (as carried on the wire, f32) and the system id.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimParamService {
+    system_id: u8,
+    values: [f32; SIM_PARAMS.len()],
+}
+
+impl SimParamService {
+    /// The service of system `system_id`, its values read from the plant's wind as configured: the steady
+    /// wind, the configured gust's amplitude, direction and rise (else the table's defaults), whether that
+    /// gust blows at the current plant time, and whether a turbulence model is on.
+    #[must_use]
+    pub fn new(system_id: u8, plant: &Plant) -> Self {
+        let wind = plant.wind();
+        let mut values: [f32; SIM_PARAMS.len()] = std::array::from_fn(|i| SIM_PARAMS[i].default);
+        let steady = wind.steady_ned_mps();
+        for (i, v) in [idx::WIND_N, idx::WIND_E, idx::WIND_D].into_iter().zip(steady.iter()) {
+            values[i] = *v as f32;
+        }
+        if let Some(g) = wind.gust() {
+            values[idx::GUST_SPD] = g.amplitude_mps as f32;
+            values[idx::GUST_DIR] = g.direction_ned.y.atan2(g.direction_ned.x).to_degrees().rem_euclid(360.0) as f32;
+            values[idx::GUST_RISE] = g.rise_s as f32;
+            values[idx::GUST_ON] = f32::from(u8::from(g.scale(plant.time_us() as f64 * 1e-6) > 0.0));
+        }
+        values[idx::TURB] = f32::from(u8::from(wind.has_turbulence()));
+        values[idx::BEAUFORT] = f32::from(beaufort_force_of(f64::from(values[idx::GUST_SPD])));
+        Self { system_id, values }
+    }
+
+    /// The current value of parameter `index`.
+    #[must_use]
+    pub fn value(&self, index: usize) -> Option<f32> {
+        self.values.get(index).copied()
+    }
+
+    /// The current value of parameter `name`.
+    #[must_use]
+    pub fn get(&self, name: &str) -> Option<f32> {
+        index_of(name).and_then(|i| self.value(i))
+    }
+
+    fn addressed_to_us(&self, target_system: u8, target_component: u8) -> bool {
+        (target_system == self.system_id || target_system == 0)
+            && (target_component == PLANT_COMPONENT_ID || target_component == 0)
+    }
+
+    /// The replies to one received message (in order); applies a set to `plant`'s wind at once, so it
+    /// acts from the plant's next step. A message not addressed to us, or not a PARAM request, gets
+    /// nothing.
+    pub fn on_message(&mut self, msg: &MavMessage, plant: &mut Plant) -> Vec<MavMessage> {
+        match msg {
+            MavMessage::PARAM_REQUEST_LIST(m) if self.addressed_to_us(m.target_system, m.target_component) => {
+                (0..SIM_PARAMS.len()).map(|i| self.param_value(i)).collect()
+            }
+            MavMessage::PARAM_REQUEST_READ(m) if self.addressed_to_us(m.target_system, m.target_component) => {
+                let index = match usize::try_from(m.param_index) {
+                    Ok(i) => (i < SIM_PARAMS.len()).then_some(i),
+                    Err(_) => index_of(&param_name(&m.param_id)),
+                };
+                index.map(|i| self.param_value(i)).into_iter().collect()
+            }
+            MavMessage::PARAM_SET(m) if self.addressed_to_us(m.target_system, m.target_component) => {
+                self.on_set(m, plant)
+            }
+            _ => Vec::new(),
+        }
+    }
+
+    fn on_set(&mut self, m: &PARAM_SET_DATA, plant: &mut Plant) -> Vec<MavMessage> {
+        let name = param_name(&m.param_id);
+        let Some(index) = index_of(&name) else {
+            return vec![statustext(MavSeverity::MAV_SEVERITY_WARNING, &SimParamError::Unknown { name }.to_string())];
+        };
+        match self.set(index, m.param_value, plant) {
+            Ok((changed, note)) => {
+                // The note first: a client that stops listening at the echo has it already.
+                let mut out: Vec<MavMessage> =
+                    note.map(|text| statustext(MavSeverity::MAV_SEVERITY_INFO, &text)).into_iter().collect();
+                out.extend(changed.into_iter().map(|i| self.param_value(i)));
+                out
+            }
+            Err(refusal) => {
+                vec![statustext(MavSeverity::MAV_SEVERITY_WARNING, &refusal.to_string()), self.param_value(index)]
+            }
+        }
+    }
+
+    /// Set parameter `index` to `value` and apply it to the plant's wind. Returns the indices whose
+    /// PARAM_VALUE to send (the one set first, then any that followed it) and a note for the ground
+    /// station (a gust started or released).
+    ///
+    /// # Errors
+    /// A [`SimParamError`] from [`check`], or the wind's own refusal; nothing changes then.
+    pub fn set(
+        &mut self,
+        index: usize,
+        value: f32,
+        plant: &mut Plant,
+    ) -> Result<(Vec<usize>, Option<String>), SimParamError> {
+        check(index, value)?;
+        let name = SIM_PARAMS[index].name;
+        let refused = |e: crate::plant::PlantError| SimParamError::Plant { name, reason: e.to_string() };
+        let now_s = plant.time_us() as f64 * 1e-6;
+        let mut changed = vec![index];
+        let mut note = None;
+        match index {
+            idx::WIND_N | idx::WIND_E | idx::WIND_D => {
+                let mut steady = plant.wind().steady_ned_mps();
+                steady[index - idx::WIND_N] = f64::from(value);
+                plant.wind_mut().set_steady_ned_mps(steady);
+            }
+            idx::GUST_SPD => {
+                let force = f32::from(beaufort_force_of(f64::from(value)));
+                if force != self.values[idx::BEAUFORT] {
+                    self.values[idx::BEAUFORT] = force;
+                    changed.push(idx::BEAUFORT);
+                }
+            }
+            idx::BEAUFORT => {
+                let speed = beaufort(value as u8).map_err(refused)?.mid_mps() as f32;
+                self.values[idx::GUST_SPD] = speed;
+                changed.push(idx::GUST_SPD);
+            }
+            idx::GUST_ON if value != self.values[idx::GUST_ON] => {
+                note = Some(if value == 1.0 {
+                    let gust = self.held_gust(now_s);
+                    plant.wind_mut().set_gust(Some(&gust)).map_err(refused)?;
+                    format!(
+                        "gust {:.1} m/s to {:.0} deg, rise {:.1} s, t={now_s:.2}",
+                        self.values[idx::GUST_SPD],
+                        self.values[idx::GUST_DIR],
+                        self.values[idx::GUST_RISE]
+                    )
+                } else {
+                    let release_s = release(plant.wind_mut(), now_s).map_err(refused)?;
+                    format!("gust released, t={release_s:.2}")
+                });
+            }
+            idx::TURB if value != self.values[idx::TURB] => {
+                if value == 1.0 {
+                    if plant.wind().gust().is_none() {
+                        let dormant = GustConfig { onset_s: DORMANT_ONSET_S, ..self.held_gust(now_s) };
+                        plant.wind_mut().set_gust(Some(&dormant)).map_err(refused)?;
+                    }
+                    let spec = GaussMarkovConfig { scale_with_gust: true, ..GaussMarkovConfig::default() };
+                    plant.wind_mut().set_turbulence(Some(&TurbulenceConfig::GaussMarkov(spec))).map_err(refused)?;
+                } else {
+                    plant.wind_mut().set_turbulence(None).map_err(refused)?;
+                }
+            }
+            _ => {}
+        }
+        self.values[index] = value;
+        Ok((changed, note))
+    }
+
+    /// A gust from the current SIM_GUST_SPD/DIR/RISE, rising from `onset_s` and held until released.
+    fn held_gust(&self, onset_s: f64) -> GustConfig {
+        let rise_s = f64::from(self.values[idx::GUST_RISE]);
+        let dir = direction_ned(f64::from(self.values[idx::GUST_DIR]));
+        GustConfig {
+            amplitude_mps: Some(f64::from(self.values[idx::GUST_SPD])),
+            direction_ned: [dir.x, dir.y, dir.z],
+            onset_s,
+            rise_s,
+            release_s: HOLD_UNTIL_S.max(onset_s + rise_s),
+            fall_s: rise_s,
+        }
+    }
+
+    /// The PARAM_VALUE of parameter `index`.
+    #[must_use]
+    pub fn param_value(&self, index: usize) -> MavMessage {
+        MavMessage::PARAM_VALUE(PARAM_VALUE_DATA {
+            param_value: self.values[index],
+            param_count: SIM_PARAMS.len() as u16,
+            param_index: index as u16,
+            param_id: CharArray::from(SIM_PARAMS[index].name),
+            param_type: MavParamType::MAV_PARAM_TYPE_REAL32,
+        })
+    }
+}
+
+/// Release the wind's gust at `now_s`: one still rising falls from the end of its rise, one not yet begun
+/// never begins, one already falling is left alone. Returns the release time.
+fn release(wind: &mut Wind, now_s: f64) -> Result<f64, crate::plant::PlantError> {
+    let Some(g) = wind.gust().copied() else { return Ok(now_s) };
+    let d = g.direction_ned;
+    let mut config = GustConfig {
+        amplitude_mps: Some(g.amplitude_mps),
+        direction_ned: [d.x, d.y, d.z],
+        onset_s: g.onset_s,
+        rise_s: g.rise_s,
+        release_s: g.release_s,
+        fall_s: g.fall_s,
+    };
+    if now_s < g.onset_s {
+        config.onset_s = DORMANT_ONSET_S.max(g.onset_s);
+        config.release_s = HOLD_UNTIL_S.max(config.onset_s + g.rise_s);
+    } else if now_s < g.release_s {
+        config.release_s = now_s.max(g.onset_s + g.rise_s);
+    } else {
+        return Ok(g.release_s);
+    }
+    wind.set_gust(Some(&config))?;
+    Ok(config.release_s)
+}
+
+/// The name in a `param_id`: up to the first NUL, or all 16 bytes.
+#[must_use]
+pub fn param_name(id: &CharArray<16>) -> String {
+    let bytes: &[u8; 16] = id;
+    let len = bytes.iter().position(|&b| b == 0).unwrap_or(bytes.len());
+    String::from_utf8_lossy(&bytes[..len]).into_owned()
+}
+
+/// A STATUSTEXT of at most 50 bytes.
+#[must_use]
+pub fn statustext(severity: MavSeverity, text: &str) -> MavMessage {
+    let mut end = text.len().min(50);
+    while !text.is_char_boundary(end) {
+        end -= 1;
+    }
+    // `..Default::default()`: the MAVLink 2 extension fields (id, chunk_seq) stay 0, a single chunk.
+    MavMessage::STATUSTEXT(STATUSTEXT_DATA { severity, text: text[..end].into(), ..Default::default() })
+}
+
+/// The plant's HEARTBEAT (see the module documentation for the type).
+#[must_use]
+pub fn heartbeat() -> MavMessage {
+    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        custom_mode: 0,
+        mavtype: MavType::MAV_TYPE_ONBOARD_CONTROLLER,
+        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+        base_mode: MavModeFlag::empty(),
+        system_status: MavState::MAV_STATE_ACTIVE,
+        mavlink_version: 3,
+    })
+}
+
+/// A client that spoke to the plant.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Peer {
+    addr: SocketAddr,
+    heard: Instant,
+    version: MavlinkVersion,
+}
+
+/// The SIM_ parameter service on its UDP socket (non-blocking): each [`SimParamLink::poll`] reads every
+/// datagram waiting, answers it, and sends the heartbeat when due.
+#[derive(Debug)]
+pub struct SimParamLink {
+    socket: UdpSocket,
+    service: SimParamService,
+    decoder: FrameDecoder,
+    peers: Vec<Peer>,
+    next_heartbeat: Instant,
+    sequence: u8,
+    buf: Vec<u8>,
+}
+
+impl SimParamLink {
+    /// Bind `addr` (e.g. `127.0.0.1:19550`, or port 0 in tests) for system `system_id`, the values read
+    /// from `plant` (see [`SimParamService::new`]).
+    ///
+    /// # Errors
+    /// The bind or socket-option error.
+    pub fn bind(addr: impl ToSocketAddrs, system_id: u8, plant: &Plant) -> io::Result<Self> {
+        let socket = UdpSocket::bind(addr)?;
+        socket.set_nonblocking(true)?;
+        Ok(Self {
+            socket,
+            service: SimParamService::new(system_id, plant),
+            decoder: FrameDecoder::new(),
+            peers: Vec::new(),
+            next_heartbeat: Instant::now(),
+            sequence: 0,
+            buf: vec![0; 65_536],
+        })
+    }
+
+    /// The bound address.
+    ///
+    /// # Errors
+    /// The socket's error.
+    pub fn local_addr(&self) -> io::Result<SocketAddr> {
+        self.socket.local_addr()
+    }
+
+    /// The service (its values).
+    #[must_use]
+    pub fn service(&self) -> &SimParamService {
+        &self.service
+    }
+
+    fn send(&mut self, msg: &MavMessage, to: SocketAddr, version: MavlinkVersion) -> io::Result<()> {
+        let header = MavHeader {
+            system_id: self.service.system_id.into(),
+            component_id: PLANT_COMPONENT_ID,
+            sequence: self.sequence,
+        };
+        self.sequence = self.sequence.wrapping_add(1);
+        let bytes = match version {
+            MavlinkVersion::V1 => encode_frame_v1(header, msg).unwrap_or_else(|| encode_frame_v2(header, msg)),
+            MavlinkVersion::V2 => encode_frame_v2(header, msg),
+        };
+        match self.socket.send_to(&bytes, to) {
+            Ok(_) => Ok(()),
+            Err(e) if autopilot::runtime::transport::is_transient(&e) => Ok(()),
+            Err(e) => Err(e),
+        }
+    }
+
+    /// Read and answer everything waiting, then send the heartbeat to the live peers if it is due.
+    ///
+    /// # Errors
+    /// A socket error that is not transient (a client gone away is transient).
+    pub fn poll(&mut self, plant: &mut Plant) -> io::Result<()> {
+        loop {
+            let (n, from) = match self.socket.recv_from(&mut self.buf) {
+                Ok(got) => got,
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => break,
+                Err(e) if autopilot::runtime::transport::is_transient(&e) => continue,
+                Err(e) => return Err(e),
+            };
+            let frames = self.decoder.decode_datagram(&self.buf[..n]);
+            let now = Instant::now();
+            for frame in frames {
+                match self.peers.iter_mut().find(|p| p.addr == from) {
+                    Some(p) => {
+                        p.heard = now;
+                        p.version = frame.version;
+                    }
+                    None => self.peers.push(Peer { addr: from, heard: now, version: frame.version }),
+                }
+                for reply in self.service.on_message(&frame.message, plant) {
+                    self.send(&reply, from, frame.version)?;
+                }
+            }
+        }
+        let now = Instant::now();
+        if now >= self.next_heartbeat {
+            self.next_heartbeat = now + HEARTBEAT_PERIOD;
+            self.peers.retain(|p| now.saturating_duration_since(p.heard) < PEER_EXPIRY);
+            let beat = heartbeat();
+            for p in self.peers.clone() {
+                self.send(&beat, p.addr, p.version)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+impl PlantHook for SimParamLink {
+    fn poll(&mut self, plant: &mut Plant) -> io::Result<()> {
+        SimParamLink::poll(self, plant)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plant::{InitialState, PlantConfig, WindConfig};
+    use mavlink::dialects::common::{PARAM_REQUEST_LIST_DATA, PARAM_REQUEST_READ_DATA};
+
+    const SYS: u8 = 3;
+
+    fn plant_with(wind: WindConfig) -> Plant {
+        Plant::new(PlantConfig { wind, ..PlantConfig::default() }, &InitialState::default(), 1).expect("plant")
+    }
+
+    fn calm_plant() -> Plant {
+        plant_with(WindConfig::default())
+    }
+
+    fn set_msg(name: &str, value: f32) -> MavMessage {
+        MavMessage::PARAM_SET(PARAM_SET_DATA {
+            param_value: value,
+            target_system: SYS,
+            target_component: PLANT_COMPONENT_ID,
+            param_id: CharArray::from(name),
+            param_type: MavParamType::MAV_PARAM_TYPE_REAL32,
+        })
+    }
+
+    fn values(replies: &[MavMessage]) -> Vec<(String, f32, u16, u16)> {
+        replies
+            .iter()
+            .filter_map(|m| match m {
+                MavMessage::PARAM_VALUE(v) => {
+                    Some((param_name(&v.param_id), v.param_value, v.param_index, v.param_count))
+                }
+                _ => None,
+            })
+            .collect()
+    }
+
+    fn texts(replies: &[MavMessage]) -> Vec<String> {
+        replies
+            .iter()
+            .filter_map(|m| match m {
+                MavMessage::STATUSTEXT(t) => {
+                    let bytes: &[u8; 50] = &t.text;
+                    let len = bytes.iter().position(|&b| b == 0).unwrap_or(50);
+                    Some(String::from_utf8_lossy(&bytes[..len]).into_owned())
+                }
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// Step the plant on the ground (motors off) until plant time `t_s`.
+    fn step_to(plant: &mut Plant, t_s: f64) {
+        while (plant.time_us() as f64) < t_s * 1e6 - 1.0 {
+            plant.step([1000.0; 4], 2000);
+        }
+    }
+
+    #[test]
+    fn given_the_table_then_names_fit_mavlink_defaults_are_in_range_and_indices_are_stable() {
+        for (i, d) in SIM_PARAMS.iter().enumerate() {
+            assert!(d.name.len() <= 16 && d.name.starts_with("SIM_"), "{}", d.name);
+            assert!(d.min <= d.default && d.default <= d.max, "{}", d.name);
+            assert!(check(i, d.default).is_ok(), "{}", d.name);
+            assert!(!d.description.is_empty());
+            assert_eq!(index_of(d.name), Some(i));
+        }
+        let names: Vec<_> = SIM_PARAMS.iter().map(|d| d.name).collect();
+        assert_eq!(
+            names,
+            [
+                "SIM_WIND_N",
+                "SIM_WIND_E",
+                "SIM_WIND_D",
+                "SIM_GUST_SPD",
+                "SIM_GUST_DIR",
+                "SIM_GUST_RISE",
+                "SIM_GUST_ON",
+                "SIM_TURB",
+                "SIM_BEAUFORT"
+            ]
+        );
+        assert!(matches!(check(idx::GUST_SPD, 30.5), Err(SimParamError::OutOfRange { .. })));
+        assert!(matches!(check(idx::GUST_SPD, f32::NAN), Err(SimParamError::NotFinite { .. })));
+        assert!(matches!(check(idx::GUST_ON, 0.5), Err(SimParamError::NotWhole { .. })));
+        assert_eq!(beaufort_force_of(6.7), 4);
+        assert_eq!(beaufort_force_of(0.0), 0);
+        assert_eq!(beaufort_force_of(5.45), 3);
+        assert_eq!(beaufort_force_of(30.0), 8);
+        assert!((direction_ned(90.0) - Vector3::new(0.0, 1.0, 0.0)).norm() < 1e-12);
+    }
+
+    #[test]
+    fn given_a_configured_wind_when_the_service_starts_then_its_values_reflect_it() {
+        let calm = SimParamService::new(SYS, &calm_plant());
+        assert_eq!(calm.get("SIM_GUST_SPD"), Some(6.7));
+        assert_eq!(calm.get("SIM_GUST_DIR"), Some(90.0));
+        assert_eq!(calm.get("SIM_GUST_ON"), Some(0.0));
+        assert_eq!(calm.get("SIM_BEAUFORT"), Some(4.0));
+        let windy: WindConfig = toml::from_str(
+            "steady_ned_mps = [1.0, -2.0, 0.5]\n[gust]\namplitude_mps = 3.0\ndirection_ned = [1.0, 0.0, 0.0]\n\
+             rise_s = 2.0\nonset_s = 0.0\n[turbulence]\nmodel = \"dryden\"\n",
+        )
+        .expect("toml");
+        let s = SimParamService::new(SYS, &plant_with(windy));
+        let got: Vec<f32> = (0..SIM_PARAMS.len()).map(|i| s.value(i).expect("value")).collect();
+        assert_eq!(got, [1.0, -2.0, 0.5, 3.0, 0.0, 2.0, 0.0, 1.0, 2.0]);
+    }
+
+    #[test]
+    fn given_a_list_request_then_every_parameter_is_answered_real32_with_count_and_index() {
+        let mut plant = calm_plant();
+        let mut s = SimParamService::new(SYS, &plant);
+        let list = MavMessage::PARAM_REQUEST_LIST(PARAM_REQUEST_LIST_DATA { target_system: 0, target_component: 0 });
+        let replies = s.on_message(&list, &mut plant);
+        let got = values(&replies);
+        assert_eq!(got.len(), SIM_PARAMS.len());
+        for (i, (name, _, index, count)) in got.iter().enumerate() {
+            assert_eq!((name.as_str(), *index as usize, *count as usize), (SIM_PARAMS[i].name, i, SIM_PARAMS.len()));
+        }
+        assert!(replies.iter().all(|m| matches!(m, MavMessage::PARAM_VALUE(v)
+            if v.param_type == MavParamType::MAV_PARAM_TYPE_REAL32)));
+        // Another system's request, or one for the autopilot's component, is not ours.
+        let theirs = MavMessage::PARAM_REQUEST_LIST(PARAM_REQUEST_LIST_DATA { target_system: 1, target_component: 0 });
+        assert!(s.on_message(&theirs, &mut plant).is_empty());
+        let autopilot =
+            MavMessage::PARAM_REQUEST_LIST(PARAM_REQUEST_LIST_DATA { target_system: SYS, target_component: 1 });
+        assert!(s.on_message(&autopilot, &mut plant).is_empty());
+        // A client's heartbeat gets nothing.
+        assert!(s.on_message(&heartbeat(), &mut plant).is_empty());
+    }
+
+    #[test]
+    fn given_read_requests_then_they_are_answered_by_name_and_by_index_and_unknowns_get_nothing() {
+        let mut plant = calm_plant();
+        let mut s = SimParamService::new(SYS, &plant);
+        let read = |index: i16, name: &str| {
+            MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
+                param_index: index,
+                target_system: SYS,
+                target_component: 0,
+                param_id: CharArray::from(name),
+            })
+        };
+        assert_eq!(
+            values(&s.on_message(&read(-1, "SIM_GUST_RISE"), &mut plant)),
+            [("SIM_GUST_RISE".into(), 1.0, 5, 9)]
+        );
+        assert_eq!(values(&s.on_message(&read(8, ""), &mut plant)), [("SIM_BEAUFORT".into(), 4.0, 8, 9)]);
+        assert!(s.on_message(&read(9, ""), &mut plant).is_empty());
+        assert!(s.on_message(&read(-1, "SIM_NOPE"), &mut plant).is_empty());
+    }
+
+    #[test]
+    fn given_sets_then_good_values_are_echoed_and_bad_ones_refused_with_the_value_unchanged() {
+        let mut plant = calm_plant();
+        let mut s = SimParamService::new(SYS, &plant);
+        let replies = s.on_message(&set_msg("SIM_WIND_N", 2.5), &mut plant);
+        assert_eq!(values(&replies), [("SIM_WIND_N".into(), 2.5, 0, 9)]);
+        assert_eq!(plant.wind().steady_ned_mps(), Vector3::new(2.5, 0.0, 0.0));
+
+        for (name, bad) in
+            [("SIM_GUST_SPD", 31.0), ("SIM_GUST_SPD", f32::NAN), ("SIM_GUST_ON", 0.5), ("SIM_WIND_E", -40.0)]
+        {
+            let before = s.get(name).expect("known");
+            let replies = s.on_message(&set_msg(name, bad), &mut plant);
+            let t = texts(&replies);
+            assert_eq!(t.len(), 1, "{name} = {bad}: {replies:?}");
+            assert!(t[0].starts_with(name), "{t:?}");
+            assert_eq!(values(&replies), [(name.to_owned(), before, index_of(name).unwrap() as u16, 9)]);
+            assert_eq!(s.get(name), Some(before));
+        }
+        assert_eq!(plant.wind().steady_ned_mps(), Vector3::new(2.5, 0.0, 0.0));
+        let unknown = s.on_message(&set_msg("SIM_NOPE", 1.0), &mut plant);
+        assert!(values(&unknown).is_empty() && texts(&unknown)[0].contains("no such parameter"));
+
+        // Beaufort sets the gust speed, and the gust speed moves the Beaufort force.
+        let replies = s.on_message(&set_msg("SIM_BEAUFORT", 6.0), &mut plant);
+        assert_eq!(values(&replies), [("SIM_BEAUFORT".into(), 6.0, 8, 9), ("SIM_GUST_SPD".into(), 12.3, 3, 9)]);
+        let replies = s.on_message(&set_msg("SIM_GUST_SPD", 6.7), &mut plant);
+        assert_eq!(values(&replies), [("SIM_GUST_SPD".into(), 6.7, 3, 9), ("SIM_BEAUFORT".into(), 4.0, 8, 9)]);
+    }
+
+    #[test]
+    fn given_gust_on_then_off_then_the_gust_rises_holds_and_falls_at_those_plant_times() {
+        let mut plant = calm_plant();
+        let mut s = SimParamService::new(SYS, &plant);
+        step_to(&mut plant, 2.0);
+        for (name, v) in [("SIM_GUST_SPD", 6.7), ("SIM_GUST_DIR", 90.0), ("SIM_GUST_RISE", 1.0)] {
+            assert_eq!(values(&s.on_message(&set_msg(name, v), &mut plant)).len(), 1);
+        }
+        assert_eq!(plant.truth().wind_ned_mps, Vector3::zeros());
+        let on = s.on_message(&set_msg("SIM_GUST_ON", 1.0), &mut plant);
+        assert_eq!(values(&on), [("SIM_GUST_ON".into(), 1.0, 6, 9)]);
+        assert!(texts(&on)[0].contains("t=2.00"), "{:?}", texts(&on));
+        // The wind is evaluated at the start of each step: the step from t = 2.0 holds s(2.0) = 0.
+        plant.step([1000.0; 4], 2000);
+        assert_eq!(plant.truth().wind_ned_mps, Vector3::zeros());
+        let amplitude = f64::from(6.7_f32);
+        step_to(&mut plant, 2.5);
+        plant.step([1000.0; 4], 2000); // holds s(2.5) = 0.5
+        let half = plant.truth().wind_ned_mps;
+        assert!((half - Vector3::new(0.0, 0.5 * amplitude, 0.0)).norm() < 1e-6, "{half:?}");
+        step_to(&mut plant, 9.998);
+        plant.step([1000.0; 4], 2000); // holds s(9.998) = 1, ends at t = 10.0
+        let full = plant.truth().wind_ned_mps;
+        assert!((full - Vector3::new(0.0, amplitude, 0.0)).norm() < 1e-6, "toward east: {full:?}");
+
+        let off = s.on_message(&set_msg("SIM_GUST_ON", 0.0), &mut plant);
+        assert!(texts(&off)[0].contains("t=10.00"), "{:?}", texts(&off));
+        step_to(&mut plant, 10.5);
+        plant.step([1000.0; 4], 2000);
+        assert!((plant.truth().wind_ned_mps.y - 0.5 * amplitude).abs() < 1e-6);
+        step_to(&mut plant, 11.0);
+        plant.step([1000.0; 4], 2000);
+        assert!(plant.truth().wind_ned_mps.norm() < 1e-9);
+
+        // A second gust toward north-west, released while still rising: it falls from the end of the rise.
+        s.on_message(&set_msg("SIM_GUST_DIR", 315.0), &mut plant);
+        s.on_message(&set_msg("SIM_GUST_SPD", 4.0), &mut plant);
+        step_to(&mut plant, 20.0);
+        s.on_message(&set_msg("SIM_GUST_ON", 1.0), &mut plant);
+        step_to(&mut plant, 20.2);
+        let off = s.on_message(&set_msg("SIM_GUST_ON", 0.0), &mut plant);
+        assert!(texts(&off)[0].contains("t=21.00"), "{:?}", texts(&off));
+        let g = plant.wind().gust().copied().expect("gust");
+        let dir = g.direction_ned;
+        assert!((dir - Vector3::new(0.5_f64.sqrt(), -(0.5_f64.sqrt()), 0.0)).norm() < 1e-6, "{dir:?}");
+        assert!((g.velocity_ned_mps(21.0).norm() - 4.0).abs() < 1e-6);
+        assert!(g.velocity_ned_mps(22.0).norm() < 1e-9);
+    }
+
+    #[test]
+    fn given_turbulence_on_then_it_blows_only_with_the_gust_and_off_removes_it() {
+        let mut plant = calm_plant();
+        let mut s = SimParamService::new(SYS, &plant);
+        assert_eq!(values(&s.on_message(&set_msg("SIM_TURB", 1.0), &mut plant)), [("SIM_TURB".into(), 1.0, 7, 9)]);
+        assert!(plant.wind().has_turbulence());
+        step_to(&mut plant, 1.0);
+        assert_eq!(plant.truth().wind_ned_mps, Vector3::zeros(), "no gust, no turbulence");
+        s.on_message(&set_msg("SIM_GUST_ON", 1.0), &mut plant);
+        let mut max_north = 0.0_f64;
+        while plant.time_us() < 5_000_000 {
+            plant.step([1000.0; 4], 2000);
+            max_north = max_north.max(plant.truth().wind_ned_mps.x.abs());
+        }
+        assert!(max_north > 0.1, "turbulence across the gust: {max_north}");
+        s.on_message(&set_msg("SIM_TURB", 0.0), &mut plant);
+        assert!(!plant.wind().has_turbulence());
+        plant.step([1000.0; 4], 2000);
+        plant.step([1000.0; 4], 2000);
+        assert!(plant.truth().wind_ned_mps.x.abs() < 1e-12);
+    }
+
+    #[test]
+    fn given_a_socket_client_then_replies_go_to_it_and_heartbeats_follow_in_its_version() {
+        let mut plant = calm_plant();
+        let mut link = SimParamLink::bind("127.0.0.1:0", SYS, &plant).expect("bind");
+        let addr = link.local_addr().expect("addr");
+        let client = UdpSocket::bind("127.0.0.1:0").expect("client");
+        client.set_read_timeout(Some(Duration::from_secs(2))).expect("timeout");
+        let gcs = MavHeader { system_id: 255, component_id: 190, sequence: 0 };
+        client.send_to(&encode_frame_v2(gcs, &set_msg("SIM_GUST_SPD", 5.0)), addr).expect("send");
+        std::thread::sleep(Duration::from_millis(50));
+        link.poll(&mut plant).expect("poll");
+        let mut decoder = FrameDecoder::new();
+        let mut buf = [0u8; 2048];
+        let mut got = Vec::new();
+        while got.len() < 3 {
+            let (n, _) = client.recv_from(&mut buf).expect("reply");
+            got.extend(decoder.decode_datagram(&buf[..n]));
+        }
+        assert!(
+            got.iter().all(|f| f.header.system_id == u32::from(SYS) && f.header.component_id == PLANT_COMPONENT_ID)
+        );
+        assert!(got.iter().any(|f| matches!(f.message, MavMessage::HEARTBEAT(_))), "a heartbeat: {got:?}");
+        let echoed: Vec<_> = got.iter().map(|f| f.message.clone()).collect();
+        assert_eq!(values(&echoed)[..2], [("SIM_GUST_SPD".into(), 5.0, 3, 9), ("SIM_BEAUFORT".into(), 3.0, 8, 9)]);
+        assert_eq!(link.service().get("SIM_GUST_SPD"), Some(5.0));
+        // No more heartbeats before a second has passed.
+        link.poll(&mut plant).expect("poll");
+        client.set_read_timeout(Some(Duration::from_millis(100))).expect("timeout");
+        assert!(client.recv_from(&mut buf).is_err());
+
+        // A MAVLink 1 client is answered in MAVLink 1.
+        let read = MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
+            param_index: 0,
+            target_system: SYS,
+            target_component: PLANT_COMPONENT_ID,
+            param_id: CharArray::from(""),
+        });
+        client.send_to(&encode_frame_v1(gcs, &read).expect("v1"), addr).expect("send");
+        std::thread::sleep(Duration::from_millis(50));
+        link.poll(&mut plant).expect("poll");
+        client.set_read_timeout(Some(Duration::from_secs(2))).expect("timeout");
+        let (n, _) = client.recv_from(&mut buf).expect("reply");
+        let frames = decoder.decode_datagram(&buf[..n]);
+        assert_eq!(frames.len(), 1);
+        assert_eq!(frames[0].version, MavlinkVersion::V1);
+        assert_eq!(values(&[frames[0].message.clone()]), [("SIM_WIND_N".into(), 0.0, 0, 9)]);
+    }
+}
