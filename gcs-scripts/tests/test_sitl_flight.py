@@ -14,23 +14,14 @@ import time
 from pathlib import Path
 
 import pytest
+from sitl_harness import binary, stop_group
 
 os.environ["MAVLINK20"] = "1"  # pymavlink speaks MAVLink 1 unless told otherwise
 from pymavlink import mavutil  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[2]
 WALL_LIMIT_S = 120.0
 MAV_SYS_STATUS_PREARM_CHECK = 0x10000000
 MAV_LANDED_STATE_ON_GROUND = 1
-
-
-def binary(name):
-    target = Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
-    for profile in (os.environ.get("SITL_PROFILE", "debug"), "release"):
-        path = target / profile / name
-        if path.exists():
-            return path
-    pytest.fail(f"{name} is not built: run `cargo build -p sitl -p autopilot` first")
 
 
 class Gcs:
@@ -87,17 +78,6 @@ class Gcs:
         return self.acks[command]
 
 
-def stop_group(proc, timeout=10):
-    """SIGINT to the process group (both processes close their logs), SIGKILL if that is not enough."""
-    if proc.poll() is None:
-        os.killpg(proc.pid, signal.SIGINT)
-    try:
-        proc.wait(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait()
-
-
 def log_file(tmp_path, name):
     """Where a child's standard error goes (kept with the test's temporary files, shown on failure)."""
     return open(tmp_path / f"{name}.log", "w")
@@ -106,7 +86,7 @@ def log_file(tmp_path, name):
 def start_udp(instance, tmp_path):
     """`sitl run -i N`: the plant and the autopilot over UDP."""
     proc = subprocess.Popen(
-        [str(binary("sitl")), "run", "-i", str(instance)],
+        [str(binary("sitl")), "run", "-i", str(instance), "--state-dir", str(tmp_path / "state")],
         stdout=subprocess.DEVNULL,
         stderr=log_file(tmp_path, "sitl-run"),
         start_new_session=True,
@@ -137,7 +117,16 @@ def start_serial(instance, tmp_path):
         start_new_session=True,
     )
     autopilot = subprocess.Popen(
-        [str(binary("autopilot")), "--plant", f"serial:{autopilot_tty}:921600", "-i", str(instance), "--stop-on-stdin-eof"],
+        [
+            str(binary("autopilot")),
+            "--plant",
+            f"serial:{autopilot_tty}:921600",
+            "-i",
+            str(instance),
+            "--state-dir",
+            str(tmp_path / "state"),
+            "--stop-on-stdin-eof",
+        ],
         stdin=subprocess.PIPE,
         stdout=subprocess.DEVNULL,
         stderr=log_file(tmp_path, "autopilot"),

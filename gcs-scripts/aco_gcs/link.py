@@ -1,0 +1,525 @@
+"""The plumbing every pymavlink script shares: the SITL instance's ports, a link to the vehicle that keeps
+its clock (the largest `time_boot_ms` seen) and its state from telemetry, waits measured on that clock,
+COMMAND_LONG with its ACK, the parameter protocol, the plant's SIM_ parameter link, and the exit codes.
+
+Time: every wait in a flight is measured on the vehicle's clock, so a script behaves the same whether the
+SITL runs in lockstep at 30x real time or at `--speed 1`. Protocol timeouts (an ACK, a PARAM_VALUE) are a
+few seconds of vehicle time rather than PX4 clients' fraction of a second: at lockstep speed a Python
+client reads the telemetry a little behind the vehicle, and its clock is the telemetry it has read. Wall time is only a hang guard (`--wall-limit`),
+the first HEARTBEAT's timeout (`--heartbeat-timeout`: there is no vehicle clock before it) and the plant's
+SIM_ parameter link (the plant sends no clock on that port).
+
+Addressing (as `sitl run` sets it up for instance N): the autopilot sends to UDP 127.0.0.1:14550+N and
+listens on 18570+N; a script listens on 14550+N (`udpin:`) and sends to 18570+N explicitly. The plant
+answers its SIM_ parameters on 127.0.0.1:19550+N as system N+1, component 51.
+
+Exit codes: 0 success, 1 a failed flight check (or the hang guard), 2 no vehicle (no HEARTBEAT in time).
+"""
+
+import argparse
+import math
+import os
+import struct
+import sys
+import time
+
+os.environ.setdefault("MAVLINK20", "1")  # pymavlink speaks MAVLink 1 unless told otherwise
+from pymavlink import mavutil  # noqa: E402
+
+mavlink = mavutil.mavlink
+
+QGC_PORT = 14550
+API_PORT = 14540
+AUTOPILOT_PORT = 18570
+PLANT_PARAM_PORT = 19550
+PLANT_COMPONENT = 51
+AUTOPILOT_COMPONENT = 1
+GCS_SYSTEM = 255
+GCS_COMPONENT = 190  # MAV_COMP_ID_MISSIONPLANNER, as QGroundControl and MAVProxy
+
+EXIT_OK = 0
+EXIT_CHECK_FAILED = 1
+EXIT_NO_VEHICLE = 2
+
+PREARM_CHECK = 0x10000000  # MAV_SYS_STATUS_PREARM_CHECK: the vehicle is armable (estimator converged)
+LANDED_ON_GROUND = 1  # MAV_LANDED_STATE_ON_GROUND
+# PX4 custom modes: main mode in bits 16-23, sub mode in bits 24-31.
+PX4_MAIN_AUTO = 4
+PX4_MAIN_OFFBOARD = 6
+PX4_AUTO_LOITER = 3
+PX4_AUTO_MISSION = 4
+# Wall seconds without a single message from the vehicle before a script gives up on it.
+SILENCE_LIMIT_S = 15.0
+
+
+class GcsError(Exception):
+    """A script failure with its exit code."""
+
+    exit_code = EXIT_CHECK_FAILED
+
+
+class CheckFailed(GcsError):
+    """A flight check failed (or the vehicle refused something): exit 1."""
+
+    exit_code = EXIT_CHECK_FAILED
+
+
+class NoVehicle(GcsError):
+    """No HEARTBEAT arrived in time: exit 2."""
+
+    exit_code = EXIT_NO_VEHICLE
+
+
+def float32(value):
+    """`value` as the f32 it becomes on the wire."""
+    return struct.unpack("<f", struct.pack("<f", value))[0]
+
+
+def same_float32(a, b):
+    """Whether two values are the same REAL32 (NaN equals NaN)."""
+    a, b = float32(a), float32(b)
+    return a == b or (math.isnan(a) and math.isnan(b))
+
+
+def result_name(result):
+    """MAV_RESULT as its name."""
+    entry = mavlink.enums["MAV_RESULT"].get(result)
+    return entry.name if entry is not None else str(result)
+
+
+def add_link_args(parser, mavsdk=False):
+    """The connection options every script has."""
+    parser.add_argument(
+        "-i",
+        "--instance",
+        type=int,
+        default=0,
+        metavar="N",
+        help="SITL instance N (`sitl run -i N`): every port + N, vehicle system id N+1 (default 0)",
+    )
+    if mavsdk:
+        parser.add_argument(
+            "--connect",
+            metavar="URL",
+            help="MAVSDK connection (default udpin://0.0.0.0:14540+N, where the autopilot sends for APIs)",
+        )
+    else:
+        parser.add_argument(
+            "--connect",
+            metavar="DEVICE",
+            help="pymavlink connection (default udpin:127.0.0.1:14550+N, where the autopilot sends)",
+        )
+        parser.add_argument(
+            "--target",
+            metavar="HOST:PORT",
+            help="where messages to the vehicle go (default 127.0.0.1:18570+N, the autopilot's UDP port, "
+            "when --connect is the default; otherwise pymavlink's own addressing)",
+        )
+    parser.add_argument(
+        "--heartbeat-timeout",
+        type=float,
+        default=20.0,
+        metavar="S",
+        help="wall seconds to wait for the vehicle's first HEARTBEAT before exiting with code 2 (default 20)",
+    )
+    parser.add_argument(
+        "--wall-limit",
+        type=float,
+        default=600.0,
+        metavar="S",
+        help="hang guard: give up after this many wall seconds (default 600); every wait in the flight "
+        "itself is measured on the vehicle's clock",
+    )
+
+
+def resolve_link(args):
+    """(connect, target) from the parsed options: the defaults of instance N unless given."""
+    n = args.instance
+    if args.connect is None:
+        connect = f"udpin:127.0.0.1:{QGC_PORT + n}"
+        target = args.target or f"127.0.0.1:{AUTOPILOT_PORT + n}"
+    else:
+        connect, target = args.connect, args.target
+    return connect, target
+
+
+def run_main(run, args, prog="aco-gcs"):
+    """Call `run(args)` and turn its outcome into an exit code, with the error on stderr as `prog: error: ...`."""
+    try:
+        code = run(args)
+        return EXIT_OK if code is None else code
+    except GcsError as e:
+        print(f"{prog}: error: {e}", file=sys.stderr, flush=True)
+        return e.exit_code
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted", file=sys.stderr)
+        return 130
+
+
+def _address(text):
+    host, _, port = text.rpartition(":")
+    if not host or not port.isdigit():
+        raise GcsError(f"--target must be HOST:PORT, got {text!r}")
+    return host, int(port)
+
+
+class Link:
+    """A pymavlink connection to one MAVLink component: state from what it sends, and waits. Subclasses say
+    which clock the waits use (`now_s`)."""
+
+    component = AUTOPILOT_COMPONENT
+    # Wall seconds of silence after which the component is taken as gone (None: never).
+    silence_limit_s = SILENCE_LIMIT_S
+
+    def __init__(self, connect, target=None, wall_limit_s=600.0):
+        self.connect = connect
+        try:
+            self.conn = mavutil.mavlink_connection(connect, source_system=GCS_SYSTEM, source_component=GCS_COMPONENT)
+        except OSError as e:
+            raise GcsError(f"cannot open {connect}: {e}") from e
+        if target is not None:
+            # pymavlink's udpin answers whoever sent last; address the component explicitly instead.
+            address = _address(target)
+            port = self.conn.port
+            self.conn.write = lambda buf: _sendto(port, buf, address)
+        self.target = target
+        self.deadline = time.monotonic() + wall_limit_s
+        self.wall_limit_s = wall_limit_s
+        self.system_id = None
+        self.last_heard = time.monotonic()
+        self.statustexts = []  # (time, severity, text)
+        self.listeners = []
+
+    # -- the clock ------------------------------------------------------------------------------------
+    def now_s(self):
+        raise NotImplementedError
+
+    # -- receiving ------------------------------------------------------------------------------------
+    def ours(self, msg):
+        return self.system_id is not None and msg.get_srcSystem() == self.system_id
+
+    def pump(self):
+        """Receive at most one message (waiting up to 0.5 s of wall time) and update the state from it;
+        returns it, or None."""
+        now = time.monotonic()
+        if now > self.deadline:
+            raise CheckFailed(f"wall-clock limit of {self.wall_limit_s:.0f} s reached: the SITL hung or is too slow")
+        limit = self.silence_limit_s
+        if self.system_id is not None and limit is not None and now - self.last_heard > limit:
+            raise CheckFailed(f"nothing from the {self.name()} for {limit:.0f} s of wall time")
+        self.before_pump()
+        msg = self.conn.recv_match(blocking=True, timeout=0.5)
+        if msg is None or msg.get_type() == "BAD_DATA" or not self.ours(msg):
+            return None
+        self.last_heard = time.monotonic()
+        self.handle(msg)
+        for listener in self.listeners:
+            listener(msg)
+        return msg
+
+    def before_pump(self):
+        """Hook: called before each receive (to send heartbeats)."""
+
+    def handle(self, msg):
+        if msg.get_type() == "STATUSTEXT":
+            self.statustexts.append((self.now_s(), msg.severity, msg.text))
+            print(f"  [{self.name()}] {msg.text}", file=sys.stderr, flush=True)
+
+    def name(self):
+        return f"system {self.system_id}"
+
+    def wait_until(self, seconds, what, cond):
+        """Pump until `cond()` holds; fail if that takes more than `seconds` on this link's clock. Returns
+        the seconds it took."""
+        start = self.now_s()
+        while not cond():
+            if self.now_s() - start > seconds:
+                raise CheckFailed(f"{what}: not within {seconds:g} s of {self.clock_name()}")
+            self.pump()
+        return self.now_s() - start
+
+    def next_message(self, seconds, match):
+        """The first message (of ours) for which `match(msg)` holds within `seconds`, or None."""
+        start = self.now_s()
+        while self.now_s() - start <= seconds:
+            msg = self.pump()
+            if msg is not None and match(msg):
+                return msg
+        return None
+
+    def clock_name(self):
+        return "vehicle time"
+
+    def send(self, msg):
+        self.conn.mav.send(msg)
+
+    def texts_since(self, t):
+        return [text for (at, _, text) in self.statustexts if at >= t]
+
+    def close(self):
+        self.conn.close()
+
+
+def _sendto(sock, buf, address):
+    try:
+        sock.sendto(buf, address)
+    except OSError:
+        pass  # nobody listening yet: the waits time out and say so
+
+
+class Vehicle(Link):
+    """The autopilot (component 1): its clock is the largest `time_boot_ms` of its telemetry."""
+
+    def __init__(self, connect, target=None, wall_limit_s=600.0):
+        super().__init__(connect, target, wall_limit_s)
+        self.now_ms = 0
+        self.heartbeat = None
+        self.armed = False
+        self.custom_mode = 0
+        self.prearm_ok = False
+        self.pos = None  # LOCAL_POSITION_NED (x, y, z) m
+        self.vel = None
+        self.global_pos = None  # GLOBAL_POSITION_INT message
+        self.home = None  # HOME_POSITION message
+        self.landed_state = None
+        self.acks = {}
+        self._last_gcs_heartbeat = (-1e9, 0.0)
+
+    @classmethod
+    def from_args(cls, args):
+        connect, target = resolve_link(args)
+        vehicle = cls(connect, target, args.wall_limit)
+        vehicle.wait_heartbeat(args.heartbeat_timeout, args.instance)
+        return vehicle
+
+    def now_s(self):
+        return self.now_ms / 1000.0
+
+    def name(self):
+        return "vehicle"
+
+    def wait_heartbeat(self, timeout_s, instance=None):
+        """Wait (wall time: there is no vehicle clock yet) for an autopilot's HEARTBEAT; lock onto its
+        system id."""
+        end = time.monotonic() + timeout_s
+        while time.monotonic() < end:
+            self.before_pump()
+            msg = self.conn.recv_match(type="HEARTBEAT", blocking=True, timeout=0.5)
+            if msg is None or msg.get_srcComponent() != AUTOPILOT_COMPONENT:
+                continue
+            if msg.autopilot == mavlink.MAV_AUTOPILOT_INVALID or msg.type == mavlink.MAV_TYPE_GCS:
+                continue
+            self.system_id = msg.get_srcSystem()
+            self.conn.target_system, self.conn.target_component = self.system_id, AUTOPILOT_COMPONENT
+            self.last_heard = time.monotonic()
+            self.handle(msg)
+            return msg
+        hint = f" (is `sitl run -i {instance}` running?)" if instance is not None else ""
+        raise NoVehicle(f"no vehicle HEARTBEAT on {self.connect} within {timeout_s:g} s{hint}")
+
+    def before_pump(self):
+        # A GCS heartbeat once per second of vehicle time (and of wall time), as ground stations send.
+        last_vehicle_s, last_wall = self._last_gcs_heartbeat
+        now_wall = time.monotonic()
+        if self.now_s() - last_vehicle_s >= 1.0 or now_wall - last_wall >= 1.0:
+            self._last_gcs_heartbeat = (self.now_s(), now_wall)
+            self.conn.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+
+    def ours(self, msg):
+        return super().ours(msg) and msg.get_srcComponent() == AUTOPILOT_COMPONENT
+
+    def handle(self, msg):
+        super().handle(msg)
+        kind = msg.get_type()
+        t = getattr(msg, "time_boot_ms", None)
+        if t is not None:
+            self.now_ms = max(self.now_ms, t)
+        if kind == "HEARTBEAT":
+            self.heartbeat = msg
+            self.armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
+            self.custom_mode = msg.custom_mode
+        elif kind == "SYS_STATUS":
+            self.prearm_ok = bool(msg.onboard_control_sensors_health & PREARM_CHECK)
+        elif kind == "LOCAL_POSITION_NED":
+            self.pos = (msg.x, msg.y, msg.z)
+            self.vel = (msg.vx, msg.vy, msg.vz)
+        elif kind == "GLOBAL_POSITION_INT":
+            self.global_pos = msg
+        elif kind == "HOME_POSITION":
+            self.home = msg
+        elif kind == "EXTENDED_SYS_STATE":
+            self.landed_state = msg.landed_state
+        elif kind == "COMMAND_ACK":
+            self.acks[msg.command] = msg.result
+
+    def px4_mode(self):
+        """(main, sub) of the PX4 custom mode in the last HEARTBEAT."""
+        return (self.custom_mode >> 16) & 0xFF, (self.custom_mode >> 24) & 0xFF
+
+    # -- commands -------------------------------------------------------------------------------------
+    def command(self, command, *params, ack_s=5.0, attempts=3):
+        """Send COMMAND_LONG (resending with a higher confirmation when no ACK comes within `ack_s` of
+        vehicle time) and return the ACK's result."""
+        params = list(params) + [0.0] * (7 - len(params))
+        for confirmation in range(attempts):
+            self.acks.pop(command, None)
+            self.conn.mav.command_long_send(self.system_id, AUTOPILOT_COMPONENT, command, confirmation, *params)
+            start = self.now_s()
+            while command not in self.acks and self.now_s() - start <= ack_s:
+                self.pump()
+            if command in self.acks:
+                return self.acks[command]
+        name = mavlink.enums["MAV_CMD"][command].name if command in mavlink.enums["MAV_CMD"] else command
+        raise CheckFailed(f"no COMMAND_ACK for {name} after {attempts} tries of {ack_s:g} s of vehicle time")
+
+    def require(self, what, command, *params, **kwargs):
+        """`command`, failing unless the vehicle ACCEPTED it (with its STATUSTEXT in the message)."""
+        since = self.now_s()
+        result = self.command(command, *params, **kwargs)
+        if result != mavlink.MAV_RESULT_ACCEPTED:
+            texts = "; ".join(self.texts_since(since))
+            raise CheckFailed(f"{what}: the vehicle answered {result_name(result)}" + (f" ({texts})" if texts else ""))
+
+    def set_px4_mode(self, main, sub=0, what=None):
+        """DO_SET_MODE to a PX4 custom mode, and wait for the HEARTBEAT to show it."""
+        what = what or f"mode {main}.{sub}"
+        self.require(what, mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, main, sub)
+        self.wait_until(3.0, f"{what} in the HEARTBEAT", lambda: self.px4_mode() == (main, sub))
+
+    def home_amsl_m(self):
+        """Home altitude (m AMSL): HOME_POSITION's; before there is one, a vehicle still on the ground
+        (disarmed) is at its home-to-be, so GLOBAL_POSITION_INT's altitude; otherwise alt - relative_alt."""
+        if self.home is not None:
+            return self.home.altitude / 1000.0
+        if self.global_pos is not None:
+            if not self.armed:
+                return self.global_pos.alt / 1000.0
+            return (self.global_pos.alt - self.global_pos.relative_alt) / 1000.0
+        return None
+
+
+class Params:
+    """The MAVLink parameter protocol against one component of a link (vehicle or plant); waits on the
+    link's clock."""
+
+    def __init__(self, link, component):
+        self.link = link
+        self.component = component
+        self.values = {}  # name -> value
+        self.by_index = {}  # index -> name
+        self.count = None
+        link.listeners.append(self._on_message)
+
+    def _on_message(self, msg):
+        if msg.get_type() == "PARAM_VALUE" and msg.get_srcComponent() == self.component:
+            self.values[msg.param_id] = msg.param_value
+            if msg.param_index != 65535:
+                self.by_index[msg.param_index] = msg.param_id
+            self.count = msg.param_count
+
+    def fetch_all(self, seconds=60.0, quiet_s=3.0):
+        """Every parameter: PARAM_REQUEST_LIST, then PARAM_REQUEST_READ by index for any missing after
+        `quiet_s` without news. Returns {name: value} in index order."""
+        link = self.link
+        link.conn.mav.param_request_list_send(link.system_id, self.component)
+        start = last_news = link.now_s()
+        seen = -1
+        while self.count is None or len(self.by_index) < self.count:
+            if link.now_s() - start > seconds:
+                have = len(self.by_index)
+                raise CheckFailed(f"parameter list: {have} of {self.count or '?'} in {seconds:g} s of {link.clock_name()}")
+            link.pump()
+            if len(self.by_index) != seen:
+                seen, last_news = len(self.by_index), link.now_s()
+            elif link.now_s() - last_news > quiet_s:
+                last_news = link.now_s()
+                if self.count is None:
+                    link.conn.mav.param_request_list_send(link.system_id, self.component)
+                else:
+                    for index in sorted(set(range(self.count)) - set(self.by_index)):
+                        link.conn.mav.param_request_read_send(link.system_id, self.component, b"", index)
+        return {self.by_index[i]: self.values[self.by_index[i]] for i in sorted(self.by_index)}
+
+    def get(self, name, seconds=5.0, attempts=3):
+        """One parameter by name, or None if it is never answered."""
+        link = self.link
+        for _ in range(attempts):
+            self.values.pop(name, None)
+            link.conn.mav.param_request_read_send(link.system_id, self.component, name.encode(), -1)
+            got = link.next_message(seconds, lambda m: m.get_type() == "PARAM_VALUE" and m.param_id == name)
+            if got is not None:
+                return got.param_value
+        return None
+
+    def set(self, name, value, seconds=5.0, attempts=3):
+        """PARAM_SET (REAL32) and wait for the echo. Returns (echoed value or None, texts the component sent
+        meanwhile): the set was taken when the echo equals `value` as a REAL32."""
+        link = self.link
+        since = link.now_s()
+        for _ in range(attempts):
+            link.conn.mav.param_set_send(
+                link.system_id, self.component, name.encode(), float(value), mavlink.MAV_PARAM_TYPE_REAL32
+            )
+            got = link.next_message(seconds, lambda m: m.get_type() == "PARAM_VALUE" and m.param_id == name)
+            if got is not None:
+                return got.param_value, link.texts_since(since)
+            if link.texts_since(since):
+                break  # refused without an echo (an unknown name): no point in resending
+        return None, link.texts_since(since)
+
+    def require_set(self, name, value, **kwargs):
+        echoed, texts = self.set(name, value, **kwargs)
+        if echoed is None or not same_float32(echoed, value):
+            why = "; ".join(texts) or ("no PARAM_VALUE echo" if echoed is None else f"echoed {echoed:g}")
+            raise CheckFailed(f"{name} = {value:g} refused: {why}")
+        return echoed
+
+
+class Plant(Link):
+    """The plant's SIM_ parameter service (UDP 127.0.0.1:19550+N, component 51). It sends no clock, so its
+    waits are on the wall clock."""
+
+    component = PLANT_COMPONENT
+    silence_limit_s = None  # it only speaks when spoken to (and heartbeats while it is)
+
+    def __init__(self, instance, wall_limit_s=600.0, host="127.0.0.1"):
+        self.port = PLANT_PARAM_PORT + instance
+        super().__init__(f"udpout:{host}:{self.port}", None, wall_limit_s)
+        self.instance = instance
+
+    def now_s(self):
+        return time.monotonic()
+
+    def clock_name(self):
+        return "wall time"
+
+    def name(self):
+        return "plant"
+
+    def ours(self, msg):
+        return super().ours(msg) and msg.get_srcComponent() == PLANT_COMPONENT
+
+    def hello(self, timeout_s=5.0):
+        """Say HEARTBEAT (the plant only heartbeats to clients that spoke) and wait for its HEARTBEAT."""
+        end = time.monotonic() + timeout_s
+        next_hello = 0.0
+        while time.monotonic() < end:
+            if time.monotonic() >= next_hello:
+                next_hello = time.monotonic() + 0.5
+                self.conn.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+            msg = self.conn.recv_match(type="HEARTBEAT", blocking=True, timeout=0.2)
+            if msg is not None and msg.get_srcComponent() == PLANT_COMPONENT:
+                self.system_id = msg.get_srcSystem()
+                self.last_heard = time.monotonic()
+                return msg
+        raise NoVehicle(
+            f"no plant HEARTBEAT on udp 127.0.0.1:{self.port} within {timeout_s:g} s "
+            f"(is `sitl run -i {self.instance}` running, with SIM_ parameters?)"
+        )
+
+
+def positive_float(text):
+    value = float(text)
+    if not (value > 0 and math.isfinite(value)):
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {text}")
+    return value

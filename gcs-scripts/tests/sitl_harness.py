@@ -1,0 +1,91 @@
+"""What the ground-station tests share: the binaries `cargo test` built, a free SITL instance, starting
+`sitl run` (its own state directory and log) and stopping its whole process group."""
+
+import os
+import random
+import signal
+import socket
+import subprocess
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def binary(name):
+    """The `name` binary of the workspace (the test profile's, else release)."""
+    target = Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
+    for profile in (os.environ.get("SITL_PROFILE", "debug"), "release"):
+        path = target / profile / name
+        if path.exists():
+            return path
+    pytest.fail(f"{name} is not built: run `cargo build -p sitl -p autopilot` first")
+
+
+def ports_free(n):
+    """Whether every port of instance n is free on 127.0.0.1 (UDP plant, autopilot, GCS, API, SIM_; TCP)."""
+    for kind, port in [(socket.SOCK_DGRAM, p) for p in (4560 + n, 18570 + n, 14550 + n, 14540 + n, 19550 + n)] + [
+        (socket.SOCK_STREAM, 5760 + n)
+    ]:
+        s = socket.socket(socket.AF_INET, kind)
+        try:
+            s.bind(("127.0.0.1", port))
+        except OSError:
+            return False
+        finally:
+            s.close()
+    return True
+
+
+def free_instance(low=61, high=99):
+    """A random instance in low..=high whose ports are all free."""
+    for _ in range(100):
+        n = random.randint(low, high)
+        if ports_free(n):
+            return n
+    pytest.fail("no free SITL instance")
+
+
+def stop_group(proc, timeout=10):
+    """SIGINT to the process group (every process closes its logs), SIGKILL if that is not enough."""
+    if proc.poll() is None:
+        os.killpg(proc.pid, signal.SIGINT)
+    try:
+        proc.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+
+
+class Sitl:
+    """A running `sitl run -i N`."""
+
+    def __init__(self, instance, log_dir, proc, log_path):
+        self.instance, self.log_dir, self.proc, self.log_path = instance, log_dir, proc, log_path
+
+    def stop(self):
+        stop_group(self.proc)
+
+    def tlogs(self):
+        return sorted(self.log_dir.glob("*.tlog"))
+
+    def log_tail(self, chars=3000):
+        return self.log_path.read_text()[-chars:]
+
+
+def start_sitl(tmp_path, *extra, instance=None):
+    """`sitl run` on a free instance with its own state directory (what a test sets must not outlive it)
+    and `.tlog` directory under `tmp_path`, its standard error in `tmp_path/sitl-run.log`."""
+    n = instance if instance is not None else free_instance()
+    log_dir = tmp_path / "logs"
+    log_dir.mkdir(exist_ok=True)
+    log_path = tmp_path / "sitl-run.log"
+    stderr = open(log_path, "w")
+    proc = subprocess.Popen(
+        [str(binary("sitl")), "run", "-i", str(n), "--log-dir", str(log_dir), "--state-dir", str(tmp_path / "state"), *extra],
+        stdout=subprocess.DEVNULL,
+        stderr=stderr,
+        start_new_session=True,
+    )
+    return Sitl(n, log_dir, proc, log_path)

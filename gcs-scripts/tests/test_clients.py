@@ -1,0 +1,291 @@
+"""The ground stations the field flies PX4 with, against the real SITL (`sitl run`, lockstep): MAVSDK-Python
+(classic API) through a whole session (telemetry and health, arm, takeoff, the paper's figure-8 uploaded
+and flown to its end, goto, return and land); pymavlink's PX4 mode handling; MAVProxy (lean install)
+downloading every parameter and the mission; and the connection sequence of QGroundControl. Waits are on
+the vehicle's telemetry; wall-clock limits only stop a hung run."""
+
+import asyncio
+import math
+import os
+import random
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+from sitl_harness import ROOT, start_sitl
+
+os.environ["MAVLINK20"] = "1"
+sys.path.insert(0, str(ROOT / "gcs-scripts"))
+from aco_gcs import link  # noqa: E402
+from aco_gcs.figure8_mission import FIGURE8_NE_M  # noqa: E402
+from pymavlink import mavutil  # noqa: E402
+
+mavlink = mavutil.mavlink
+EARTH_RADIUS_M = 6_378_137.0
+
+
+@pytest.fixture
+def sitl(tmp_path):
+    s = start_sitl(tmp_path)
+    try:
+        yield s
+    finally:
+        s.stop()
+        print(s.log_tail())
+
+
+def offset(lat_deg, lon_deg, north_m, east_m):
+    """The point `north_m`, `east_m` from (lat, lon) on a flat earth (enough for metres)."""
+    lat = lat_deg + math.degrees(north_m / EARTH_RADIUS_M)
+    lon = lon_deg + math.degrees(east_m / (EARTH_RADIUS_M * math.cos(math.radians(lat_deg))))
+    return lat, lon
+
+
+def vehicle(s):
+    """A pymavlink link to the vehicle of `s`, as QGroundControl listens (14550+N, sending to 18570+N)."""
+    v = link.Vehicle(f"udpin:127.0.0.1:{14550 + s.instance}", target=f"127.0.0.1:{18570 + s.instance}", wall_limit_s=300)
+    v.wait_heartbeat(30, s.instance)
+    return v
+
+
+# -- MAVSDK -------------------------------------------------------------------------------------------
+
+
+async def first(stream, cond=lambda _: True, what="telemetry", timeout_s=120):
+    """The first item of a MAVSDK stream for which `cond` holds (a wall-clock hang guard only)."""
+
+    async def scan():
+        async for item in stream:
+            if cond(item):
+                return item
+
+    try:
+        return await asyncio.wait_for(scan(), timeout_s)
+    except asyncio.TimeoutError:
+        pytest.fail(f"MAVSDK: {what} not within {timeout_s} s of wall time")
+
+
+async def mavsdk_session(instance):
+    from mavsdk import System
+    from mavsdk.mission import MissionItem, MissionPlan
+
+    drone = System(port=random.randint(50100, 50900))
+    await drone.connect(system_address=f"udpin://0.0.0.0:{14540 + instance}")
+    await first(drone.core.connection_state(), lambda s: s.is_connected, "connection")
+    health = await first(
+        drone.telemetry.health(),
+        lambda h: h.is_global_position_ok and h.is_home_position_ok and h.is_armable,
+        "health (global position, home, armable)",
+    )
+    assert health.is_gyrometer_calibration_ok and health.is_accelerometer_calibration_ok
+    home = await first(drone.telemetry.home(), what="home")
+    position = await first(drone.telemetry.position(), what="position")
+    assert abs(position.latitude_deg - home.latitude_deg) < 1e-5
+    await first(drone.telemetry.attitude_euler(), what="attitude")
+    assert await first(drone.telemetry.landed_state(), what="landed state") is not None
+
+    await drone.action.set_takeoff_altitude(1.5)
+    await drone.action.arm()
+    await drone.action.takeoff()
+    await first(drone.telemetry.in_air(), lambda a: a, "in air")
+    await first(drone.telemetry.position(), lambda p: p.relative_altitude_m > 1.35, "takeoff to 1.5 m")
+
+    # The paper's figure-8 around home at 1.5 m and 0.3 m/s, flown through (no stops).
+    items = []
+    for north_m, east_m in FIGURE8_NE_M:
+        lat, lon = offset(home.latitude_deg, home.longitude_deg, north_m, east_m)
+        items.append(
+            MissionItem(
+                lat, lon, 1.5, 0.3, True, float("nan"), float("nan"), MissionItem.CameraAction.NONE,
+                float("nan"), float("nan"), float("nan"), float("nan"), float("nan"), MissionItem.VehicleAction.NONE,
+            )
+        )
+    await drone.mission.set_return_to_launch_after_mission(False)
+    await drone.mission.upload_mission(MissionPlan(items))
+    downloaded = await drone.mission.download_mission()
+    assert len(downloaded.mission_items) == len(items)
+    await drone.mission.start_mission()
+    seen = []
+
+    def progressed(p):
+        seen.append(p.current)
+        return p.total == len(items) and p.current == p.total
+
+    await first(drone.mission.mission_progress(), progressed, "mission progress to its end", timeout_s=240)
+    assert await drone.mission.is_mission_finished()
+    assert seen == sorted(seen), f"progress only goes forward: {seen}"
+
+    # Goto 3 m north of home, 2 m above it (AMSL), then return and land.
+    lat, lon = offset(home.latitude_deg, home.longitude_deg, 3.0, 0.0)
+    await drone.action.goto_location(lat, lon, home.absolute_altitude_m + 2.0, 0.0)
+
+    def arrived(p):
+        north = math.radians(p.latitude_deg - home.latitude_deg) * EARTH_RADIUS_M
+        return abs(north - 3.0) < 0.25 and abs(p.relative_altitude_m - 2.0) < 0.25
+
+    await first(drone.telemetry.position(), arrived, "goto 3 m north")
+    await drone.action.return_to_launch()
+    await first(drone.telemetry.flight_mode(), lambda m: m.name == "RETURN_TO_LAUNCH", "RTL mode")
+    await first(drone.telemetry.in_air(), lambda a: not a, "landed", timeout_s=240)
+    await first(drone.telemetry.armed(), lambda a: not a, "auto-disarm")
+    landed_at = await first(drone.telemetry.position(), what="position")
+    north = math.radians(landed_at.latitude_deg - home.latitude_deg) * EARTH_RADIUS_M
+    assert abs(north) < 0.5, f"landed {north:.2f} m from home"
+    return seen
+
+
+def test_mavsdk_flies_takeoff_the_figure8_mission_goto_and_return(sitl):
+    seen = asyncio.run(asyncio.wait_for(mavsdk_session(sitl.instance), 600))
+    print(f"MAVSDK mission progress: {seen}")
+
+
+# -- pymavlink ----------------------------------------------------------------------------------------
+
+
+def test_pymavlink_knows_the_px4_modes_and_set_mode_loiter_switches(sitl):
+    conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{14550 + sitl.instance}", source_system=255)
+    hb = conn.wait_heartbeat(timeout=30)
+    assert hb is not None and hb.autopilot == mavlink.MAV_AUTOPILOT_PX4
+    mapping = conn.mode_mapping()
+    assert {"LOITER", "MISSION", "RTL", "OFFBOARD", "POSCTL"} <= set(mapping), mapping
+    conn.set_mode("POSCTL")
+    deadline = time.monotonic() + 30
+    while conn.flightmode != "POSCTL":
+        assert time.monotonic() < deadline, f"still {conn.flightmode}"
+        conn.recv_match(type="HEARTBEAT", blocking=True, timeout=1)
+    conn.set_mode("LOITER")
+    while conn.flightmode != "LOITER":
+        assert time.monotonic() < deadline, f"still {conn.flightmode}"
+        conn.recv_match(type="HEARTBEAT", blocking=True, timeout=1)
+
+
+# -- MAVProxy -----------------------------------------------------------------------------------------
+
+
+def upload(v, items):
+    """Upload MISSION_ITEM_INTs with the mission protocol."""
+    v.send(v.conn.mav.mission_count_encode(v.system_id, 1, len(items), 0))
+    while True:
+        msg = v.next_message(10, lambda m: m.get_type() in ("MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"))
+        assert msg is not None, "no mission request"
+        if msg.get_type() == "MISSION_ACK":
+            assert msg.type == mavlink.MAV_MISSION_ACCEPTED, msg
+            return
+        v.send(items[msg.seq])
+
+
+def waypoints(v, count):
+    lat0, lon0 = v.global_pos.lat * 1e-7, v.global_pos.lon * 1e-7
+    out = []
+    for seq in range(count):
+        lat, lon = offset(lat0, lon0, 1.0 + seq, 0.0)
+        out.append(
+            v.conn.mav.mission_item_int_encode(
+                v.system_id, 1, seq, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, mavlink.MAV_CMD_NAV_WAYPOINT,
+                0, 1, 0, 0, 0, float("nan"), int(lat * 1e7), int(lon * 1e7), 2.0, 0,
+            )
+        )
+    return out
+
+
+def test_mavproxy_lean_install_downloads_every_parameter_and_the_mission(sitl, tmp_path):
+    v = vehicle(sitl)
+    v.wait_until(30, "global position", lambda: v.global_pos is not None)
+    upload(v, waypoints(v, 4))
+    v.close()
+    mavproxy = Path(sys.executable).with_name("mavproxy.py")
+    assert mavproxy.exists(), "MAVProxy is installed (scripts/test: requirements-mavproxy.txt, --no-deps)"
+    # MAVProxy reads commands from standard input once it runs; give it the connection first.
+    script = "wp list\nparam show RTL_RETURN_ALT\n"
+    proc = subprocess.Popen(
+        [sys.executable, str(mavproxy), f"--master=udpin:127.0.0.1:{14550 + sitl.instance}", "--source-system=250"],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        cwd=tmp_path,
+    )
+    lines = []
+    reader = threading.Thread(target=lambda: lines.extend(iter(proc.stdout.readline, "")), daemon=True)
+    reader.start()
+    try:
+        deadline = time.monotonic() + 60
+        sent = False
+        while time.monotonic() < deadline:
+            output = "".join(lines)
+            if not sent and "Received 72 parameters" in output:
+                proc.stdin.write(script)
+                proc.stdin.flush()
+                sent = True
+            after = output.split("Received 72 parameters")[-1]
+            if sent and "RTL_RETURN_ALT" in after and "Requesting 4 waypoints" in after:
+                break
+            time.sleep(0.1)
+        time.sleep(1.0)
+    finally:
+        proc.kill()
+        proc.wait()
+    output = "".join(lines)
+    print(output[-3000:])
+    assert "online system" in output
+    assert "Received 72 parameters" in output, "every parameter downloaded"
+    assert "Requesting 4 waypoints" in output, "the mission downloaded"
+    assert "RTL_RETURN_ALT" in output.split("Received 72 parameters")[-1]
+    saved = (tmp_path / f"mav_{sitl.instance + 1}_1.parm").read_text().splitlines()
+    assert len([line for line in saved if line.strip()]) == 72
+
+
+# -- QGroundControl -----------------------------------------------------------------------------------
+
+
+def test_the_qgroundcontrol_connection_sequence_completes(sitl):
+    """As QGroundControl's PX4 plugin connects: heartbeats, AUTOPILOT_VERSION, the full parameter list
+    (re-asking missing indices), the plan (mission, fence, rally), a mode change with the SET_MODE
+    message, then a takeoff sent before arming."""
+    v = vehicle(sitl)
+    sysid = v.system_id
+    # AUTOPILOT_VERSION by REQUEST_MESSAGE.
+    v.send(v.conn.mav.command_long_encode(sysid, 1, mavlink.MAV_CMD_REQUEST_MESSAGE, 0, 148, 0, 0, 0, 0, 0, 0))
+    version = v.next_message(10, lambda m: m.get_type() == "AUTOPILOT_VERSION")
+    assert version is not None, "AUTOPILOT_VERSION"
+    for bit in ("MISSION_INT", "COMMAND_INT", "MAVLINK2"):
+        assert version.capabilities & getattr(mavlink, f"MAV_PROTOCOL_CAPABILITY_{bit}"), bit
+    assert version.flight_sw_version >> 8 >= 0x010F00, hex(version.flight_sw_version)
+    # The full parameter list; missing indices re-requested one by one.
+    v.send(v.conn.mav.param_request_list_encode(sysid, 1))
+    values, count = {}, None
+    quiet_since = time.monotonic()
+    while count is None or len(values) < count:
+        msg = v.next_message(2, lambda m: m.get_type() == "PARAM_VALUE")
+        if msg is not None:
+            count = msg.param_count
+            values[msg.param_index] = msg
+            quiet_since = time.monotonic()
+        elif count is not None and time.monotonic() - quiet_since > 1.0:
+            for index in sorted(set(range(count)) - set(values)):
+                v.send(v.conn.mav.param_request_read_encode(sysid, 1, b"", index))
+        assert time.monotonic() - quiet_since < 20, f"{len(values)} of {count} parameters"
+    assert count == 72 and all(m.param_type == mavlink.MAV_PARAM_TYPE_REAL32 for m in values.values())
+    assert {"MIS_TAKEOFF_ALT", "RTL_RETURN_ALT"} <= {m.param_id for m in values.values()}
+    # The plan: mission (type 0), geofence (1), rally points (2).
+    for mission_type in (mavlink.MAV_MISSION_TYPE_MISSION, mavlink.MAV_MISSION_TYPE_FENCE, mavlink.MAV_MISSION_TYPE_RALLY):
+        v.send(v.conn.mav.mission_request_list_encode(sysid, 1, mission_type))
+        msg = v.next_message(10, lambda m: m.get_type() == "MISSION_COUNT" and m.mission_type == mission_type)
+        assert msg is not None, f"MISSION_COUNT of type {mission_type}"
+        assert msg.count == 0, f"type {mission_type}: nothing uploaded yet"
+        v.send(v.conn.mav.mission_ack_encode(sysid, 1, mavlink.MAV_MISSION_ACCEPTED, mission_type))
+    # A mode change with the SET_MODE message (PX4 POSCTL), then back to Hold.
+    for custom_mode in (3 << 16, (4 << 16) | (3 << 24)):
+        v.send(v.conn.mav.set_mode_encode(sysid, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, custom_mode))
+        v.wait_until(10, f"custom mode {custom_mode:#x}", lambda: v.custom_mode == custom_mode)
+    # Takeoff before arming (AMSL altitude, NaN position), then arm: it climbs.
+    v.wait_until(30, "estimator", lambda: v.prearm_ok and v.global_pos is not None)
+    home_amsl_m = v.global_pos.alt * 1e-3 - v.global_pos.relative_alt * 1e-3
+    nan = float("nan")
+    v.require("takeoff", mavlink.MAV_CMD_NAV_TAKEOFF, -1, 0, 0, nan, nan, nan, home_amsl_m + 2.0)
+    v.require("arm", mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+    v.wait_until(30, "climb to 2 m", lambda: v.pos is not None and -v.pos[2] > 1.8)
+    v.close()

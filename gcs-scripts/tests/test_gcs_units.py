@@ -1,0 +1,70 @@
+"""The scripts' pure parts, without a vehicle: parameter files, REAL32 formatting, the figure-8 mission's
+geometry, the gust metrics and the instance's ports."""
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from aco_gcs import figure8_mission, gust_hover, link, params  # noqa: E402
+
+
+def test_instance_n_shifts_every_port():
+    p = argparse.ArgumentParser()
+    link.add_link_args(p)
+    assert link.resolve_link(p.parse_args([])) == ("udpin:127.0.0.1:14550", "127.0.0.1:18570")
+    assert link.resolve_link(p.parse_args(["-i", "3"])) == ("udpin:127.0.0.1:14553", "127.0.0.1:18573")
+    # An explicit connection keeps pymavlink's own addressing unless a target is given too.
+    assert link.resolve_link(p.parse_args(["--connect", "tcp:127.0.0.1:5760"])) == ("tcp:127.0.0.1:5760", None)
+
+
+def test_parameter_values_round_trip_as_real32_text():
+    for value in (0.6667, 2.16, 12.3, 0.0, -5.0, 1e-7, 123456.78, 3.25):
+        text = params.format_value(value)
+        assert link.same_float32(float(text), value), (value, text)
+    assert params.format_value(4.0) == "4"
+    assert params.format_value(6.7) == "6.7"
+
+
+def test_parameter_files_in_mavproxy_and_qgroundcontrol_style_parse():
+    text = "# comment\nMIS_TAKEOFF_ALT  2.5\nNAV_ACC_RAD,0.2  # trailing\n\n1\t1\tACO_POS_P\t0.6667\t9\n"
+    assert params.parse_file(text) == [("MIS_TAKEOFF_ALT", 2.5), ("NAV_ACC_RAD", 0.2), ("ACO_POS_P", 0.6667)]
+    with pytest.raises(link.GcsError, match="line 1"):
+        params.parse_file("JUST_A_NAME\n")
+    with pytest.raises(link.GcsError, match="not a number"):
+        params.parse_file("NAME abc\n")
+
+
+def test_figure8_mission_items_sit_on_the_grid_around_home():
+    lat0, lon0 = 47.397742, 8.545594
+    items = figure8_mission.build_mission(lat0, lon0, 1.5, 0.3)
+    mav = link.mavlink
+    assert [it.command for it in items[:2]] == [mav.MAV_CMD_NAV_TAKEOFF, mav.MAV_CMD_DO_CHANGE_SPEED]
+    assert items[-1].command == mav.MAV_CMD_NAV_LAND and len(items) == 12
+    assert items[1].params[1] == 0.3
+    wps = [it for it in items if it.command == mav.MAV_CMD_NAV_WAYPOINT]
+    assert all(it.frame == mav.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT and it.z == 1.5 for it in wps)
+    for it, (n, e) in zip(wps, figure8_mission.FIGURE8_NE_M):
+        dn = math.radians(it.x / 1e7 - lat0) * figure8_mission.EARTH_RADIUS_M
+        de = math.radians(it.y / 1e7 - lon0) * figure8_mission.EARTH_RADIUS_M * math.cos(math.radians(lat0))
+        assert abs(dn - n) < 0.01 and abs(de - e) < 0.01, (it, n, e)
+    assert items[2].matches(items[2]) and not items[2].matches(items[3])
+
+
+def test_cross_track_is_the_distance_to_the_nearest_segment():
+    square = [(0, 0), (1, 0), (1, 1)]
+    assert figure8_mission.cross_track_m((0.5, 0.2), square) == pytest.approx(0.2)
+    assert figure8_mission.cross_track_m((1.3, 0.5), square) == pytest.approx(0.3)
+
+
+def test_recovery_is_the_time_until_the_error_stays_below_the_threshold():
+    samples = [(t / 10, e) for t, e in enumerate([0.0, 0.05, 0.2, 0.15, 0.08, 0.12, 0.05, 0.04, 0.03])]
+    assert gust_hover.recovery_s(samples, 0.1, 0.8, 0.10) == pytest.approx(0.5)  # below from t = 0.6 on
+    assert gust_hover.recovery_s(samples, 0.6, 0.8, 0.10) == 0.0
+    assert gust_hover.recovery_s([(0.0, 0.2), (1.0, 0.3)], 0.0, 1.0, 0.10) is None
+    assert gust_hover.plant_time(["gust 6.7 m/s to 90 deg, rise 1.0 s, t=18.80"], 3.0) == 18.8
+    assert gust_hover.plant_time(["no time here"], 3.0) == 3.0
