@@ -141,3 +141,116 @@ fn given_the_figure8_as_a_mission_when_flown_through_the_vehicle_then_every_item
     assert!(cross_rms < 0.05, "cross-track rms {cross_rms}");
     assert!(rig.plant.truth().pos_ned_m.z.abs() < 0.05, "landed");
 }
+
+/// A SET_POSITION_TARGET_LOCAL_NED with position and yaw (MAVSDK's type_mask 2552).
+fn position_target(n_m: f32, e_m: f32, d_m: f32) -> MavMessage {
+    use autopilot::core::mavlink::common::{MavFrame, PositionTargetTypemask, SET_POSITION_TARGET_LOCAL_NED_DATA};
+    MavMessage::SET_POSITION_TARGET_LOCAL_NED(SET_POSITION_TARGET_LOCAL_NED_DATA {
+        x: n_m,
+        y: e_m,
+        z: d_m,
+        type_mask: PositionTargetTypemask::from_bits_truncate(2552),
+        target_system: 1,
+        target_component: 1,
+        coordinate_frame: MavFrame::MAV_FRAME_LOCAL_NED,
+        ..Default::default()
+    })
+}
+
+fn custom_mode(rig: &Rig) -> u32 {
+    rig.vehicle.commander_output().custom_mode
+}
+
+#[test]
+fn given_offboard_setpoints_when_they_stop_then_the_vehicle_holds_after_half_a_second_of_vehicle_time() {
+    // GIVEN a vehicle holding at 1.5 m.
+    let mut rig = rig();
+    rig.wait_until(30.0, "estimator convergence", |r| r.vehicle.estimate().flags.converged);
+    rig.run_s(1.0, |_| {});
+    assert_eq!(
+        rig.command(MavCmd::MAV_CMD_NAV_TAKEOFF, [0.0, 0.0, 0.0, NAN, NAN, NAN, 1.5]),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    assert_eq!(
+        rig.command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    rig.wait_until(15.0, "takeoff", |r| r.vehicle.commander_output().state == autopilot::core::commander::State::Hold);
+    let home = rig.vehicle.estimate().pos_ned_m;
+    // WHEN OFFBOARD is asked for without setpoints THEN it is refused; with them streaming at 20 Hz it flies
+    // to the setpoint.
+    assert_eq!(
+        rig.command(MavCmd::MAV_CMD_DO_SET_MODE, [1.0, 6.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+        MavResult::MAV_RESULT_DENIED
+    );
+    let target = (home.x as f32 + 1.0, home.y as f32, home.z as f32);
+    rig.send(&position_target(target.0, target.1, target.2));
+    assert_eq!(
+        rig.command(MavCmd::MAV_CMD_DO_SET_MODE, [1.0, 6.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    for _ in 0..200 {
+        rig.run_s(0.05, |_| {});
+        rig.send(&position_target(target.0, target.1, target.2));
+    }
+    assert_eq!(custom_mode(&rig), 0x0006_0000, "still OFFBOARD while setpoints flow");
+    let p = rig.vehicle.estimate().pos_ned_m;
+    assert!((p.x - f64::from(target.0)).abs() < 0.1, "flew to the setpoint: {p:?}");
+    // AND when they stop, THEN Hold (AUTO LOITER) after 0.5 s of vehicle time, not before.
+    rig.run_s(0.45, |_| {});
+    assert_eq!(custom_mode(&rig), 0x0006_0000, "0.45 s without setpoints: still OFFBOARD");
+    rig.run_s(0.1, |_| {});
+    assert_eq!(custom_mode(&rig), 0x0304_0000, "0.55 s without setpoints: Hold");
+}
+
+#[test]
+fn given_a_return_to_launch_when_away_then_it_climbs_returns_lands_at_home_and_disarms() {
+    let mut rig = rig();
+    rig.wait_until(30.0, "estimator convergence", |r| r.vehicle.estimate().flags.converged);
+    rig.run_s(1.0, |_| {});
+    assert_eq!(
+        rig.command(MavCmd::MAV_CMD_NAV_TAKEOFF, [0.0, 0.0, 0.0, NAN, NAN, NAN, 1.5]),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    assert_eq!(
+        rig.command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    rig.wait_until(15.0, "takeoff", |r| r.vehicle.commander_output().state == autopilot::core::commander::State::Hold);
+    // Away with DO_REPOSITION (QGroundControl's "go to location"), 4 m north at the same altitude.
+    let (lat, lon) = at(&rig, [4.0, 0.0]);
+    let reposition = autopilot::core::mavlink::common::COMMAND_INT_DATA {
+        param1: -1.0,
+        param4: f32::NAN,
+        x: (lat * 1e7).round() as i32,
+        y: (lon * 1e7).round() as i32,
+        z: f32::NAN,
+        command: MavCmd::MAV_CMD_DO_REPOSITION,
+        target_system: 1,
+        target_component: 1,
+        frame: autopilot::core::mavlink::common::MavFrame::MAV_FRAME_GLOBAL,
+        ..Default::default()
+    };
+    let replies = rig.send(&MavMessage::COMMAND_INT(reposition));
+    assert!(
+        matches!(replies.first(), Some(MavMessage::COMMAND_ACK(a)) if a.result == MavResult::MAV_RESULT_ACCEPTED),
+        "{replies:?}"
+    );
+    rig.run_s(12.0, |_| {});
+    assert!((rig.plant.truth().pos_ned_m.x - 4.0).abs() < 0.15, "repositioned: {:?}", rig.plant.truth().pos_ned_m);
+    // WHEN told to return.
+    let mut max_alt: f64 = 0.0;
+    assert_eq!(rig.command(MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH, [0.0; 7]), MavResult::MAV_RESULT_ACCEPTED);
+    rig.tick();
+    assert_eq!(custom_mode(&rig), 0x0504_0000, "AUTO RTL");
+    let start = rig.now_us;
+    while rig.armed() {
+        assert!(rig.now_us - start < 60_000_000, "not landed and disarmed within 60 s");
+        rig.tick();
+        max_alt = max_alt.max(-rig.plant.truth().pos_ned_m.z);
+    }
+    // THEN it climbed to RTL_RETURN_ALT (3 m), came back above home and landed there.
+    let p = rig.plant.truth().pos_ned_m;
+    assert!(max_alt > 2.8 && max_alt < 3.3, "return altitude {max_alt}");
+    assert!(p.xy().norm() < 0.3 && p.z.abs() < 0.05, "landed at home: {p:?}");
+}
