@@ -1,7 +1,7 @@
 """The ground stations the field flies PX4 with, against the real SITL (`sitl run`, lockstep): MAVSDK-Python
 (classic API) through a whole session (telemetry and health, arm, takeoff, the paper's figure-8 uploaded
 and flown to its end, goto, return and land); pymavlink's PX4 mode handling; MAVProxy (lean install)
-downloading every parameter and the mission; and the connection sequence of QGroundControl. Waits are on
+downloading every parameter and the mission; pymavlink over the TCP server; and the connection sequence of QGroundControl. Waits are on
 the vehicle's telemetry; wall-clock limits only stop a hung run."""
 
 import asyncio
@@ -160,6 +160,28 @@ def test_pymavlink_knows_the_px4_modes_and_set_mode_loiter_switches(sitl):
     while conn.flightmode != "LOITER":
         assert time.monotonic() < deadline, f"still {conn.flightmode}"
         conn.recv_match(type="HEARTBEAT", blocking=True, timeout=1)
+
+
+def test_pymavlink_over_tcp_reads_a_parameter_and_the_adaptive_weights(sitl):
+    """The TCP server on 5760+N, as MAVProxy's and QGC's TCP links use it."""
+    conn = mavutil.mavlink_connection(f"tcp:127.0.0.1:{5760 + sitl.instance}", source_system=255, retries=30)
+    hb = conn.wait_heartbeat(timeout=30)
+    assert hb is not None and conn.target_system == sitl.instance + 1
+    conn.mav.param_request_read_send(conn.target_system, 1, b"ACO_WEIGHTS_HZ", -1)
+    value = conn.recv_match(type="PARAM_VALUE", blocking=True, timeout=30)
+    assert value is not None and value.param_id == "ACO_WEIGHTS_HZ" and value.param_value == 2.0
+    names = set()
+    deadline = time.monotonic() + 30
+    while len(names) < 5:
+        assert time.monotonic() < deadline, f"only {sorted(names)}"
+        vect = conn.recv_match(type="DEBUG_VECT", blocking=True, timeout=1)
+        if vect is not None:
+            names.add(vect.name)
+            if vect.name == "aco.m_est":
+                # The mass estimate (kg) per NED axis, starting at the nominal 5.2 kg on the ground.
+                assert all(4.0 < m < 6.5 for m in (vect.x, vect.y, vect.z)), vect
+    assert names == {"aco.w_t", "aco.b_t", "aco.c_r", "aco.d_r", "aco.m_est"}
+    conn.close()
 
 
 # -- MAVProxy -----------------------------------------------------------------------------------------

@@ -18,6 +18,7 @@ use clap::{Args, Parser, Subcommand};
 use sitl::launch::{self, AutopilotChild};
 use sitl::link::{LinkConfig, Pacing, PlantServer};
 use sitl::plant::{Airframe, InitialState, Plant, PlantConfig, SensorConfig};
+use sitl::scenario::metrics::{GustMetrics, TrackMetrics};
 use sitl::scenario::plot::{self, Panel, Run};
 use sitl::scenario::reference::{ReferenceMode, ReferenceSpec, SplinePath};
 use sitl::scenario::runner::{self, RunOptions, RunOutput};
@@ -93,7 +94,7 @@ struct BenchArgs {
     /// Simulated seconds of the lockstep run.
     #[arg(long, default_value_t = 120.0)]
     sim_s: f64,
-    /// Wall seconds of the real-time run.
+    /// Wall seconds of the real-time run (0 skips it).
     #[arg(long, default_value_t = 10.0)]
     realtime_s: f64,
 }
@@ -293,6 +294,29 @@ fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
     Ok(())
 }
 
+/// The gust and track metric lines of a summary (each starting with a newline), for the runs that have them.
+fn gust_track_lines(gust: Option<&GustMetrics>, track: Option<&TrackMetrics>) -> String {
+    let mut s = String::new();
+    if let Some(g) = gust {
+        s += &format!(
+            "\n  gust: recovery {} / {} s  peak {:.3} m  steady {:.3} m  rms xy {:.3} m  rms z {:.4} m",
+            fmt_opt(g.recovery_onset_s),
+            fmt_opt(g.recovery_release_s),
+            g.peak_m,
+            g.steady_err_m,
+            g.rms_xy_m,
+            g.rms_z_m
+        );
+    }
+    if let Some(t) = track {
+        s += &format!(
+            "\n  track: cross-track rms {:.3} m  max {:.3} m  alt rms {:.4} m",
+            t.cross_track_rms_m, t.cross_track_max_m, t.alt_rms_m
+        );
+    }
+    s
+}
+
 fn fmt_opt(v: Option<f64>) -> String {
     v.map_or_else(|| "never".to_owned(), |x| format!("{x:.2}"))
 }
@@ -319,23 +343,7 @@ fn summary(out: &RunOutput) -> String {
             s += &format!(" {axis} {v:.4}");
         }
     }
-    if let Some(g) = &m.gust {
-        s += &format!(
-            "\n  gust: recovery {} / {} s  peak {:.3} m  steady {:.3} m  rms xy {:.3} m  rms z {:.4} m",
-            fmt_opt(g.recovery_onset_s),
-            fmt_opt(g.recovery_release_s),
-            g.peak_m,
-            g.steady_err_m,
-            g.rms_xy_m,
-            g.rms_z_m
-        );
-    }
-    if let Some(t) = &m.track {
-        s += &format!(
-            "\n  track: cross-track rms {:.3} m  max {:.3} m  alt rms {:.4} m",
-            t.cross_track_rms_m, t.cross_track_max_m, t.alt_rms_m
-        );
-    }
+    s += &gust_track_lines(m.gust.as_ref(), m.track.as_ref());
     s += &format!(
         "\n  weights at bounds: {}  non-finite: {}  pwm activity {:.2} us/tick  {:.1} sim s in {:.3} s wall ({:.0}x real time)",
         m.weights_at_bounds, m.non_finite, m.pwm_activity_us, m.sim_s, m.wall_s, m.realtime_factor
@@ -487,23 +495,7 @@ fn print_two_process(m: &two_process::TwoProcessMetrics, json: bool) -> Result<(
         "{} {} {} seed {} (two processes, {} estimator)",
         m.scenario, m.controller, m.plant, m.seed, m.estimator
     );
-    if let Some(g) = &m.gust {
-        line += &format!(
-            "\n  gust: recovery {} / {} s  peak {:.3} m  steady {:.3} m  rms xy {:.3} m  rms z {:.4} m",
-            fmt_opt(g.recovery_onset_s),
-            fmt_opt(g.recovery_release_s),
-            g.peak_m,
-            g.steady_err_m,
-            g.rms_xy_m,
-            g.rms_z_m
-        );
-    }
-    if let Some(t) = &m.track {
-        line += &format!(
-            "\n  track: cross-track rms {:.3} m  max {:.3} m  alt rms {:.4} m",
-            t.cross_track_rms_m, t.cross_track_max_m, t.alt_rms_m
-        );
-    }
+    line += &gust_track_lines(m.gust.as_ref(), m.track.as_ref());
     if let Some((reached, total)) = m.items_reached {
         line += &format!("\n  mission: {reached} of {total} items reached");
     }
@@ -649,9 +641,35 @@ impl TelemetryCounter {
     }
 }
 
+/// An autopilot configuration file in the temporary directory, removed on drop.
+struct TempConfig {
+    path: std::path::PathBuf,
+}
+
+impl TempConfig {
+    fn write(text: &str) -> Result<Self> {
+        let path = std::env::temp_dir().join(format!("sitl-bench-{}.toml", std::process::id()));
+        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+        Ok(Self { path })
+    }
+}
+
+impl Drop for TempConfig {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
+
 /// One bench run: the default `sitl run` plant and autopilot for `duration_s` simulated seconds, with a
-/// ground station listening on the QGroundControl port.
-fn bench_once(n: u16, pacing: Pacing, duration_s: f64, stop: &AtomicBool) -> Result<(launch::LaunchReport, u64, u64)> {
+/// ground station listening on the QGroundControl port, or (`gcs` false) with the autopilot's
+/// ground-station links off.
+fn bench_once(
+    n: u16,
+    pacing: Pacing,
+    duration_s: f64,
+    gcs: bool,
+    stop: &AtomicBool,
+) -> Result<(launch::LaunchReport, u64, u64)> {
     let (plant_port, _, qgc_port, _) = instance_ports(n)?;
     let plant = Plant::new(realistic_plant_config(), &InitialState::default(), 1)?;
     let link = LinkConfig { pacing, connect_timeout: Some(Duration::from_secs(30)), ..LinkConfig::default() };
@@ -661,7 +679,7 @@ fn bench_once(n: u16, pacing: Pacing, duration_s: f64, stop: &AtomicBool) -> Res
     let mut server =
         PlantServer::bind_udp(plant, listen.as_str(), link).with_context(|| format!("binding {listen}"))?;
     server.set_hook(Box::new(sim_params));
-    let gcs = TelemetryCounter::listen(qgc_port)?;
+    let counter = TelemetryCounter::listen(qgc_port)?;
     let args: Vec<OsString> = vec![
         "--plant".into(),
         format!("udp://{listen}").into(),
@@ -670,9 +688,17 @@ fn bench_once(n: u16, pacing: Pacing, duration_s: f64, stop: &AtomicBool) -> Res
         "--state-dir".into(),
         "off".into(),
     ];
+    let mut args = args;
+    let _config = if gcs {
+        None
+    } else {
+        let config = TempConfig::write("[gcs]\nudp_targets = []\ntcp_bind = \"off\"\n")?;
+        args.extend(["--config".into(), config.path.clone().into()]);
+        Some(config)
+    };
     let child = AutopilotChild::spawn_with(&launch::autopilot_binary()?, &args, Some("warn"))?;
     let report = launch::run_with_child(&mut server, child, duration_us(Some(duration_s))?, stop, |_, _| {})?;
-    let (messages, bytes) = gcs.finish();
+    let (messages, bytes) = counter.finish();
     if report.stopped {
         bail!("stopped");
     }
@@ -687,20 +713,26 @@ fn bench(args: &BenchArgs) -> Result<()> {
          ACO, on the ground), telemetry to a ground station on udp {}",
         14550 + u32::from(n)
     );
-    let (r, messages, _) = bench_once(n, Pacing::Lockstep, args.sim_s, &stop)?;
-    println!(
-        "  lockstep: {:.1} sim s in {:.2} s wall = {:.1}x real time, {:.0} steps/s, {:.1} us per step; CPU per \
-         step: autopilot {:.1} us, plant {:.1} us (both poll while waiting); {} telemetry messages received",
-        r.sim_s,
-        r.wall_s,
-        r.realtime_factor(),
-        r.steps as f64 / r.wall_s,
-        r.wall_s * 1e6 / r.steps as f64,
-        r.autopilot_cpu_s.unwrap_or(f64::NAN) * 1e6 / r.steps as f64,
-        r.plant_cpu_s.unwrap_or(f64::NAN) * 1e6 / r.steps as f64,
-        messages,
-    );
-    let (r, messages, bytes) = bench_once(n, Pacing::RealTime { speed: 1.0 }, args.realtime_s, &stop)?;
+    for gcs in [true, false] {
+        let (r, messages, _) = bench_once(n, Pacing::Lockstep, args.sim_s, gcs, &stop)?;
+        println!(
+            "  lockstep, {}: {:.1} sim s in {:.2} s wall = {:.1}x real time, {:.0} steps/s, {:.1} us per step; CPU \
+             per step: autopilot {:.1} us, plant {:.1} us (both poll while waiting); {} telemetry messages received",
+            if gcs { "telemetry to the ground station" } else { "ground-station links off" },
+            r.sim_s,
+            r.wall_s,
+            r.realtime_factor(),
+            r.steps as f64 / r.wall_s,
+            r.wall_s * 1e6 / r.steps as f64,
+            r.autopilot_cpu_s.unwrap_or(f64::NAN) * 1e6 / r.steps as f64,
+            r.plant_cpu_s.unwrap_or(f64::NAN) * 1e6 / r.steps as f64,
+            messages,
+        );
+    }
+    if args.realtime_s <= 0.0 {
+        return Ok(());
+    }
+    let (r, messages, bytes) = bench_once(n, Pacing::RealTime { speed: 1.0 }, args.realtime_s, true, &stop)?;
     println!(
         "  real time: {:.1} s: CPU autopilot {:.2} % of a core, plant {:.2} %; telemetry {:.1} messages/s, {:.2} kB/s",
         r.wall_s,

@@ -5,14 +5,12 @@
 
 use autopilot::core::estimator::EstimatorSource;
 use autopilot::core::mavlink::common::{MavCmd, MavMessage, MavMissionResult, MavResult};
-use autopilot::core::navigator::spline::SplinePath;
+use autopilot::core::navigator::spline::{FIGURE8_NE_M, SplinePath};
 use nalgebra::{Vector2, Vector3};
 use sitl::plant::{PlantConfig, SensorConfig};
 use tests::rig::{Rig, mission_item};
 
 const NAN: f32 = f32::NAN;
-const FIGURE8_NE_M: [[f64; 2]; 9] =
-    [[0.0, 0.0], [0.6, 0.6], [1.2, 0.0], [0.6, -0.6], [0.0, 0.0], [-0.6, 0.6], [-1.2, 0.0], [-0.6, -0.6], [0.0, 0.0]];
 
 /// The paper's sensor noise level for the full stack: GPS position within 2 cm (the paper's state noise on
 /// position), the rest as `sitl run`'s modest noise.

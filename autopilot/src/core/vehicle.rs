@@ -710,6 +710,7 @@ impl Vehicle {
         }
         self.output = out;
         let events = std::mem::take(&mut self.output.events);
+        // [`Self::snapshot`] spelled out field by field, as `self.mavlink` is borrowed mutably beside it.
         let snapshot = TelemetrySnapshot {
             now_us,
             estimate: self.estimator.state(),
@@ -1137,13 +1138,15 @@ mod tests {
             ("SYS_STATUS", 1, 10),
             ("GPS_RAW_INT", 24, 50),
             ("ATTITUDE", 30, 200),
-            ("ATTITUDE_QUATERNION", 31, 200),
+            ("ATTITUDE_QUATERNION", 31, 100),
             ("LOCAL_POSITION_NED", 32, 100),
             ("GLOBAL_POSITION_INT", 33, 100),
             ("VFR_HUD", 74, 40),
             ("BATTERY_STATUS", 147, 10),
             ("HOME_POSITION", 242, 5),
             ("EXTENDED_SYS_STATE", 245, 10),
+            // The five ACO weight vectors at 2 Hz.
+            ("DEBUG_VECT", 250, 100),
         ] {
             assert!((count(id) - want).abs() <= 1, "{name}: {} in 10 s, want {want}", count(id));
         }

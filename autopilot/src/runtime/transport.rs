@@ -26,10 +26,15 @@ pub const POLL_INTERVAL: Duration = Duration::from_millis(20);
 /// polling does not. See [`SpinReceiver`] for when it polls at all.
 pub const UDP_SPIN: Duration = Duration::from_micros(50);
 
+/// A wait shorter than this (polling plus blocking) re-arms the polling. It is well above a blocking
+/// lockstep round trip (both ends asleep: tens of µs, more on a busy machine) and well below the 2 ms of a
+/// real-time plant step, so one slow round trip in lockstep does not leave both ends blocking for good.
+pub const UDP_SPIN_REARM: Duration = Duration::from_micros(500);
+
 /// Receives on a non-blocking UDP socket: polls for up to [`UDP_SPIN`], then blocks for up to the
 /// socket's read timeout (switching it to blocking for that wait only). It polls only while datagrams
-/// come quickly: after a wait longer than the poll (real-time pacing, a datagram every 2 ms) it blocks
-/// at once, until a wait is short again, so a paced SITL does not burn a core polling.
+/// come quickly: after a wait longer than [`UDP_SPIN_REARM`] (real-time pacing, a datagram every 2 ms)
+/// it blocks at once, until a wait is short again, so a paced SITL does not burn a core polling.
 #[derive(Debug, Clone, Copy)]
 pub struct SpinReceiver {
     spin: bool,
@@ -66,7 +71,7 @@ impl SpinReceiver {
         socket.set_nonblocking(false)?;
         let result = op(socket);
         socket.set_nonblocking(true)?;
-        self.spin = start.elapsed() < UDP_SPIN;
+        self.spin = start.elapsed() < UDP_SPIN_REARM;
         match result {
             Ok(v) => Ok(Some(v)),
             Err(e) if is_transient(&e) => Ok(None),

@@ -288,17 +288,7 @@ mod tests {
     use super::*;
 
     fn figure8() -> Vec<[f64; 2]> {
-        vec![
-            [0.0, 0.0],
-            [0.6, 0.6],
-            [1.2, 0.0],
-            [0.6, -0.6],
-            [0.0, 0.0],
-            [-0.6, 0.6],
-            [-1.2, 0.0],
-            [-0.6, -0.6],
-            [0.0, 0.0],
-        ]
+        autopilot::core::navigator::spline::FIGURE8_NE_M.to_vec()
     }
 
     #[test]

@@ -1,23 +1,23 @@
 //! Telemetry streams on vehicle time. In, once per vehicle step: `now_us` (µs, the plant's sensor clock)
 //! and a [`TelemetrySnapshot`] (the estimate with its origin, the last GPS fix, home, the commander's
 //! output, the motor commands). Out: the messages whose interval has elapsed, at the default rates
-//! ([`Stream::default_interval_us`]): SYS_STATUS 1 Hz, ATTITUDE and ATTITUDE_QUATERNION 20 Hz,
-//! LOCAL_POSITION_NED 10 Hz, GLOBAL_POSITION_INT 10 Hz (once an origin exists), GPS_RAW_INT 5 Hz (once a fix
-//! arrived), EXTENDED_SYS_STATE 1 Hz, HOME_POSITION 0.5 Hz (once home is set), VFR_HUD 4 Hz,
-//! BATTERY_STATUS 1 Hz, MISSION_CURRENT 1 Hz (once a mission is loaded), and the controller's adaptive
-//! weights and mass estimate as NAMED_VALUE_FLOATs (2 Hz by default, the ACO_WEIGHTS_HZ parameter). A
-//! stream due without its data is skipped, not queued. Every rate can be changed per message id
-//! (SET_MESSAGE_INTERVAL).
+//! ([`Stream::default_interval_us`]): SYS_STATUS 1 Hz, ATTITUDE 20 Hz, ATTITUDE_QUATERNION 10 Hz (as
+//! PX4's normal mode), LOCAL_POSITION_NED 10 Hz, GLOBAL_POSITION_INT 10 Hz (once an origin exists),
+//! GPS_RAW_INT 5 Hz (once a fix arrived), EXTENDED_SYS_STATE 1 Hz, HOME_POSITION 0.5 Hz (once home is
+//! set), VFR_HUD 4 Hz, BATTERY_STATUS 1 Hz, MISSION_CURRENT 1 Hz (once a mission is loaded), and the
+//! controller's adaptive weights and mass estimate as DEBUG_VECTs ([`WEIGHT_VECTORS`]; 2 Hz by default,
+//! the ACO_WEIGHTS_HZ parameter). A stream due without its data is skipped, not queued. Every rate can
+//! be changed per message id (SET_MESSAGE_INTERVAL).
 //!
 //! Units on the wire: angles rad (ATTITUDE) or cdeg, positions degE7 and mm, speeds cm/s. Nothing here
 //! measures the battery: SYS_STATUS and BATTERY_STATUS carry MAVLink's "unknown" values (voltage
 //! UINT16_MAX, current -1, remaining -1, temperature INT16_MAX, consumption -1).
 
 use ::mavlink::dialects::common::{
-    ATTITUDE_DATA, ATTITUDE_QUATERNION_DATA, BATTERY_STATUS_DATA, EXTENDED_SYS_STATE_DATA, GLOBAL_POSITION_INT_DATA,
-    GPS_RAW_INT_DATA, GpsFixType, HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA, MISSION_CURRENT_DATA,
-    MavBatteryFunction, MavBatteryType, MavLandedState, MavMessage, MavSeverity, MavSysStatusSensor, MavVtolState,
-    NAMED_VALUE_FLOAT_DATA, STATUSTEXT_DATA, SYS_STATUS_DATA, VFR_HUD_DATA,
+    ATTITUDE_DATA, ATTITUDE_QUATERNION_DATA, BATTERY_STATUS_DATA, DEBUG_VECT_DATA, EXTENDED_SYS_STATE_DATA,
+    GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA,
+    MISSION_CURRENT_DATA, MavBatteryFunction, MavBatteryType, MavLandedState, MavMessage, MavSeverity,
+    MavSysStatusSensor, MavVtolState, STATUSTEXT_DATA, SYS_STATUS_DATA, VFR_HUD_DATA,
 };
 use nalgebra::Vector3;
 
@@ -72,7 +72,7 @@ pub enum Stream {
     VfrHud,
     BatteryStatus,
     MissionCurrent,
-    /// The controller's adaptive weights and mass estimate, as NAMED_VALUE_FLOATs.
+    /// The controller's adaptive weights and mass estimate, as DEBUG_VECTs ([`WEIGHT_VECTORS`]).
     AdaptiveWeights,
 }
 
@@ -107,7 +107,7 @@ impl Stream {
             Self::VfrHud => 74,
             Self::BatteryStatus => 147,
             Self::MissionCurrent => 42,
-            Self::AdaptiveWeights => 251,
+            Self::AdaptiveWeights => 250,
         }
     }
 
@@ -117,8 +117,8 @@ impl Stream {
         match self {
             Self::SysStatus | Self::ExtendedSysState | Self::BatteryStatus | Self::MissionCurrent => 1_000_000,
             Self::AdaptiveWeights => 500_000,
-            Self::Attitude | Self::AttitudeQuaternion => 50_000,
-            Self::LocalPositionNed | Self::GlobalPositionInt => 100_000,
+            Self::Attitude => 50_000,
+            Self::AttitudeQuaternion | Self::LocalPositionNed | Self::GlobalPositionInt => 100_000,
             Self::GpsRawInt => 200_000,
             Self::HomePosition => 2_000_000,
             Self::VfrHud => 250_000,
@@ -131,7 +131,7 @@ impl Stream {
         Self::ALL.into_iter().find(|s| s.message_id() == message_id)
     }
 
-    /// The messages of one emission for `snap` (several NAMED_VALUE_FLOATs for the weights, one for the
+    /// The messages of one emission for `snap` (several DEBUG_VECTs for the weights, one for the
     /// others; none when the data does not exist yet).
     #[must_use]
     pub fn messages(self, snap: &TelemetrySnapshot<'_>) -> Vec<MavMessage> {
@@ -164,38 +164,46 @@ impl Stream {
     }
 }
 
-/// The NAMED_VALUE_FLOAT name (at most 10 characters) of a controller telemetry value, for the values
-/// the weight stream carries: ACO's LMS weights `w_t_*`, `b_t_*`, `c_r_*`, `d_r_*` and mass estimate
-/// `m_est_*` (units dropped); for the other controllers every value, its name cut to 10 characters.
-#[must_use]
-pub fn weight_name(full_name: &str) -> Option<String> {
-    let (controller, rest) = full_name.split_once('.')?;
-    if controller == "aco" {
-        let axis = |prefix: &str| rest.strip_prefix(prefix).and_then(|r| r.split('_').next()).map(str::to_owned);
-        for (prefix, short) in
-            [("w_t_", "w_t_"), ("b_t_", "b_t_"), ("c_r_", "c_r_"), ("d_r_", "d_r_"), ("mass_est_", "m_est_")]
-        {
-            if let Some(a) = axis(prefix) {
-                return Some(format!("{short}{a}"));
-            }
-        }
-        return None;
-    }
-    Some(rest.chars().take(10).collect())
-}
+/// The weight stream's vectors: per controller, a DEBUG_VECT name (at most 10 characters) and the three
+/// [`Controller::telemetry`] values it carries as x, y, z. ACO (Eq 11-14): the translation LMS weights
+/// `w_t` and biases `b_t` (m/s²) and the mass estimate `m_est` (kg) per NED axis, the attitude LMS
+/// weights `c_r` and biases `d_r` (rad/s²) per body axis. The common adaptive controller: each MRAC
+/// parameter (k1, k2, kr, theta) over roll, pitch, yaw (`.rpy`) and over N, E, D (`.ned`). PID: the
+/// velocity (m/s²) and rate (N·m) integrators.
+pub const WEIGHT_VECTORS: [(&str, [&str; 3]); 15] = [
+    ("aco.w_t", ["aco.w_t_n", "aco.w_t_e", "aco.w_t_d"]),
+    ("aco.b_t", ["aco.b_t_n_mps2", "aco.b_t_e_mps2", "aco.b_t_d_mps2"]),
+    ("aco.c_r", ["aco.c_r_x", "aco.c_r_y", "aco.c_r_z"]),
+    ("aco.d_r", ["aco.d_r_x_radps2", "aco.d_r_y_radps2", "aco.d_r_z_radps2"]),
+    ("aco.m_est", ["aco.mass_est_n_kg", "aco.mass_est_e_kg", "aco.mass_est_d_kg"]),
+    ("ca.k1.rpy", ["ca.roll.k1", "ca.pitch.k1", "ca.yaw.k1"]),
+    ("ca.k2.rpy", ["ca.roll.k2", "ca.pitch.k2", "ca.yaw.k2"]),
+    ("ca.kr.rpy", ["ca.roll.kr", "ca.pitch.kr", "ca.yaw.kr"]),
+    ("ca.th.rpy", ["ca.roll.theta", "ca.pitch.theta", "ca.yaw.theta"]),
+    ("ca.k1.ned", ["ca.n.k1", "ca.e.k1", "ca.d.k1"]),
+    ("ca.k2.ned", ["ca.n.k2", "ca.e.k2", "ca.d.k2"]),
+    ("ca.kr.ned", ["ca.n.kr", "ca.e.kr", "ca.d.kr"]),
+    ("ca.th.ned", ["ca.n.theta", "ca.e.theta", "ca.d.theta"]),
+    ("pid.vel_i", ["pid.vel_int_n_mps2", "pid.vel_int_e_mps2", "pid.vel_int_d_mps2"]),
+    ("pid.rate_i", ["pid.rate_int_x_nm", "pid.rate_int_y_nm", "pid.rate_int_z_nm"]),
+];
 
-/// One NAMED_VALUE_FLOAT per adaptive weight of `controller`.
+/// One DEBUG_VECT per [`WEIGHT_VECTORS`] entry whose three values `controller` reports: 5 for ACO,
+/// 8 for the common adaptive controller, 2 for PID (three values to a message rather than one
+/// NAMED_VALUE_FLOAT each, as every message costs each ground-station target a datagram).
 #[must_use]
 pub fn adaptive_weights(now_us: u64, controller: &dyn Controller) -> Vec<MavMessage> {
-    controller
-        .telemetry()
-        .into_iter()
-        .filter_map(|(name, value)| {
-            let short = weight_name(name)?;
-            Some(MavMessage::NAMED_VALUE_FLOAT(NAMED_VALUE_FLOAT_DATA {
-                time_boot_ms: time_boot_ms(now_us),
-                value: value as f32,
-                name: short.as_str().into(),
+    let values = controller.telemetry();
+    let value = |name: &str| values.iter().find(|(n, _)| *n == name).map(|&(_, v)| v as f32);
+    WEIGHT_VECTORS
+        .iter()
+        .filter_map(|(vector, [x, y, z])| {
+            Some(MavMessage::DEBUG_VECT(DEBUG_VECT_DATA {
+                time_usec: now_us,
+                x: value(x)?,
+                y: value(y)?,
+                z: value(z)?,
+                name: (*vector).into(),
             }))
         })
         .collect()
@@ -489,5 +497,51 @@ pub fn event_severity(event: &Event) -> MavSeverity {
         Event::Killed => MavSeverity::MAV_SEVERITY_CRITICAL,
         Event::Disarmed { .. } => MavSeverity::MAV_SEVERITY_NOTICE,
         _ => MavSeverity::MAV_SEVERITY_INFO,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::control::{ControllerConfig, ControllerKind, new_controller};
+
+    /// Each controller's weights arrive as named triples carrying exactly its telemetry values, in the
+    /// table's axis order.
+    #[test]
+    fn given_each_controller_when_the_weights_are_emitted_then_every_vector_carries_its_telemetry() {
+        for (kind, expected) in [(ControllerKind::Aco, 5), (ControllerKind::Ca, 8), (ControllerKind::Pid, 2)] {
+            let controller = new_controller(kind, &ControllerConfig::default());
+            let values = controller.telemetry();
+            let messages = adaptive_weights(1_500_000, controller.as_ref());
+            assert_eq!(messages.len(), expected, "{kind:?}");
+            for message in messages {
+                let MavMessage::DEBUG_VECT(v) = message else { panic!("{message:?}") };
+                assert_eq!(v.time_usec, 1_500_000);
+                let name = v.name.to_str().expect("ascii name").to_owned();
+                let (_, fields) = WEIGHT_VECTORS.iter().find(|(n, _)| *n == name).expect("a table name");
+                for (field, got) in fields.iter().zip([v.x, v.y, v.z]) {
+                    let want = values.iter().find(|(n, _)| n == field).expect("reported").1 as f32;
+                    assert_eq!(got.to_bits(), want.to_bits(), "{name}: {field}");
+                }
+            }
+        }
+        // The mass estimate starts at the nominal mass on every axis.
+        let aco = new_controller(ControllerKind::Aco, &ControllerConfig::default());
+        let m_est = adaptive_weights(0, aco.as_ref())
+            .into_iter()
+            .find_map(|m| match m {
+                MavMessage::DEBUG_VECT(v) if v.name.to_str() == Ok("aco.m_est") => Some(v),
+                _ => None,
+            })
+            .expect("aco.m_est");
+        let nominal = ControllerConfig::default().aco.airframe.mass_kg as f32;
+        assert_eq!([m_est.x, m_est.y, m_est.z], [nominal; 3]);
+    }
+
+    #[test]
+    fn given_the_table_then_every_name_fits_debug_vect() {
+        for (name, _) in WEIGHT_VECTORS {
+            assert!(name.len() <= 10, "{name}");
+        }
     }
 }

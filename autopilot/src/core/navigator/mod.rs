@@ -1158,18 +1158,8 @@ mod tests {
     }
 
     fn figure8(first_seq: u16) -> Vec<NavItem> {
-        let pts = [
-            (0.0, 0.0),
-            (0.6, 0.6),
-            (1.2, 0.0),
-            (0.6, -0.6),
-            (0.0, 0.0),
-            (-0.6, 0.6),
-            (-1.2, 0.0),
-            (-0.6, -0.6),
-            (0.0, 0.0),
-        ];
-        pts.iter().enumerate().map(|(i, &(n, e))| wp(first_seq + i as u16, n, e, 1.5)).collect()
+        let pts = spline::FIGURE8_NE_M;
+        pts.iter().enumerate().map(|(i, &[n, e])| wp(first_seq + i as u16, n, e, 1.5)).collect()
     }
 
     #[test]

@@ -9,6 +9,12 @@
 
 use nalgebra::{DMatrix, DVector, Vector2};
 
+/// The figure-8 of the paper's tracking experiment as this project reads it (README, "Choices"): nine
+/// waypoints (N, E in m) on a 0.6 m grid, closed, so the path through them is a periodic spline. The
+/// built-in `figure8` scenario and the ground-station scripts fly these points.
+pub const FIGURE8_NE_M: [[f64; 2]; 9] =
+    [[0.0, 0.0], [0.6, 0.6], [1.2, 0.0], [0.6, -0.6], [0.0, 0.0], [-0.6, 0.6], [-1.2, 0.0], [-0.6, -0.6], [0.0, 0.0]];
+
 /// The critically damped second-order prefilter of the progress along a path:
 /// `s̈ = wn² (r - s) - 2 wn ṡ`, for a target progress `r` (m) that the caller moves at the cruise speed
 /// and clamps at the path's end.
@@ -233,17 +239,7 @@ mod tests {
     use super::*;
 
     fn figure8() -> Vec<[f64; 2]> {
-        vec![
-            [0.0, 0.0],
-            [0.6, 0.6],
-            [1.2, 0.0],
-            [0.6, -0.6],
-            [0.0, 0.0],
-            [-0.6, 0.6],
-            [-1.2, 0.0],
-            [-0.6, -0.6],
-            [0.0, 0.0],
-        ]
+        FIGURE8_NE_M.to_vec()
     }
 
     #[test]
