@@ -252,3 +252,71 @@ fn given_a_return_to_launch_when_away_then_it_climbs_returns_lands_at_home_and_d
     assert!(max_alt > 2.8 && max_alt < 3.3, "return altitude {max_alt}");
     assert!(p.xy().norm() < 0.3 && p.z.abs() < 0.05, "landed at home: {p:?}");
 }
+
+/// A SET_ATTITUDE_TARGET for a level attitude at `yaw_rad` with a normalized `thrust`; `type_mask` 7 is
+/// MAVSDK's `set_attitude` (body rates ignored), 7 | 64 also ignores the thrust.
+fn attitude_target(yaw_rad: f64, thrust: f32, type_mask: u8) -> MavMessage {
+    use autopilot::core::mavlink::common::{AttitudeTargetTypemask, SET_ATTITUDE_TARGET_DATA};
+    let q = nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.0, yaw_rad);
+    MavMessage::SET_ATTITUDE_TARGET(SET_ATTITUDE_TARGET_DATA {
+        q: [q.w as f32, q.i as f32, q.j as f32, q.k as f32],
+        thrust,
+        target_system: 1,
+        target_component: 1,
+        type_mask: AttitudeTargetTypemask::from_bits_truncate(type_mask),
+        ..Default::default()
+    })
+}
+
+/// Streams `msg` at 20 Hz for `seconds` of vehicle time.
+fn stream(rig: &mut Rig, msg: &MavMessage, seconds: f64) {
+    for _ in 0..(seconds * 20.0).round() as usize {
+        rig.send(msg);
+        rig.run_s(0.05, |_| {});
+    }
+}
+
+#[test]
+fn given_offboard_attitude_with_thrust_then_the_thrust_climbs_and_sinks_and_without_it_the_altitude_holds() {
+    // GIVEN a vehicle holding at 1.5 m.
+    let mut rig = rig();
+    rig.wait_until(30.0, "estimator convergence", |r| r.vehicle.estimate().flags.converged);
+    rig.run_s(1.0, |_| {});
+    assert_eq!(
+        rig.command(MavCmd::MAV_CMD_NAV_TAKEOFF, [0.0, 0.0, 0.0, NAN, NAN, NAN, 1.5]),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    assert_eq!(
+        rig.command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    rig.wait_until(15.0, "takeoff", |r| r.vehicle.commander_output().state == autopilot::core::commander::State::Hold);
+    rig.run_s(2.0, |_| {});
+    let yaw = rig.vehicle.estimate().euler_rad.z;
+    let alt = |rig: &Rig| -rig.plant.truth().pos_ned_m.z;
+    let start_m = alt(&rig);
+    // WHEN in OFFBOARD with a level attitude and thrust 0.62 (hover is 0.46 on this airframe) for 2 s.
+    rig.send(&attitude_target(yaw, 0.62, 7));
+    assert_eq!(
+        rig.command(MavCmd::MAV_CMD_DO_SET_MODE, [1.0, 6.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    stream(&mut rig, &attitude_target(yaw, 0.62, 7), 2.0);
+    // THEN it climbs, level.
+    let climbed_m = alt(&rig) - start_m;
+    let truth = rig.plant.truth();
+    assert!(climbed_m > 0.3, "thrust 0.62 for 2 s climbed {climbed_m} m");
+    assert!(truth.vel_ned_mps.z < -0.2, "still climbing: {:?}", truth.vel_ned_mps);
+    assert!(truth.euler_rad.x.abs() < 0.05 && truth.euler_rad.y.abs() < 0.05, "level: {:?}", truth.euler_rad);
+    // AND with thrust 0.30 for 3 s it sinks.
+    stream(&mut rig, &attitude_target(yaw, 0.30, 7), 3.0);
+    let vel_d = rig.plant.truth().vel_ned_mps.z;
+    assert!(vel_d > 0.15, "thrust 0.30 for 3 s: sinking at {vel_d} m/s");
+    assert_eq!(custom_mode(&rig), 0x0006_0000, "OFFBOARD throughout");
+    // AND with the thrust ignored it holds the altitude it had when the thrust stopped.
+    let dropped_m = alt(&rig);
+    stream(&mut rig, &attitude_target(yaw, 0.30, 7 | 64), 5.0);
+    let held_m = alt(&rig);
+    assert!((held_m - dropped_m).abs() < 0.15, "held {held_m} m, thrust dropped at {dropped_m} m");
+    assert!(rig.plant.truth().vel_ned_mps.z.abs() < 0.1, "settled: {:?}", rig.plant.truth().vel_ned_mps);
+}

@@ -136,7 +136,7 @@ enum Target {
     Track { pos_ned_m: Vector3<f64>, vel_ned_mps: Vector3<f64>, acc_ned_mps2: Vector3<f64>, yaw_rad: f64 },
     Climb { pos_ned_m: Vector3<f64>, yaw_rad: f64 },
     Descend { pos_ne_m: Vector2<f64>, yaw_rad: f64, speed_mps: f64 },
-    Attitude { euler_rad: Vector3<f64>, pos_d_m: f64 },
+    Attitude { euler_rad: Vector3<f64>, pos_d_m: f64, thrust_frac: Option<f64> },
 }
 
 impl Target {
@@ -149,7 +149,9 @@ impl Target {
             NavSetpoint::Descend { pos_ne_m, yaw_rad } => {
                 Self::Descend { pos_ne_m, yaw_rad, speed_mps: land_speed_mps }
             }
-            NavSetpoint::Attitude { euler_rad, pos_d_m } => Self::Attitude { euler_rad, pos_d_m },
+            NavSetpoint::Attitude { euler_rad, pos_d_m, thrust_frac } => {
+                Self::Attitude { euler_rad, pos_d_m, thrust_frac }
+            }
         }
     }
 }
@@ -828,9 +830,9 @@ impl Vehicle {
                 self.ramp = Ramp::None;
                 Reference { vel_ned_mps, acc_ned_mps2, ..Reference::position(pos_ned_m, yaw_rad) }
             }
-            Target::Attitude { euler_rad, pos_d_m } => {
+            Target::Attitude { euler_rad, pos_d_m, thrust_frac } => {
                 self.ramp = Ramp::None;
-                Reference::attitude(euler_rad, pos_d_m)
+                Reference { collective_frac: thrust_frac, ..Reference::attitude(euler_rad, pos_d_m) }
             }
             Target::Climb { pos_ned_m, yaw_rad } => {
                 let speed = self.config.takeoff_speed_mps;

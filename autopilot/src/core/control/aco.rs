@@ -434,8 +434,11 @@ impl Controller for AcoController {
         if let Some(att) = reference.attitude_rad {
             self.attitude_sp_rad = att;
         }
-        // 5. Collective.
-        self.collective_n = collective_thrust_n(self.vertical_thrust_n, &input.euler_rad, &self.cfg.limits);
+        // 5. Collective (or the thrust asked for directly).
+        self.collective_n = match reference.collective_frac {
+            Some(frac) => self.cfg.limits.collective_from_frac_n(frac),
+            None => collective_thrust_n(self.vertical_thrust_n, &input.euler_rad, &self.cfg.limits),
+        };
         // 6. Attitude (Eqs 22-24).
         let eta = &input.euler_rad;
         let sp = &self.attitude_sp_rad;

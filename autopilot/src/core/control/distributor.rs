@@ -67,6 +67,16 @@ impl Default for ActuatorLimits {
     }
 }
 
+impl ActuatorLimits {
+    /// The collective thrust (N) of a normalized thrust `frac` (PX4's SET_ATTITUDE_TARGET.thrust): 0 is
+    /// every rotor at `F_min` (1000 µs on the lift curve, Eq 10), 1 every rotor at `F_max` (2000 µs),
+    /// linear between; `frac` is clamped to 0-1.
+    #[must_use]
+    pub fn collective_from_frac_n(&self, frac: f64) -> f64 {
+        4.0 * (self.rotor_min_n + frac.clamp(0.0, 1.0) * (self.rotor_max_n - self.rotor_min_n))
+    }
+}
+
 /// Forward mixer (Eq 27 in FRD): rotor lifts (N) -> (collective thrust T (N), moments (N·m, FRD)).
 /// `T = ΣF`, `Mx = l(F4 - F1)`, `My = l(F3 - F2)`, `Mz = λ(F2 + F3 - F1 - F4)`.
 #[must_use]

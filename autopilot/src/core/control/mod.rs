@@ -54,13 +54,23 @@ pub struct Reference {
     /// Attitude-only mode (the paper's Fig. 5): when set, the N and E loops are off, this (phi, theta,
     /// psi) is the attitude setpoint, and only the D loop runs, holding `pos_ned_m.z`.
     pub attitude_rad: Option<Vector3<f64>>,
+    /// Direct thrust (offboard attitude with thrust): when set, the collective is this normalized thrust
+    /// ([`distributor::ActuatorLimits::collective_from_frac_n`], 0-1) instead of the D loop's demand.
+    pub collective_frac: Option<f64>,
 }
 
 impl Reference {
     /// Hold a position with a yaw, no feed-forward.
     #[must_use]
     pub fn position(pos_ned_m: Vector3<f64>, yaw_rad: f64) -> Self {
-        Self { pos_ned_m, vel_ned_mps: Vector3::zeros(), acc_ned_mps2: Vector3::zeros(), yaw_rad, attitude_rad: None }
+        Self {
+            pos_ned_m,
+            vel_ned_mps: Vector3::zeros(),
+            acc_ned_mps2: Vector3::zeros(),
+            yaw_rad,
+            attitude_rad: None,
+            collective_frac: None,
+        }
     }
 
     /// Attitude-only mode: scripted attitude, altitude held at `pos_d_m`.
@@ -72,6 +82,7 @@ impl Reference {
             acc_ned_mps2: Vector3::zeros(),
             yaw_rad: euler_rad.z,
             attitude_rad: Some(euler_rad),
+            collective_frac: None,
         }
     }
 }
@@ -371,6 +382,7 @@ pub(crate) fn inputs_finite(input: &ControlInput, reference: &Reference) -> bool
     vecs_finite
         && reference.yaw_rad.is_finite()
         && reference.attitude_rad.is_none_or(|a| a.iter().all(|x| x.is_finite()))
+        && reference.collective_frac.is_none_or(f64::is_finite)
 }
 
 /// Clip each component of `v` to `[-limit_i, limit_i]`.
@@ -410,6 +422,40 @@ mod tests {
             let bad_ref = Reference { yaw_rad: f64::NAN, ..r };
             assert_eq!(c.update(&good, &bad_ref), [hover; 4], "{kind}: bad reference");
         }
+    }
+
+    /// Every controller, level at rest with an attitude reference and a direct thrust: the four rotor lifts
+    /// add up to the normalized collective (0 = 4 F_min, 1 = 4 F_max), whatever the altitude error; without
+    /// the thrust, the altitude loop decides (a vehicle 1 m below its reference asks for more than hover).
+    #[test]
+    fn given_each_kind_when_a_direct_thrust_is_given_then_the_rotors_sum_to_it() {
+        use toy_plant::hover_input;
+        let input = hover_input(Vector3::new(0.0, 0.0, -1.0), 0.0);
+        let limits = distributor::ActuatorLimits::default();
+        let hover_n = Airframe::default().hover_rotor_lift_n() * 4.0;
+        for kind in ControllerKind::ALL {
+            for frac in [0.2, 0.46, 0.8] {
+                let mut c = new_controller(kind, &ControllerConfig::default());
+                let r = Reference { collective_frac: Some(frac), ..Reference::attitude(Vector3::zeros(), -2.0) };
+                let mut pwm = [0.0; 4];
+                for _ in 0..50 {
+                    pwm = c.update(&input, &r);
+                }
+                let total_n: f64 = pwm.iter().map(|&p| distributor::lift_from_pwm_n(p)).sum();
+                let want_n = limits.collective_from_frac_n(frac);
+                assert!((total_n - want_n).abs() < 0.05, "{kind} thrust {frac}: {total_n} N, want {want_n} N");
+            }
+            let mut c = new_controller(kind, &ControllerConfig::default());
+            let r = Reference::attitude(Vector3::zeros(), -2.0);
+            let mut pwm = [0.0; 4];
+            for _ in 0..50 {
+                pwm = c.update(&input, &r);
+            }
+            let total_n: f64 = pwm.iter().map(|&p| distributor::lift_from_pwm_n(p)).sum();
+            assert!(total_n > hover_n + 0.5, "{kind}: altitude loop climbs: {total_n} N, hover {hover_n} N");
+        }
+        assert!((limits.collective_from_frac_n(-1.0) - 4.0 * limits.rotor_min_n).abs() < 1e-12);
+        assert!((limits.collective_from_frac_n(2.0) - 4.0 * limits.rotor_max_n).abs() < 1e-12);
     }
 
     /// Every controller, through the trait: a reconfigure with the configuration in use mid-flight leaves

@@ -418,7 +418,10 @@ impl Controller for MracController {
             self.moment_cmd_nm[j] = inertia[j] * v;
         }
 
-        self.collective_n = collective_thrust_n(self.vertical_thrust_n, &eta, &self.cfg.limits);
+        self.collective_n = match reference.collective_frac {
+            Some(frac) => self.cfg.limits.collective_from_frac_n(frac),
+            None => collective_thrust_n(self.vertical_thrust_n, &eta, &self.cfg.limits),
+        };
         let d = distributor::distribute(self.collective_n, &self.moment_cmd_nm, &self.cfg.airframe, &self.cfg.limits);
         self.tick += 1;
         if d.pwm_us.iter().all(|p| p.is_finite()) {

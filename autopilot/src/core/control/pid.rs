@@ -234,7 +234,9 @@ impl Controller for PidController {
         // In attitude-only mode there is no thrust vector to take the norm of: the vertical demand is
         // tilt-compensated as for the other controllers (the prototype's PID yaw settling, 3.89 / 4.67 s,
         // is reproduced only with it).
-        let collective_n = if reference.attitude_rad.is_some() {
+        let collective_n = if let Some(frac) = reference.collective_frac {
+            c.limits.collective_from_frac_n(frac)
+        } else if reference.attitude_rad.is_some() {
             collective_thrust_n(self.collective_n, &input.euler_rad, &c.limits)
         } else {
             self.collective_n

@@ -8,8 +8,10 @@
 //! (FORCE_SET is refused), YAW and YAW_RATE the heading. Frames: LOCAL_NED (1); BODY_NED (8), whose
 //! velocity and acceleration are rotated by the current yaw; GLOBAL_INT (5, AMSL) and
 //! GLOBAL_RELATIVE_ALT_INT (6, above home). SET_ATTITUDE_TARGET gives an attitude (its quaternion, as ZYX
-//! Euler angles); its thrust is not used, the altitude is held where attitude control began (the
-//! paper's attitude-only mode).
+//! Euler angles) and, unless THROTTLE_IGNORE is set, a normalized collective thrust (0 = every rotor at
+//! its 1000 µs lift, 1 = at its 2000 µs lift; hover is about 0.46 on the paper's airframe), as PX4 takes
+//! it. With THROTTLE_IGNORE the altitude is held where attitude control began (the paper's attitude-only
+//! mode). Body-rate targets (ATTITUDE_IGNORE) are refused.
 
 use ::mavlink::dialects::common::{AttitudeTargetTypemask, MavFrame, MavMessage, PositionTargetTypemask};
 use nalgebra::{Quaternion, Rotation3, UnitQuaternion, Vector3};
@@ -112,7 +114,17 @@ pub fn decode(sysid: u8, msg: &MavMessage, ctx: &OffboardContext) -> Option<Resu
                 return Some(Err("Offboard: invalid attitude quaternion".into()));
             }
             let euler = euler_zyx_rad(&UnitQuaternion::new_normalize(q));
-            Some(Ok(OffboardSetpoint { attitude_rad: Some(euler), ..OffboardSetpoint::default() }))
+            let thrust_frac = if m.type_mask.contains(AttitudeTargetTypemask::ATTITUDE_TARGET_TYPEMASK_THROTTLE_IGNORE)
+            {
+                None
+            } else {
+                let thrust = f64::from(m.thrust);
+                if !(0.0..=1.0).contains(&thrust) {
+                    return Some(Err(format!("Offboard: thrust {thrust} outside 0-1")));
+                }
+                Some(thrust)
+            };
+            Some(Ok(OffboardSetpoint { attitude_rad: Some(euler), thrust_frac, ..OffboardSetpoint::default() }))
         }
         _ => None,
     }
@@ -171,6 +183,7 @@ fn position_target(
         yaw_rad,
         yaw_rate_radps,
         attitude_rad: None,
+        thrust_frac: None,
     })
 }
 
@@ -250,5 +263,33 @@ mod tests {
         let sp = decode(1, &msg, &OffboardContext::default()).expect("ours").expect("valid");
         let e = sp.attitude_rad.expect("attitude");
         assert!((e - Vector3::new(0.1, -0.05, 0.4)).norm() < 1e-6, "{e:?}");
+        assert_eq!(sp.thrust_frac, Some(0.5), "MAVSDK's set_attitude (mask 7): the thrust is used");
+    }
+
+    fn attitude_target(type_mask: u8, thrust: f32) -> MavMessage {
+        MavMessage::SET_ATTITUDE_TARGET(SET_ATTITUDE_TARGET_DATA {
+            q: [1.0, 0.0, 0.0, 0.0],
+            thrust,
+            target_system: 1,
+            target_component: 1,
+            type_mask: AttitudeTargetTypemask::from_bits_truncate(type_mask),
+            ..Default::default()
+        })
+    }
+
+    #[test]
+    fn given_an_attitude_target_then_thrust_by_type_mask_and_out_of_range_thrust_refused() {
+        let ctx = OffboardContext::default();
+        let ours = |msg: MavMessage| decode(1, &msg, &ctx).expect("ours");
+        // THROTTLE_IGNORE (64): the altitude is held, whatever the thrust field says.
+        assert_eq!(ours(attitude_target(7 | 64, 0.9)).expect("valid").thrust_frac, None);
+        assert_eq!(ours(attitude_target(7 | 64, f32::NAN)).expect("valid").thrust_frac, None);
+        assert_eq!(ours(attitude_target(7, 0.0)).expect("valid").thrust_frac, Some(0.0));
+        assert_eq!(ours(attitude_target(7, 1.0)).expect("valid").thrust_frac, Some(1.0));
+        for bad in [-0.1, 1.5, f32::NAN, f32::INFINITY] {
+            assert!(ours(attitude_target(7, bad)).is_err(), "thrust {bad} refused");
+        }
+        // Body rates only (ATTITUDE_IGNORE, 128) are refused.
+        assert!(ours(attitude_target(128, 0.5)).is_err());
     }
 }

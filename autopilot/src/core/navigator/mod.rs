@@ -154,8 +154,11 @@ pub struct OffboardSetpoint {
     pub acc_ned_mps2: Option<Vector3<f64>>,
     pub yaw_rad: Option<f64>,
     pub yaw_rate_radps: Option<f64>,
-    /// Attitude (ZYX Euler rad); the altitude is held where offboard attitude control began.
+    /// Attitude (ZYX Euler rad); without `thrust_frac` the altitude is held where offboard attitude
+    /// control began.
     pub attitude_rad: Option<Vector3<f64>>,
+    /// Normalized collective thrust 0-1 with an attitude (SET_ATTITUDE_TARGET.thrust).
+    pub thrust_frac: Option<f64>,
 }
 
 /// What the vehicle's reference shaping and controller should fly (NED m, m/s, m/s², rad).
@@ -167,8 +170,9 @@ pub enum NavSetpoint {
     Climb { pos_ned_m: Vector3<f64>, yaw_rad: f64 },
     /// Descend here at the land speed until landed.
     Descend { pos_ne_m: Vector2<f64>, yaw_rad: f64 },
-    /// Attitude-only control, altitude held at `pos_d_m`.
-    Attitude { euler_rad: Vector3<f64>, pos_d_m: f64 },
+    /// Attitude-only control: altitude held at `pos_d_m`, or with `thrust_frac` the collective given
+    /// directly (`pos_d_m` then follows the vehicle, so the altitude loop has nothing to wind up).
+    Attitude { euler_rad: Vector3<f64>, pos_d_m: f64, thrust_frac: Option<f64> },
 }
 
 /// What the commander's transitions read (from the previous step).
@@ -1034,8 +1038,12 @@ impl Navigator {
             return self.still(self.start_point(input));
         };
         if let Some(euler_rad) = sp.attitude_rad {
+            if sp.thrust_frac.is_some() {
+                // Direct thrust: were the thrust dropped later, hold the altitude the vehicle is at then.
+                self.attitude_hold_d_m = Some(input.pos_ned_m.z);
+            }
             let pos_d_m = *self.attitude_hold_d_m.get_or_insert(input.pos_ned_m.z);
-            return NavSetpoint::Attitude { euler_rad, pos_d_m };
+            return NavSetpoint::Attitude { euler_rad, pos_d_m, thrust_frac: sp.thrust_frac };
         }
         self.attitude_hold_d_m = None;
         let yaw = match (sp.yaw_rad, sp.yaw_rate_radps) {
