@@ -15,7 +15,8 @@
 //! - **Missions.** Items are flown in order from `current`. Consecutive NAV_WAYPOINTs without hold time
 //!   are one run, flown through without stopping (each reported reached as the reference passes it); a
 //!   run ends, decelerating to rest, at a waypoint with a hold time, before any other item, and at a
-//!   DO_JUMP. NAV_TAKEOFF climbs at the takeoff speed; NAV_LAND flies to its point (or lands here) and
+//!   DO_JUMP, unless the jump repeats a run that closes on itself (in N, E and D) from its first waypoint:
+//!   then the laps are flown as one leg through the seam without stopping (the figure-8 for N laps). NAV_TAKEOFF climbs at the takeoff speed; NAV_LAND flies to its point (or lands here) and
 //!   descends until landed; NAV_RETURN_TO_LAUNCH runs the return below; NAV_LOITER_TIME and NAV_DELAY hold
 //!   for their time, NAV_LOITER_UNLIM forever; DO_CHANGE_SPEED sets the speed of the following legs;
 //!   DO_JUMP repeats from its target (param2 times, -1 forever). A mission started on the ground first
@@ -78,6 +79,10 @@ impl Default for NavigatorConfig {
 const FILTER_STEP_S: f64 = 1e-4;
 /// Legs shorter than this are skipped (m).
 const MIN_LEG_M: f64 = 1e-3;
+/// A run whose first waypoint is this close to where it starts (m) starts at that waypoint: the vehicle
+/// is there to within its estimate's noise (a takeoff below the first waypoint of the figure-8), and a
+/// leg of a few millimetres would put a kink in the spline and keep a closed run from being periodic.
+const RUN_JOIN_M: f64 = 0.05;
 /// A leg has ended when the reference is this close to its end and this slow.
 const LEG_END_M: f64 = 2e-3;
 const LEG_END_MPS: f64 = 5e-3;
@@ -313,7 +318,9 @@ impl LegPath {
             }
             Self::Spline { path, alt } => {
                 let (p, t, k) = path.eval(s_m);
-                let s = s_m.clamp(0.0, path.length_m());
+                // A closed run flown for laps (through a DO_JUMP) is closed in altitude too.
+                let len = path.length_m();
+                let s = if path.closed() && s_m > len { s_m.rem_euclid(len) } else { s_m.clamp(0.0, len) };
                 let j = alt.partition_point(|&(a, _)| a <= s).clamp(1, alt.len() - 1);
                 let ((s0, d0), (s1, d1)) = (alt[j - 1], alt[j]);
                 let slope = if s1 > s0 { (d1 - d0) / (s1 - s0) } else { 0.0 };
@@ -337,6 +344,20 @@ struct Leg {
     knots: Vec<(f64, u16)>,
     /// Knots reported reached so far.
     passed: usize,
+    /// The progress (m) at which the leg ends: the path's length, or whole laps of a closed path.
+    length_m: f64,
+    /// More laps of a closed run, when a DO_JUMP repeats it.
+    laps: Option<Laps>,
+}
+
+/// The laps still to fly of a closed run that a DO_JUMP repeats from its first waypoint.
+#[derive(Debug, Clone)]
+struct Laps {
+    /// One lap's length (m) and knots, from its start: the jump, then the run's waypoints.
+    lap_m: f64,
+    knots: Vec<(f64, u16)>,
+    /// Laps left to add (None: forever, a DO_JUMP repeat of -1).
+    left: Option<u32>,
 }
 
 impl Leg {
@@ -344,14 +365,49 @@ impl Leg {
         let speed = speed_mps.max(0.01);
         let wn = (std::f64::consts::E * accel_mps2.max(0.01) / speed).clamp(0.2, 20.0);
         Self {
-            path,
             filter: ProgressFilter::at_rest(wn, 0.0),
             target_m: 0.0,
             speed_mps: speed,
             yaw_rad,
             knots,
             passed: 0,
+            length_m: path.length_m(),
+            laps: None,
+            path,
         }
+    }
+
+    /// Fly this leg `repeat` more times (-1: forever) through the DO_JUMP `jump_seq` at its end, without
+    /// stopping, if it is a spline closed in all three axes; `false` (and no change) if it is not.
+    fn repeat_laps(&mut self, jump_seq: u16, repeat: i32) -> bool {
+        let LegPath::Spline { path, alt } = &self.path else {
+            return false;
+        };
+        let closed_d = matches!((alt.first(), alt.last()), (Some(a), Some(b)) if (a.1 - b.1).abs() < MIN_LEG_M);
+        if repeat == 0 || !path.closed() || !closed_d {
+            return false;
+        }
+        let mut knots = vec![(0.0, jump_seq)];
+        knots.extend_from_slice(&self.knots);
+        let left = u32::try_from(repeat).ok();
+        self.laps = Some(Laps { lap_m: path.length_m(), knots, left });
+        true
+    }
+
+    /// Adds a lap at the end, if any are left: the reference then runs on through the seam.
+    fn extend_lap(&mut self) {
+        let Some(laps) = &mut self.laps else { return };
+        if laps.left == Some(0) {
+            return;
+        }
+        if let Some(n) = &mut laps.left {
+            *n -= 1;
+        }
+        self.knots.drain(..self.passed);
+        self.passed = 0;
+        let base = self.length_m;
+        self.knots.extend(laps.knots.iter().map(|&(s, seq)| (base + s, seq)));
+        self.length_m += laps.lap_m;
     }
 
     fn line(
@@ -368,13 +424,17 @@ impl Leg {
     }
 
     fn advance(&mut self, dt_s: f64) {
-        let len = self.path.length_m();
         let steps = (dt_s / FILTER_STEP_S).round().max(1.0) as u32;
         let h = dt_s / f64::from(steps);
         for _ in 0..steps {
-            self.target_m = (self.target_m + self.speed_mps * h).min(len);
+            let next_m = self.target_m + self.speed_mps * h;
+            if next_m > self.length_m {
+                self.extend_lap();
+            }
+            self.target_m = next_m.min(self.length_m);
             self.filter.step(self.target_m, h);
         }
+        let len = self.length_m;
         if self.filter.s_m > len {
             self.filter.s_m = len;
             self.filter.s_dot_mps = self.filter.s_dot_mps.min(0.0);
@@ -394,11 +454,11 @@ impl Leg {
     }
 
     fn end(&self) -> Vector3<f64> {
-        self.path.eval(self.path.length_m()).0
+        self.path.eval(self.length_m).0
     }
 
     fn at_end(&self) -> bool {
-        self.path.length_m() - self.filter.s_m <= LEG_END_M && self.filter.s_dot_mps.abs() <= LEG_END_MPS
+        self.length_m - self.filter.s_m <= LEG_END_M && self.filter.s_dot_mps.abs() <= LEG_END_MPS
     }
 
     /// Knots the reference has passed since the last call (all but the end, which needs arrival).
@@ -421,7 +481,7 @@ enum Phase {
     /// then `then` (None: the takeoff item itself is reached).
     Climb { to: Vector3<f64>, item: Option<u16> },
     /// Flying a leg; on arrival at its end the item `end_item` starts holding `hold_s` (then the next item).
-    Fly { leg: Leg, end_item: u16, hold_s: f64, accept_m: f64, then: After },
+    Fly { leg: Box<Leg>, end_item: u16, hold_s: f64, accept_m: f64, then: After },
     /// Holding a point until `until_us` (None: forever).
     Wait { at: Vector3<f64>, until_us: Option<u64>, item: u16 },
     /// Descending to land (NAV_LAND).
@@ -808,7 +868,7 @@ impl Navigator {
                         break;
                     };
                     let p = Self::resolve(input, &target, *points.last().unwrap_or(&from))?;
-                    if (p - *points.last().unwrap_or(&from)).xy().norm() < MIN_LEG_M && knots.is_empty() {
+                    if knots.is_empty() && (p - from).norm() < RUN_JOIN_M {
                         // The run starts at the vehicle's point: the first waypoint is its start.
                         points[0] = p;
                     } else {
@@ -827,9 +887,31 @@ impl Navigator {
                     self.yaw_rad = y;
                 }
                 let end_item = *knots.last()?;
-                let leg = self.run_leg(&points, &knots, from)?;
+                // A run that ends where it starts (to within rounding: the start is the last leg's end) is
+                // closed exactly, so its spline is periodic.
+                if let [first, .., last] = points.as_mut_slice()
+                    && (*first - *last).norm() < MIN_LEG_M
+                {
+                    *first = *last;
+                }
+                let mut leg = self.run_leg(&points, &knots, from)?;
+                // A DO_JUMP right after a closed run, back to its first waypoint (the figure-8 flown for
+                // laps): the laps are one leg, flown through the seam without stopping.
+                if let Some(&NavItem { seq: jump_seq, command: NavCommand::Jump { target, repeat } }) =
+                    self.items.get(idx)
+                    && last_hold <= 0.0
+                    && knots.first() == Some(&target)
+                {
+                    leg.repeat_laps(jump_seq, *self.jumps.get(&jump_seq).unwrap_or(&repeat));
+                }
                 // Items of the run before its end are passed on the way; `current` moves as they are.
-                Some(Phase::Fly { leg, end_item, hold_s: last_hold, accept_m: last_accept, then: After::Next })
+                Some(Phase::Fly {
+                    leg: Box::new(leg),
+                    end_item,
+                    hold_s: last_hold,
+                    accept_m: last_accept,
+                    then: After::Next,
+                })
             }
             NavCommand::LoiterTime { target, time_s, yaw_rad } => {
                 self.loiter_leg(input, from, item.seq, target, yaw_rad, Some(time_s.max(0.0)))
@@ -844,7 +926,13 @@ impl Navigator {
                 let to = Self::resolve(input, &target, from)?;
                 let to = Vector3::new(to.x, to.y, from.z);
                 let leg = Leg::line(from, to, &self.config, self.speed(), self.yaw_rad, Some(item.seq));
-                Some(Phase::Fly { leg, end_item: item.seq, hold_s: 0.0, accept_m: accept_default, then: After::Land })
+                Some(Phase::Fly {
+                    leg: Box::new(leg),
+                    end_item: item.seq,
+                    hold_s: 0.0,
+                    accept_m: accept_default,
+                    then: After::Land,
+                })
             }
             _ => None,
         }
@@ -866,7 +954,7 @@ impl Navigator {
         }
         let leg = Leg::line(from, to, &self.config, self.speed(), self.yaw_rad, Some(seq));
         let accept_m = self.config.acceptance_radius_m;
-        Some(Phase::Fly { leg, end_item: seq, hold_s: 0.0, accept_m, then: After::Loiter(time_s) })
+        Some(Phase::Fly { leg: Box::new(leg), end_item: seq, hold_s: 0.0, accept_m, then: After::Loiter(time_s) })
     }
 
     /// A leg through `points` (the first is the start): a line for two, a spline for more.
@@ -919,10 +1007,18 @@ impl Navigator {
                 let end = leg.end();
                 for seq in passed {
                     self.events.push(NavEvent::Reached(seq));
-                    if let Some(i) = self.items.iter().position(|i| i.seq == seq) {
+                    let Some(i) = self.items.iter().position(|i| i.seq == seq) else { continue };
+                    if let NavCommand::Jump { target, repeat } = self.items[i].command {
+                        // A lap of a repeated run ended: the jump is taken as start_item would take it.
+                        let left = self.jumps.entry(seq).or_insert(repeat);
+                        if *left > 0 {
+                            *left -= 1;
+                        }
+                        self.current = self.items.iter().position(|i| i.seq == target).unwrap_or(i);
+                    } else {
                         self.current = i + 1;
-                        self.emit_current();
                     }
+                    self.emit_current();
                 }
                 if arrived {
                     self.current = self.items.iter().position(|i| i.seq == end_item).unwrap_or(self.current);
@@ -1230,6 +1326,79 @@ mod tests {
         v.run(AutoMode::Mission, 60.0);
         assert_eq!(v.reached(), vec![0, 1, 2, 3, 1, 2, 3, 1, 2, 3]);
         assert!(v.nav.status().mission_done);
+    }
+
+    /// The horizontal speed of each step and the reached events so far, over `seconds` of a mission.
+    fn fly_logging(v: &mut Ideal, seconds: f64) -> Vec<(f64, usize)> {
+        let mut log = Vec::new();
+        for _ in 0..(seconds / DT_S) as usize {
+            if let NavSetpoint::Track { vel_ned_mps, .. } = v.step(AutoMode::Mission) {
+                log.push((vel_ned_mps.xy().norm(), v.reached().len()));
+            }
+        }
+        log
+    }
+
+    #[test]
+    fn given_the_figure8_repeated_by_a_jump_when_flown_then_the_laps_are_one_leg_through_the_seam() {
+        // GIVEN takeoff, speed 0.3 m/s, the figure-8 (seq 2-10) and DO_JUMP to its first waypoint twice.
+        let mut items = vec![NavItem { seq: 0, command: NavCommand::Takeoff { alt_m: 1.5, relative: true } }];
+        items.push(NavItem { seq: 1, command: NavCommand::ChangeSpeed { speed_mps: Some(0.3) } });
+        items.extend(figure8(2));
+        items.push(NavItem { seq: 11, command: NavCommand::Jump { target: 2, repeat: 2 } });
+        let mut v = Ideal::new(items);
+        let log = fly_logging(&mut v, 100.0);
+        // THEN every waypoint and the jump are reached once a lap, three laps, and the jump is used up.
+        let lap: Vec<u16> = (2..=11).collect();
+        let mut want = vec![0, 1];
+        for _ in 0..3 {
+            want.extend(&lap);
+        }
+        assert_eq!(v.reached(), want);
+        assert!(v.nav.status().mission_done);
+        assert_eq!(v.nav.jumps.get(&11), Some(&0));
+        // AND it never slows down between leaving the first waypoint and the last lap's approach.
+        let total = want.len();
+        let mid: Vec<f64> = log.iter().filter(|(_, r)| (4..total - 3).contains(r)).map(|(s, _)| *s).collect();
+        let min_speed = mid.iter().copied().fold(f64::INFINITY, f64::min);
+        assert!(min_speed > 0.2, "no stop at the seams: min speed {min_speed} m/s");
+        // AND the three laps take three laps' time at 0.3 m/s, plus one start and one stop.
+        let lap_s = SplinePath::new(&spline::FIGURE8_NE_M).length_m() / 0.3;
+        let moving_s = log.iter().filter(|(_, r)| (2..total - 1).contains(r)).count() as f64 * DT_S;
+        assert!(moving_s > 3.0 * lap_s && moving_s < 3.0 * lap_s + 4.0, "{moving_s} s for 3 laps of {lap_s} s");
+    }
+
+    #[test]
+    fn given_a_jump_repeated_forever_when_flown_then_it_laps_on_without_stopping() {
+        let mut items = vec![NavItem { seq: 0, command: NavCommand::Takeoff { alt_m: 1.5, relative: true } }];
+        items.push(NavItem { seq: 1, command: NavCommand::ChangeSpeed { speed_mps: Some(0.3) } });
+        items.extend(figure8(2));
+        items.push(NavItem { seq: 11, command: NavCommand::Jump { target: 2, repeat: -1 } });
+        let mut v = Ideal::new(items);
+        let log = fly_logging(&mut v, 200.0);
+        let laps = v.reached().iter().filter(|&&s| s == 11).count();
+        assert!(laps >= 7, "{laps} laps in 200 s");
+        assert!(!v.nav.status().mission_done);
+        let min_speed = log.iter().filter(|(_, r)| *r >= 4).map(|(s, _)| *s).fold(f64::INFINITY, f64::min);
+        assert!(min_speed > 0.2, "min speed {min_speed} m/s");
+        assert_eq!(v.nav.jumps.get(&11), Some(&-1));
+    }
+
+    #[test]
+    fn given_a_loop_entered_from_outside_when_repeated_then_the_first_lap_stops_at_the_jump_and_later_ones_do_not() {
+        // GIVEN a triangle that does not start where the vehicle is: its first lap is an open run.
+        let mut items = vec![NavItem { seq: 0, command: NavCommand::Takeoff { alt_m: 2.0, relative: true } }];
+        items.push(NavItem { seq: 1, command: NavCommand::ChangeSpeed { speed_mps: Some(0.3) } });
+        items.extend([wp(2, 2.0, 0.0, 2.0), wp(3, 2.0, 2.0, 2.0), wp(4, 0.0, 2.0, 2.0)]);
+        items.push(NavItem { seq: 5, command: NavCommand::Jump { target: 2, repeat: 2 } });
+        let mut v = Ideal::new(items);
+        let log = fly_logging(&mut v, 120.0);
+        assert_eq!(v.reached(), vec![0, 1, 2, 3, 4, 5, 2, 3, 4, 5, 2, 3, 4, 5]);
+        // The first arrival at seq 4 (6 events) is at rest; laps two and three run through.
+        let at_first_jump = log.iter().find(|(_, r)| *r == 6).map(|(s, _)| *s).expect("first jump");
+        assert!(at_first_jump < 0.01, "first lap ends at rest: {at_first_jump} m/s");
+        let later = log.iter().filter(|(_, r)| (7..12).contains(r)).map(|(s, _)| *s).fold(f64::INFINITY, f64::min);
+        assert!(later > 0.1, "later laps do not stop: min {later} m/s");
     }
 
     #[test]
