@@ -271,9 +271,17 @@ def run(args):
     if xt:
         flight.say(f"cross-track to the waypoint polyline: max {max(xt):.3f} m, rms {math.sqrt(sum(v * v for v in xt) / len(xt)):.3f} m")
     flight.say(f"mission flown in {duration:.1f} s of vehicle time; plot {args.png}, track {args.csv}")
+    lost = vehicle.lost()
+    flight.say(f"messages lost on the link: {lost}")
     missing = [s for s in waypoint_seqs if s not in reached]
     if missing:
-        print(f"waypoints never reported reached: {missing}", file=sys.stderr)
+        hint = (
+            f" ({lost} messages were lost: this script read slower than the vehicle sent; run the SITL at a"
+            " lower --speed)"
+            if lost
+            else ""
+        )
+        print(f"waypoints never reported reached: {missing}{hint}", file=sys.stderr)
         return 1
     return 0
 

@@ -190,6 +190,10 @@ class Link:
         self.statustexts = []  # (time, severity, text)
         self.listeners = []
 
+    def lost(self):
+        """Messages lost so far (gaps in the senders' MAVLink sequence numbers, as pymavlink counts them)."""
+        return getattr(self.conn, "mav_loss", 0)
+
     # -- the clock ------------------------------------------------------------------------------------
     def now_s(self):
         raise NotImplementedError
@@ -313,6 +317,13 @@ class Vehicle(Link):
             self.conn.target_system, self.conn.target_component = self.system_id, AUTOPILOT_COMPONENT
             self.last_heard = time.monotonic()
             self.handle(msg)
+            # The waits run on the vehicle's clock, which HEARTBEAT does not carry: read it from the
+            # telemetry first, or a vehicle that has been up for a while would look as if every wait
+            # had timed out at once.
+            while self.now_ms == 0 and time.monotonic() < end:
+                self.pump()
+            if self.now_ms == 0:
+                raise NoVehicle(f"vehicle HEARTBEAT on {self.connect} but no timed telemetry within {timeout_s:g} s")
             return msg
         hint = f" (is `sitl run -i {instance}` running?)" if instance is not None else ""
         raise NoVehicle(f"no vehicle HEARTBEAT on {self.connect} within {timeout_s:g} s{hint}")
