@@ -165,12 +165,16 @@ fn sitl_binary() -> &'static str {
     static BUILT: std::sync::Once = std::sync::Once::new();
     let sitl = env!("CARGO_BIN_EXE_sitl");
     BUILT.call_once(|| {
-        // `cargo test -p sitl` alone neither builds nor refreshes the other crate's binary: build it in
-        // the profile of this test (a no-op when it is current).
+        // `cargo test -p sitl` alone neither builds nor refreshes the other crate's binary: build it as
+        // `cargo test --workspace` does (same profile, and the same features: the dev-dependencies' are
+        // unified in, so a plain `cargo build -p autopilot` would rebuild tokio and its dependants, a
+        // minute of CI), a no-op when it is current.
         let profile_release = std::path::Path::new(sitl).parent().is_some_and(|d| d.ends_with("release"));
         let mut build = Command::new(env!("CARGO"));
-        build.args(["build", "-p", "autopilot", "--bin", "autopilot"]);
-        build.args(if profile_release { ["--profile", "release"] } else { ["--profile", "test"] });
+        build.args(["test", "--workspace", "--no-run", "--locked"]);
+        if profile_release {
+            build.arg("--release");
+        }
         assert!(build.status().expect("cargo build").success(), "building the autopilot binary failed");
     });
     sitl
