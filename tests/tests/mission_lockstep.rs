@@ -203,13 +203,8 @@ fn position_target(n_m: f32, e_m: f32, d_m: f32) -> MavMessage {
     })
 }
 
-fn custom_mode(rig: &Rig) -> u32 {
-    rig.vehicle.commander_output().custom_mode
-}
-
-#[test]
-fn given_offboard_setpoints_when_they_stop_then_the_vehicle_holds_after_half_a_second_of_vehicle_time() {
-    // GIVEN a vehicle holding at 1.5 m.
+/// A converged vehicle that took off to 1.5 m and is in Hold.
+fn hovering_rig() -> Rig {
     let mut rig = rig();
     rig.wait_until(30.0, "estimator convergence", |r| r.vehicle.estimate().flags.converged);
     rig.run_s(1.0, |_| {});
@@ -222,6 +217,17 @@ fn given_offboard_setpoints_when_they_stop_then_the_vehicle_holds_after_half_a_s
         MavResult::MAV_RESULT_ACCEPTED
     );
     rig.wait_until(15.0, "takeoff", |r| r.vehicle.commander_output().state == autopilot::core::commander::State::Hold);
+    rig
+}
+
+fn custom_mode(rig: &Rig) -> u32 {
+    rig.vehicle.commander_output().custom_mode
+}
+
+#[test]
+fn given_offboard_setpoints_when_they_stop_then_the_vehicle_holds_after_half_a_second_of_vehicle_time() {
+    // GIVEN a vehicle holding at 1.5 m.
+    let mut rig = hovering_rig();
     let home = rig.vehicle.estimate().pos_ned_m;
     // WHEN OFFBOARD is asked for without setpoints THEN it is refused; with them streaming at 20 Hz it flies
     // to the setpoint.
@@ -251,18 +257,7 @@ fn given_offboard_setpoints_when_they_stop_then_the_vehicle_holds_after_half_a_s
 
 #[test]
 fn given_a_return_to_launch_when_away_then_it_climbs_returns_lands_at_home_and_disarms() {
-    let mut rig = rig();
-    rig.wait_until(30.0, "estimator convergence", |r| r.vehicle.estimate().flags.converged);
-    rig.run_s(1.0, |_| {});
-    assert_eq!(
-        rig.command(MavCmd::MAV_CMD_NAV_TAKEOFF, [0.0, 0.0, 0.0, NAN, NAN, NAN, 1.5]),
-        MavResult::MAV_RESULT_ACCEPTED
-    );
-    assert_eq!(
-        rig.command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
-        MavResult::MAV_RESULT_ACCEPTED
-    );
-    rig.wait_until(15.0, "takeoff", |r| r.vehicle.commander_output().state == autopilot::core::commander::State::Hold);
+    let mut rig = hovering_rig();
     // Away with DO_REPOSITION (QGroundControl's "go to location"), 4 m north at the same altitude.
     let (lat, lon) = at(&rig, [4.0, 0.0]);
     let reposition = autopilot::core::mavlink::common::COMMAND_INT_DATA {
@@ -327,18 +322,7 @@ fn stream(rig: &mut Rig, msg: &MavMessage, seconds: f64) {
 #[test]
 fn given_offboard_attitude_with_thrust_then_the_thrust_climbs_and_sinks_and_without_it_the_altitude_holds() {
     // GIVEN a vehicle holding at 1.5 m.
-    let mut rig = rig();
-    rig.wait_until(30.0, "estimator convergence", |r| r.vehicle.estimate().flags.converged);
-    rig.run_s(1.0, |_| {});
-    assert_eq!(
-        rig.command(MavCmd::MAV_CMD_NAV_TAKEOFF, [0.0, 0.0, 0.0, NAN, NAN, NAN, 1.5]),
-        MavResult::MAV_RESULT_ACCEPTED
-    );
-    assert_eq!(
-        rig.command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
-        MavResult::MAV_RESULT_ACCEPTED
-    );
-    rig.wait_until(15.0, "takeoff", |r| r.vehicle.commander_output().state == autopilot::core::commander::State::Hold);
+    let mut rig = hovering_rig();
     rig.run_s(2.0, |_| {});
     let yaw = rig.vehicle.estimate().euler_rad.z;
     let alt = |rig: &Rig| -rig.plant.truth().pos_ned_m.z;
