@@ -16,7 +16,9 @@
 //!   are one run, flown through without stopping (each reported reached as the reference passes it); a
 //!   run ends, decelerating to rest, at a waypoint with a hold time, before any other item, and at a
 //!   DO_JUMP, unless the jump repeats a run that closes on itself (in N, E and D) from its first waypoint:
-//!   then the laps are flown as one leg through the seam without stopping (the figure-8 for N laps). NAV_TAKEOFF climbs at the takeoff speed; NAV_LAND flies to its point (or lands here) and
+//!   then the laps are flown as one leg through the seam without stopping (the figure-8 for N laps). A
+//!   closed run (its last waypoint is its first) entered from elsewhere is preceded by a straight leg to
+//!   its first waypoint, so the loop itself is periodic. NAV_TAKEOFF climbs at the takeoff speed; NAV_LAND flies to its point (or lands here) and
 //!   descends until landed; NAV_RETURN_TO_LAUNCH runs the return below; NAV_LOITER_TIME and NAV_DELAY hold
 //!   for their time, NAV_LOITER_UNLIM forever; DO_CHANGE_SPEED sets the speed of the following legs;
 //!   DO_JUMP repeats from its target (param2 times, -1 forever). A mission started on the ground first
@@ -79,10 +81,6 @@ impl Default for NavigatorConfig {
 const FILTER_STEP_S: f64 = 1e-4;
 /// Legs shorter than this are skipped (m).
 const MIN_LEG_M: f64 = 1e-3;
-/// A run whose first waypoint is this close to where it starts (m) starts at that waypoint: the vehicle
-/// is there to within its estimate's noise (a takeoff below the first waypoint of the figure-8), and a
-/// leg of a few millimetres would put a kink in the spline and keep a closed run from being periodic.
-const RUN_JOIN_M: f64 = 0.05;
 /// A leg has ended when the reference is this close to its end and this slow.
 const LEG_END_M: f64 = 2e-3;
 const LEG_END_MPS: f64 = 5e-3;
@@ -503,6 +501,8 @@ enum After {
     Loiter(Option<f64>),
     /// Descend and land.
     Land,
+    /// At the first waypoint of a closed loop: plan the item again from here (nothing is reported).
+    Restart,
 }
 
 /// Return-to-launch progress.
@@ -868,7 +868,7 @@ impl Navigator {
                         break;
                     };
                     let p = Self::resolve(input, &target, *points.last().unwrap_or(&from))?;
-                    if knots.is_empty() && (p - from).norm() < RUN_JOIN_M {
+                    if knots.is_empty() && (p - from).norm() < MIN_LEG_M {
                         // The run starts at the vehicle's point: the first waypoint is its start.
                         points[0] = p;
                     } else {
@@ -887,6 +887,17 @@ impl Navigator {
                     self.yaw_rad = y;
                 }
                 let end_item = *knots.last()?;
+                // A closed loop of waypoints (the figure-8) entered from elsewhere, even from a few
+                // centimetres away: fly to its first waypoint, then the loop itself, periodic.
+                if let (&[first_seq, .., _], &[_, first, .., last]) = (knots.as_slice(), points.as_slice())
+                    && knots.len() >= 4
+                    && points.len() > knots.len()
+                    && (first - last).norm() < MIN_LEG_M
+                {
+                    let leg = Leg::line(from, first, &self.config, self.speed(), self.yaw_rad, Some(first_seq));
+                    let (leg, accept_m) = (Box::new(leg), accept_default);
+                    return Some(Phase::Fly { leg, end_item: first_seq, hold_s: 0.0, accept_m, then: After::Restart });
+                }
                 // A run that ends where it starts (to within rounding: the start is the last leg's end) is
                 // closed exactly, so its spline is periodic.
                 if let [first, .., last] = points.as_mut_slice()
@@ -1037,6 +1048,10 @@ impl Navigator {
                             self.phase = Phase::Wait { at: end, until_us: until, item: end_item };
                         }
                         After::Land => self.phase = Phase::Descend { ne: end.xy(), item: Some(end_item) },
+                        After::Restart => {
+                            self.last_ref_ned_m = Some(end);
+                            self.phase = Phase::Start;
+                        }
                     }
                 }
                 sp
