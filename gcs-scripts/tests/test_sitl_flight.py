@@ -38,6 +38,8 @@ class Gcs:
         self.armed = False
         self.landed_state = None
         self.acks = {}
+        self.home = None  # HOME_POSITION local (x, y, z), and the vehicle time it came at
+        self.home_ms = None
 
     def pump(self):
         assert time.monotonic() < self.deadline, "wall-clock limit reached: the SITL hung"
@@ -56,10 +58,15 @@ class Gcs:
             self.vel = (msg.vx, msg.vy, msg.vz)
         elif kind == "EXTENDED_SYS_STATE":
             self.landed_state = msg.landed_state
+        elif kind == "HOME_POSITION":
+            self.home, self.home_ms = (msg.x, msg.y, msg.z), self.now_ms
         elif kind == "COMMAND_ACK":
             self.acks[msg.command] = msg.result
 
     def wait_until(self, vehicle_s, what, cond):
+        # Read the vehicle's clock first: in fast lockstep it may be well past zero when this reader starts.
+        while self.now_ms == 0:
+            self.pump()
         start = self.now_ms
         while not cond():
             assert self.now_ms - start <= vehicle_s * 1000, f"{what}: not within {vehicle_s} s of vehicle time"
@@ -156,14 +163,17 @@ def test_pymavlink_takes_off_holds_and_lands(sitl):
     assert "LOITER" in gcs.conn.mode_mapping(), "pymavlink sees PX4 modes"
 
     converge_s = gcs.wait_until(30.0, "estimator convergence", lambda: gcs.converged and gcs.pos is not None)
-    ground = gcs.pos
     accepted = mavutil.mavlink.MAV_RESULT_ACCEPTED
     nan = float("nan")
     assert gcs.command(mavutil.mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, nan, nan, nan, 1.5) == accepted
     assert gcs.command(mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1) == accepted
     gcs.wait_until(2.0, "armed HEARTBEAT", lambda: gcs.armed)
+    armed_ms = gcs.now_ms
 
-    hover = (ground[0], ground[1], ground[2] - 1.5)
+    # The takeoff is 1.5 m above home, which the vehicle sets where it arms (HOME_POSITION follows): not
+    # where this reader saw it converge, which in fast lockstep can be many vehicle seconds earlier.
+    gcs.wait_until(2.0, "HOME_POSITION after arming", lambda: gcs.home_ms is not None and gcs.home_ms >= armed_ms)
+    hover = (gcs.home[0], gcs.home[1], gcs.home[2] - 1.5)
     climb_s = gcs.wait_until(15.0, "climb to 1.5 m", lambda: abs(gcs.pos[2] - hover[2]) < 0.05 and abs(gcs.vel[2]) < 0.1)
     worst = 0.0
     end = gcs.now_ms + 20_000
