@@ -1,8 +1,8 @@
 """The ground stations the field flies PX4 with, against the real SITL (`sitl run`, lockstep): MAVSDK-Python
 (classic API) through a whole session (telemetry and health, arm, takeoff, the paper's figure-8 uploaded
 and flown to its end, goto, return and land); pymavlink's PX4 mode handling; MAVProxy (lean install)
-downloading every parameter and the mission; pymavlink over the TCP server; and the connection sequence of QGroundControl. Waits are on
-the vehicle's telemetry; wall-clock limits only stop a hung run."""
+downloading every parameter and the mission; pymavlink over the TCP server; and the connection sequence of
+QGroundControl. Waits are on the vehicle's telemetry; wall-clock limits only stop a hung run."""
 
 import asyncio
 import math

@@ -67,6 +67,35 @@ pub fn ctrl_c_flag() -> Arc<AtomicBool> {
     flag
 }
 
+/// An autopilot configuration file in the temporary directory for a run `sitl` launches with a
+/// configuration of its own, removed when dropped (also when the launch fails half-way).
+#[derive(Debug)]
+pub struct TempConfig {
+    path: PathBuf,
+}
+
+impl TempConfig {
+    /// Writes `text` to `<temp>/sitl-<pid>-<name>.toml`; on failure, the path it could not write.
+    pub fn write(name: &str, text: &str) -> Result<Self, (PathBuf, std::io::Error)> {
+        let config = Self { path: std::env::temp_dir().join(format!("sitl-{}-{name}.toml", std::process::id())) };
+        match std::fs::write(&config.path, text) {
+            Ok(()) => Ok(config),
+            Err(e) => Err((config.path.clone(), e)),
+        }
+    }
+
+    #[must_use]
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+}
+
+impl Drop for TempConfig {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
+
 /// The autopilot child and the pipe that keeps it alive.
 #[derive(Debug)]
 pub struct AutopilotChild {

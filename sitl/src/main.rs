@@ -15,7 +15,7 @@ use autopilot::core::control::{ControllerKind, LoopRates};
 use autopilot::core::estimator::EstimatorSource;
 use autopilot::runtime::transport::{POLL_INTERVAL, SerialTransport, parse_serial_spec};
 use clap::{Args, Parser, Subcommand};
-use sitl::launch::{self, AutopilotChild};
+use sitl::launch::{self, AutopilotChild, TempConfig};
 use sitl::link::{LinkConfig, Pacing, PlantServer};
 use sitl::plant::{Airframe, InitialState, Plant, PlantConfig, SensorConfig};
 use sitl::scenario::metrics::{GustMetrics, TrackMetrics};
@@ -641,25 +641,6 @@ impl TelemetryCounter {
     }
 }
 
-/// An autopilot configuration file in the temporary directory, removed on drop.
-struct TempConfig {
-    path: std::path::PathBuf,
-}
-
-impl TempConfig {
-    fn write(text: &str) -> Result<Self> {
-        let path = std::env::temp_dir().join(format!("sitl-bench-{}.toml", std::process::id()));
-        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
-        Ok(Self { path })
-    }
-}
-
-impl Drop for TempConfig {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_file(&self.path);
-    }
-}
-
 /// One bench run: the default `sitl run` plant and autopilot for `duration_s` simulated seconds, with a
 /// ground station listening on the QGroundControl port, or (`gcs` false) with the autopilot's
 /// ground-station links off.
@@ -680,7 +661,7 @@ fn bench_once(
         PlantServer::bind_udp(plant, listen.as_str(), link).with_context(|| format!("binding {listen}"))?;
     server.set_hook(Box::new(sim_params));
     let counter = TelemetryCounter::listen(qgc_port)?;
-    let args: Vec<OsString> = vec![
+    let mut args: Vec<OsString> = vec![
         "--plant".into(),
         format!("udp://{listen}").into(),
         "-i".into(),
@@ -688,12 +669,12 @@ fn bench_once(
         "--state-dir".into(),
         "off".into(),
     ];
-    let mut args = args;
     let _config = if gcs {
         None
     } else {
-        let config = TempConfig::write("[gcs]\nudp_targets = []\ntcp_bind = \"off\"\n")?;
-        args.extend(["--config".into(), config.path.clone().into()]);
+        let config = TempConfig::write("bench", "[gcs]\nudp_targets = []\ntcp_bind = \"off\"\n")
+            .map_err(|(path, e)| anyhow::anyhow!("writing {}: {e}", path.display()))?;
+        args.extend(["--config".into(), config.path().into()]);
         Some(config)
     };
     let child = AutopilotChild::spawn_with(&launch::autopilot_binary()?, &args, Some("warn"))?;

@@ -175,7 +175,7 @@ fn sitl_binary() -> &'static str {
         if profile_release {
             build.arg("--release");
         }
-        assert!(build.status().expect("cargo build").success(), "building the autopilot binary failed");
+        assert!(build.status().expect("cargo test --no-run").success(), "building the autopilot binary failed");
     });
     sitl
 }

@@ -40,7 +40,7 @@ use super::metrics::{self, GustMetrics, TrackMetrics};
 use super::reference::{ReferenceSpec, TrackSpec};
 use super::runner::plant_config;
 use super::{Scenario, ScenarioError, StateNoiseKind};
-use crate::launch::{AutopilotChild, LaunchError, LaunchReport, run_with_child};
+use crate::launch::{AutopilotChild, LaunchError, LaunchReport, TempConfig, run_with_child};
 use crate::link::{LinkConfig, PlantServer, UdpTransport, home_origin};
 use crate::plant::{InitialState, Plant, SensorConfig, StateNoise};
 
@@ -219,7 +219,7 @@ pub fn run(
 
 /// A launched run: the plant server, the autopilot child (or why it did not start) and its configuration
 /// file (removed at the end).
-type Launched = (PlantServer<UdpTransport>, Result<AutopilotChild, LaunchError>, PathBuf);
+type Launched = (PlantServer<UdpTransport>, Result<AutopilotChild, LaunchError>, TempConfig);
 
 /// The plant server on 127.0.0.1:4560+N and the autopilot child configured for `scenario`.
 fn launch(
@@ -230,23 +230,21 @@ fn launch(
     link: LinkConfig,
 ) -> Result<Launched, TwoProcessError> {
     let config_text = autopilot_config(scenario, opts, &plant)?;
-    let config_path =
-        std::env::temp_dir().join(format!("sitl-{}-i{}-autopilot.toml", std::process::id(), opts.instance));
-    std::fs::write(&config_path, config_text)
-        .map_err(|source| TwoProcessError::Config { path: config_path.clone(), source })?;
+    let config = TempConfig::write(&format!("i{}-autopilot", opts.instance), &config_text)
+        .map_err(|(path, source)| TwoProcessError::Config { path, source })?;
     let addr = format!("127.0.0.1:{}", 4560 + opts.instance);
     let server = PlantServer::bind_udp(plant, addr.as_str(), link)
         .map_err(|source| TwoProcessError::Bind { addr: addr.clone(), source })?;
     let mut args: Vec<OsString> =
         vec!["--plant".into(), format!("udp://{addr}").into(), "-i".into(), opts.instance.to_string().into()];
     args.push("--config".into());
-    args.push(config_path.clone().into());
+    args.push(config.path().into());
     // A scenario runs on the defaults and its own configuration, never on parameters saved by a flight.
     args.push("--state-dir".into());
     args.push("off".into());
     args.extend(opts.autopilot_args.iter().cloned());
     let child = AutopilotChild::spawn(autopilot, &args);
-    Ok((server, child, config_path))
+    Ok((server, child, config))
 }
 
 fn run_hover(
@@ -279,7 +277,7 @@ fn run_hover(
         connect_timeout: Some(std::time::Duration::from_secs(30)),
         ..LinkConfig::default()
     };
-    let (mut server, child, config_path) = launch(scenario, opts, autopilot, plant, link)?;
+    let (mut server, child, config) = launch(scenario, opts, autopilot, plant, link)?;
     let duration_us = (scenario.duration_s * 1e6).round() as u64;
     let mut rec = Recorded::default();
     rec.sample(0.0, &server.plant().truth().pos_ned_m, &hold);
@@ -298,7 +296,7 @@ fn run_hover(
             }
         })
     });
-    let _ = std::fs::remove_file(&config_path);
+    drop(config);
     let report: LaunchReport = report?;
     if report.stopped {
         return Err(TwoProcessError::Stopped(report.sim_s));
@@ -450,7 +448,7 @@ fn run_track(
         connect_timeout: Some(std::time::Duration::from_secs(30)),
         ..LinkConfig::default()
     };
-    let (mut server, child, config_path) = launch(scenario, opts, autopilot, plant, link)?;
+    let (mut server, child, config) = launch(scenario, opts, autopilot, plant, link)?;
     let (items, first_wp, last_wp) = track_mission(track, &home);
     let path = SplinePath::new(&track.waypoints_ne_m);
     let lap_m = path.length_m();
@@ -509,7 +507,7 @@ fn run_track(
         let _ = watch.join();
         (report, gcs_result)
     });
-    let _ = std::fs::remove_file(&config_path);
+    drop(config);
     let (report, gcs_result) = outcome;
     let report: LaunchReport = report?;
     let items_reached = match gcs_result {

@@ -12,18 +12,17 @@
 //!   natural frequency `e·accel/speed`, so the peak acceleration of a start is `accel`). Its velocity and
 //!   acceleration are exact feed-forward. The down coordinate is interpolated linearly in arc length
 //!   between the waypoints' altitudes.
-//! - **Missions.** Items are flown in order from `current`. Consecutive NAV_WAYPOINTs without hold time
-//!   are one run, flown through without stopping (each reported reached as the reference passes it); a
-//!   run ends, decelerating to rest, at a waypoint with a hold time, before any other item, and at a
-//!   DO_JUMP, unless the jump repeats a run that closes on itself (in N, E and D) from its first waypoint:
-//!   then the laps are flown as one leg through the seam without stopping (the figure-8 for N laps). A
-//!   closed run (its last waypoint is its first) entered from elsewhere is preceded by a straight leg to
-//!   its first waypoint, so the loop itself is periodic. NAV_TAKEOFF climbs at the takeoff speed; NAV_LAND flies to its point (or lands here) and
-//!   descends until landed; NAV_RETURN_TO_LAUNCH runs the return below; NAV_LOITER_TIME and NAV_DELAY hold
-//!   for their time, NAV_LOITER_UNLIM forever; DO_CHANGE_SPEED sets the speed of the following legs;
-//!   DO_JUMP repeats from its target (param2 times, -1 forever). A mission started on the ground first
-//!   climbs to its first item's altitude (at least `takeoff_alt_m`). After the last item the mission is
-//!   done (the commander holds), unless it landed.
+//! - **Missions.** Items are flown in order from `current`. Consecutive NAV_WAYPOINTs without hold time are one run,
+//!   flown through without stopping (each reported reached as the reference passes it); a run ends, decelerating to
+//!   rest, at a waypoint with a hold time, before any other item, and at a DO_JUMP, unless the jump repeats a run that
+//!   closes on itself (in N, E and D) from its first waypoint: then the laps are flown as one leg through the seam
+//!   without stopping (the figure-8 for N laps). A closed run (its last waypoint is its first) entered from elsewhere
+//!   is preceded by a straight leg to its first waypoint, so the loop itself is periodic. NAV_TAKEOFF climbs at the
+//!   takeoff speed; NAV_LAND flies to its point (or lands here) and descends until landed; NAV_RETURN_TO_LAUNCH runs
+//!   the return below; NAV_LOITER_TIME and NAV_DELAY hold for their time, NAV_LOITER_UNLIM forever; DO_CHANGE_SPEED
+//!   sets the speed of the following legs; DO_JUMP repeats from its target (param2 times, -1 forever). A mission
+//!   started on the ground first climbs to its first item's altitude (at least `takeoff_alt_m`). After the last item
+//!   the mission is done (the commander holds), unless it landed.
 //! - **Return to launch.** Climb to `rtl_return_alt_m` above home if lower, fly to above home, land.
 //! - **Hold and goto.** A new hold point (DO_REPOSITION, a pause) is flown to along a straight leg.
 //! - **Offboard.** Position (with optional velocity and acceleration feed-forward), velocity (a carrot
@@ -376,20 +375,19 @@ impl Leg {
     }
 
     /// Fly this leg `repeat` more times (-1: forever) through the DO_JUMP `jump_seq` at its end, without
-    /// stopping, if it is a spline closed in all three axes; `false` (and no change) if it is not.
-    fn repeat_laps(&mut self, jump_seq: u16, repeat: i32) -> bool {
+    /// stopping, if it is a spline closed in all three axes (otherwise it stays as it is).
+    fn repeat_laps(&mut self, jump_seq: u16, repeat: i32) {
         let LegPath::Spline { path, alt } = &self.path else {
-            return false;
+            return;
         };
         let closed_d = matches!((alt.first(), alt.last()), (Some(a), Some(b)) if (a.1 - b.1).abs() < MIN_LEG_M);
         if repeat == 0 || !path.closed() || !closed_d {
-            return false;
+            return;
         }
         let mut knots = vec![(0.0, jump_seq)];
         knots.extend_from_slice(&self.knots);
         let left = u32::try_from(repeat).ok();
         self.laps = Some(Laps { lap_m: path.length_m(), knots, left });
-        true
     }
 
     /// Adds a lap at the end, if any are left: the reference then runs on through the seam.
@@ -728,6 +726,23 @@ impl Navigator {
         }
     }
 
+    /// The repeats left of the DO_JUMP `seq` (its param2 `repeat` until first taken; -1 is forever).
+    fn jumps_left(&self, seq: u16, repeat: i32) -> i32 {
+        self.jumps.get(&seq).copied().unwrap_or(repeat)
+    }
+
+    /// Takes the DO_JUMP `seq` if it has repeats left, counting one off; `false` once it is used up.
+    fn take_jump(&mut self, seq: u16, repeat: i32) -> bool {
+        let left = self.jumps.entry(seq).or_insert(repeat);
+        if *left == 0 {
+            return false;
+        }
+        if *left > 0 {
+            *left -= 1;
+        }
+        true
+    }
+
     /// On to the next item (past the last: the mission finishes at the next step).
     fn advance_item(&mut self) {
         self.current += 1;
@@ -801,13 +816,9 @@ impl Navigator {
                 return false;
             }
             NavCommand::Jump { target, repeat } => {
-                let left = self.jumps.entry(item.seq).or_insert(repeat);
                 let target_index = self.items.iter().position(|i| i.seq == target);
                 match target_index {
-                    Some(t) if *left != 0 => {
-                        if *left > 0 {
-                            *left -= 1;
-                        }
+                    Some(t) if self.take_jump(item.seq, repeat) => {
                         self.events.push(NavEvent::Reached(item.seq));
                         self.current = t;
                         self.phase = Phase::Start;
@@ -913,7 +924,7 @@ impl Navigator {
                     && last_hold <= 0.0
                     && knots.first() == Some(&target)
                 {
-                    leg.repeat_laps(jump_seq, *self.jumps.get(&jump_seq).unwrap_or(&repeat));
+                    leg.repeat_laps(jump_seq, self.jumps_left(jump_seq, repeat));
                 }
                 // Items of the run before its end are passed on the way; `current` moves as they are.
                 Some(Phase::Fly {
@@ -1020,11 +1031,9 @@ impl Navigator {
                     self.events.push(NavEvent::Reached(seq));
                     let Some(i) = self.items.iter().position(|i| i.seq == seq) else { continue };
                     if let NavCommand::Jump { target, repeat } = self.items[i].command {
-                        // A lap of a repeated run ended: the jump is taken as start_item would take it.
-                        let left = self.jumps.entry(seq).or_insert(repeat);
-                        if *left > 0 {
-                            *left -= 1;
-                        }
+                        // A lap of a repeated run ended: the jump is taken as start_item would take it
+                        // (the leg has a lap only while the jump has repeats left).
+                        self.take_jump(seq, repeat);
                         self.current = self.items.iter().position(|i| i.seq == target).unwrap_or(i);
                     } else {
                         self.current = i + 1;
