@@ -1,5 +1,5 @@
 """The paper's figure-8 as a mission (pymavlink): NAV_TAKEOFF 1.5 m, DO_CHANGE_SPEED 0.3 m/s, nine
-NAV_WAYPOINTs through (N, E) = (0,0) (0.6,0.6) (1.2,0) (0.6,-0.6) (0,0) (-0.6,0.6) (-1.2,0) (-0.6,-0.6)
+NAV_SPLINE_WAYPOINTs (one curve through them, as ArduPilot flies spline waypoints) through (N, E) = (0,0) (0.6,0.6) (1.2,0) (0.6,-0.6) (0,0) (-0.6,0.6) (-1.2,0) (-0.6,-0.6)
 (0,0) m from home at 1.5 m (MAV_FRAME_GLOBAL_RELATIVE_ALT_INT), NAV_LAND. Uploads it with the mission
 protocol, downloads it back and compares, arms, switches to AUTO MISSION, follows MISSION_CURRENT /
 MISSION_ITEM_REACHED to the landing, records LOCAL_POSITION_NED, and writes the flown track against the
@@ -75,7 +75,7 @@ def build_mission(home_lat, home_lon, alt_m, speed_mps, points=FIGURE8_NE_M):
     ]
     for n, e in points:
         x, y = at(n, e)
-        items.append(Item(mavlink.MAV_CMD_NAV_WAYPOINT, rel, (0, 0, 0, nan), x, y, alt_m))
+        items.append(Item(mavlink.MAV_CMD_NAV_SPLINE_WAYPOINT, rel, (0, 0, 0, nan), x, y, alt_m))
     items.append(Item(mavlink.MAV_CMD_NAV_LAND, rel, (0, 0, 0, nan), x0, y0, 0.0))
     return items
 
@@ -212,7 +212,7 @@ def run(args):
             raise CheckFailed(f"item {seq} came back different: sent {sent}, got {got}")
     flight.say(f"downloaded {len(back)} items: identical")
 
-    waypoint_seqs = [s for s, it in enumerate(items) if it.command == mavlink.MAV_CMD_NAV_WAYPOINT]
+    waypoint_seqs = [s for s, it in enumerate(items) if it.command == mavlink.MAV_CMD_NAV_SPLINE_WAYPOINT]
     track = []  # (t_s, n_m, e_m, d_m, current_seq)
     reached = []
     current = [None]

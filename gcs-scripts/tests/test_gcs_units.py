@@ -46,7 +46,7 @@ def test_figure8_mission_items_sit_on_the_grid_around_home():
     assert [it.command for it in items[:2]] == [mav.MAV_CMD_NAV_TAKEOFF, mav.MAV_CMD_DO_CHANGE_SPEED]
     assert items[-1].command == mav.MAV_CMD_NAV_LAND and len(items) == 12
     assert items[1].params[1] == 0.3
-    wps = [it for it in items if it.command == mav.MAV_CMD_NAV_WAYPOINT]
+    wps = [it for it in items if it.command == mav.MAV_CMD_NAV_SPLINE_WAYPOINT]
     assert all(it.frame == mav.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT and it.z == 1.5 for it in wps)
     for it, (n, e) in zip(wps, figure8_mission.FIGURE8_NE_M):
         dn = math.radians(it.x / 1e7 - lat0) * figure8_mission.EARTH_RADIUS_M

@@ -73,7 +73,14 @@ fn fly_figure8_mission(laps: u16) -> Figure8Flight {
     ];
     for (i, ne) in FIGURE8_NE_M.iter().enumerate() {
         let (lat, lon) = at(&rig, *ne);
-        items.push(mission_item(2 + i as u16, MavCmd::MAV_CMD_NAV_WAYPOINT, [0.0, 0.0, 0.0, NAN], lat, lon, 1.5));
+        items.push(mission_item(
+            2 + i as u16,
+            MavCmd::MAV_CMD_NAV_SPLINE_WAYPOINT,
+            [0.0, 0.0, 0.0, NAN],
+            lat,
+            lon,
+            1.5,
+        ));
     }
     if laps > 1 {
         let repeats = f32::from(laps - 1);

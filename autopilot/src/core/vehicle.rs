@@ -5,23 +5,22 @@
 //! [`VehicleOutputs`] (four PWM commands in µs, 1000-2000, the paper's rotor order; the armed flag; the
 //! telemetry due this step); per message: the replies to its sender (COMMAND_ACK, STATUSTEXT).
 //!
-//! The step: estimator update -> commander step on the estimate -> the commander's [`Setpoint`] as a
-//! controller [`Reference`] -> controller update -> PWM. One control tick per IMU sample (per truth sample
-//! with the `Truth` source). Setpoints: Idle -> 1000 µs on every rotor and the controller rebuilt, so
-//! nothing adapts or integrates on the ground; Hold -> position reference; Climb -> position reference
-//! whose down coordinate ramps to the target at `takeoff_speed_mps`; Descend -> position reference whose
-//! down coordinate ramps down at the land speed, to at most `land_ramp_below_ground_m` below the ground.
-//! PWM is 1000 whenever disarmed, killed or idle, and when the estimate is invalid while armed on the
-//! ground; it is clamped to [1000, 2000] and never NaN.
+//! The step: estimator update -> commander step on the estimate (the mode and its task) -> the
+//! navigator turns the task into the one [`Reference`] the controller tracks (position with velocity and
+//! acceleration feed-forward from jerk-limited trajectories, or an attitude; `None` for idle) ->
+//! controller update -> PWM. One control tick per IMU sample (per truth sample with the `Truth` source).
+//! Idle -> 1000 µs on every rotor and the controller rebuilt, so nothing adapts or integrates on the
+//! ground. PWM is 1000 whenever disarmed, killed or idle, and when the estimate is invalid while armed on
+//! the ground; it is clamped to [1000, 2000] and never NaN.
 
 use ::mavlink::MavHeader;
 use ::mavlink::dialects::common::{MISSION_CURRENT_DATA, MISSION_ITEM_REACHED_DATA, MavMessage, MavSeverity};
-use nalgebra::{Vector2, Vector3};
+use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::core::commander::{
-    self, Commander, CommanderConfig, CommanderInputs, CommanderOutput, Estimate, Event, LandedState, Request, Setpoint,
+    self, Commander, CommanderConfig, CommanderInputs, CommanderOutput, Estimate, Event, LandedState, Request,
 };
 use crate::core::control::{
     self, ControlInput, Controller, ControllerConfig, ControllerKind, Reference, distributor, try_new_controller,
@@ -39,7 +38,7 @@ use crate::core::mavlink::{
     command_replies, housekeeping, statustext,
 };
 use crate::core::mission::{Mission, MissionError};
-use crate::core::navigator::{NavEvent, NavInput, NavSetpoint, Navigator, NavigatorConfig, nav_items};
+use crate::core::navigator::{self, NavEvent, NavInput, Navigator, NavigatorConfig, nav_items};
 use crate::core::params::ParamStore;
 
 /// Motor command with the motors stopped (µs).
@@ -58,10 +57,6 @@ pub struct VehicleConfig {
     pub estimator: EstimatorConfig,
     pub commander: CommanderConfig,
     pub navigator: NavigatorConfig,
-    /// Climb speed of the takeoff reference (m/s; PX4 MPC_TKO_SPEED).
-    pub takeoff_speed_mps: f64,
-    /// How far below the ground the landing reference may ramp (m), bounding the push into the ground.
-    pub land_ramp_below_ground_m: f64,
     /// Start armed and holding a point instead of disarmed on the ground (experiments that begin in the
     /// air, as the paper's do: `sitl run --scenario`); home is then the ground below that point.
     pub start_airborne: Option<AirborneStart>,
@@ -85,8 +80,6 @@ impl Default for VehicleConfig {
             estimator: EstimatorConfig::default(),
             commander: CommanderConfig::default(),
             navigator: NavigatorConfig::default(),
-            takeoff_speed_mps: 1.0,
-            land_ramp_below_ground_m: 0.5,
             start_airborne: None,
         }
     }
@@ -97,8 +90,6 @@ impl Default for VehicleConfig {
 pub enum VehicleError {
     #[error("vehicle config: sysid must be 1..=255")]
     Sysid,
-    #[error("vehicle config: {field} = {value} must be finite and positive")]
-    NotPositive { field: &'static str, value: f64 },
     #[error("vehicle config: start_airborne hold_ned_m and yaw_rad must be finite")]
     StartAirborne,
     #[error(transparent)]
@@ -107,6 +98,8 @@ pub enum VehicleError {
     Estimator(#[from] estimator::ConfigError),
     #[error(transparent)]
     Commander(#[from] commander::ConfigError),
+    #[error(transparent)]
+    Navigator(#[from] navigator::ConfigError),
 }
 
 /// One step's sensor inputs (any may be absent).
@@ -127,33 +120,6 @@ pub struct VehicleOutputs {
     pub armed: bool,
     /// Telemetry due this step (HEARTBEAT, STATUSTEXT of events, streams), for every ground station.
     pub messages: Vec<MavMessage>,
-}
-
-/// What the controller flies at one step (NED m, m/s, m/s², rad).
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Target {
-    Idle,
-    Track { pos_ned_m: Vector3<f64>, vel_ned_mps: Vector3<f64>, acc_ned_mps2: Vector3<f64>, yaw_rad: f64 },
-    Climb { pos_ned_m: Vector3<f64>, yaw_rad: f64 },
-    Descend { pos_ne_m: Vector2<f64>, yaw_rad: f64, speed_mps: f64 },
-    Attitude { euler_rad: Vector3<f64>, pos_d_m: f64, thrust_frac: Option<f64> },
-}
-
-impl Target {
-    fn from_nav(sp: NavSetpoint, land_speed_mps: f64) -> Self {
-        match sp {
-            NavSetpoint::Track { pos_ned_m, vel_ned_mps, acc_ned_mps2, yaw_rad } => {
-                Self::Track { pos_ned_m, vel_ned_mps, acc_ned_mps2, yaw_rad }
-            }
-            NavSetpoint::Climb { pos_ned_m, yaw_rad } => Self::Climb { pos_ned_m, yaw_rad },
-            NavSetpoint::Descend { pos_ne_m, yaw_rad } => {
-                Self::Descend { pos_ne_m, yaw_rad, speed_mps: land_speed_mps }
-            }
-            NavSetpoint::Attitude { euler_rad, pos_d_m, thrust_frac } => {
-                Self::Attitude { euler_rad, pos_d_m, thrust_frac }
-            }
-        }
-    }
 }
 
 /// What the vehicle asks of the shell around it.
@@ -178,14 +144,6 @@ fn is_param_message(msg: &MavMessage) -> bool {
     matches!(msg, MavMessage::PARAM_REQUEST_LIST(_) | MavMessage::PARAM_REQUEST_READ(_) | MavMessage::PARAM_SET(_))
 }
 
-/// Which ramp the down reference is on.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Ramp {
-    None,
-    Climb,
-    Descend,
-}
-
 /// The vehicle. See the module docs.
 pub struct Vehicle {
     config: VehicleConfig,
@@ -199,11 +157,8 @@ pub struct Vehicle {
     last_gps: Option<GpsSample>,
     home: Option<Home>,
     pwm_us: [f64; 4],
-    last_tick_us: Option<u64>,
-    ramp: Ramp,
-    ramp_d_m: f64,
-    /// Down coordinate of the last position reference flown (m).
-    last_ref_d_m: Option<f64>,
+    /// The reference the controller tracked at the last step (None: idle).
+    reference: Option<Reference>,
     throttle_low_pwm_us: f64,
     comm_errors: u64,
     navigator: Navigator,
@@ -269,14 +224,7 @@ impl Vehicle {
         if config.sysid == 0 {
             return Err(VehicleError::Sysid);
         }
-        for (field, value) in [
-            ("takeoff_speed_mps", config.takeoff_speed_mps),
-            ("land_ramp_below_ground_m", config.land_ramp_below_ground_m),
-        ] {
-            if !(value.is_finite() && value > 0.0) {
-                return Err(VehicleError::NotPositive { field, value });
-            }
-        }
+        config.navigator.validate()?;
         config.estimator.validate()?;
         let controller = try_new_controller(config.controller, &config.control)?;
         let mut commander = Commander::new(config.commander)?;
@@ -304,18 +252,14 @@ impl Vehicle {
             last_gps: None,
             home,
             pwm_us: [PWM_MIN_US; 4],
-            last_tick_us: None,
-            ramp: Ramp::None,
-            ramp_d_m: 0.0,
-            last_ref_d_m: None,
+            reference: None,
             throttle_low_pwm_us,
             comm_errors: 0,
             navigator: {
                 let mut navigator = Navigator::new(config.navigator);
                 if let Some(start) = config.start_airborne {
                     // The hold starts exactly at its point (not from a first, noisy estimate).
-                    let pos_ned_m = Vector3::from(start.hold_ned_m);
-                    navigator.remember(&NavSetpoint::Climb { pos_ned_m, yaw_rad: start.yaw_rad });
+                    navigator.start_airborne(Vector3::from(start.hold_ned_m));
                 }
                 navigator
             },
@@ -354,6 +298,12 @@ impl Vehicle {
     #[must_use]
     pub fn home(&self) -> Option<&Home> {
         self.home.as_ref()
+    }
+
+    /// The reference the controller tracked at the last step (None: motors idle).
+    #[must_use]
+    pub fn reference(&self) -> Option<&Reference> {
+        self.reference.as_ref()
     }
 
     /// The malformed frames the shell's links have dropped so far (reported in SYS_STATUS errors_comm).
@@ -703,9 +653,10 @@ impl Vehicle {
         {
             home.geodetic = Some(origin.geodetic_from_ned(&home.pos_ned_m));
         }
-        let target = self.target(now_us, &state, &out);
+        let reference = self.plan(now_us, &state, &out);
+        self.reference = reference;
         if tick {
-            self.pwm_us = self.control(now_us, &state, &out, target);
+            self.pwm_us = self.control(&state, &out, reference);
         }
         if !out.motors_enabled {
             self.pwm_us = [PWM_MIN_US; 4];
@@ -744,9 +695,8 @@ impl Vehicle {
         VehicleOutputs { pwm_us: self.pwm_us, armed: self.output.armed, messages }
     }
 
-    /// What the controller flies this step: the commander's setpoint, through the navigator for holds and
-    /// the automatic modes.
-    fn target(&mut self, now_us: u64, state: &EstimatorState, out: &CommanderOutput) -> Target {
+    /// What the controller flies this step: the navigator's reference for the commander's task.
+    fn plan(&mut self, now_us: u64, state: &EstimatorState, out: &CommanderOutput) -> Option<Reference> {
         let dt_s = self.last_nav_us.map_or(0.0, |t| now_us.saturating_sub(t) as f64 * 1e-6).min(0.05);
         self.last_nav_us = Some(now_us);
         let input = NavInput {
@@ -762,29 +712,7 @@ impl Vehicle {
             takeoff_alt_m: self.config.commander.takeoff_alt_m,
             takeoff_acceptance_m: self.config.commander.takeoff_acceptance_m,
         };
-        let land_speed_mps = self.config.commander.land_speed_mps;
-        match out.setpoint {
-            Setpoint::Idle => {
-                self.navigator.forget();
-                Target::Idle
-            }
-            Setpoint::Hold { pos_ned_m, yaw_rad } if finite3(&state.pos_ned_m) => {
-                Target::from_nav(self.navigator.hold(&input, pos_ned_m, yaw_rad), land_speed_mps)
-            }
-            Setpoint::Hold { pos_ned_m, yaw_rad } => {
-                Target::Track { pos_ned_m, vel_ned_mps: Vector3::zeros(), acc_ned_mps2: Vector3::zeros(), yaw_rad }
-            }
-            Setpoint::Climb { pos_ned_m, yaw_rad } => {
-                self.navigator.forget();
-                self.navigator.remember(&NavSetpoint::Climb { pos_ned_m, yaw_rad });
-                Target::Climb { pos_ned_m, yaw_rad }
-            }
-            Setpoint::Descend { pos_ne_m, yaw_rad, speed_mps } => {
-                self.navigator.forget();
-                Target::Descend { pos_ne_m, yaw_rad, speed_mps }
-            }
-            Setpoint::Auto(mode) => Target::from_nav(self.navigator.update(mode, &input), land_speed_mps),
-        }
+        self.navigator.update(out.task, &input)
     }
 
     /// Rebuilds the controller if it has run, so that no adaptation or integrator carries over.
@@ -795,64 +723,13 @@ impl Vehicle {
             self.controller = c;
             self.controller_dirty = false;
         }
-        self.ramp = Ramp::None;
-        self.last_ref_d_m = None;
     }
 
-    /// The down reference of a ramp of `kind` towards `target_d_m` at `speed_mps`, started at the last
-    /// reference (or the estimate) when the ramp begins. Returns (down m, down speed feed-forward m/s).
-    fn ramp_d(&mut self, kind: Ramp, est_d_m: f64, target_d_m: f64, speed_mps: f64, dt_s: f64) -> (f64, f64) {
-        if self.ramp != kind {
-            self.ramp = kind;
-            self.ramp_d_m = self.last_ref_d_m.filter(|d| d.is_finite()).unwrap_or(est_d_m);
-        }
-        let step = speed_mps * dt_s;
-        let error = target_d_m - self.ramp_d_m;
-        if error.abs() <= step {
-            self.ramp_d_m = target_d_m;
-            (target_d_m, 0.0)
-        } else {
-            self.ramp_d_m += step.copysign(error);
-            (self.ramp_d_m, speed_mps.copysign(error))
-        }
-    }
-
-    fn control(&mut self, now_us: u64, state: &EstimatorState, out: &CommanderOutput, target: Target) -> [f64; 4] {
-        let dt_s = self.last_tick_us.map_or(0.0, |t| now_us.saturating_sub(t) as f64 * 1e-6).min(0.05);
-        self.last_tick_us = Some(now_us);
-        let est_d_m = if state.pos_ned_m.z.is_finite() { state.pos_ned_m.z } else { 0.0 };
-        let reference = match target {
-            Target::Idle => {
-                self.reset_controller();
-                return [PWM_MIN_US; 4];
-            }
-            Target::Track { pos_ned_m, vel_ned_mps, acc_ned_mps2, yaw_rad } => {
-                self.ramp = Ramp::None;
-                Reference { vel_ned_mps, acc_ned_mps2, ..Reference::position(pos_ned_m, yaw_rad) }
-            }
-            Target::Attitude { euler_rad, pos_d_m, thrust_frac } => {
-                self.ramp = Ramp::None;
-                Reference { collective_frac: thrust_frac, ..Reference::attitude(euler_rad, pos_d_m) }
-            }
-            Target::Climb { pos_ned_m, yaw_rad } => {
-                let speed = self.config.takeoff_speed_mps;
-                let (d, vd) = self.ramp_d(Ramp::Climb, est_d_m, pos_ned_m.z, speed, dt_s);
-                Reference {
-                    vel_ned_mps: Vector3::new(0.0, 0.0, vd),
-                    ..Reference::position(Vector3::new(pos_ned_m.x, pos_ned_m.y, d), yaw_rad)
-                }
-            }
-            Target::Descend { pos_ne_m, yaw_rad, speed_mps } => {
-                let ground_d_m = self.home.map_or(0.0, |h| h.pos_ned_m.z);
-                let floor_d_m = ground_d_m + self.config.land_ramp_below_ground_m;
-                let (d, vd) = self.ramp_d(Ramp::Descend, est_d_m, floor_d_m, speed_mps, dt_s);
-                Reference {
-                    vel_ned_mps: Vector3::new(0.0, 0.0, vd),
-                    ..Reference::position(Vector3::new(pos_ne_m.x, pos_ne_m.y, d), yaw_rad)
-                }
-            }
+    fn control(&mut self, state: &EstimatorState, out: &CommanderOutput, reference: Option<Reference>) -> [f64; 4] {
+        let Some(reference) = reference else {
+            self.reset_controller();
+            return [PWM_MIN_US; 4];
         };
-        self.last_ref_d_m = Some(reference.pos_ned_m.z);
         let on_ground = matches!(
             out.landed_state,
             x if x == LandedState::OnGround.mavlink() || x == LandedState::Undefined.mavlink()
@@ -1208,8 +1085,9 @@ mod tests {
     fn given_bad_configs_when_built_then_errors() {
         let bad_sysid = VehicleConfig { sysid: 0, ..VehicleConfig::default() };
         assert_eq!(Vehicle::new(bad_sysid).err(), Some(VehicleError::Sysid));
-        let bad_speed = VehicleConfig { takeoff_speed_mps: f64::NAN, ..VehicleConfig::default() };
-        assert!(matches!(Vehicle::new(bad_speed), Err(VehicleError::NotPositive { .. })));
+        let mut bad_speed = VehicleConfig::default();
+        bad_speed.navigator.takeoff_speed_mps = f64::NAN;
+        assert!(matches!(Vehicle::new(bad_speed), Err(VehicleError::Navigator(e)) if e.field == "takeoff_speed_mps"));
     }
 
     /// The first message of `replies` after the ACK, and the ACK's result.

@@ -385,7 +385,14 @@ fn track_mission(track: &TrackSpec, home: &GeoOrigin) -> (Vec<MISSION_ITEM_INT_D
                 continue;
             }
             let seq = u16::try_from(items.len()).unwrap_or(u16::MAX);
-            items.push(track_item(seq, MavCmd::MAV_CMD_NAV_WAYPOINT, [0.0, 0.0, 0.0, nan], home, Some(*w), alt_m));
+            items.push(track_item(
+                seq,
+                MavCmd::MAV_CMD_NAV_SPLINE_WAYPOINT,
+                [0.0, 0.0, 0.0, nan],
+                home,
+                Some(*w),
+                alt_m,
+            ));
         }
     }
     let last = u16::try_from(items.len() - 1).unwrap_or(u16::MAX);

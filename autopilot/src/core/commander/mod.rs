@@ -4,7 +4,7 @@
 //! (arm, disarm, kill, takeoff, land, hold, set mode), answered at once with `Ok` or a [`Refusal`] whose
 //! text fits a STATUSTEXT; a refused request changes nothing. Out, per step: a [`CommanderOutput`] with the
 //! [`State`], the PX4 identity (`custom_mode`, `base_mode`, `system_status`, `landed_state`), the
-//! [`Setpoint`] the controller should fly, and the [`Event`]s since the last step (for an immediate
+//! [`Task`] the navigator should fly, and the [`Event`]s since the last step (for an immediate
 //! HEARTBEAT and a STATUSTEXT).
 //!
 //! Decisions are made by the transition table of [`state_machine`] (`next(state, conditions)`); this
@@ -32,7 +32,7 @@ pub use land_detector::{LandDetector, LandDetectorConfig, LandedState};
 pub use mode::{FlightMode, Px4Mode};
 pub use state_machine::{Conditions, State};
 
-use crate::core::navigator::{AutoMode, NavStatus};
+use crate::core::navigator::{AutoMode, NavStatus, Task};
 use land_detector::{LandDetectorSample, Phase, seconds_to_us};
 use mode::system_status;
 
@@ -42,8 +42,6 @@ use mode::system_status;
 pub struct CommanderConfig {
     /// Takeoff altitude above home when the request names none (m; MIS_TAKEOFF_ALT).
     pub takeoff_alt_m: f64,
-    /// Descent speed when landing (m/s; MPC_LAND_SPEED).
-    pub land_speed_mps: f64,
     /// Disarm this long after touchdown (s; COM_DISARM_LAND; negative: never).
     pub disarm_land_s: f64,
     /// Disarm when armed this long without taking off (s; COM_DISARM_PRFLT; negative: never).
@@ -57,7 +55,6 @@ impl Default for CommanderConfig {
     fn default() -> Self {
         Self {
             takeoff_alt_m: 2.5,
-            land_speed_mps: 0.7,
             disarm_land_s: 2.0,
             disarm_preflight_s: 10.0,
             takeoff_acceptance_m: 0.1,
@@ -82,7 +79,6 @@ impl CommanderConfig {
         let ld = &self.land_detector;
         let positive = [
             ("takeoff_alt_m", self.takeoff_alt_m),
-            ("land_speed_mps", self.land_speed_mps),
             ("takeoff_acceptance_m", self.takeoff_acceptance_m),
             ("land_detector.max_vel_d_mps", ld.max_vel_d_mps),
             ("land_detector.max_vel_ne_mps", ld.max_vel_ne_mps),
@@ -229,22 +225,6 @@ pub enum Refusal {
     Landed(Action),
 }
 
-/// What the controller should fly (NED, m, rad, m/s). The vehicle core turns it into a controller
-/// `Reference`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Setpoint {
-    /// Motors at minimum (armed on the ground) or off (disarmed, killed).
-    Idle,
-    /// Hold this position and yaw.
-    Hold { pos_ned_m: Vector3<f64>, yaw_rad: f64 },
-    /// Climb (or descend) to this position and yaw: the takeoff target.
-    Climb { pos_ned_m: Vector3<f64>, yaw_rad: f64 },
-    /// Hold north/east and yaw, descend at `speed_mps` until on the ground.
-    Descend { pos_ne_m: Vector2<f64>, yaw_rad: f64, speed_mps: f64 },
-    /// The navigator decides (mission, return, offboard).
-    Auto(AutoMode),
-}
-
 /// Why the vehicle disarmed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum DisarmReason {
@@ -314,7 +294,8 @@ pub struct CommanderOutput {
     pub landed_state: u8,
     pub armed: bool,
     pub motors_enabled: bool,
-    pub setpoint: Setpoint,
+    /// What the navigator is to fly.
+    pub task: Task,
     /// What happened since the previous step (requests included), in order.
     pub events: Vec<Event>,
 }
@@ -339,7 +320,8 @@ pub struct Commander {
     /// The ground's down coordinate when there is no home: where the vehicle was while disarmed.
     arm_ground_d_m: f64,
     takeoff_target_ned_m: Vector3<f64>,
-    hold_ned_m: Vector3<f64>,
+    /// The point Hold holds (None: where the reference stops).
+    hold_ned_m: Option<Vector3<f64>>,
     land_ne_m: Vector2<f64>,
     yaw_sp_rad: f64,
     armed_idle_since_us: u64,
@@ -368,7 +350,7 @@ impl Commander {
             home_ned_m: None,
             arm_ground_d_m: 0.0,
             takeoff_target_ned_m: Vector3::zeros(),
-            hold_ned_m: Vector3::zeros(),
+            hold_ned_m: None,
             land_ne_m: Vector2::zeros(),
             yaw_sp_rad: 0.0,
             armed_idle_since_us: 0,
@@ -450,21 +432,19 @@ impl Commander {
         if self.state == State::Disarmed { LandedState::OnGround } else { self.land_detector.landed_state(phase) }
     }
 
-    /// The setpoint for the controller.
+    /// What the navigator is to fly.
     #[must_use]
-    pub fn setpoint(&self) -> Setpoint {
+    pub fn task(&self) -> Task {
         let yaw_rad = self.yaw_sp_rad;
         match self.state {
-            State::Disarmed | State::ArmedIdle | State::Killed => Setpoint::Idle,
-            State::Takeoff => Setpoint::Climb { pos_ned_m: self.takeoff_target_ned_m, yaw_rad },
-            State::Hold => Setpoint::Hold { pos_ned_m: self.hold_ned_m, yaw_rad },
-            State::Land if self.land_detector.landed() => Setpoint::Idle,
-            State::Land => {
-                Setpoint::Descend { pos_ne_m: self.land_ne_m, yaw_rad, speed_mps: self.config.land_speed_mps }
-            }
-            State::Mission => Setpoint::Auto(AutoMode::Mission),
-            State::Rtl => Setpoint::Auto(AutoMode::ReturnToLaunch),
-            State::Offboard => Setpoint::Auto(AutoMode::Offboard),
+            State::Disarmed | State::ArmedIdle | State::Killed => Task::Idle,
+            State::Takeoff => Task::Takeoff { pos_ned_m: self.takeoff_target_ned_m, yaw_rad },
+            State::Hold => Task::Hold { pos_ned_m: self.hold_ned_m, yaw_rad },
+            State::Land if self.land_detector.landed() => Task::Idle,
+            State::Land => Task::Land { pos_ne_m: self.land_ne_m, yaw_rad },
+            State::Mission => Task::Auto(AutoMode::Mission),
+            State::Rtl => Task::Auto(AutoMode::ReturnToLaunch),
+            State::Offboard => Task::Auto(AutoMode::Offboard),
         }
     }
 
@@ -473,7 +453,7 @@ impl Commander {
     /// first step; no Armed event is raised (there was no arming), the first HEARTBEAT shows it armed.
     pub fn start_airborne(&mut self, hold_ned_m: Vector3<f64>, yaw_rad: f64) {
         self.state = State::Hold;
-        self.hold_ned_m = hold_ned_m;
+        self.hold_ned_m = Some(hold_ned_m);
         self.yaw_sp_rad = yaw_rad;
         self.hold_mode = FlightMode::Hold;
         self.set_mode(FlightMode::Hold);
@@ -532,7 +512,7 @@ impl Commander {
             landed_state: self.landed_state().mavlink(),
             armed: self.armed(),
             motors_enabled: self.armed(),
-            setpoint: self.setpoint(),
+            task: self.task(),
             events: std::mem::take(&mut self.events),
         }
     }
@@ -669,9 +649,8 @@ impl Commander {
                     self.transition(now, C::HOLD_REQUESTED, Action::Reposition)?;
                 }
                 self.set_mode(FlightMode::Hold);
-                if let Some(p) = pos_ned_m.filter(|p| p.iter().all(|x| x.is_finite())) {
-                    self.hold_ned_m = p;
-                }
+                // No point (QGroundControl's pause): stop and hold where the vehicle stops.
+                self.hold_ned_m = pos_ned_m.filter(|p| p.iter().all(|x| x.is_finite()));
                 if let Some(y) = yaw_rad.filter(|y| y.is_finite()) {
                     self.yaw_sp_rad = y;
                 }
@@ -773,11 +752,12 @@ impl Commander {
             }
             State::Hold => {
                 if from == State::Takeoff && !c.contains(C::HOLD_REQUESTED) {
-                    self.hold_ned_m = self.takeoff_target_ned_m;
+                    self.hold_ned_m = Some(self.takeoff_target_ned_m);
                     self.hold_mode = FlightMode::Hold;
                     self.events.push(Event::TakeoffComplete);
                 } else {
-                    self.hold_ned_m = pos;
+                    // Stop and hold where the vehicle stops, as PX4's Hold does.
+                    self.hold_ned_m = None;
                 }
                 self.set_mode(self.hold_mode);
             }

@@ -5,12 +5,12 @@ use nalgebra::Vector3;
 
 use super::mode::{base_mode_flag, system_status};
 use super::*;
-use crate::core::navigator::{AutoMode, NavStatus};
+use crate::core::navigator::{AutoMode, NavStatus, Task};
 
 const STEP_US: u64 = 10_000;
 const G: f64 = 9.81;
 
-/// A vertical point mass whose "controller" tracks the setpoint's vertical speed with a first-order lag;
+/// A vertical point mass whose "controller" tracks the task's vertical speed with a first-order lag;
 /// idle or motors off, it falls; the ground at D = 0 stops it.
 #[derive(Debug, Clone)]
 struct Sim {
@@ -46,14 +46,16 @@ impl Sim {
     /// Advances one step under `out`.
     fn advance(&mut self, out: &CommanderOutput) {
         let dt = STEP_US as f64 * 1e-6;
-        let vel_cmd = match out.setpoint {
-            Setpoint::Hold { pos_ned_m, .. } | Setpoint::Climb { pos_ned_m, .. } => {
+        let vel_cmd = match out.task {
+            Task::Hold { pos_ned_m: Some(pos_ned_m), .. } | Task::Takeoff { pos_ned_m, .. } => {
                 Some((1.5 * (pos_ned_m.z - self.pos_d_m)).clamp(-1.5, 1.5))
             }
-            Setpoint::Descend { speed_mps, .. } => Some(speed_mps),
+            // Hold where it stops: the vertical speed decays.
+            Task::Hold { pos_ned_m: None, .. } => Some(0.0),
+            Task::Land { .. } => Some(0.7),
             // The navigator's part: descend while it lands, hold the altitude otherwise.
-            Setpoint::Auto(_) => Some(if self.nav.landing { 0.7 } else { 0.0 }),
-            Setpoint::Idle => None,
+            Task::Auto(_) => Some(if self.nav.landing { 0.7 } else { 0.0 }),
+            Task::Idle => None,
         };
         let acc = match vel_cmd {
             Some(v) if out.motors_enabled => (4.0 * (v - self.vel_d_mps)).clamp(-G, G),
@@ -148,7 +150,7 @@ fn given_an_unconverged_estimator_when_arming_then_refused_in_words_and_nothing_
     assert_eq!(out.state, State::ArmedIdle);
     assert!(out.armed && out.motors_enabled);
     assert_eq!(out.events, vec![Event::Armed { forced: false }]);
-    assert_eq!(out.setpoint, Setpoint::Idle);
+    assert_eq!(out.task, Task::Idle);
     assert_eq!(out.system_status, system_status::ACTIVE);
     assert_ne!(out.base_mode & base_mode_flag::SAFETY_ARMED, 0);
 }
@@ -222,7 +224,7 @@ fn given_each_state_when_killed_then_motors_stop_at_once_and_only_a_disarm_reset
         c.request(0, Request::Kill).expect("kill is never refused");
         assert_eq!(c.state(), State::Killed);
         assert!(!c.armed());
-        assert_eq!(c.setpoint(), Setpoint::Idle);
+        assert_eq!(c.task(), Task::Idle);
         assert_eq!(c.system_status(), system_status::EMERGENCY);
         assert_eq!(c.base_mode() & base_mode_flag::SAFETY_ARMED, 0);
         let err = c.request(0, Request::Arm { force: true }).unwrap_err();
@@ -255,7 +257,7 @@ fn given_takeoff_requested_while_disarmed_when_armed_then_climbs_and_holds_at_th
     let out = sim.run(&mut c, 1).remove(0);
     assert_eq!(out.custom_mode, AUTO_TAKEOFF);
     assert_eq!(out.events, vec![Event::ModeChanged { mode: FlightMode::Takeoff, custom_mode: AUTO_TAKEOFF }]);
-    assert_eq!(out.setpoint, Setpoint::Idle, "nothing moves before arming");
+    assert_eq!(out.task, Task::Idle, "nothing moves before arming");
 
     c.request(sim.now_us, Request::Arm { force: false }).expect("arm");
     let out = sim.run(&mut c, 1).remove(0);
@@ -263,7 +265,7 @@ fn given_takeoff_requested_while_disarmed_when_armed_then_climbs_and_holds_at_th
     assert_eq!(out.custom_mode, AUTO_TAKEOFF);
     assert_eq!(out.landed_state, 3);
     let target = Vector3::new(1.0, -2.0, -2.5);
-    assert_eq!(out.setpoint, Setpoint::Climb { pos_ned_m: target, yaw_rad: 0.3 });
+    assert_eq!(out.task, Task::Takeoff { pos_ned_m: target, yaw_rad: 0.3 });
 
     let outs = sim.run(&mut c, 1000);
     let first_hold = outs.iter().position(|o| o.state == State::Hold).expect("takeoff completes");
@@ -275,7 +277,7 @@ fn given_takeoff_requested_while_disarmed_when_armed_then_climbs_and_holds_at_th
         done.events,
         vec![Event::TakeoffComplete, Event::ModeChanged { mode: FlightMode::Hold, custom_mode: AUTO_LOITER }]
     );
-    assert_eq!(done.setpoint, Setpoint::Hold { pos_ned_m: target, yaw_rad: 0.3 });
+    assert_eq!(done.task, Task::Hold { pos_ned_m: Some(target), yaw_rad: 0.3 });
     assert!((sim.pos_d_m + 2.5).abs() < 0.05, "holding at D {}", sim.pos_d_m);
     assert!(outs[first_hold..].iter().all(|o| o.state == State::Hold && o.landed_state == 2));
 }
@@ -291,7 +293,7 @@ fn given_a_takeoff_altitude_when_requested_then_it_is_the_target_and_a_bad_one_i
         assert_eq!(c, before);
     }
     c.request(sim.now_us, Request::Takeoff { alt_rel_m: Some(5.0) }).expect("takeoff");
-    assert!(matches!(c.setpoint(), Setpoint::Climb { pos_ned_m, .. } if pos_ned_m.z == -5.0));
+    assert!(matches!(c.task(), Task::Takeoff { pos_ned_m, .. } if pos_ned_m.z == -5.0));
 }
 
 #[test]
@@ -303,7 +305,7 @@ fn given_hold_when_landing_then_descends_detects_touchdown_and_disarms_exactly_a
     let out = sim.run(&mut c, 1).remove(0);
     assert_eq!(out.custom_mode, AUTO_LAND);
     assert_eq!(out.landed_state, 4);
-    assert_eq!(out.setpoint, Setpoint::Descend { pos_ne_m: Vector2::new(1.0, -2.0), yaw_rad: 0.3, speed_mps: 0.7 });
+    assert_eq!(out.task, Task::Land { pos_ne_m: Vector2::new(1.0, -2.0), yaw_rad: 0.3 });
     sim.run(&mut c, 300);
     assert!((sim.vel_d_mps - 0.7).abs() < 0.05, "descending at {} m/s", sim.vel_d_mps);
 
@@ -319,7 +321,7 @@ fn given_hold_when_landing_then_descends_detects_touchdown_and_disarms_exactly_a
     let landed_at_us = sim.now_us - STEP_US;
     assert_eq!(landed.landed_state, 1);
     assert!(landed.armed);
-    assert_eq!(landed.setpoint, Setpoint::Idle);
+    assert_eq!(landed.task, Task::Idle);
     assert_eq!(landed_at_us, touchdown_sim_us + 500_000, "landed after the 0.5 s dwell on the ground");
 
     // Armed for exactly COM_DISARM_LAND (2 s = 200 steps) after the detection, then disarmed.
@@ -375,8 +377,7 @@ fn given_set_mode_requests_then_supported_modes_switch_and_others_are_refused_in
     sim.run(&mut c, 60);
     c.request(sim.now_us, Request::SetMode { main: 2, sub: 0 }).expect("ALTCTL during takeoff");
     assert_eq!((c.state(), c.custom_mode()), (State::Hold, 0x0002_0000));
-    let Setpoint::Hold { pos_ned_m, .. } = c.setpoint() else { panic!("{:?}", c.setpoint()) };
-    assert!(pos_ned_m.z < -0.2 && pos_ned_m.z > -2.4, "held where it was: {}", pos_ned_m.z);
+    assert_eq!(c.task(), Task::Hold { pos_ned_m: None, yaw_rad: 0.3 }, "held where it stops");
     c.request(sim.now_us, Request::SetMode { main: 4, sub: 3 }).expect("AUTO LOITER");
     assert_eq!((c.state(), c.custom_mode()), (State::Hold, AUTO_LOITER));
     c.request(sim.now_us, Request::SetMode { main: 4, sub: 6 }).expect("AUTO LAND");
@@ -403,7 +404,6 @@ fn given_a_disarmed_vehicle_when_asked_to_land_then_refused_and_a_later_hold_can
 fn given_config_when_serialised_then_round_trips_and_unknown_or_bad_fields_are_refused() {
     let cfg = CommanderConfig::default();
     assert_eq!(cfg.takeoff_alt_m, 2.5);
-    assert_eq!(cfg.land_speed_mps, 0.7);
     assert_eq!(cfg.disarm_land_s, 2.0);
     assert_eq!(cfg.disarm_preflight_s, 10.0);
     assert_eq!(cfg.takeoff_acceptance_m, 0.1);
@@ -411,8 +411,8 @@ fn given_config_when_serialised_then_round_trips_and_unknown_or_bad_fields_are_r
     assert_eq!(serde_json::from_str::<CommanderConfig>(&json).expect("parse"), cfg);
     assert_eq!(serde_json::from_str::<CommanderConfig>("{}").expect("defaults"), cfg);
     assert!(serde_json::from_str::<CommanderConfig>(r#"{"takeof_alt_m": 3}"#).is_err());
-    let bad = CommanderConfig { land_speed_mps: 0.0, ..cfg };
-    assert_eq!(Commander::new(bad).unwrap_err().field, "land_speed_mps");
+    let bad = CommanderConfig { takeoff_acceptance_m: 0.0, ..cfg };
+    assert_eq!(Commander::new(bad).unwrap_err().field, "takeoff_acceptance_m");
 }
 
 #[test]
@@ -499,7 +499,7 @@ fn given_a_mission_asked_for_while_disarmed_when_armed_then_it_starts_and_withou
     c.request(sim.now_us, Request::Arm { force: false }).expect("arm");
     let outs = sim.run(&mut c, 2);
     assert_eq!(outs[1].state, State::Mission);
-    assert_eq!(outs[1].setpoint, Setpoint::Auto(AutoMode::Mission));
+    assert_eq!(outs[1].task, Task::Auto(AutoMode::Mission));
     assert_eq!(outs[1].base_mode & 0x80, 0x80, "armed");
 }
 
@@ -533,7 +533,7 @@ fn given_return_to_launch_then_refused_landed_accepted_in_the_air_and_interrupte
     let mut c2 = holding(&mut sim);
     c2.request(sim.now_us, Request::SetMode { main: 4, sub: 5 }).expect("RTL mode");
     assert_eq!((c2.state(), c2.custom_mode()), (State::Rtl, 0x0504_0000));
-    assert_eq!(c2.setpoint(), Setpoint::Auto(AutoMode::ReturnToLaunch));
+    assert_eq!(c2.task(), Task::Auto(AutoMode::ReturnToLaunch));
     c2.request(sim.now_us, Request::Hold).expect("pause");
     assert_eq!(c2.state(), State::Hold);
     c.request(sim.now_us, Request::Disarm { force: false }).expect("disarm on the ground");
@@ -567,7 +567,7 @@ fn given_a_reposition_then_hold_at_the_new_point_in_the_air_only() {
     assert_eq!(err.to_string(), "Reposition denied: landed");
     let mut c = holding(&mut sim);
     c.request(sim.now_us, Request::Goto { pos_ned_m: Some(target), yaw_rad: Some(1.0) }).expect("goto");
-    assert_eq!(c.setpoint(), Setpoint::Hold { pos_ned_m: target, yaw_rad: 1.0 });
+    assert_eq!(c.task(), Task::Hold { pos_ned_m: Some(target), yaw_rad: 1.0 });
     // QGroundControl's pause: no point, hold where it is.
     sim.nav.mission_valid = true;
     sim.run(&mut c, 1);

@@ -5,7 +5,7 @@
 //! [`MissionError`] naming the first item that is not, with the MAV_MISSION_RESULT to answer
 //! ([`MissionError::result`]) and a reason short enough for a STATUSTEXT (its `Display`).
 //!
-//! - Commands: NAV_WAYPOINT (16), NAV_LOITER_UNLIM (17), NAV_LOITER_TIME (19), NAV_RETURN_TO_LAUNCH (20),
+//! - Commands: NAV_WAYPOINT (16), NAV_SPLINE_WAYPOINT (82), NAV_LOITER_UNLIM (17), NAV_LOITER_TIME (19), NAV_RETURN_TO_LAUNCH (20),
 //!   NAV_LAND (21), NAV_TAKEOFF (22), NAV_DELAY (93), DO_JUMP (177), DO_CHANGE_SPEED (178); anything else is
 //!   MAV_MISSION_UNSUPPORTED.
 //! - Frames: GLOBAL (0), GLOBAL_RELATIVE_ALT (3), GLOBAL_INT (5), GLOBAL_RELATIVE_ALT_INT (6) for every
@@ -30,7 +30,10 @@
 use ::mavlink::dialects::common::{MISSION_ITEM_DATA, MISSION_ITEM_INT_DATA, MavCmd, MavFrame, MavMissionResult};
 use thiserror::Error;
 
+mod nav;
 mod wpl;
+
+pub use nav::{NavCommand, NavItem, NavTarget, nav_items};
 
 pub use wpl::{WPL_HEADER, WplError};
 
@@ -43,8 +46,9 @@ pub const LAT_LIMIT_DEGE7: i32 = 900_000_000;
 pub const LON_LIMIT_DEGE7: i32 = 1_800_000_000;
 
 /// The commands a mission may hold.
-pub const SUPPORTED_COMMANDS: [MavCmd; 9] = [
+pub const SUPPORTED_COMMANDS: [MavCmd; 10] = [
     MavCmd::MAV_CMD_NAV_WAYPOINT,
+    MavCmd::MAV_CMD_NAV_SPLINE_WAYPOINT,
     MavCmd::MAV_CMD_NAV_LOITER_UNLIM,
     MavCmd::MAV_CMD_NAV_LOITER_TIME,
     MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH,
@@ -271,6 +275,7 @@ impl MissionItem {
         matches!(
             self.command,
             MavCmd::MAV_CMD_NAV_WAYPOINT
+                | MavCmd::MAV_CMD_NAV_SPLINE_WAYPOINT
                 | MavCmd::MAV_CMD_NAV_LOITER_UNLIM
                 | MavCmd::MAV_CMD_NAV_LOITER_TIME
                 | MavCmd::MAV_CMD_NAV_LAND

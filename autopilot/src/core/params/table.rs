@@ -526,8 +526,24 @@ pub static PARAMS: &[ParamDef] = &[
         "Takeoff altitude above home when the request names none.",
         commander.takeoff_alt_m
     ),
-    real!(Commander, "MPC_TKO_SPEED", 1.0, [0.1, 5.0], "m/s", "Climb speed of the takeoff.", takeoff_speed_mps),
-    real!(Commander, "MPC_LAND_SPEED", 0.7, [0.1, 3.0], "m/s", "Descent speed when landing.", commander.land_speed_mps),
+    real!(
+        Navigator,
+        "MPC_TKO_SPEED",
+        1.0,
+        [0.1, 5.0],
+        "m/s",
+        "Climb speed of the takeoff (the jerk-limited climb's cruise).",
+        navigator.takeoff_speed_mps
+    ),
+    real!(
+        Navigator,
+        "MPC_LAND_SPEED",
+        0.7,
+        [0.1, 3.0],
+        "m/s",
+        "Descent speed of landings, down to touchdown.",
+        navigator.land_speed_mps
+    ),
     real!(
         Commander,
         "COM_DISARM_LAND",
@@ -571,7 +587,7 @@ pub static PARAMS: &[ParamDef] = &[
         1.0,
         [0.1, 5.0],
         "m/s",
-        "Vertical speed of altitude changes between items.",
+        "Largest climb speed of automatic moves (goto, missions, return).",
         navigator.climb_speed_mps
     ),
     real!(
@@ -580,8 +596,8 @@ pub static PARAMS: &[ParamDef] = &[
         1.0,
         [0.1, 10.0],
         "m/s²",
-        "Acceleration of the path's speed profile.",
-        navigator.accel_mps2
+        "Largest horizontal acceleration of automatic moves.",
+        navigator.acc_hor_mps2
     ),
     real!(
         Navigator,
@@ -595,7 +611,7 @@ pub static PARAMS: &[ParamDef] = &[
     real!(
         Navigator,
         "RTL_RETURN_ALT",
-        3.0,
+        10.0,
         [0.5, 150.0],
         "m",
         "Altitude above home to climb to before returning.",
@@ -623,4 +639,41 @@ pub static PARAMS: &[ParamDef] = &[
         description: "Rate of the stream of the controller's adaptive weights (0: off).",
         binding: Binding::StoreOnly,
     },
+    // The automatic moves' jerk-limited trajectories (appended: indices above stay as they were).
+    real!(
+        Navigator,
+        "MPC_Z_VEL_MAX_DN",
+        1.0,
+        [0.1, 5.0],
+        "m/s",
+        "Largest descent speed of automatic moves (goto, missions, return).",
+        navigator.descent_speed_mps
+    ),
+    real!(
+        Navigator,
+        "MPC_ACC_UP_MAX",
+        1.0,
+        [0.1, 10.0],
+        "m/s²",
+        "Largest upward acceleration of automatic moves and takeoffs.",
+        navigator.acc_up_mps2
+    ),
+    real!(
+        Navigator,
+        "MPC_ACC_DOWN_MAX",
+        1.0,
+        [0.1, 10.0],
+        "m/s²",
+        "Largest downward acceleration of automatic moves and landings.",
+        navigator.acc_down_mps2
+    ),
+    real!(
+        Navigator,
+        "MPC_JERK_AUTO",
+        2.0,
+        [0.2, 50.0],
+        "m/s³",
+        "Jerk limit of every automatic move.",
+        navigator.jerk_mps3
+    ),
 ];
