@@ -6,6 +6,8 @@
 
 use nalgebra::{UnitQuaternion, Vector3};
 
+use crate::core::control::frames::wrap_pi;
+
 use super::eskf::{ErrVec, Eskf, Nominal, Outcome, ProcessNoise, ScalarObs, euler_zyx_rad, idx};
 use super::history::History;
 use super::{BaroSample, EstimatorConfig, EstimatorFlags, EstimatorState, GeoOrigin, GpsSample, ImuSample, MagSample};
@@ -27,11 +29,6 @@ const MAX_BARO_VAR_M2: f64 = 1.0e6;
 /// Seconds (config) to microseconds; negative and non-finite map to 0.
 fn us(seconds: f64) -> u64 {
     if seconds > 0.0 { (seconds * 1e6).round() as u64 } else { 0 }
-}
-
-/// Wraps an angle into [-pi, pi).
-fn wrap_pi(angle_rad: f64) -> f64 {
-    (angle_rad + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
 }
 
 /// Sums of the samples seen while the vehicle is assumed still, for the initial attitude.
