@@ -310,6 +310,29 @@ mod tests {
         Eskf::new(x, &ErrVec::from_element(0.01))
     }
 
+    proptest::proptest! {
+        /// nalgebra's `euler_angles` is the same ZYX convention (`R = Rz(psi) Ry(theta) Rx(phi)`, Hamilton,
+        /// FRD -> NED) as the hand-rolled `euler_zyx_rad`: same angles on random attitudes away from the
+        /// pitch singularity, and near it (where roll and yaw are not separable) the same rotation.
+        #[test]
+        fn given_random_quaternions_when_converted_to_euler_then_nalgebra_matches_euler_zyx_rad(
+            w in -1.0f64..1.0, x in -1.0f64..1.0, y in -1.0f64..1.0, z in -1.0f64..1.0
+        ) {
+            let raw = nalgebra::Quaternion::new(w, x, y, z);
+            proptest::prop_assume!(raw.norm() > 1e-3);
+            let q = UnitQuaternion::new_normalize(raw);
+            let old = euler_zyx_rad(&q);
+            let (roll, pitch, yaw) = q.euler_angles();
+            let new = Vector3::new(roll, pitch, yaw);
+            proptest::prop_assert!((old.y - new.y).abs() < 1e-12, "pitch {old} vs {new}");
+            if old.y.cos() > 1e-4 {
+                proptest::prop_assert!((old - new).abs().max() < 1e-9, "{old} vs {new}");
+            }
+            let back = UnitQuaternion::from_euler_angles(roll, pitch, yaw);
+            proptest::prop_assert!(back.angle_to(&q) < 1e-7, "{} rad", back.angle_to(&q));
+        }
+    }
+
     #[test]
     fn given_any_covariance_when_propagated_blockwise_then_it_equals_the_dense_f_p_ft() {
         // A symmetric positive-definite P with every entry non-zero, and non-trivial blocks.
