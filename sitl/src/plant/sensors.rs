@@ -19,6 +19,7 @@
 
 use std::collections::VecDeque;
 
+use autopilot::core::control::frames::wrap_pi;
 use nalgebra::Vector3;
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
@@ -598,14 +599,6 @@ pub fn noisy_state(truth: &Truth, noise: &StateNoise, rng: &mut ChaCha8Rng) -> N
     NoisyState { time_us: truth.time_us, pos_ned_m, vel_ned_mps, euler_rad, rate_frd_radps, specific_force_frd_mps2 }
 }
 
-/// `angle_rad` wrapped to (-π, π].
-#[must_use]
-pub fn wrap_pi(angle_rad: f64) -> f64 {
-    let two_pi = std::f64::consts::TAU;
-    let wrapped = (angle_rad + std::f64::consts::PI).rem_euclid(two_pi) - std::f64::consts::PI;
-    if wrapped == -std::f64::consts::PI { std::f64::consts::PI } else { wrapped }
-}
-
 #[cfg(test)]
 mod tests {
     use super::super::{InitialState, Plant, PlantConfig};
@@ -866,12 +859,5 @@ mod tests {
         c.gps.latency_s = f64::NAN;
         assert!(c.validate().unwrap_err().to_string().contains("latency"));
         SensorConfig::default().validate().unwrap();
-    }
-
-    #[test]
-    fn given_angles_when_wrapping_then_they_land_in_minus_pi_to_pi() {
-        assert!((wrap_pi(3.0 * std::f64::consts::PI) - std::f64::consts::PI).abs() < 1e-12);
-        assert!((wrap_pi(-0.1 - std::f64::consts::TAU) + 0.1).abs() < 1e-12);
-        assert_eq!(wrap_pi(0.5), 0.5);
     }
 }

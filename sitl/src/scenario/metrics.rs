@@ -43,12 +43,9 @@ pub struct SegmentMetrics {
     pub rms: f64,
 }
 
-/// Wraps an angle to (-pi, pi].
-#[must_use]
-pub fn wrap_pi(a: f64) -> f64 {
-    let w = a.rem_euclid(std::f64::consts::TAU);
-    if w > std::f64::consts::PI { w - std::f64::consts::TAU } else { w }
-}
+/// The workspace's one angle wrap, to (-pi, pi], re-exported: metric users (the golden-trace tests) name it
+/// here.
+pub use autopilot::core::control::frames::wrap_pi;
 
 fn in_window(t: &[f64], t0: f64, t1: f64) -> std::ops::Range<usize> {
     // Sample times are tick multiples; 1e-9 s absorbs their rounding.

@@ -53,7 +53,9 @@ pub fn body_to_euler_rates(euler_rad: &Vector3<f64>) -> Matrix3<f64> {
     Matrix3::new(1.0, sp * tt, cp * tt, 0.0, cp, -sp, 0.0, sp / ct, cp / ct)
 }
 
-/// Wrap an angle to `(-pi, pi]`.
+/// Wrap an angle to `(-pi, pi]`: `-pi` (and every odd multiple of `pi`) maps to `+pi`. The one angle wrap
+/// of the workspace (estimator, plant sensors and scenario metrics use it too), so that a heading at
+/// exactly `+-pi` reads the same everywhere.
 #[must_use]
 pub fn wrap_pi(angle_rad: f64) -> f64 {
     let two_pi = 2.0 * std::f64::consts::PI;
@@ -103,5 +105,14 @@ mod tests {
         assert!((wrap_pi(PI) - PI).abs() < 1e-12);
         assert!((wrap_pi(-PI) - PI).abs() < 1e-12);
         assert!((wrap_pi(0.3) - 0.3).abs() < 1e-15);
+        assert_eq!(wrap_pi(-PI), PI, "exactly -pi maps to +pi, not to itself");
+        assert_eq!(wrap_pi(3.0 * PI), PI);
+        assert_eq!(wrap_pi(0.5), 0.5);
+        assert!((wrap_pi(-0.1 - std::f64::consts::TAU) + 0.1).abs() < 1e-12);
+        assert!(wrap_pi(f64::NAN).is_nan());
+        for k in -40..=40 {
+            let a = wrap_pi(0.37 * f64::from(k));
+            assert!(a > -PI && a <= PI, "{k}: {a}");
+        }
     }
 }

@@ -112,14 +112,6 @@ pub fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
     Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
 }
 
-/// ZYX Euler angles `(phi, theta, psi)` (rad) of `q_ned_frd`, `R = Rz(psi) Ry(theta) Rx(phi)`.
-#[must_use]
-pub fn euler_zyx_rad(q_ned_frd: &UnitQuaternion<f64>) -> Vector3<f64> {
-    let r = q_ned_frd.to_rotation_matrix();
-    let r = r.matrix();
-    Vector3::new(r[(2, 1)].atan2(r[(2, 2)]), (-r[(2, 0)]).clamp(-1.0, 1.0).asin(), r[(1, 0)].atan2(r[(0, 0)]))
-}
-
 /// `F P Fᵀ` for the transition `F = I + G` of [`Eskf::predict`], whose only non-zero blocks of `G` are
 /// `G[POS, VEL] = I dt`, `G[VEL, ATT] = b_va`, `G[VEL, ACC_BIAS] = b_r` and `G[ATT, GYRO_BIAS] = b_r`.
 /// Done block-wise (`A = P + G P`, then `A + A Gᵀ`): about 1/6 of the multiply-adds of the dense 16x16
@@ -310,6 +302,27 @@ mod tests {
         Eskf::new(x, &ErrVec::from_element(0.01))
     }
 
+    proptest::proptest! {
+        /// The Euler angles used throughout the estimator are nalgebra's `euler_angles` /
+        /// `from_euler_angles`: the spec's ZYX convention (A.2, `R = Rz(psi) Ry(theta) Rx(phi)`, Hamilton,
+        /// FRD -> NED), checked on random attitudes against the controllers' own `R(eta)`.
+        #[test]
+        fn given_random_quaternions_when_converted_to_euler_then_the_spec_zyx_rotation_comes_back(
+            w in -1.0f64..1.0, x in -1.0f64..1.0, y in -1.0f64..1.0, z in -1.0f64..1.0
+        ) {
+            let raw = nalgebra::Quaternion::new(w, x, y, z);
+            proptest::prop_assume!(raw.norm() > 1e-3);
+            let q = UnitQuaternion::new_normalize(raw);
+            let (roll, pitch, yaw) = q.euler_angles();
+            proptest::prop_assert!(pitch.abs() <= std::f64::consts::FRAC_PI_2);
+            let spec_r = crate::core::control::frames::rotation_ned_frd(&Vector3::new(roll, pitch, yaw));
+            let worst = (spec_r - q.to_rotation_matrix().into_inner()).abs().max();
+            proptest::prop_assert!(worst < 1e-7, "{worst:e}");
+            let back = UnitQuaternion::from_euler_angles(roll, pitch, yaw);
+            proptest::prop_assert!(back.angle_to(&q) < 1e-7, "{} rad", back.angle_to(&q));
+        }
+    }
+
     #[test]
     fn given_any_covariance_when_propagated_blockwise_then_it_equals_the_dense_f_p_ft() {
         // A symmetric positive-definite P with every entry non-zero, and non-trivial blocks.
@@ -349,8 +362,8 @@ mod tests {
             let force_frd = Vector3::new(psi.cos(), -psi.sin(), -GRAVITY_MPS2);
             f.predict(0.001, &rate, &force_frd, &QUIET);
         }
-        let euler = euler_zyx_rad(&f.x.q_ned_frd);
-        assert!((euler.z - 0.5).abs() < 1e-12, "yaw {}", euler.z);
+        let (_, _, yaw) = f.x.q_ned_frd.euler_angles();
+        assert!((yaw - 0.5).abs() < 1e-12, "yaw {yaw}");
         assert!((f.x.vel_ned_mps - Vector3::new(1.0, 0.0, 0.0)).norm() < 1e-6, "{}", f.x.vel_ned_mps);
         assert!((f.x.pos_ned_m - Vector3::new(0.5, 0.0, 0.0)).norm() < 1e-6, "{}", f.x.pos_ned_m);
     }
@@ -394,8 +407,8 @@ mod tests {
         let mut dx = ErrVec::zeros();
         dx[idx::ATT + 2] = 0.2;
         f.inject(&dx);
-        let euler = euler_zyx_rad(&f.x.q_ned_frd);
-        assert!((euler - Vector3::new(0.0, 0.3, 0.2)).norm() < 1e-12, "{euler}");
+        let (roll, pitch, yaw) = f.x.q_ned_frd.euler_angles();
+        assert!((Vector3::new(roll, pitch, yaw) - Vector3::new(0.0, 0.3, 0.2)).norm() < 1e-12, "{roll} {pitch} {yaw}");
     }
 
     #[test]

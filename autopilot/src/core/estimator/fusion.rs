@@ -6,7 +6,9 @@
 
 use nalgebra::{UnitQuaternion, Vector3};
 
-use super::eskf::{ErrVec, Eskf, Nominal, Outcome, ProcessNoise, ScalarObs, euler_zyx_rad, idx};
+use crate::core::control::frames::wrap_pi;
+
+use super::eskf::{ErrVec, Eskf, Nominal, Outcome, ProcessNoise, ScalarObs, idx};
 use super::history::History;
 use super::{BaroSample, EstimatorConfig, EstimatorFlags, EstimatorState, GeoOrigin, GpsSample, ImuSample, MagSample};
 
@@ -27,11 +29,6 @@ const MAX_BARO_VAR_M2: f64 = 1.0e6;
 /// Seconds (config) to microseconds; negative and non-finite map to 0.
 fn us(seconds: f64) -> u64 {
     if seconds > 0.0 { (seconds * 1e6).round() as u64 } else { 0 }
-}
-
-/// Wraps an angle into [-pi, pi).
-fn wrap_pi(angle_rad: f64) -> f64 {
-    (angle_rad + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
 }
 
 /// Sums of the samples seen while the vehicle is assumed still, for the initial attitude.
@@ -327,8 +324,8 @@ impl Fusion {
     /// Heading (rad) of the tilt-compensated field plus the declination; `None` when the field is
     /// nearly vertical in the level frame.
     fn mag_heading_rad(&self, q_ned_frd: &UnitQuaternion<f64>, field_frd_gauss: &Vector3<f64>) -> Option<f64> {
-        let euler = euler_zyx_rad(q_ned_frd);
-        let level = UnitQuaternion::from_euler_angles(euler.x, euler.y, 0.0) * field_frd_gauss;
+        let (roll_rad, pitch_rad, _) = q_ned_frd.euler_angles();
+        let level = UnitQuaternion::from_euler_angles(roll_rad, pitch_rad, 0.0) * field_frd_gauss;
         let horizontal = level.x.hypot(level.y);
         (horizontal >= MIN_HORIZONTAL_FIELD_FRACTION * level.norm())
             .then(|| wrap_pi(self.config.mag_declination_deg.to_radians() - level.y.atan2(level.x)))
@@ -356,7 +353,7 @@ impl Fusion {
             self.refresh();
             return;
         };
-        let residual_rad = wrap_pi(heading_rad - euler_zyx_rad(&q_ned_frd).z);
+        let residual_rad = wrap_pi(heading_rad - q_ned_frd.euler_angles().2);
         if !self.yaw_aligned {
             self.reset_yaw(residual_rad, &mag.field_frd_gauss);
             self.refresh();
@@ -587,12 +584,13 @@ impl Fusion {
             self.last_imu.map_or((Vector3::zeros(), Vector3::zeros()), |imu| {
                 (imu.gyro_frd_radps - x.gyro_bias_frd_radps, imu.accel_frd_mps2 - x.accel_bias_frd_mps2)
             });
+        let (roll_rad, pitch_rad, yaw_rad) = x.q_ned_frd.euler_angles();
         self.state = EstimatorState {
             time_us: now,
             pos_ned_m: x.pos_ned_m,
             vel_ned_mps: x.vel_ned_mps,
             q_ned_frd: x.q_ned_frd,
-            euler_rad: euler_zyx_rad(&x.q_ned_frd),
+            euler_rad: Vector3::new(roll_rad, pitch_rad, yaw_rad),
             rate_frd_radps,
             specific_force_frd_mps2,
             accel_bias_frd_mps2: x.accel_bias_frd_mps2,
@@ -627,7 +625,7 @@ mod tests {
         let dtheta = Vector3::new(0.004, -0.006, 0.005);
         let q_est = UnitQuaternion::from_scaled_axis(-dtheta) * q_true;
         let heading = fusion.mag_heading_rad(&q_est, &field_frd).unwrap();
-        let residual = wrap_pi(heading - euler_zyx_rad(&q_est).z);
+        let residual = wrap_pi(heading - q_est.euler_angles().2);
         let h = Vector3::new(-incl.tan() * decl.cos(), -incl.tan() * decl.sin(), 1.0);
         assert!((residual - h.dot(&dtheta)).abs() < 1e-4, "residual {residual} vs h.dtheta {}", h.dot(&dtheta));
         // Ignoring the leak of the tilt error into the heading would be wrong by about twice the tilt error.

@@ -550,12 +550,13 @@ impl Estimator {
             self.rejected += 1;
             return;
         }
+        let (roll_rad, pitch_rad, yaw_rad) = truth.q_ned_frd.euler_angles();
         self.truth_state = EstimatorState {
             time_us: truth.time_us,
             pos_ned_m: truth.pos_ned_m,
             vel_ned_mps: truth.vel_ned_mps,
             q_ned_frd: truth.q_ned_frd,
-            euler_rad: eskf::euler_zyx_rad(&truth.q_ned_frd),
+            euler_rad: Vector3::new(roll_rad, pitch_rad, yaw_rad),
             rate_frd_radps: truth.rate_frd_radps,
             specific_force_frd_mps2: truth.specific_force_frd_mps2,
             accel_bias_frd_mps2: Vector3::zeros(),

@@ -18,7 +18,6 @@ use nalgebra::{Quaternion, Rotation3, UnitQuaternion, Vector3};
 
 use super::addressed_to_us;
 use crate::core::estimator::GeoOrigin;
-use crate::core::estimator::eskf::euler_zyx_rad;
 use crate::core::hil::dege7_to_deg;
 use crate::core::navigator::OffboardSetpoint;
 
@@ -113,7 +112,8 @@ pub fn decode(sysid: u8, msg: &MavMessage, ctx: &OffboardContext) -> Option<Resu
             if !(q.norm() > 0.5 && q.coords.iter().all(|c| c.is_finite())) {
                 return Some(Err("Offboard: invalid attitude quaternion".into()));
             }
-            let euler = euler_zyx_rad(&UnitQuaternion::new_normalize(q));
+            let (roll_rad, pitch_rad, yaw_rad) = UnitQuaternion::new_normalize(q).euler_angles();
+            let euler = Vector3::new(roll_rad, pitch_rad, yaw_rad);
             let thrust_frac = if m.type_mask.contains(AttitudeTargetTypemask::ATTITUDE_TARGET_TYPEMASK_THROTTLE_IGNORE)
             {
                 None

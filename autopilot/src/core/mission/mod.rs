@@ -16,8 +16,9 @@
 //!   and land may leave latitude and longitude unset ([`XY_UNSET`]: "here").
 //! - Parameters: loiter time (param1, s) and delay (param1, s) finite and >= 0 (the time-of-day form of
 //!   NAV_DELAY, param1 = -1, is refused: the vehicle has no calendar clock); DO_JUMP param1 a whole item
-//!   number in the mission other than the jump itself, param2 a whole repeat count >= 0; DO_CHANGE_SPEED
-//!   param2 (m/s) finite and >= 0, or -1 for "no change".
+//!   number in the mission other than the jump itself, param2 a whole repeat count >= 0 or -1 for "repeat
+//!   forever" (as ArduPilot takes it, and as the navigator flies it); DO_CHANGE_SPEED param2 (m/s) finite
+//!   and >= 0, or -1 for "no change".
 //!
 //! MAVLink's "not given" for an integer x/y is INT32_MAX ([`XY_UNSET`]); the float forms (legacy
 //! MISSION_ITEM, WPL text) carry it as NaN. In the MISSION frame x and y are param5 and param6 as whole
@@ -378,7 +379,7 @@ pub fn validate_item(item: &MissionItem, count: usize) -> Result<(), MissionErro
                 Err(MissionError::JumpTarget { seq, target, count })
             } else if target == f32::from(seq) {
                 invalid(1, "jump to itself")
-            } else if !whole(item.param2) || item.param2 < 0.0 {
+            } else if !whole(item.param2) || item.param2 < -1.0 {
                 invalid(2, "jump repeat count invalid")
             } else {
                 Ok(())
@@ -539,6 +540,25 @@ mod tests {
     }
 
     #[test]
+    fn given_a_jump_repeated_forever_when_validated_then_accepted_as_the_navigator_flies_it() {
+        // -1 is "forever" at upload as in the navigator (DO_JUMP repeat -1); 0 (no repeat) stays valid.
+        for repeat in [-1.0, 0.0, 3.0] {
+            let items = vec![waypoint(0, LAT_DEGE7, LON_DEGE7, 10.0), do_item(1, MavCmd::MAV_CMD_DO_JUMP, 0.0, repeat)];
+            assert_eq!(Mission::new(items).map(|m| m.len()), Ok(2), "repeat {repeat}");
+        }
+        // The uploaded -1 reaches the navigator as its "forever".
+        let items = vec![waypoint(0, LAT_DEGE7, LON_DEGE7, 10.0), do_item(1, MavCmd::MAV_CMD_DO_JUMP, 0.0, -1.0)];
+        let nav = crate::core::navigator::nav_items(&Mission::new(items).expect("accepted"));
+        assert!(
+            matches!(
+                nav.last().map(|n| &n.command),
+                Some(crate::core::navigator::NavCommand::Jump { target: 0, repeat: -1 })
+            ),
+            "{nav:?}"
+        );
+    }
+
+    #[test]
     fn given_bad_items_when_validated_then_each_refused_with_its_result_and_a_short_reason() {
         use MavMissionResult as R;
         let cases = [
@@ -559,7 +579,10 @@ mod tests {
             (do_item(0, MavCmd::MAV_CMD_DO_JUMP, 3.0, 1.0), R::MAV_MISSION_INVALID_PARAM1),
             (do_item(0, MavCmd::MAV_CMD_DO_JUMP, 0.0, 1.0), R::MAV_MISSION_INVALID_PARAM1),
             (do_item(1, MavCmd::MAV_CMD_DO_JUMP, 0.5, 1.0), R::MAV_MISSION_INVALID_PARAM1),
-            (do_item(1, MavCmd::MAV_CMD_DO_JUMP, 0.0, -1.0), R::MAV_MISSION_INVALID_PARAM2),
+            (do_item(1, MavCmd::MAV_CMD_DO_JUMP, 0.0, -2.0), R::MAV_MISSION_INVALID_PARAM2),
+            (do_item(1, MavCmd::MAV_CMD_DO_JUMP, 0.0, 1.5), R::MAV_MISSION_INVALID_PARAM2),
+            (do_item(1, MavCmd::MAV_CMD_DO_JUMP, 0.0, -0.5), R::MAV_MISSION_INVALID_PARAM2),
+            (do_item(1, MavCmd::MAV_CMD_DO_JUMP, 0.0, f32::NAN), R::MAV_MISSION_INVALID_PARAM2),
             (do_item(0, MavCmd::MAV_CMD_NAV_DELAY, -1.0, 0.0), R::MAV_MISSION_INVALID_PARAM1),
             (do_item(0, MavCmd::MAV_CMD_DO_CHANGE_SPEED, 1.0, f32::NAN), R::MAV_MISSION_INVALID_PARAM2),
         ];
