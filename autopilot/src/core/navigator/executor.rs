@@ -53,7 +53,7 @@ enum Phase {
     /// Descending to land (NAV_LAND).
     Descend { leg: Box<Leg>, item: Option<u16> },
     /// Returning to launch (NAV_RETURN_TO_LAUNCH): reached once landed at home.
-    Return { rtl: Option<rtl::Rtl>, item: u16 },
+    Return { rtl: Option<Box<rtl::Rtl>>, item: u16 },
     /// The mission flew its last item.
     Done,
     /// The mission ended on the ground: it stays landing (the commander disarms after touchdown).
@@ -481,7 +481,9 @@ impl Executor {
             }
             Phase::Return { rtl, item } => {
                 let item = *item;
-                let m = rtl::step(rtl, p, input);
+                let mut state = rtl.take().map(|b| *b);
+                let m = rtl::step(&mut state, p, input);
+                *rtl = state.map(Box::new);
                 if p.status.landing && input.landed {
                     self.landed_at_end(p, Some(item));
                 }

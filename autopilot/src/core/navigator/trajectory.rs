@@ -199,7 +199,7 @@ impl Profile {
     /// The quickest jerk-limited stop from `start` (to rest wherever that is).
     #[must_use]
     pub fn stop(start: Motion1, limits: Limits) -> Self {
-        if !limits.valid() || !(start.pos_m.is_finite() && start.vel_mps.is_finite() && start.acc_mps2.is_finite()) {
+        if !(limits.valid() && start.pos_m.is_finite() && start.vel_mps.is_finite() && start.acc_mps2.is_finite()) {
             return Self::at_rest(if start.pos_m.is_finite() { start.pos_m } else { 0.0 });
         }
         let pieces = velocity_change(start.vel_mps, start.acc_mps2, 0.0, limits.acc_mps2, limits.jerk_mps3);
