@@ -593,7 +593,7 @@ pub static PARAMS: &[ParamDef] = &[
     real!(
         Navigator,
         "MPC_ACC_HOR",
-        1.0,
+        0.5,
         [0.1, 10.0],
         "m/s²",
         "Largest horizontal acceleration of automatic moves.",
@@ -670,7 +670,7 @@ pub static PARAMS: &[ParamDef] = &[
     real!(
         Navigator,
         "MPC_JERK_AUTO",
-        2.0,
+        1.0,
         [0.2, 50.0],
         "m/s³",
         "Jerk limit of every automatic move.",
