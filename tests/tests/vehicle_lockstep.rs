@@ -26,6 +26,8 @@ fn fly(source: EstimatorSource) -> Flight {
     let converge_s = rig.wait_until(30.0, "estimator convergence", |r| r.vehicle.estimate().flags.converged);
     rig.run_s(0.5, |_| {});
     let ground_d_m = rig.vehicle.estimate().pos_ned_m.z;
+    // The commanded point on the truth: where the vehicle stands when it arms, 1.5 m up.
+    let truth_hover = rig.plant.truth().pos_ned_m - nalgebra::Vector3::new(0.0, 0.0, 1.5);
 
     // WHEN the ground station sends NAV_TAKEOFF 1.5 m (NaN lat/lon, a relative altitude) and arms.
     let nan = f32::NAN;
@@ -48,10 +50,8 @@ fn fly(source: EstimatorSource) -> Flight {
     rig.run_s(3.0, |_| {});
     let mut hover = rig.vehicle.estimate().pos_ned_m;
     hover.z = target_d_m;
-    let mut truth_hover = rig.plant.truth().pos_ned_m;
-    truth_hover.z = target_d_m;
     let (mut est_err, mut truth_err) = (0.0_f64, 0.0_f64);
-    // AND holds within 0.10 m (estimated) of the hover point for 20 s.
+    // AND holds, for 20 s, within 0.10 m of its own estimate of the point and near home + 1.5 m on the truth.
     rig.run_s(20.0, |r| {
         est_err = est_err.max((r.vehicle.estimate().pos_ned_m - hover).norm());
         truth_err = truth_err.max((r.plant.truth().pos_ned_m - truth_hover).norm());
@@ -78,7 +78,8 @@ fn given_fused_estimator_when_gcs_takes_off_holds_and_lands_then_hover_within_10
     let wall = WallClock::now();
     let f = fly(EstimatorSource::Fused);
     println!("fused flight: {f:?}, wall {:.2} s", wall.elapsed().as_secs_f64());
-    assert!(f.hover_truth_err_m < 0.5, "truth error {f:?}");
+    // GPS and baro noise set this: the estimate wanders a few centimetres about the truth.
+    assert!(f.hover_truth_err_m <= 0.08, "truth error {f:?}");
 }
 
 #[test]
@@ -86,5 +87,5 @@ fn given_truth_estimator_when_gcs_takes_off_holds_and_lands_then_hover_within_10
     let wall = WallClock::now();
     let f = fly(EstimatorSource::Truth);
     println!("truth flight: {f:?}, wall {:.2} s", wall.elapsed().as_secs_f64());
-    assert!(f.hover_truth_err_m <= 0.10, "truth error {f:?}");
+    assert!(f.hover_truth_err_m <= 0.05, "truth error {f:?}");
 }
