@@ -23,7 +23,9 @@ use super::distributor::{
 use super::filters::LowPass2Vec3;
 use super::frames::{body_z_in_ned, euler_rates_to_body, rotation_ned_frd, wrap_pi};
 use super::lms::{LmsBounds, LmsChannel};
-use super::{Airframe, ControlInput, Controller, ControllerKind, LoopRates, Reference, clip_abs, inputs_finite};
+use super::{
+    Airframe, ControlInput, Controller, ControllerKind, LoopRates, Reference, clip_abs, inputs_finite, tilt_lead_mps2,
+};
 
 /// ACO constants, gains, adaptation rates and bounds (spec A.1, A.3, A.4). Default = the spec's values.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -358,7 +360,9 @@ impl AcoController {
         let e_p_eff = if c.pos_integral_enabled { e_p + c.ki_pos_per_s * self.pos_integral_m_s } else { e_p };
         let v_lim = [c.vel_limit_ne_mps, c.vel_limit_ne_mps, c.vel_limit_d_mps];
         let v_c = clip_abs(&(c.kp_pos_per_s * e_p_eff + reference.vel_ned_mps), &v_lim);
-        let mut a_d = c.kv_vel_per_s * (v_c - input.vel_ned_mps) + reference.acc_ned_mps2;
+        let mut a_d = c.kv_vel_per_s * (v_c - input.vel_ned_mps)
+            + reference.acc_ned_mps2
+            + tilt_lead_mps2(&reference.jerk_ned_mps3, &c.k_att_per_s);
         let a_ne = a_d.x.hypot(a_d.y);
         if a_ne > c.acc_limit_ne_mps2 {
             let s = c.acc_limit_ne_mps2 / a_ne;

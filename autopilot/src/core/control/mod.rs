@@ -50,6 +50,10 @@ pub struct Reference {
     pub vel_ned_mps: Vector3<f64>,
     /// Acceleration feed-forward (zero when the reference is position-only).
     pub acc_ned_mps2: Vector3<f64>,
+    /// Jerk of the reference (zero when it has none). The cascades that realise a horizontal acceleration
+    /// by tilting (ACO, PID) lead their demand by it over the attitude loop's time constant 1/Kη, so a
+    /// jerk-limited trajectory is not followed a tilt-lag behind.
+    pub jerk_ned_mps3: Vector3<f64>,
     pub yaw_rad: f64,
     /// Attitude-only mode (the paper's Fig. 5): when set, the N and E loops are off, this (phi, theta,
     /// psi) is the attitude setpoint, and only the D loop runs, holding `pos_ned_m.z`.
@@ -67,6 +71,7 @@ impl Reference {
             pos_ned_m,
             vel_ned_mps: Vector3::zeros(),
             acc_ned_mps2: Vector3::zeros(),
+            jerk_ned_mps3: Vector3::zeros(),
             yaw_rad,
             attitude_rad: None,
             collective_frac: None,
@@ -80,11 +85,25 @@ impl Reference {
             pos_ned_m: Vector3::new(0.0, 0.0, pos_d_m),
             vel_ned_mps: Vector3::zeros(),
             acc_ned_mps2: Vector3::zeros(),
+            jerk_ned_mps3: Vector3::zeros(),
             yaw_rad: euler_rad.z,
             attitude_rad: Some(euler_rad),
             collective_frac: None,
         }
     }
+}
+
+/// The horizontal acceleration that leads a jerk feed-forward over an attitude loop of roll and pitch
+/// gains `k_att_per_s` (1/s): `jerk / Kη` on N and E, zero on D (the collective acts at once). A cascade
+/// realises a demanded horizontal acceleration by tilting, a first-order lag of time constant 1/Kη; adding
+/// this lead makes the realised acceleration follow the reference's instead of lagging it.
+#[must_use]
+pub fn tilt_lead_mps2(jerk_ned_mps3: &Vector3<f64>, k_att_per_s: &[f64; 3]) -> Vector3<f64> {
+    let k_tilt = 0.5 * (k_att_per_s[0] + k_att_per_s[1]);
+    if !(k_tilt.is_finite() && k_tilt > 0.0 && jerk_ned_mps3.iter().all(|j| j.is_finite())) {
+        return Vector3::zeros();
+    }
+    Vector3::new(jerk_ned_mps3.x / k_tilt, jerk_ned_mps3.y / k_tilt, 0.0)
 }
 
 /// Loop rates. The inner loops (rate, attitude, LMS) run at `inner_hz`; the position loop at

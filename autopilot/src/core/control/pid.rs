@@ -20,7 +20,9 @@ use super::distributor::{
     limit_thrust_vector,
 };
 use super::frames::quaternion_from_euler;
-use super::{Airframe, ControlInput, Controller, ControllerKind, LoopRates, Reference, clip_abs, inputs_finite};
+use super::{
+    Airframe, ControlInput, Controller, ControllerKind, LoopRates, Reference, clip_abs, inputs_finite, tilt_lead_mps2,
+};
 
 /// PID baseline gains and limits (spec (c)). Default = the spec's values.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -162,7 +164,10 @@ impl PidController {
             self.vel_integral_mps2.x = 0.0;
             self.vel_integral_mps2.y = 0.0;
         }
-        let mut a = c.kv_vel_per_s * e_v + self.vel_integral_mps2 + reference.acc_ned_mps2;
+        let mut a = c.kv_vel_per_s * e_v
+            + self.vel_integral_mps2
+            + reference.acc_ned_mps2
+            + tilt_lead_mps2(&reference.jerk_ned_mps3, &c.k_att_per_s);
         if attitude_only {
             a.x = 0.0;
             a.y = 0.0;
