@@ -45,7 +45,7 @@ enum Phase {
     Start,
     /// Climbing (NAV_TAKEOFF, or the implicit climb of a mission started on the ground); then `item`
     /// is reached (None: the item at `current` starts).
-    Climb { leg: Box<Leg>, item: Option<u16> },
+    Climb { leg: Box<Leg>, climb: Climb, item: Option<u16> },
     /// Flying a leg; on arrival at its end the item `end_item` starts holding `hold_s` (then the next item).
     Fly { leg: Box<Leg>, end_item: u16, hold_s: f64, accept_m: f64, then: After },
     /// Holding a point until `until_us` (None: forever).
@@ -82,6 +82,8 @@ pub(crate) struct Executor {
     /// Remaining repeats of each DO_JUMP (by seq), set on first use.
     jumps: BTreeMap<u16, i32>,
     last_current: Option<u16>,
+    /// The stop flown while the mission has nothing to fly (done).
+    stop: Option<Box<Leg>>,
 }
 
 impl Executor {
@@ -95,6 +97,7 @@ impl Executor {
         self.phase = Phase::Start;
         self.jumps.clear();
         self.last_current = None;
+        self.stop = None;
     }
 
     pub fn len(&self) -> usize {
@@ -111,6 +114,7 @@ impl Executor {
         if !matches!(self.phase, Phase::Done | Phase::Landed { .. }) {
             self.phase = Phase::Start;
         }
+        self.stop = None;
     }
 
     #[cfg(test)]
@@ -147,6 +151,7 @@ impl Executor {
     fn advance_item(&mut self) {
         self.current += 1;
         self.phase = Phase::Start;
+        self.stop = None;
     }
 
     fn finish(&mut self, p: &mut Planner, input: &NavInput) -> Motion3 {
@@ -159,8 +164,8 @@ impl Executor {
 
     /// Holding the reference where it is (at rest) or stopping it there.
     fn hold_here(&mut self, p: &mut Planner, input: &NavInput) -> Motion3 {
-        let mut leg = p.stop(input);
-        p.fly(&mut leg, input.now_us)
+        let leg = self.stop.get_or_insert_with(|| Box::new(p.stop(input)));
+        p.fly(leg, input)
     }
 
     /// One step of the mission (see the module docs).
@@ -200,8 +205,8 @@ impl Executor {
                 };
                 let alt = if alt_rel_m.is_finite() && alt_rel_m > 0.0 { alt_rel_m } else { input.takeoff_alt_m };
                 let to = Vector3::new(here.x, here.y, ground - alt);
-                let leg = p.line(input, to, Climb::Takeoff, None);
-                self.phase = Phase::Climb { leg: Box::new(leg), item: Some(item.seq) };
+                let (leg, climb) = p.takeoff(input, to);
+                self.phase = Phase::Climb { leg: Box::new(leg), climb, item: Some(item.seq) };
             }
             NavCommand::ChangeSpeed { speed_mps } => {
                 p.speed_mps = speed_mps.filter(|s| s.is_finite() && *s > 0.0);
@@ -238,8 +243,8 @@ impl Executor {
                     return false;
                 };
                 if let Some(climb_to) = climb_first(to) {
-                    let leg = p.line(input, climb_to, Climb::Takeoff, None);
-                    self.phase = Phase::Climb { leg: Box::new(leg), item: None };
+                    let (leg, climb) = p.takeoff(input, climb_to);
+                    self.phase = Phase::Climb { leg: Box::new(leg), climb, item: None };
                     return true;
                 }
                 let Some(phase) = self.plan_flight(p, input, here) else {
@@ -400,13 +405,14 @@ impl Executor {
             Phase::Start | Phase::Done => self.hold_here(p, input),
             Phase::Landed { leg } => {
                 p.status.landing = true;
-                p.fly(leg, now)
+                p.fly(leg, input)
             }
-            Phase::Climb { leg, item } => {
+            Phase::Climb { leg, climb, item } => {
                 let item = *item;
-                let m = p.fly(leg, now);
+                p.liftoff(input, leg, climb);
+                let m = p.fly(leg, input);
                 let to = leg.end();
-                if leg.at_end(now) && (input.pos_ned_m.z - to.z).abs() <= input.takeoff_acceptance_m && !input.landed {
+                if leg.at_end() && (input.pos_ned_m.z - to.z).abs() <= input.takeoff_acceptance_m && !input.landed {
                     match item {
                         Some(seq) => {
                             p.events.push(NavEvent::Reached(seq));
@@ -418,11 +424,11 @@ impl Executor {
                 m
             }
             Phase::Fly { leg, end_item, hold_s, accept_m, then } => {
-                let m = p.fly(leg, now);
-                let passed = leg.newly_passed(now);
+                let m = p.fly(leg, input);
+                let passed = leg.newly_passed();
                 let (end_item, hold_s, accept_m, then) = (*end_item, *hold_s, *accept_m, *then);
                 let end = leg.end();
-                let arrived = leg.at_end(now) && (input.pos_ned_m - end).norm() <= accept_m;
+                let arrived = leg.at_end() && (input.pos_ned_m - end).norm() <= accept_m;
                 for seq in passed {
                     p.events.push(NavEvent::Reached(seq));
                     let Some(i) = self.items.iter().position(|i| i.seq == seq) else { continue };
@@ -473,7 +479,7 @@ impl Executor {
             Phase::Descend { leg, item } => {
                 let item = *item;
                 p.status.landing = true;
-                let m = p.fly(leg, now);
+                let m = p.fly(leg, input);
                 if input.landed {
                     self.landed_at_end(p, item);
                 }

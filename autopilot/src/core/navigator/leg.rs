@@ -15,19 +15,25 @@ use nalgebra::Vector3;
 use super::spline::SplinePath;
 use super::trajectory::{Limits, Motion1, Profile};
 
-/// A motion of the reference in NED (m, m/s, m/s²).
+/// A motion of the reference in NED (m, m/s, m/s², m/s³).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Motion3 {
     pub pos_ned_m: Vector3<f64>,
     pub vel_ned_mps: Vector3<f64>,
     pub acc_ned_mps2: Vector3<f64>,
+    pub jerk_ned_mps3: Vector3<f64>,
 }
 
 impl Motion3 {
     /// At rest at `pos_ned_m`.
     #[must_use]
     pub fn rest(pos_ned_m: Vector3<f64>) -> Self {
-        Self { pos_ned_m, vel_ned_mps: Vector3::zeros(), acc_ned_mps2: Vector3::zeros() }
+        Self {
+            pos_ned_m,
+            vel_ned_mps: Vector3::zeros(),
+            acc_ned_mps2: Vector3::zeros(),
+            jerk_ned_mps3: Vector3::zeros(),
+        }
     }
 
     fn finite(&self) -> bool {
@@ -39,6 +45,12 @@ impl Motion3 {
 const REST_MPS: f64 = 1e-3;
 /// A start moving across the leg faster than this brakes first (m/s).
 const CROSS_MPS: f64 = 0.02;
+/// A vehicle lagging its reference along the path by more than this slows the reference (m).
+const LAG_FREE_M: f64 = 0.05;
+/// ... and stops it at this lag (m).
+const LAG_STOP_M: f64 = 0.30;
+/// The step of the jerk's central difference (s).
+const JERK_STEP_S: f64 = 1e-3;
 /// Legs shorter than this are no move (m).
 pub const MIN_LEG_M: f64 = 1e-3;
 
@@ -120,6 +132,12 @@ pub struct Leg {
     /// When the path's progress profile starts (µs).
     t0_us: u64,
     profile: Profile,
+    /// The profile's own time (s): vehicle time since `t0_us`, slowed while the vehicle lags.
+    clock_s: f64,
+    /// The vehicle time the clock was last advanced to (µs).
+    last_us: Option<u64>,
+    /// The clock's rate (1: vehicle time; less while the vehicle lags the reference along the path).
+    rate: f64,
     pub yaw_rad: f64,
     /// (arc length, item seq) of each point on the leg after its start, in order; the last is its end.
     knots: Vec<(f64, u16)>,
@@ -195,6 +213,9 @@ impl Leg {
             limits,
             brake,
             t0_us,
+            clock_s: 0.0,
+            last_us: None,
+            rate: 1.0,
             yaw_rad,
             knots,
             passed: 0,
@@ -211,41 +232,65 @@ impl Leg {
         self
     }
 
-    /// Progress along the path at `now_us`.
-    fn progress(&self, now_us: u64) -> Motion1 {
-        let t_s = now_us.saturating_sub(self.t0_us) as f64 * 1e-6;
-        if now_us < self.t0_us {
-            return Motion1::rest(0.0);
-        }
-        self.profile.eval(t_s)
+    /// Progress along the path at the leg's clock.
+    fn progress(&self) -> Motion1 {
+        self.profile.eval(self.clock_s)
     }
 
-    /// The reference at `now_us` (adding laps as they come due).
-    pub fn motion(&mut self, now_us: u64) -> Motion3 {
+    /// The reference at `now_us` (adding laps as they come due), and the clock's rate for the next step
+    /// from where the vehicle is (`vehicle_ned_m`): ArduPilot's track scaling. A vehicle that lags its
+    /// reference along the path by more than `LAG_FREE_M` slows the reference's clock, down to a stop at
+    /// `LAG_STOP_M`, so it is never asked to catch up a lag at more than the speed limit (an airframe
+    /// heavier than the controller's model, a headwind). Landings are not slowed (the ground stops the
+    /// vehicle, not a lag).
+    pub fn motion(&mut self, now_us: u64, vehicle_ned_m: Vector3<f64>) -> Motion3 {
         if let Some(brake) = &self.brake
             && now_us < self.t0_us
         {
-            let t_s = (brake.profile.duration_s() - (self.t0_us - now_us) as f64 * 1e-6).max(0.0);
-            let m = brake.profile.eval(t_s);
-            return Motion3 {
-                pos_ned_m: brake.from + brake.dir * m.pos_m,
-                vel_ned_mps: brake.dir * m.vel_mps,
-                acc_ned_mps2: brake.dir * m.acc_mps2,
+            let at = |t_s: f64| {
+                let m = brake.profile.eval(t_s);
+                (brake.from + brake.dir * m.pos_m, brake.dir * m.vel_mps, brake.dir * m.acc_mps2)
             };
+            let t_s = (brake.profile.duration_s() - (self.t0_us - now_us) as f64 * 1e-6).max(0.0);
+            let (p, v, a) = at(t_s);
+            let jerk = (at(t_s + JERK_STEP_S / 2.0).2 - at((t_s - JERK_STEP_S / 2.0).max(0.0)).2) / JERK_STEP_S;
+            return Motion3 { pos_ned_m: p, vel_ned_mps: v, acc_ned_mps2: a, jerk_ned_mps3: jerk };
         }
-        self.extend_laps(now_us);
-        let m = self.progress(now_us);
+        let dt_us = match self.last_us {
+            Some(last) if last >= self.t0_us => now_us.saturating_sub(last),
+            _ => now_us.saturating_sub(self.t0_us),
+        };
+        self.last_us = Some(now_us);
+        self.clock_s += dt_us as f64 * 1e-6 * self.rate;
+        self.extend_laps();
+        let c = self.clock_s;
+        let (p, v, a) = self.at_clock(c);
+        // The jerk by a central difference over 1 ms (exact inside a constant-jerk segment).
+        let jerk =
+            (self.at_clock(c + JERK_STEP_S / 2.0).2 - self.at_clock((c - JERK_STEP_S / 2.0).max(0.0)).2) / JERK_STEP_S;
+        let r = self.rate;
+        let m = Motion3 { pos_ned_m: p, vel_ned_mps: v * r, acc_ned_mps2: a * r * r, jerk_ned_mps3: jerk * r * r * r };
+        let (_, tangent, _) = self.path.eval(self.progress().pos_m);
+        let lag_m = if tangent.norm() > 0.5 && self.floor_d_m.is_none() {
+            (p - vehicle_ned_m).dot(&tangent.normalize())
+        } else {
+            0.0
+        };
+        self.rate =
+            if lag_m.is_finite() { ((LAG_STOP_M - lag_m) / (LAG_STOP_M - LAG_FREE_M)).clamp(0.0, 1.0) } else { 1.0 };
+        m
+    }
+
+    /// Position, velocity and acceleration at the leg's clock `clock_s` (laps as added so far).
+    fn at_clock(&self, clock_s: f64) -> (Vector3<f64>, Vector3<f64>, Vector3<f64>) {
+        let m = self.profile.eval(clock_s);
         let (p, dp, d2p) = self.path.eval(m.pos_m);
         if let Some(floor) = self.floor_d_m
             && p.z >= floor
         {
-            return Motion3::rest(Vector3::new(p.x, p.y, floor));
+            return (Vector3::new(p.x, p.y, floor), Vector3::zeros(), Vector3::zeros());
         }
-        Motion3 {
-            pos_ned_m: p,
-            vel_ned_mps: dp * m.vel_mps,
-            acc_ned_mps2: d2p * m.vel_mps * m.vel_mps + dp * m.acc_mps2,
-        }
+        (p, dp * m.vel_mps, d2p * m.vel_mps * m.vel_mps + dp * m.acc_mps2)
     }
 
     /// Fly this leg `repeat` more times (-1: forever) through the DO_JUMP `jump_seq` at its end, without
@@ -266,8 +311,8 @@ impl Leg {
 
     /// Adds a lap once the reference is within a lap of the end, replanning the progress from its motion
     /// (which then runs on through the seam).
-    fn extend_laps(&mut self, now_us: u64) {
-        let now = self.progress(now_us);
+    fn extend_laps(&mut self) {
+        let now = self.progress();
         let Some(laps) = &mut self.laps else { return };
         if laps.left == Some(0) || self.length_m - now.pos_m >= laps.lap_m {
             return;
@@ -281,7 +326,7 @@ impl Leg {
         self.knots.extend(laps.knots.iter().map(|&(s, seq)| (base + s, seq)));
         self.length_m += laps.lap_m;
         self.profile = Profile::plan(now, self.length_m, self.limits);
-        self.t0_us = now_us;
+        self.clock_s = 0.0;
     }
 
     /// The leg's end point.
@@ -292,16 +337,14 @@ impl Leg {
 
     /// The reference has arrived at the end, at rest.
     #[must_use]
-    pub fn at_end(&self, now_us: u64) -> bool {
+    pub fn at_end(&self) -> bool {
         let laps_left = self.laps.as_ref().is_some_and(|l| l.left != Some(0));
-        !laps_left
-            && now_us >= self.t0_us
-            && now_us.saturating_sub(self.t0_us) as f64 * 1e-6 >= self.profile.duration_s()
+        !laps_left && self.last_us.is_some() && self.clock_s >= self.profile.duration_s()
     }
 
     /// Knots the reference has passed since the last call (all but the end, which needs arrival).
-    pub fn newly_passed(&mut self, now_us: u64) -> Vec<u16> {
-        let s = if now_us < self.t0_us { 0.0 } else { self.progress(now_us).pos_m };
+    pub fn newly_passed(&mut self) -> Vec<u16> {
+        let s = if self.last_us.is_some() { self.progress().pos_m } else { 0.0 };
         let mut out = Vec::new();
         while self.passed + 1 < self.knots.len() && s >= self.knots[self.passed].0 {
             out.push(self.knots[self.passed].1);

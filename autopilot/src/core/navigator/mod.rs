@@ -225,9 +225,18 @@ pub(crate) enum Climb {
     Move,
     /// A takeoff: MPC_TKO_SPEED up.
     Takeoff,
+    /// A takeoff still on the ground: a quarter of MPC_TKO_SPEED up, until the vehicle lifts off.
+    Liftoff,
     /// A landing: MPC_LAND_SPEED down.
     Land,
 }
+
+/// A takeoff from the ground creeps up at this fraction of `MPC_TKO_SPEED` until the vehicle lifts off
+/// (PX4 ramps its takeoff the same way): an airframe heavier or weaker than the controller's model then
+/// lifts off a few centimetres behind its reference instead of lagging it by a metre and catching up.
+const LIFTOFF_SPEED_FRAC: f64 = 0.25;
+/// The vehicle has lifted off once this high above the ground (m).
+const LIFTOFF_M: f64 = 0.05;
 
 /// What every part of the navigator shares: the parameters, the speed override, the held yaw, the
 /// reference's last motion, and the status and events for the commander and the ground station.
@@ -261,6 +270,9 @@ impl Planner {
         let (v_up, v_down, a_up, a_down) = match climb {
             Climb::Move => (c.climb_speed_mps, c.descent_speed_mps, c.acc_up_mps2, c.acc_down_mps2),
             Climb::Takeoff => (c.takeoff_speed_mps, c.descent_speed_mps, c.acc_up_mps2, c.acc_down_mps2),
+            Climb::Liftoff => {
+                (c.takeoff_speed_mps * LIFTOFF_SPEED_FRAC, c.descent_speed_mps, c.acc_up_mps2, c.acc_down_mps2)
+            }
             Climb::Land => (c.climb_speed_mps, c.land_speed_mps, c.acc_up_mps2, c.acc_down_mps2),
         };
         let (horizontal, down) = match path {
@@ -305,6 +317,27 @@ impl Planner {
         )
     }
 
+    /// A takeoff to `to`: from the ground it creeps up at the liftoff speed (`Climb::Liftoff`) until
+    /// [`Self::liftoff`] sees the vehicle leave the ground; in the air it climbs at once.
+    pub fn takeoff(&self, input: &NavInput, to: Vector3<f64>) -> (Leg, Climb) {
+        let climb = if Self::lifted(input) { Climb::Takeoff } else { Climb::Liftoff };
+        (self.line(input, to, climb, None), climb)
+    }
+
+    /// Whether the vehicle is off the ground.
+    fn lifted(input: &NavInput) -> bool {
+        input.ground_d_m() - input.pos_ned_m.z >= LIFTOFF_M
+    }
+
+    /// Speeds a creeping takeoff leg up to the takeoff speed once the vehicle has lifted off (from the
+    /// reference's motion: continuous).
+    pub fn liftoff(&self, input: &NavInput, leg: &mut Leg, climb: &mut Climb) {
+        if *climb == Climb::Liftoff && Self::lifted(input) {
+            *leg = self.line(input, leg.end(), Climb::Takeoff, None);
+            *climb = Climb::Takeoff;
+        }
+    }
+
     /// A landing: straight down at `ne` (NED m) at the land speed, through the ground without braking,
     /// to `land_below_ground_m` below it.
     pub fn land(&self, input: &NavInput, ne: Vector2<f64>) -> Leg {
@@ -336,9 +369,9 @@ impl Planner {
         )
     }
 
-    /// The reference of `leg` at `now_us`, remembered as the last motion.
-    pub fn fly(&mut self, leg: &mut Leg, now_us: u64) -> Motion3 {
-        let m = leg.motion(now_us);
+    /// The reference of `leg` now, remembered as the last motion (the vehicle's position paces it).
+    pub fn fly(&mut self, leg: &mut Leg, input: &NavInput) -> Motion3 {
+        let m = leg.motion(input.now_us, input.pos_ned_m);
         self.last = Some(m);
         m
     }
@@ -378,7 +411,12 @@ pub struct Navigator {
 
 /// The reference of a motion with a yaw.
 fn track(m: &Motion3, yaw_rad: f64) -> Reference {
-    Reference { vel_ned_mps: m.vel_ned_mps, acc_ned_mps2: m.acc_ned_mps2, ..Reference::position(m.pos_ned_m, yaw_rad) }
+    Reference {
+        vel_ned_mps: m.vel_ned_mps,
+        acc_ned_mps2: m.acc_ned_mps2,
+        jerk_ned_mps3: m.jerk_ned_mps3,
+        ..Reference::position(m.pos_ned_m, yaw_rad)
+    }
 }
 
 impl Navigator {
@@ -519,14 +557,16 @@ impl Navigator {
         }
         let planner = &mut self.planner;
         let d = self.direct.get_or_insert_with(|| {
-            let leg = match aim {
-                Aim::Point(p) if climb == Climb::Land => planner.land(input, p.xy()),
-                Aim::Point(p) => planner.line(input, p, climb, None),
-                Aim::Here => planner.stop(input),
+            let (leg, climb) = match aim {
+                Aim::Point(p) if climb == Climb::Land => (planner.land(input, p.xy()), climb),
+                Aim::Point(p) if climb == Climb::Takeoff => planner.takeoff(input, p),
+                Aim::Point(p) => (planner.line(input, p, climb, None), climb),
+                Aim::Here => (planner.stop(input), climb),
             };
             Direct { aim, climb, yaw_rad, leg }
         });
-        let m = planner.fly(&mut d.leg, input.now_us);
+        planner.liftoff(input, &mut d.leg, &mut d.climb);
+        let m = planner.fly(&mut d.leg, input);
         track(&m, yaw_rad)
     }
 

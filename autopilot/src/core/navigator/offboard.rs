@@ -68,8 +68,12 @@ impl Offboard {
 
     pub fn step(&mut self, p: &mut Planner, input: &NavInput) -> Reference {
         let Some((_, sp)) = self.latest else {
-            let mut leg = p.stop(input);
-            let m = p.fly(&mut leg, input.now_us);
+            // Nothing streamed yet: stop where the reference is (the commander leaves on timeout).
+            if self.target.is_none() {
+                self.target = Some((p.start(input).pos_ned_m, p.stop(input)));
+            }
+            let Some((_, leg)) = self.target.as_mut() else { return track(&p.start(input), p.yaw_rad) };
+            let m = p.fly(leg, input);
             return track(&m, p.yaw_rad);
         };
         if let Some(euler_rad) = sp.attitude_rad {
@@ -97,7 +101,7 @@ impl Offboard {
                     self.target = Some((pos, p.line(input, pos, Climb::Move, None)));
                 }
                 let Some((_, leg)) = self.target.as_mut() else { return track(&p.start(input), yaw) };
-                p.fly(leg, input.now_us)
+                p.fly(leg, input)
             }
             (Some(pos), vel) => {
                 self.carrot_ned_m = None;
@@ -106,6 +110,7 @@ impl Offboard {
                     pos_ned_m: pos,
                     vel_ned_mps: vel.unwrap_or_else(Vector3::zeros),
                     acc_ned_mps2: sp.acc_ned_mps2.unwrap_or_else(Vector3::zeros),
+                    jerk_ned_mps3: Vector3::zeros(),
                 }
             }
             (None, vel) => {
@@ -123,6 +128,7 @@ impl Offboard {
                     pos_ned_m: carrot,
                     vel_ned_mps: vel,
                     acc_ned_mps2: sp.acc_ned_mps2.unwrap_or_else(Vector3::zeros),
+                    jerk_ned_mps3: Vector3::zeros(),
                 }
             }
         };

@@ -43,7 +43,6 @@ fn return_leg(p: &Planner, input: &NavInput, from: Vector3<f64>) -> Rtl {
 
 /// One step of the return (`rtl` None: it starts now).
 pub(crate) fn step(rtl: &mut Option<Rtl>, p: &mut Planner, input: &NavInput) -> Motion3 {
-    let now = input.now_us;
     let phase = rtl.take().unwrap_or_else(|| {
         let here = p.start(input).pos_ned_m;
         let return_d = (home(input).z - p.config.rtl_return_alt_m).min(here.z);
@@ -55,17 +54,17 @@ pub(crate) fn step(rtl: &mut Option<Rtl>, p: &mut Planner, input: &NavInput) -> 
     });
     let (next, m) = match phase {
         Rtl::Climb(mut leg) => {
-            let m = p.fly(&mut leg, now);
+            let m = p.fly(&mut leg, input);
             let to = leg.end();
-            if leg.at_end(now) && (input.pos_ned_m.z - to.z).abs() <= input.takeoff_acceptance_m {
+            if leg.at_end() && (input.pos_ned_m.z - to.z).abs() <= input.takeoff_acceptance_m {
                 (return_leg(p, input, to), m)
             } else {
                 (Rtl::Climb(leg), m)
             }
         }
         Rtl::Return(mut leg) => {
-            let m = p.fly(&mut leg, now);
-            if leg.at_end(now) && (input.pos_ned_m - leg.end()).xy().norm() <= p.config.acceptance_radius_m {
+            let m = p.fly(&mut leg, input);
+            if leg.at_end() && (input.pos_ned_m - leg.end()).xy().norm() <= p.config.acceptance_radius_m {
                 (Rtl::Descend(p.land(input, leg.end().xy())), m)
             } else {
                 (Rtl::Return(leg), m)
@@ -73,7 +72,7 @@ pub(crate) fn step(rtl: &mut Option<Rtl>, p: &mut Planner, input: &NavInput) -> 
         }
         Rtl::Descend(mut leg) => {
             p.status.landing = true;
-            let m = p.fly(&mut leg, now);
+            let m = p.fly(&mut leg, input);
             (Rtl::Descend(leg), m)
         }
     };
