@@ -1,6 +1,7 @@
 //! The pure vehicle core: no clocks, sockets, files or async runtime; time and randomness come in as inputs.
 
 pub mod commander;
+pub mod config;
 pub mod control;
 pub mod estimator;
 pub mod hil;

@@ -16,18 +16,12 @@
 use ::mavlink::MavHeader;
 use ::mavlink::dialects::common::{MISSION_CURRENT_DATA, MISSION_ITEM_REACHED_DATA, MavMessage, MavSeverity};
 use nalgebra::Vector3;
-use serde::{Deserialize, Serialize};
-use thiserror::Error;
 
-use crate::core::commander::{
-    self, Commander, CommanderConfig, CommanderInputs, CommanderOutput, Estimate, Event, LandedState, Request,
-};
-use crate::core::control::{
-    self, ControlInput, Controller, ControllerConfig, ControllerKind, Reference, distributor, try_new_controller,
-};
+use crate::core::commander::{Commander, CommanderInputs, CommanderOutput, Estimate, Event, LandedState, Request};
+pub use crate::core::config::{AirborneStart, VehicleConfig, VehicleError};
+use crate::core::control::{ControlInput, Controller, Reference, distributor, try_new_controller};
 use crate::core::estimator::{
-    self, BaroSample, Estimator, EstimatorConfig, EstimatorSource, EstimatorState, GpsSample, ImuSample, MagSample,
-    TruthSample,
+    BaroSample, Estimator, EstimatorSource, EstimatorState, GpsSample, ImuSample, MagSample, TruthSample,
 };
 use crate::core::mavlink::command::AUTOPILOT_VERSION_ID;
 use crate::core::mavlink::mission::{MissionEvent, MissionService};
@@ -35,72 +29,16 @@ use crate::core::mavlink::offboard::{self, OffboardContext};
 use crate::core::mavlink::params::{ParamChange, ParamService, param_value};
 use crate::core::mavlink::{
     CommandContext, CommandEffect, CommandPoint, Home, MavlinkService, Stream, TelemetrySnapshot, VehicleCommand,
-    command_replies, housekeeping, statustext,
+    command_replies, housekeeping, statustext, statustext_chunks,
 };
 use crate::core::mission::{Mission, MissionError};
-use crate::core::navigator::{self, NavEvent, NavInput, Navigator, NavigatorConfig, nav_items};
+use crate::core::navigator::{NavEvent, NavInput, Navigator, nav_items};
 use crate::core::params::ParamStore;
 
 /// Motor command with the motors stopped (µs).
 pub const PWM_MIN_US: f64 = 1000.0;
 /// Largest motor command (µs).
 pub const PWM_MAX_US: f64 = 2000.0;
-
-/// Everything the vehicle is built from.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct VehicleConfig {
-    /// MAVLink system id (N+1 for instance N).
-    pub sysid: u8,
-    pub controller: ControllerKind,
-    pub control: ControllerConfig,
-    pub estimator: EstimatorConfig,
-    pub commander: CommanderConfig,
-    pub navigator: NavigatorConfig,
-    /// Start armed and holding a point instead of disarmed on the ground (experiments that begin in the
-    /// air, as the paper's do: `sitl run --scenario`); home is then the ground below that point.
-    pub start_airborne: Option<AirborneStart>,
-}
-
-/// Where an airborne start holds (NED m about the estimator's origin, yaw rad).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct AirborneStart {
-    pub hold_ned_m: [f64; 3],
-    #[serde(default)]
-    pub yaw_rad: f64,
-}
-
-impl Default for VehicleConfig {
-    fn default() -> Self {
-        Self {
-            sysid: 1,
-            controller: ControllerKind::Aco,
-            control: ControllerConfig::default(),
-            estimator: EstimatorConfig::default(),
-            commander: CommanderConfig::default(),
-            navigator: NavigatorConfig::default(),
-            start_airborne: None,
-        }
-    }
-}
-
-/// Why a [`VehicleConfig`] is unusable.
-#[derive(Debug, Clone, PartialEq, Error)]
-pub enum VehicleError {
-    #[error("vehicle config: sysid must be 1..=255")]
-    Sysid,
-    #[error("vehicle config: start_airborne hold_ned_m and yaw_rad must be finite")]
-    StartAirborne,
-    #[error(transparent)]
-    Controller(#[from] control::ConfigError),
-    #[error(transparent)]
-    Estimator(#[from] estimator::ConfigError),
-    #[error(transparent)]
-    Commander(#[from] commander::ConfigError),
-    #[error(transparent)]
-    Navigator(#[from] navigator::ConfigError),
-}
 
 /// One step's sensor inputs (any may be absent).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -161,6 +99,8 @@ pub struct Vehicle {
     reference: Option<Reference>,
     throttle_low_pwm_us: f64,
     comm_errors: u64,
+    /// The id of the last chunked STATUSTEXT.
+    text_id: u16,
     navigator: Navigator,
     last_nav_us: Option<u64>,
     home_changed: bool,
@@ -221,20 +161,13 @@ impl Vehicle {
     /// [`VehicleError`] naming the first unusable part of the resulting configuration.
     pub fn with_params(mut config: VehicleConfig, params: ParamStore) -> Result<Self, VehicleError> {
         params.apply(&mut config);
-        if config.sysid == 0 {
-            return Err(VehicleError::Sysid);
-        }
-        config.navigator.validate()?;
-        config.estimator.validate()?;
+        config.validate()?;
         let controller = try_new_controller(config.controller, &config.control)?;
         let mut commander = Commander::new(config.commander)?;
         let output = commander.step(&CommanderInputs::default());
         let mut home = None;
         if let Some(start) = config.start_airborne {
             let hold = Vector3::from(start.hold_ned_m);
-            if !(finite3(&hold) && start.yaw_rad.is_finite()) {
-                return Err(VehicleError::StartAirborne);
-            }
             commander.start_airborne(hold, start.yaw_rad);
             home = Some(Home { pos_ned_m: Vector3::new(hold.x, hold.y, 0.0), geodetic: None });
         }
@@ -255,6 +188,7 @@ impl Vehicle {
             reference: None,
             throttle_low_pwm_us,
             comm_errors: 0,
+            text_id: 0,
             navigator: {
                 let mut navigator = Navigator::new(config.navigator);
                 if let Some(start) = config.start_airborne {
@@ -366,9 +300,11 @@ impl Vehicle {
                 match self.on_param_change(&change) {
                     Ok(extra) => messages.extend(extra),
                     Err(text) => {
-                        // In range, but the configuration it makes is not flyable: undo it, in words.
+                        // In range, but the configuration it makes is not flyable: undo it, in words (in
+                        // chunks when it is longer than one STATUSTEXT).
                         self.params = before;
-                        messages = vec![statustext(MavSeverity::MAV_SEVERITY_WARNING, &text)];
+                        self.text_id = self.text_id.wrapping_add(1).max(1);
+                        messages = statustext_chunks(MavSeverity::MAV_SEVERITY_WARNING, &text, self.text_id);
                         messages.extend(param_value(&self.params, change.index));
                     }
                 }
@@ -520,10 +456,11 @@ impl Vehicle {
     fn on_param_change(&mut self, change: &ParamChange) -> Result<Vec<MavMessage>, String> {
         let mut next = self.config.clone();
         self.params.apply(&mut next);
+        // Everything is checked now, the values that apply only after a restart (the loop rates) too:
+        // a value that would stop the next start is refused when it is set.
+        next.validate().map_err(|e| format!("{}: {e}", change.name))?;
         // The loop rates apply only when the vehicle is rebuilt with the stored parameters (a restart).
         next.control.rates = self.config.control.rates;
-        next.control.validate().map_err(|e| format!("{}: {e}", change.name))?;
-        next.commander.validate().map_err(|e| format!("{}: {e}", change.name))?;
         self.commander.set_config(next.commander).map_err(|e| format!("{}: {e}", change.name))?;
         self.controller.reconfigure(&next.control);
         self.navigator.set_config(next.navigator);
@@ -977,7 +914,7 @@ mod tests {
             assert_eq!(ack_of(&replies).map(|a| a.1), Some(MavResult::MAV_RESULT_ACCEPTED), "alt {alt}");
             v.commander().pending_takeoff_alt_m()
         };
-        assert_eq!(pending(nan), Some(CommanderConfig::default().takeoff_alt_m));
+        assert_eq!(pending(nan), Some(crate::core::commander::CommanderConfig::default().takeoff_alt_m));
         assert_eq!(pending(491.0), Some(3.0), "AMSL above home at 488 m");
         assert_eq!(pending(1.5), Some(1.5), "below home: relative");
         // A relative-altitude COMMAND_INT frame is taken as given.
@@ -1182,6 +1119,23 @@ mod tests {
         // The weight stream follows ACO_WEIGHTS_HZ.
         v.handle_message(t, &GCS, &set("ACO_WEIGHTS_HZ", 10.0));
         assert_eq!(v.mavlink_mut().streams().interval_us(Stream::AdaptiveWeights), 100_000);
+        v.take_effects();
+        // A value that applies only after a restart is checked now: LOOP_POS_HZ 300 (in range) does not
+        // divide LOOP_INNER_HZ 500, nor does LOOP_INNER_HZ 150 take LOOP_POS_HZ 100: refused, with the
+        // reason, unchanged, nothing saved (a reboot would have failed to start).
+        for (name, value) in [("LOOP_POS_HZ", 300.0), ("LOOP_INNER_HZ", 150.0)] {
+            let before = v.params().clone();
+            let replies = v.handle_message(t, &GCS, &set(name, value));
+            // The reason in MAVLink 2 STATUSTEXT chunks (one id, chunk_seq 0, 1, ...), reassembled.
+            let chunks: Vec<_> =
+                replies.iter().filter_map(|m| if let MavMessage::STATUSTEXT(s) = m { Some(s) } else { None }).collect();
+            assert!(chunks.len() > 1 && chunks.iter().all(|c| c.id == chunks[0].id && c.id != 0), "{chunks:?}");
+            assert!(chunks.iter().enumerate().all(|(i, c)| usize::from(c.chunk_seq) == i));
+            let text: String = chunks.iter().map(|c| c.text.to_str().unwrap_or_default()).collect();
+            assert!(text.starts_with(name) && text.contains("must divide the inner rate"), "{text}");
+            assert_eq!(v.params(), &before, "{name}");
+            assert!(v.take_effects().is_empty(), "{name}: nothing saved");
+        }
     }
 
     #[test]

@@ -19,7 +19,7 @@
 //! dir = "state"                        # parameters and mission kept across restarts; "off": none
 //!                                      # (default: $XDG_STATE_HOME or ~/.local/state, aco-autopilot/iN)
 //!
-//! [vehicle]                            # autopilot::core::vehicle::VehicleConfig, every field optional
+//! [vehicle]                            # autopilot::core::config::VehicleConfig, every field optional
 //! controller = "aco"
 //! [vehicle.estimator]
 //! source = "fused"
@@ -37,8 +37,8 @@ use serde::Deserialize;
 use super::tcp::{TCP_PORT, TcpConfig};
 use super::transport::parse_serial_spec;
 use super::udp::{PEER_EXPIRY, UdpConfig};
+use crate::core::config::VehicleConfig;
 use crate::core::hil::DEFAULT_PLANT_PORT;
-use crate::core::vehicle::VehicleConfig;
 
 /// A configuration that cannot be used; the message names the file and the key.
 #[derive(Debug, thiserror::Error)]

@@ -102,7 +102,7 @@ fn open_plant(endpoint: &PlantEndpoint) -> Result<Box<dyn Transport + Send>, Pla
 /// # Errors
 /// [`RuntimeError::StateFile`] naming the file and line of a malformed or out-of-range entry (nothing is
 /// loaded then: the autopilot does not start on a half-read state), or the directory's I/O error.
-fn load_state(dir: &std::path::Path, vehicle: &crate::core::vehicle::VehicleConfig) -> Result<Persisted, RuntimeError> {
+fn load_state(dir: &std::path::Path, vehicle: &crate::core::config::VehicleConfig) -> Result<Persisted, RuntimeError> {
     let file_error = |name: &str, message: String| RuntimeError::StateFile { path: dir.join(name), message };
     let persister = Persister::start(dir)?;
     let params = match persist::load(dir, PARAMS_FILE)? {

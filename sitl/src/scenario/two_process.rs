@@ -25,13 +25,13 @@ use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
+use autopilot::core::config::{AirborneStart, VehicleConfig};
 use autopilot::core::control::ControllerKind;
 use autopilot::core::estimator::EstimatorSource;
 use autopilot::core::estimator::GeoOrigin;
 use autopilot::core::hil::deg_to_dege7;
 use autopilot::core::mavlink::common::{MISSION_ITEM_INT_DATA, MavCmd, MavFrame};
 use autopilot::core::navigator::spline::SplinePath;
-use autopilot::core::vehicle::{AirborneStart, VehicleConfig};
 use nalgebra::{Vector2, Vector3};
 use serde::Serialize;
 

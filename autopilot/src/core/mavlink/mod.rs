@@ -33,7 +33,7 @@ pub use command::{
     decode_command,
 };
 pub use identity::heartbeat;
-pub use telemetry::{Home, Stream, StreamScheduler, TelemetrySnapshot, statustext};
+pub use telemetry::{Home, Stream, StreamScheduler, TelemetrySnapshot, statustext, statustext_chunks};
 
 /// The autopilot's component id (MAV_COMP_ID_AUTOPILOT1).
 pub const AUTOPILOT_COMPONENT_ID: u8 = 1;

@@ -490,6 +490,32 @@ pub fn statustext(severity: MavSeverity, text: &str) -> MavMessage {
     MavMessage::STATUSTEXT(STATUSTEXT_DATA { severity, text: text[..end].into(), ..Default::default() })
 }
 
+/// `text` as STATUSTEXTs: one when it fits (50 bytes), else MAVLink 2 chunks that ground stations
+/// reassemble (QGroundControl, MAVProxy): every chunk carries the non-zero `id`, `chunk_seq` counts from
+/// 0, and the last chunk is shorter than 50 bytes (an empty one follows a text that fills its last chunk).
+#[must_use]
+pub fn statustext_chunks(severity: MavSeverity, text: &str, id: u16) -> Vec<MavMessage> {
+    if text.len() <= 50 {
+        return vec![statustext(severity, text)];
+    }
+    let id = id.max(1);
+    let mut chunks = Vec::new();
+    let mut rest = text;
+    loop {
+        let mut end = rest.len().min(50);
+        while !rest.is_char_boundary(end) {
+            end -= 1;
+        }
+        let chunk_seq = u8::try_from(chunks.len()).unwrap_or(u8::MAX);
+        chunks.push(MavMessage::STATUSTEXT(STATUSTEXT_DATA { severity, text: rest[..end].into(), id, chunk_seq }));
+        if end < 50 || chunk_seq == u8::MAX {
+            break;
+        }
+        rest = &rest[end..];
+    }
+    chunks
+}
+
 /// The severity of an event's STATUSTEXT: a kill is critical, a disarm a notice, the rest info.
 #[must_use]
 pub fn event_severity(event: &Event) -> MavSeverity {

@@ -17,7 +17,7 @@ use std::fmt;
 
 use thiserror::Error;
 
-use crate::core::vehicle::VehicleConfig;
+use crate::core::config::VehicleConfig;
 
 pub mod table;
 

@@ -1,7 +1,7 @@
 //! The parameter table: every parameter of the vehicle, declared once, with the config field(s) it maps
 //! onto. In: nothing (static data). Out: [`PARAMS`], in the order of their MAVLink `param_index`.
 //!
-//! Each entry names its [`VehicleConfig`](crate::core::vehicle::VehicleConfig) field; the macros derive
+//! Each entry names its [`VehicleConfig`](crate::core::config::VehicleConfig) field; the macros derive
 //! both directions of the mapping from that one path. Add new parameters at the END of the table, so that
 //! the indices of the existing ones stay what ground stations have cached (ArduPilot's rule); the docs
 //! group them by [`ParamGroup`] whatever their position.
