@@ -227,8 +227,9 @@ fn hovering_rig() -> Rig {
     rig
 }
 
+/// The PX4 custom_mode the vehicle reports (as its HEARTBEAT carries it).
 fn custom_mode(rig: &Rig) -> u32 {
-    rig.vehicle.commander_output().custom_mode
+    autopilot::core::mavlink::identity::custom_mode(rig.vehicle.commander_output().mode)
 }
 
 #[test]

@@ -645,7 +645,7 @@ impl Vehicle {
             origin: state.origin,
             home_ned_m: self.home.map(|h| h.pos_ned_m),
             home_alt_amsl_m: self.home_alt_amsl_m(),
-            landed: out.landed_state == LandedState::OnGround.mavlink(),
+            landed: out.landed == LandedState::OnGround,
             takeoff_alt_m: self.config.commander.takeoff_alt_m,
             takeoff_acceptance_m: self.config.commander.takeoff_acceptance_m,
         };
@@ -667,10 +667,7 @@ impl Vehicle {
             self.reset_controller();
             return [PWM_MIN_US; 4];
         };
-        let on_ground = matches!(
-            out.landed_state,
-            x if x == LandedState::OnGround.mavlink() || x == LandedState::Undefined.mavlink()
-        );
+        let on_ground = matches!(out.landed, LandedState::OnGround | LandedState::Undefined);
         if on_ground && !state.flags.position_valid {
             self.reset_controller();
             return [PWM_MIN_US; 4];

@@ -50,20 +50,6 @@ pub enum LandedState {
     Landing,
 }
 
-impl LandedState {
-    /// MAV_LANDED_STATE: UNDEFINED 0, ON_GROUND 1, IN_AIR 2, TAKEOFF 3, LANDING 4.
-    #[must_use]
-    pub const fn mavlink(self) -> u8 {
-        match self {
-            Self::Undefined => 0,
-            Self::OnGround => 1,
-            Self::InAir => 2,
-            Self::Takeoff => 3,
-            Self::Landing => 4,
-        }
-    }
-}
-
 /// The flight phase the commander is running, for [`LandDetector::landed_state`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Phase {
@@ -253,16 +239,16 @@ mod tests {
     }
 
     #[test]
-    fn given_each_phase_then_the_landed_state_is_reported_as_mavlink_expects() {
+    fn given_each_phase_then_the_landed_state_follows_the_detector() {
         let mut d = LandDetector::new(LandDetectorConfig::default());
-        assert_eq!(d.landed_state(Phase::Other).mavlink(), 0);
+        assert_eq!(d.landed_state(Phase::Other), LandedState::Undefined);
         d.update(0, &sample(0.0, 0.0, false));
         d.update(600_000, &sample(0.0, 0.0, false));
-        assert_eq!(d.landed_state(Phase::Other).mavlink(), 1);
-        assert_eq!(d.landed_state(Phase::Takeoff).mavlink(), 3);
-        assert_eq!(d.landed_state(Phase::Landing).mavlink(), 1);
+        assert_eq!(d.landed_state(Phase::Other), LandedState::OnGround);
+        assert_eq!(d.landed_state(Phase::Takeoff), LandedState::Takeoff);
+        assert_eq!(d.landed_state(Phase::Landing), LandedState::OnGround);
         d.update(610_000, &sample(0.5, -1.0, false));
-        assert_eq!(d.landed_state(Phase::Other).mavlink(), 2);
-        assert_eq!(d.landed_state(Phase::Landing).mavlink(), 4);
+        assert_eq!(d.landed_state(Phase::Other), LandedState::InAir);
+        assert_eq!(d.landed_state(Phase::Landing), LandedState::Landing);
     }
 }

@@ -3,7 +3,7 @@
 //! flags, whether the thrust is at its minimum, home). In, whenever a ground station asks: a [`Request`]
 //! (arm, disarm, kill, takeoff, land, hold, set mode), answered at once with `Ok` or a [`Refusal`] whose
 //! text fits a STATUSTEXT; a refused request changes nothing. Out, per step: a [`CommanderOutput`] with the
-//! [`State`], the PX4 identity (`custom_mode`, `base_mode`, `system_status`, `landed_state`), the
+//! [`State`], the flight mode, the health and the landed state (their wire numbers are the MAVLink layer's), the
 //! [`Task`] the navigator should fly, and the [`Event`]s since the last step (for an immediate
 //! HEARTBEAT and a STATUSTEXT).
 //!
@@ -29,12 +29,11 @@ pub mod state_machine;
 mod tests;
 
 pub use land_detector::{LandDetector, LandDetectorConfig, LandedState};
-pub use mode::{FlightMode, Px4Mode};
+pub use mode::{FlightMode, SystemStatus};
 pub use state_machine::{Conditions, State};
 
 use crate::core::navigator::{AutoMode, NavStatus, Task};
 use land_detector::{LandDetectorSample, Phase, seconds_to_us};
-use mode::system_status;
 
 /// The commander's parameters (PX4 names in the field docs).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -159,8 +158,8 @@ pub enum Request {
     Land,
     /// Hold here (AUTO LOITER).
     Hold,
-    /// DO_SET_MODE / SET_MODE with PX4's (main, sub).
-    SetMode { main: u8, sub: u8 },
+    /// DO_SET_MODE / SET_MODE: a mode this vehicle flies (the MAVLink layer decodes and refuses the rest).
+    SetMode(FlightMode),
     /// NAV_RETURN_TO_LAUNCH or AUTO RTL: climb, return, land (from the air).
     ReturnToLaunch,
     /// AUTO MISSION or MISSION_START: fly the mission (asked for while disarmed: starts on arming).
@@ -213,10 +212,6 @@ pub enum Refusal {
     NotInState { action: Action, state: State },
     #[error("Takeoff denied: altitude {0} m invalid")]
     InvalidAltitude(f64),
-    #[error("Mode not supported: {name} {reason}")]
-    ModeNotSupported { name: &'static str, reason: &'static str },
-    #[error("Mode not supported: main {main} sub {sub}")]
-    UnknownMode { main: u8, sub: u8 },
     #[error("{0} denied: no mission")]
     NoMission(Action),
     #[error("{0} denied: no offboard setpoints")]
@@ -246,7 +241,7 @@ pub enum Event {
     Armed { forced: bool },
     Disarmed { reason: DisarmReason },
     Killed,
-    ModeChanged { mode: FlightMode, custom_mode: u32 },
+    ModeChanged { mode: FlightMode },
     Landed,
     TakeoffComplete,
 }
@@ -284,14 +279,10 @@ impl Event {
 pub struct CommanderOutput {
     pub state: State,
     pub mode: FlightMode,
-    /// HEARTBEAT custom_mode (PX4 main/sub).
-    pub custom_mode: u32,
-    /// HEARTBEAT base_mode (MAV_MODE_FLAG bits).
-    pub base_mode: u8,
-    /// HEARTBEAT system_status (MAV_STATE).
-    pub system_status: u8,
-    /// EXTENDED_SYS_STATE landed_state (MAV_LANDED_STATE).
-    pub landed_state: u8,
+    /// Health (HEARTBEAT system_status).
+    pub status: SystemStatus,
+    /// On the ground, taking off, in the air, landing (EXTENDED_SYS_STATE).
+    pub landed: LandedState,
     pub armed: bool,
     pub motors_enabled: bool,
     /// What the navigator is to fly.
@@ -399,24 +390,14 @@ impl Commander {
         self.state.is_armed()
     }
 
+    /// Standby disarmed, Active armed, Critical armed without a usable position, Emergency killed.
     #[must_use]
-    pub fn custom_mode(&self) -> u32 {
-        self.mode.custom_mode()
-    }
-
-    #[must_use]
-    pub fn base_mode(&self) -> u8 {
-        self.mode.base_mode(self.armed())
-    }
-
-    /// STANDBY disarmed, ACTIVE armed, CRITICAL armed without a usable position, EMERGENCY killed.
-    #[must_use]
-    pub fn system_status(&self) -> u8 {
+    pub fn system_status(&self) -> SystemStatus {
         match self.state {
-            State::Killed => system_status::EMERGENCY,
-            State::Disarmed => system_status::STANDBY,
-            _ if !self.est.position_valid => system_status::CRITICAL,
-            _ => system_status::ACTIVE,
+            State::Killed => SystemStatus::Emergency,
+            State::Disarmed => SystemStatus::Standby,
+            _ if !self.est.position_valid => SystemStatus::Critical,
+            _ => SystemStatus::Active,
         }
     }
 
@@ -506,10 +487,8 @@ impl Commander {
         CommanderOutput {
             state: self.state,
             mode: self.mode,
-            custom_mode: self.custom_mode(),
-            base_mode: self.base_mode(),
-            system_status: self.system_status(),
-            landed_state: self.landed_state().mavlink(),
+            status: self.system_status(),
+            landed: self.landed_state(),
             armed: self.armed(),
             motors_enabled: self.armed(),
             task: self.task(),
@@ -607,15 +586,13 @@ impl Commander {
                 _ => self.transition(now, C::LAND_REQUESTED, Action::Land),
             },
             Request::Hold => self.hold_like(now, FlightMode::Hold),
-            Request::SetMode { main, sub } => match Px4Mode::decode(main, sub) {
-                Px4Mode::Supported(FlightMode::Takeoff) => self.apply(now, Request::Takeoff { alt_rel_m: None }),
-                Px4Mode::Supported(FlightMode::Land) => self.apply(now, Request::Land),
-                Px4Mode::Supported(FlightMode::Mission) => self.apply(now, Request::Mission),
-                Px4Mode::Supported(FlightMode::ReturnToLaunch) => self.apply(now, Request::ReturnToLaunch),
-                Px4Mode::Supported(FlightMode::Offboard) => self.apply(now, Request::Offboard),
-                Px4Mode::Supported(m) => self.hold_like(now, m),
-                Px4Mode::Unsupported { name, reason } => Err(Refusal::ModeNotSupported { name, reason }),
-                Px4Mode::Unknown => Err(Refusal::UnknownMode { main, sub }),
+            Request::SetMode(mode) => match mode {
+                FlightMode::Takeoff => self.apply(now, Request::Takeoff { alt_rel_m: None }),
+                FlightMode::Land => self.apply(now, Request::Land),
+                FlightMode::Mission => self.apply(now, Request::Mission),
+                FlightMode::ReturnToLaunch => self.apply(now, Request::ReturnToLaunch),
+                FlightMode::Offboard => self.apply(now, Request::Offboard),
+                FlightMode::Altitude | FlightMode::Position | FlightMode::Hold => self.hold_like(now, mode),
             },
             Request::ReturnToLaunch => match state {
                 State::Rtl => Ok(()),
@@ -703,7 +680,7 @@ impl Commander {
     fn set_mode(&mut self, mode: FlightMode) {
         if mode != self.mode {
             self.mode = mode;
-            self.events.push(Event::ModeChanged { mode, custom_mode: mode.custom_mode() });
+            self.events.push(Event::ModeChanged { mode });
         }
     }
 

@@ -3,7 +3,6 @@
 
 use nalgebra::Vector3;
 
-use super::mode::{base_mode_flag, system_status};
 use super::*;
 use crate::core::navigator::{AutoMode, NavStatus, Task};
 
@@ -127,9 +126,9 @@ fn holding(sim: &mut Sim) -> Commander {
     c
 }
 
-const AUTO_LOITER: u32 = 0x0304_0000;
-const AUTO_TAKEOFF: u32 = 0x0204_0000;
-const AUTO_LAND: u32 = 0x0604_0000;
+const AUTO_LOITER: FlightMode = FlightMode::Hold;
+const AUTO_TAKEOFF: FlightMode = FlightMode::Takeoff;
+const AUTO_LAND: FlightMode = FlightMode::Land;
 
 #[test]
 fn given_an_unconverged_estimator_when_arming_then_refused_in_words_and_nothing_changes() {
@@ -151,8 +150,8 @@ fn given_an_unconverged_estimator_when_arming_then_refused_in_words_and_nothing_
     assert!(out.armed && out.motors_enabled);
     assert_eq!(out.events, vec![Event::Armed { forced: false }]);
     assert_eq!(out.task, Task::Idle);
-    assert_eq!(out.system_status, system_status::ACTIVE);
-    assert_ne!(out.base_mode & base_mode_flag::SAFETY_ARMED, 0);
+    assert_eq!(out.status, SystemStatus::Active);
+    assert!(out.armed);
 }
 
 #[test]
@@ -166,7 +165,7 @@ fn given_an_unconverged_estimator_when_arming_with_force_then_armed() {
     assert_eq!(out.state, State::ArmedIdle);
     assert_eq!(out.events, vec![Event::Armed { forced: true }]);
     // Armed without a usable position: CRITICAL.
-    assert_eq!(out.system_status, system_status::CRITICAL);
+    assert_eq!(out.status, SystemStatus::Critical);
 }
 
 #[test]
@@ -193,7 +192,7 @@ fn given_armed_on_the_ground_when_disarming_then_accepted() {
     let out = sim.run(&mut c, 1).remove(0);
     assert_eq!(out.state, State::Disarmed);
     assert_eq!(out.events, vec![Event::Disarmed { reason: DisarmReason::Requested }]);
-    assert_eq!(out.system_status, system_status::STANDBY);
+    assert_eq!(out.status, SystemStatus::Standby);
 }
 
 #[test]
@@ -225,8 +224,8 @@ fn given_each_state_when_killed_then_motors_stop_at_once_and_only_a_disarm_reset
         assert_eq!(c.state(), State::Killed);
         assert!(!c.armed());
         assert_eq!(c.task(), Task::Idle);
-        assert_eq!(c.system_status(), system_status::EMERGENCY);
-        assert_eq!(c.base_mode() & base_mode_flag::SAFETY_ARMED, 0);
+        assert_eq!(c.system_status(), SystemStatus::Emergency);
+        assert!(!c.armed());
         let err = c.request(0, Request::Arm { force: true }).unwrap_err();
         assert_eq!(err.to_string(), "Arming denied: kill engaged (disarm to reset)");
         c.request(0, Request::Disarm { force: false }).expect("disarm resets a kill");
@@ -255,31 +254,28 @@ fn given_takeoff_requested_while_disarmed_when_armed_then_climbs_and_holds_at_th
     assert_eq!(c.state(), State::Disarmed);
     assert_eq!(c.pending_takeoff_alt_m(), Some(2.5));
     let out = sim.run(&mut c, 1).remove(0);
-    assert_eq!(out.custom_mode, AUTO_TAKEOFF);
-    assert_eq!(out.events, vec![Event::ModeChanged { mode: FlightMode::Takeoff, custom_mode: AUTO_TAKEOFF }]);
+    assert_eq!(out.mode, AUTO_TAKEOFF);
+    assert_eq!(out.events, vec![Event::ModeChanged { mode: FlightMode::Takeoff }]);
     assert_eq!(out.task, Task::Idle, "nothing moves before arming");
 
     c.request(sim.now_us, Request::Arm { force: false }).expect("arm");
     let out = sim.run(&mut c, 1).remove(0);
     assert_eq!(out.state, State::Takeoff);
-    assert_eq!(out.custom_mode, AUTO_TAKEOFF);
-    assert_eq!(out.landed_state, 3);
+    assert_eq!(out.mode, AUTO_TAKEOFF);
+    assert_eq!(out.landed, LandedState::Takeoff);
     let target = Vector3::new(1.0, -2.0, -2.5);
     assert_eq!(out.task, Task::Takeoff { pos_ned_m: target, yaw_rad: 0.3 });
 
     let outs = sim.run(&mut c, 1000);
     let first_hold = outs.iter().position(|o| o.state == State::Hold).expect("takeoff completes");
-    assert!(outs[..first_hold].iter().all(|o| o.landed_state == 3 && o.custom_mode == AUTO_TAKEOFF));
+    assert!(outs[..first_hold].iter().all(|o| o.landed == LandedState::Takeoff && o.mode == AUTO_TAKEOFF));
     let done = &outs[first_hold];
-    assert_eq!(done.custom_mode, AUTO_LOITER);
-    assert_eq!(done.landed_state, 2);
-    assert_eq!(
-        done.events,
-        vec![Event::TakeoffComplete, Event::ModeChanged { mode: FlightMode::Hold, custom_mode: AUTO_LOITER }]
-    );
+    assert_eq!(done.mode, AUTO_LOITER);
+    assert_eq!(done.landed, LandedState::InAir);
+    assert_eq!(done.events, vec![Event::TakeoffComplete, Event::ModeChanged { mode: FlightMode::Hold }]);
     assert_eq!(done.task, Task::Hold { pos_ned_m: Some(target), yaw_rad: 0.3 });
     assert!((sim.pos_d_m + 2.5).abs() < 0.05, "holding at D {}", sim.pos_d_m);
-    assert!(outs[first_hold..].iter().all(|o| o.state == State::Hold && o.landed_state == 2));
+    assert!(outs[first_hold..].iter().all(|o| o.state == State::Hold && o.landed == LandedState::InAir));
 }
 
 #[test]
@@ -303,8 +299,8 @@ fn given_hold_when_landing_then_descends_detects_touchdown_and_disarms_exactly_a
     sim.run(&mut c, 100);
     c.request(sim.now_us, Request::Land).expect("land");
     let out = sim.run(&mut c, 1).remove(0);
-    assert_eq!(out.custom_mode, AUTO_LAND);
-    assert_eq!(out.landed_state, 4);
+    assert_eq!(out.mode, AUTO_LAND);
+    assert_eq!(out.landed, LandedState::Landing);
     assert_eq!(out.task, Task::Land { pos_ne_m: Vector2::new(1.0, -2.0), yaw_rad: 0.3 });
     sim.run(&mut c, 300);
     assert!((sim.vel_d_mps - 0.7).abs() < 0.05, "descending at {} m/s", sim.vel_d_mps);
@@ -319,7 +315,7 @@ fn given_hold_when_landing_then_descends_detects_touchdown_and_disarms_exactly_a
     };
     let landed = sim.run_until(&mut c, 10.0, |o| o.events.contains(&Event::Landed)).pop().unwrap();
     let landed_at_us = sim.now_us - STEP_US;
-    assert_eq!(landed.landed_state, 1);
+    assert_eq!(landed.landed, LandedState::OnGround);
     assert!(landed.armed);
     assert_eq!(landed.task, Task::Idle);
     assert_eq!(landed_at_us, touchdown_sim_us + 500_000, "landed after the 0.5 s dwell on the ground");
@@ -332,11 +328,11 @@ fn given_hold_when_landing_then_descends_detects_touchdown_and_disarms_exactly_a
     assert!(!disarm.armed);
     assert_eq!(disarm.state, State::Disarmed);
     assert_eq!(disarm.events[0], Event::Disarmed { reason: DisarmReason::AutoLanded });
-    assert_eq!(disarm.base_mode & base_mode_flag::SAFETY_ARMED, 0);
-    assert_ne!(outs[198].base_mode & base_mode_flag::SAFETY_ARMED, 0);
-    assert_eq!(disarm.system_status, system_status::STANDBY);
-    assert_eq!(disarm.landed_state, 1);
-    assert_eq!(disarm.custom_mode, AUTO_LOITER, "back to Hold after landing");
+    assert!(!disarm.armed);
+    assert!(outs[198].armed);
+    assert_eq!(disarm.status, SystemStatus::Standby);
+    assert_eq!(disarm.landed, LandedState::OnGround);
+    assert_eq!(disarm.mode, AUTO_LOITER, "back to Hold after landing");
 }
 
 #[test]
@@ -356,34 +352,32 @@ fn given_set_mode_requests_then_supported_modes_switch_and_others_are_refused_in
     let mut c = armed_on_ground(&mut sim);
     let before = c.clone();
     let cases = [
-        (6, 0, "Offboard denied: no offboard setpoints"),
-        (4, 4, "Mission denied: no mission"),
-        (4, 5, "RTL denied: landed"),
-        (1, 0, "Mode not supported: MANUAL needs RC sticks"),
-        (9, 9, "Mode not supported: main 9 sub 9"),
+        (FlightMode::Offboard, "Offboard denied: no offboard setpoints"),
+        (FlightMode::Mission, "Mission denied: no mission"),
+        (FlightMode::ReturnToLaunch, "RTL denied: landed"),
     ];
-    for (main, sub, text) in cases {
-        let err = c.request(sim.now_us, Request::SetMode { main, sub }).unwrap_err();
+    for (mode, text) in cases {
+        let err = c.request(sim.now_us, Request::SetMode(mode)).unwrap_err();
         assert_eq!(err.to_string(), text);
         assert!(text.len() <= 50);
         assert_eq!(c, before);
     }
     assert!(c.request(sim.now_us, Request::ReturnToLaunch).is_err());
 
-    c.request(sim.now_us, Request::SetMode { main: 3, sub: 0 }).expect("POSCTL on the ground");
-    assert_eq!((c.state(), c.custom_mode()), (State::ArmedIdle, 0x0003_0000));
-    c.request(sim.now_us, Request::SetMode { main: 4, sub: 2 }).expect("AUTO TAKEOFF");
-    assert_eq!((c.state(), c.custom_mode()), (State::Takeoff, AUTO_TAKEOFF));
+    c.request(sim.now_us, Request::SetMode(FlightMode::Position)).expect("POSCTL on the ground");
+    assert_eq!((c.state(), c.mode()), (State::ArmedIdle, FlightMode::Position));
+    c.request(sim.now_us, Request::SetMode(FlightMode::Takeoff)).expect("AUTO TAKEOFF");
+    assert_eq!((c.state(), c.mode()), (State::Takeoff, AUTO_TAKEOFF));
     sim.run(&mut c, 60);
-    c.request(sim.now_us, Request::SetMode { main: 2, sub: 0 }).expect("ALTCTL during takeoff");
-    assert_eq!((c.state(), c.custom_mode()), (State::Hold, 0x0002_0000));
+    c.request(sim.now_us, Request::SetMode(FlightMode::Altitude)).expect("ALTCTL during takeoff");
+    assert_eq!((c.state(), c.mode()), (State::Hold, FlightMode::Altitude));
     assert_eq!(c.task(), Task::Hold { pos_ned_m: None, yaw_rad: 0.3 }, "held where it stops");
-    c.request(sim.now_us, Request::SetMode { main: 4, sub: 3 }).expect("AUTO LOITER");
-    assert_eq!((c.state(), c.custom_mode()), (State::Hold, AUTO_LOITER));
-    c.request(sim.now_us, Request::SetMode { main: 4, sub: 6 }).expect("AUTO LAND");
-    assert_eq!((c.state(), c.custom_mode()), (State::Land, AUTO_LAND));
+    c.request(sim.now_us, Request::SetMode(FlightMode::Hold)).expect("AUTO LOITER");
+    assert_eq!((c.state(), c.mode()), (State::Hold, AUTO_LOITER));
+    c.request(sim.now_us, Request::SetMode(FlightMode::Land)).expect("AUTO LAND");
+    assert_eq!((c.state(), c.mode()), (State::Land, AUTO_LAND));
     c.request(sim.now_us, Request::Hold).expect("hold aborts the landing");
-    assert_eq!((c.state(), c.custom_mode()), (State::Hold, AUTO_LOITER));
+    assert_eq!((c.state(), c.mode()), (State::Hold, AUTO_LOITER));
 }
 
 #[test]
@@ -447,13 +441,13 @@ fn given_a_whole_flight_on_simulated_time_then_it_arms_climbs_holds_lands_and_di
         events,
         vec![
             Event::Armed { forced: false },
-            Event::ModeChanged { mode: FlightMode::Takeoff, custom_mode: AUTO_TAKEOFF },
+            Event::ModeChanged { mode: FlightMode::Takeoff },
             Event::TakeoffComplete,
-            Event::ModeChanged { mode: FlightMode::Hold, custom_mode: AUTO_LOITER },
-            Event::ModeChanged { mode: FlightMode::Land, custom_mode: AUTO_LAND },
+            Event::ModeChanged { mode: FlightMode::Hold },
+            Event::ModeChanged { mode: FlightMode::Land },
             Event::Landed,
             Event::Disarmed { reason: DisarmReason::AutoLanded },
-            Event::ModeChanged { mode: FlightMode::Hold, custom_mode: AUTO_LOITER },
+            Event::ModeChanged { mode: FlightMode::Hold },
         ]
     );
     assert_eq!(sim.pos_d_m, 0.0);
@@ -466,13 +460,16 @@ fn given_a_whole_flight_on_simulated_time_then_it_arms_climbs_holds_lands_and_di
         v
     });
     assert_eq!(states, [State::Disarmed, State::ArmedIdle, State::Takeoff, State::Hold, State::Land, State::Disarmed]);
-    let landed_states: Vec<u8> = outs.iter().map(|o| o.landed_state).fold(Vec::new(), |mut v, s| {
+    let landed_states: Vec<LandedState> = outs.iter().map(|o| o.landed).fold(Vec::new(), |mut v, s| {
         if v.last() != Some(&s) {
             v.push(s);
         }
         v
     });
-    assert_eq!(landed_states, [1, 3, 2, 4, 1]);
+    assert_eq!(
+        landed_states,
+        [LandedState::OnGround, LandedState::Takeoff, LandedState::InAir, LandedState::Landing, LandedState::OnGround]
+    );
     let t_s = sim.now_us as f64 * 1e-6;
     assert!(t_s > 26.0 && t_s < 40.0, "flight took {t_s} s");
 }
@@ -495,12 +492,12 @@ fn given_a_mission_asked_for_while_disarmed_when_armed_then_it_starts_and_withou
     sim.nav.mission_valid = true;
     sim.run(&mut c, 1);
     c.request(sim.now_us, Request::Mission).expect("pending mission");
-    assert_eq!((c.state(), c.custom_mode()), (State::Disarmed, 0x0404_0000));
+    assert_eq!((c.state(), c.mode()), (State::Disarmed, FlightMode::Mission));
     c.request(sim.now_us, Request::Arm { force: false }).expect("arm");
     let outs = sim.run(&mut c, 2);
     assert_eq!(outs[1].state, State::Mission);
     assert_eq!(outs[1].task, Task::Auto(AutoMode::Mission));
-    assert_eq!(outs[1].base_mode & 0x80, 0x80, "armed");
+    assert!(outs[1].armed, "armed");
 }
 
 #[test]
@@ -514,7 +511,7 @@ fn given_a_mission_when_done_in_the_air_then_hold_and_when_it_lands_then_disarm_
     assert_eq!(c.state(), State::Mission);
     sim.nav.mission_done = true;
     let out = sim.run(&mut c, 2).pop().expect("outputs");
-    assert_eq!((out.state, out.custom_mode), (State::Hold, AUTO_LOITER));
+    assert_eq!((out.state, out.mode), (State::Hold, AUTO_LOITER));
     sim.nav.mission_done = false;
     c.request(sim.now_us, Request::Mission).expect("again");
     sim.nav.landing = true;
@@ -531,8 +528,8 @@ fn given_return_to_launch_then_refused_landed_accepted_in_the_air_and_interrupte
     let mut c = armed_on_ground(&mut sim);
     assert_eq!(c.request(sim.now_us, Request::ReturnToLaunch).unwrap_err().to_string(), "RTL denied: landed");
     let mut c2 = holding(&mut sim);
-    c2.request(sim.now_us, Request::SetMode { main: 4, sub: 5 }).expect("RTL mode");
-    assert_eq!((c2.state(), c2.custom_mode()), (State::Rtl, 0x0504_0000));
+    c2.request(sim.now_us, Request::SetMode(FlightMode::ReturnToLaunch)).expect("RTL mode");
+    assert_eq!((c2.state(), c2.mode()), (State::Rtl, FlightMode::ReturnToLaunch));
     assert_eq!(c2.task(), Task::Auto(AutoMode::ReturnToLaunch));
     c2.request(sim.now_us, Request::Hold).expect("pause");
     assert_eq!(c2.state(), State::Hold);
@@ -549,13 +546,13 @@ fn given_offboard_then_only_with_fresh_setpoints_and_back_to_hold_when_they_stop
     assert_eq!(c, before);
     sim.nav.offboard_fresh = true;
     sim.run(&mut c, 1);
-    c.request(sim.now_us, Request::SetMode { main: 6, sub: 0 }).expect("offboard");
-    assert_eq!((c.state(), c.custom_mode()), (State::Offboard, 0x0006_0000));
+    c.request(sim.now_us, Request::SetMode(FlightMode::Offboard)).expect("offboard");
+    assert_eq!((c.state(), c.mode()), (State::Offboard, FlightMode::Offboard));
     sim.run(&mut c, 10);
     assert_eq!(c.state(), State::Offboard);
     sim.nav.offboard_fresh = false;
     let out = sim.run(&mut c, 1).pop().expect("out");
-    assert_eq!((out.state, out.custom_mode), (State::Hold, AUTO_LOITER));
+    assert_eq!((out.state, out.mode), (State::Hold, AUTO_LOITER));
 }
 
 #[test]

@@ -26,6 +26,7 @@ use ::mavlink::dialects::common::{
 };
 
 use super::addressed_to_us;
+use super::identity::Px4Mode;
 use super::telemetry::statustext;
 use crate::core::commander::Request;
 
@@ -175,7 +176,16 @@ fn effect(command: MavCmd, a: &Params, ctx: &CommandContext) -> CommandEffect {
                 _ if !base.contains(MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED) => {
                     CommandEffect::Deny("Mode: only PX4 custom modes".into())
                 }
-                (Some(main), sub) => CommandEffect::Request(Request::SetMode { main, sub: sub.unwrap_or(0) }),
+                (Some(main), sub) => {
+                    let sub = sub.unwrap_or(0);
+                    match Px4Mode::decode(main, sub) {
+                        Px4Mode::Supported(mode) => CommandEffect::Request(Request::SetMode(mode)),
+                        Px4Mode::Unsupported { name, reason } => {
+                            CommandEffect::Deny(format!("Mode not supported: {name} {reason}"))
+                        }
+                        Px4Mode::Unknown => CommandEffect::Deny(format!("Mode not supported: main {main} sub {sub}")),
+                    }
+                }
                 (None, _) => CommandEffect::Deny(format!("Mode: invalid main mode {}", p[1])),
             }
         }

@@ -16,13 +16,13 @@
 use ::mavlink::dialects::common::{
     ATTITUDE_DATA, ATTITUDE_QUATERNION_DATA, BATTERY_STATUS_DATA, DEBUG_VECT_DATA, EXTENDED_SYS_STATE_DATA,
     GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA,
-    MISSION_CURRENT_DATA, MavBatteryFunction, MavBatteryType, MavLandedState, MavMessage, MavSeverity,
-    MavSysStatusSensor, MavVtolState, STATUSTEXT_DATA, SYS_STATUS_DATA, VFR_HUD_DATA,
+    MISSION_CURRENT_DATA, MavBatteryFunction, MavBatteryType, MavMessage, MavSeverity, MavSysStatusSensor,
+    MavVtolState, STATUSTEXT_DATA, SYS_STATUS_DATA, VFR_HUD_DATA,
 };
 use nalgebra::Vector3;
 
-use super::next_due_us;
-use crate::core::commander::{CommanderOutput, Event};
+use super::{identity, next_due_us};
+use crate::core::commander::{CommanderOutput, Event, LandedState};
 use crate::core::control::Controller;
 use crate::core::estimator::{EstimatorState, GpsSample};
 
@@ -152,7 +152,7 @@ impl Stream {
             Self::LocalPositionNed => Some(local_position_ned(snap)),
             Self::GlobalPositionInt => global_position_int(snap),
             Self::GpsRawInt => snap.gps.map(gps_raw_int),
-            Self::ExtendedSysState => Some(extended_sys_state(snap.commander.landed_state)),
+            Self::ExtendedSysState => Some(extended_sys_state(snap.commander.landed)),
             Self::HomePosition => snap.home.and_then(home_position),
             Self::VfrHud => Some(vfr_hud(snap)),
             Self::BatteryStatus => Some(battery_status()),
@@ -413,20 +413,10 @@ fn gps_raw_int(gps: &GpsSample) -> MavMessage {
     })
 }
 
-fn landed_state(n: u8) -> MavLandedState {
-    match n {
-        1 => MavLandedState::MAV_LANDED_STATE_ON_GROUND,
-        2 => MavLandedState::MAV_LANDED_STATE_IN_AIR,
-        3 => MavLandedState::MAV_LANDED_STATE_TAKEOFF,
-        4 => MavLandedState::MAV_LANDED_STATE_LANDING,
-        _ => MavLandedState::MAV_LANDED_STATE_UNDEFINED,
-    }
-}
-
-fn extended_sys_state(landed: u8) -> MavMessage {
+fn extended_sys_state(landed: LandedState) -> MavMessage {
     MavMessage::EXTENDED_SYS_STATE(EXTENDED_SYS_STATE_DATA {
         vtol_state: MavVtolState::MAV_VTOL_STATE_UNDEFINED,
-        landed_state: landed_state(landed),
+        landed_state: identity::mav_landed_state(landed),
     })
 }
 

@@ -4,7 +4,7 @@ use ::mavlink::dialects::common::{MavCmd, MavModeFlag};
 
 use super::command::{px4_main_sub, takeoff_alt_rel_m};
 use super::*;
-use crate::core::commander::Request;
+use crate::core::commander::{FlightMode, Request};
 
 const GCS: MavHeader = MavHeader { system_id: 255, component_id: 190, sequence: 0 };
 
@@ -69,10 +69,24 @@ fn given_do_set_mode_with_the_armed_bit_when_decoded_then_only_a_mode_request() 
         f32::from((MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED).bits());
     let msg = long(MavCmd::MAV_CMD_DO_SET_MODE, [base, 4.0, 3.0, 0.0, 0.0, 0.0, 0.0], 1, 0);
     let cmd = decode_command(1, &GCS, &msg, &ctx).expect("for us");
-    assert_eq!(cmd.effect, CommandEffect::Request(Request::SetMode { main: 4, sub: 3 }));
+    assert_eq!(cmd.effect, CommandEffect::Request(Request::SetMode(FlightMode::Hold)));
     assert_eq!((cmd.sender_system, cmd.sender_component), (255, 190));
     let no_custom = long(MavCmd::MAV_CMD_DO_SET_MODE, [128.0, 4.0, 3.0, 0.0, 0.0, 0.0, 0.0], 1, 1);
     assert!(matches!(decode_command(1, &GCS, &no_custom, &ctx).map(|c| c.effect), Some(CommandEffect::Deny(_))));
+}
+
+#[test]
+fn given_px4_modes_this_vehicle_does_not_fly_when_asked_then_refused_in_words() {
+    let ctx = CommandContext::default();
+    let base = f32::from(MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED.bits());
+    for (main, sub, text) in
+        [(1.0, 0.0, "Mode not supported: MANUAL needs RC sticks"), (9.0, 9.0, "Mode not supported: main 9 sub 9")]
+    {
+        let msg = long(MavCmd::MAV_CMD_DO_SET_MODE, [base, main, sub, 0.0, 0.0, 0.0, 0.0], 1, 0);
+        let cmd = decode_command(1, &GCS, &msg, &ctx).expect("for us");
+        assert_eq!(cmd.effect, CommandEffect::Deny(text.to_owned()));
+        assert!(text.len() <= 50);
+    }
 }
 
 #[test]
@@ -85,7 +99,7 @@ fn given_set_mode_message_when_decoded_then_same_request_as_do_set_mode() {
     });
     let cmd = decode_command(1, &GCS, &msg, &CommandContext::default()).expect("for us");
     assert_eq!(cmd.command, MavCmd::MAV_CMD_DO_SET_MODE);
-    assert_eq!(cmd.effect, CommandEffect::Request(Request::SetMode { main: 4, sub: 6 }));
+    assert_eq!(cmd.effect, CommandEffect::Request(Request::SetMode(FlightMode::Land)));
 }
 
 #[test]
