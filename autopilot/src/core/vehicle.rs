@@ -24,9 +24,13 @@ use crate::core::estimator::{
     BaroSample, Estimator, EstimatorSource, EstimatorState, GpsSample, ImuSample, MagSample, TruthSample,
 };
 use crate::core::mavlink::command::AUTOPILOT_VERSION_ID;
+use crate::core::mavlink::command::InboundCommand;
 use crate::core::mavlink::mission::{MissionEvent, MissionService};
-use crate::core::mavlink::offboard::{self, OffboardContext};
+use crate::core::mavlink::offboard::OffboardContext;
 use crate::core::mavlink::params::{ParamChange, ParamService, param_value};
+use crate::core::mavlink::router::{
+    self, Commands, Housekeeping, MessageContext, Microservice, OffboardReceiver, Service,
+};
 use crate::core::mavlink::{
     CommandContext, CommandEffect, CommandPoint, Home, MavlinkService, Stream, TelemetrySnapshot, VehicleCommand,
     command_replies, housekeeping, statustext, statustext_chunks,
@@ -77,11 +81,6 @@ fn weights_interval_us(hz: f32) -> u64 {
     if hz > 0.0 { (1e6 / f64::from(hz)).round() as u64 } else { 0 }
 }
 
-/// Whether `msg` belongs to the parameter protocol.
-fn is_param_message(msg: &MavMessage) -> bool {
-    matches!(msg, MavMessage::PARAM_REQUEST_LIST(_) | MavMessage::PARAM_REQUEST_READ(_) | MavMessage::PARAM_SET(_))
-}
-
 /// The vehicle. See the module docs.
 pub struct Vehicle {
     config: VehicleConfig,
@@ -104,7 +103,7 @@ pub struct Vehicle {
     navigator: Navigator,
     last_nav_us: Option<u64>,
     home_changed: bool,
-    offboard_error: Option<String>,
+    offboard: OffboardReceiver,
     effects: Vec<ShellEffect>,
     missions: MissionService,
     params: ParamStore,
@@ -120,24 +119,6 @@ impl std::fmt::Debug for Vehicle {
             .field("pwm_us", &self.pwm_us)
             .finish_non_exhaustive()
     }
-}
-
-/// Whether `msg` belongs to the mission protocol.
-// The legacy float items and MISSION_SET_CURRENT are deprecated, but older clients still send them.
-#[allow(deprecated)]
-fn is_mission_message(msg: &MavMessage) -> bool {
-    matches!(
-        msg,
-        MavMessage::MISSION_COUNT(_)
-            | MavMessage::MISSION_ITEM(_)
-            | MavMessage::MISSION_ITEM_INT(_)
-            | MavMessage::MISSION_REQUEST(_)
-            | MavMessage::MISSION_REQUEST_INT(_)
-            | MavMessage::MISSION_REQUEST_LIST(_)
-            | MavMessage::MISSION_ACK(_)
-            | MavMessage::MISSION_CLEAR_ALL(_)
-            | MavMessage::MISSION_SET_CURRENT(_)
-    )
 }
 
 fn finite3(v: &Vector3<f64>) -> bool {
@@ -199,7 +180,7 @@ impl Vehicle {
             },
             last_nav_us: None,
             home_changed: false,
-            offboard_error: None,
+            offboard: OffboardReceiver::default(),
             effects: Vec::new(),
             missions: MissionService::default(),
             params,
@@ -270,61 +251,64 @@ impl Vehicle {
     /// their replies; offboard setpoints are taken; anything else, or anything for another system, gets
     /// nothing.
     pub fn handle_message(&mut self, now_us: u64, header: &MavHeader, msg: &MavMessage) -> Vec<MavMessage> {
-        let sysid = self.config.sysid;
-        if let Some(reply) = housekeeping::reply(sysid, header, msg) {
-            return vec![reply];
-        }
+        let Some(service) = router::route(msg) else {
+            return Vec::new();
+        };
         let est = *self.estimator.state();
-        let octx =
-            OffboardContext { origin: est.origin, home_alt_amsl_m: self.home_alt_amsl_m(), yaw_rad: est.euler_rad.z };
-        if let Some(setpoint) = offboard::decode(sysid, msg, &octx) {
-            return match setpoint {
-                Ok(sp) => {
+        let home_alt_amsl_m = self.home_alt_amsl_m();
+        let ctx = MessageContext {
+            now_us,
+            sysid: self.config.sysid,
+            header,
+            command: CommandContext { home_alt_amsl_m },
+            offboard: OffboardContext { origin: est.origin, home_alt_amsl_m, yaw_rad: est.euler_rad.z },
+        };
+        match service {
+            Service::Housekeeping => Housekeeping.handle(&ctx, msg, &mut ()).messages,
+            Service::Offboard => {
+                let reply = self.offboard.handle(&ctx, msg, &mut ());
+                if let Some(sp) = reply.effect {
                     self.navigator.set_offboard(now_us, sp);
-                    self.offboard_error = None;
-                    Vec::new()
                 }
-                // A refused stream would repeat its refusal 20 times a second: say it once.
-                Err(text) if self.offboard_error.as_deref() != Some(text.as_str()) => {
-                    self.offboard_error = Some(text.clone());
-                    vec![statustext(MavSeverity::MAV_SEVERITY_WARNING, &text)]
-                }
-                Err(_) => Vec::new(),
-            };
-        }
-        if is_param_message(msg) {
-            let before = self.params.clone();
-            let reply = self.param_service.on_message(sysid, header, msg, &mut self.params);
-            let mut messages = reply.messages;
-            if let Some(change) = reply.changed {
+                reply.messages
+            }
+            Service::Params => {
+                let before = self.params.clone();
+                let reply = self.param_service.handle(&ctx, msg, &mut self.params);
+                let Some(change) = reply.effect else { return reply.messages };
                 match self.on_param_change(&change) {
-                    Ok(extra) => messages.extend(extra),
+                    Ok(extra) => reply.messages.into_iter().chain(extra).collect(),
                     Err(text) => {
                         // In range, but the configuration it makes is not flyable: undo it, in words (in
                         // chunks when it is longer than one STATUSTEXT).
                         self.params = before;
                         self.text_id = self.text_id.wrapping_add(1).max(1);
-                        messages = statustext_chunks(MavSeverity::MAV_SEVERITY_WARNING, &text, self.text_id);
+                        let mut messages = statustext_chunks(MavSeverity::MAV_SEVERITY_WARNING, &text, self.text_id);
                         messages.extend(param_value(&self.params, change.index));
+                        messages
                     }
                 }
             }
-            return messages;
-        }
-        if is_mission_message(msg) {
-            let reply = self.missions.on_message(now_us, sysid, header, msg);
-            let mut messages = reply.messages;
-            if let Some(event) = reply.event {
-                messages.extend(self.on_mission_event(event));
+            Service::Mission => {
+                let reply = self.missions.handle(&ctx, msg, &mut ());
+                let mut messages = reply.messages;
+                if let Some(event) = reply.effect {
+                    messages.extend(self.on_mission_event(event));
+                }
+                messages
             }
-            return messages;
+            Service::Command => match Commands.handle(&ctx, msg, &mut ()).effect {
+                Some(cmd) => self.apply_command(now_us, &cmd),
+                None => Vec::new(),
+            },
         }
-        let ctx = CommandContext { home_alt_amsl_m: self.home_alt_amsl_m() };
-        let Some(cmd) = self.mavlink.on_message(header, msg, &ctx) else {
-            return Vec::new();
-        };
+    }
+
+    /// Applies a command and answers it: its ACK (and STATUSTEXT on refusal), then any message it asked
+    /// for.
+    fn apply_command(&mut self, now_us: u64, cmd: &InboundCommand) -> Vec<MavMessage> {
         let mut extra = Vec::new();
-        self.navigator.refresh(now_us, est.origin);
+        self.navigator.refresh(now_us, self.estimator.state().origin);
         self.commander.set_nav_status(self.navigator.status());
         let outcome = match cmd.effect.clone() {
             CommandEffect::Request(req) => self.commander.request(now_us, req).map_err(|r| Some(r.to_string())),
@@ -333,7 +317,7 @@ impl Vehicle {
             CommandEffect::Unsupported => Err(None),
         };
         let accepted = outcome.is_ok();
-        let mut replies = command_replies(&cmd, outcome);
+        let mut replies = command_replies(cmd, outcome);
         if accepted {
             replies.extend(extra);
         }
@@ -600,22 +584,13 @@ impl Vehicle {
         }
         self.output = out;
         let events = std::mem::take(&mut self.output.events);
-        // [`Self::snapshot`] spelled out field by field, as `self.mavlink` is borrowed mutably beside it.
-        let snapshot = TelemetrySnapshot {
-            now_us,
-            estimate: self.estimator.state(),
-            gps: self.last_gps.as_ref(),
-            home: self.home.as_ref(),
-            commander: &self.output,
-            pwm_us: self.pwm_us,
-            comm_errors: self.comm_errors,
-            mission_seq: (self.navigator.mission_len() > 0).then(|| self.navigator.current_seq()),
-            controller: Some(self.controller.as_ref()),
-        };
-        let mut messages = self.mavlink.outbound(now_us, &snapshot, &events);
-        if std::mem::take(&mut self.home_changed) {
-            messages.extend(Stream::HomePosition.message(&self.snapshot(now_us)));
+        let due = self.mavlink.due(now_us, &events);
+        let snapshot = self.snapshot(now_us);
+        let mut messages = due.messages(&snapshot, &events);
+        if self.home_changed {
+            messages.extend(Stream::HomePosition.message(&snapshot));
         }
+        self.home_changed = false;
         messages.extend(self.missions.poll(now_us).messages);
         messages.extend(self.param_service.due(&self.params));
         for event in self.navigator.take_events() {

@@ -22,6 +22,7 @@ pub mod identity;
 pub mod mission;
 pub mod offboard;
 pub mod params;
+pub mod router;
 pub mod telemetry;
 
 /// The wire types of this API (so users need no direct dependency on the same `mavlink` version).
@@ -55,7 +56,8 @@ pub fn own_header(sysid: u8) -> MavHeader {
     MavHeader { system_id: sysid.into(), component_id: AUTOPILOT_COMPONENT_ID, sequence: 0 }
 }
 
-/// The MAVLink side of the vehicle: the heartbeat cadence, the stream scheduler and the command decoder.
+/// The MAVLink side of the vehicle's output: the heartbeat cadence and the stream scheduler. (Messages in
+/// go through [`router`].)
 #[derive(Debug, Clone, PartialEq)]
 pub struct MavlinkService {
     sysid: u8,
@@ -85,24 +87,36 @@ impl MavlinkService {
         &self.streams
     }
 
-    /// A received message: `Some` command to apply and answer, `None` when it is not for us or not a
-    /// command (telemetry of other systems, GCS heartbeats).
-    #[must_use]
-    pub fn on_message(&self, header: &MavHeader, msg: &MavMessage, ctx: &CommandContext) -> Option<InboundCommand> {
-        decode_command(self.sysid, header, msg, ctx)
-    }
-
     /// What is due at `now_us`: a HEARTBEAT (on its cadence, or at once when an event changed it), the
-    /// STATUSTEXT of every event, then the telemetry streams that are due.
-    pub fn outbound(&mut self, now_us: u64, snapshot: &TelemetrySnapshot<'_>, events: &[Event]) -> Vec<MavMessage> {
-        let mut out = Vec::new();
+    /// STATUSTEXT of every event, then the telemetry streams that are due. The cadences advance here; the
+    /// messages are built from a snapshot by [`Due::messages`].
+    pub fn due(&mut self, now_us: u64, events: &[Event]) -> Due {
         let changed = events.iter().any(Event::changes_heartbeat);
-        if changed || self.heartbeat_due_us.is_none_or(|due| now_us >= due) {
-            out.push(heartbeat(snapshot.commander));
+        let heartbeat = changed || self.heartbeat_due_us.is_none_or(|due| now_us >= due);
+        if heartbeat {
             self.heartbeat_due_us = Some(next_due_us(self.heartbeat_due_us, now_us, HEARTBEAT_INTERVAL_US, changed));
         }
+        Due { heartbeat, streams: self.streams.due(now_us) }
+    }
+}
+
+/// The output due at one step (see [`MavlinkService::due`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Due {
+    heartbeat: bool,
+    streams: Vec<Stream>,
+}
+
+impl Due {
+    /// The messages: the HEARTBEAT if due, a STATUSTEXT per event, the due streams' messages.
+    #[must_use]
+    pub fn messages(&self, snapshot: &TelemetrySnapshot<'_>, events: &[Event]) -> Vec<MavMessage> {
+        let mut out = Vec::new();
+        if self.heartbeat {
+            out.push(heartbeat(snapshot.commander));
+        }
         out.extend(events.iter().map(|e| statustext(telemetry::event_severity(e), &e.text())));
-        out.extend(self.streams.due(now_us).into_iter().flat_map(|s| s.messages(snapshot)));
+        out.extend(self.streams.iter().flat_map(|s| s.messages(snapshot)));
         out
     }
 }

@@ -1,0 +1,198 @@
+//! The one router and the one shape of a MAVLink microservice. In: a message from a ground station with
+//! its header, the vehicle time (µs) and what the services need to know of the vehicle
+//! ([`MessageContext`]). Out: which service the message belongs to ([`route`]: one match, so no message
+//! reaches two services and none is claimed by a hand-kept predicate), and that service's
+//! [`ServiceReply`]: the messages to send back, and what it asks of the vehicle (an effect the vehicle
+//! applies: a parameter change, a mission event, a command, an offboard setpoint).
+
+use ::mavlink::MavHeader;
+use ::mavlink::dialects::common::{MavMessage, MavSeverity};
+
+use super::command::{CommandContext, InboundCommand, decode_command};
+use super::housekeeping;
+use super::mission::{MissionEvent, MissionService};
+use super::offboard::{self, OffboardContext};
+use super::params::{ParamChange, ParamService};
+use super::statustext;
+use crate::core::navigator::OffboardSetpoint;
+use crate::core::params::ParamStore;
+
+/// The microservices a ground station's message can belong to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Service {
+    /// PING and FTP (answered NAK): replies only.
+    Housekeeping,
+    /// SET_POSITION_TARGET_LOCAL_NED / _GLOBAL_INT, SET_ATTITUDE_TARGET.
+    Offboard,
+    /// PARAM_REQUEST_LIST / _READ, PARAM_SET.
+    Params,
+    /// The mission protocol (every mission_type).
+    Mission,
+    /// COMMAND_LONG, COMMAND_INT, SET_MODE.
+    Command,
+}
+
+/// The service `msg` belongs to (None: nothing of ours, such as a ground station's HEARTBEAT).
+// The legacy float items and MISSION_SET_CURRENT are deprecated, but older clients still send them.
+#[allow(deprecated)]
+#[must_use]
+pub fn route(msg: &MavMessage) -> Option<Service> {
+    use MavMessage as M;
+    Some(match msg {
+        M::PING(_) | M::FILE_TRANSFER_PROTOCOL(_) => Service::Housekeeping,
+        M::SET_POSITION_TARGET_LOCAL_NED(_) | M::SET_POSITION_TARGET_GLOBAL_INT(_) | M::SET_ATTITUDE_TARGET(_) => {
+            Service::Offboard
+        }
+        M::PARAM_REQUEST_LIST(_) | M::PARAM_REQUEST_READ(_) | M::PARAM_SET(_) => Service::Params,
+        M::MISSION_COUNT(_)
+        | M::MISSION_ITEM(_)
+        | M::MISSION_ITEM_INT(_)
+        | M::MISSION_REQUEST(_)
+        | M::MISSION_REQUEST_INT(_)
+        | M::MISSION_REQUEST_LIST(_)
+        | M::MISSION_ACK(_)
+        | M::MISSION_CLEAR_ALL(_)
+        | M::MISSION_SET_CURRENT(_) => Service::Mission,
+        M::COMMAND_LONG(_) | M::COMMAND_INT(_) | M::SET_MODE(_) => Service::Command,
+        _ => return None,
+    })
+}
+
+/// What a service knows of the message and the vehicle.
+#[derive(Debug, Clone, Copy)]
+pub struct MessageContext<'a> {
+    /// Vehicle time (µs).
+    pub now_us: u64,
+    /// Our system id.
+    pub sysid: u8,
+    /// The sender's header.
+    pub header: &'a MavHeader,
+    pub command: CommandContext,
+    pub offboard: OffboardContext,
+}
+
+/// A service's answer to one message.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ServiceReply<E> {
+    /// To send (to the sender, or to every ground station for broadcasts such as PARAM_VALUE).
+    pub messages: Vec<MavMessage>,
+    /// What the vehicle is asked to do.
+    pub effect: Option<E>,
+}
+
+impl<E> ServiceReply<E> {
+    fn of(messages: Vec<MavMessage>, effect: Option<E>) -> Self {
+        Self { messages, effect }
+    }
+}
+
+/// A MAVLink microservice: one message in, its reply out. `State` is the part of the vehicle the service
+/// works on (the parameter store), `()` for the rest.
+pub trait Microservice {
+    type State;
+    type Effect;
+    fn handle(
+        &mut self,
+        ctx: &MessageContext<'_>,
+        msg: &MavMessage,
+        state: &mut Self::State,
+    ) -> ServiceReply<Self::Effect>;
+}
+
+/// PING and FTP.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Housekeeping;
+
+impl Microservice for Housekeeping {
+    type State = ();
+    type Effect = ();
+
+    fn handle(&mut self, ctx: &MessageContext<'_>, msg: &MavMessage, (): &mut ()) -> ServiceReply<()> {
+        ServiceReply::of(housekeeping::reply(ctx.sysid, ctx.header, msg).into_iter().collect(), None)
+    }
+}
+
+/// Offboard setpoints: decoded into local NED; a refused stream says why once, not 20 times a second.
+#[derive(Debug, Clone, Default)]
+pub struct OffboardReceiver {
+    last_refusal: Option<String>,
+}
+
+impl Microservice for OffboardReceiver {
+    type State = ();
+    type Effect = OffboardSetpoint;
+
+    fn handle(&mut self, ctx: &MessageContext<'_>, msg: &MavMessage, (): &mut ()) -> ServiceReply<OffboardSetpoint> {
+        match offboard::decode(ctx.sysid, msg, &ctx.offboard) {
+            Some(Ok(sp)) => {
+                self.last_refusal = None;
+                ServiceReply::of(Vec::new(), Some(sp))
+            }
+            Some(Err(text)) if self.last_refusal.as_deref() != Some(text.as_str()) => {
+                let reply = statustext(MavSeverity::MAV_SEVERITY_WARNING, &text);
+                self.last_refusal = Some(text);
+                ServiceReply::of(vec![reply], None)
+            }
+            Some(Err(_)) | None => ServiceReply::of(Vec::new(), None),
+        }
+    }
+}
+
+impl Microservice for ParamService {
+    type State = ParamStore;
+    type Effect = ParamChange;
+
+    fn handle(
+        &mut self,
+        ctx: &MessageContext<'_>,
+        msg: &MavMessage,
+        store: &mut ParamStore,
+    ) -> ServiceReply<ParamChange> {
+        let reply = ParamService::on_message(self, ctx.sysid, ctx.header, msg, store);
+        ServiceReply::of(reply.messages, reply.changed)
+    }
+}
+
+impl Microservice for MissionService {
+    type State = ();
+    type Effect = MissionEvent;
+
+    fn handle(&mut self, ctx: &MessageContext<'_>, msg: &MavMessage, (): &mut ()) -> ServiceReply<MissionEvent> {
+        let reply = MissionService::on_message(self, ctx.now_us, ctx.sysid, ctx.header, msg);
+        ServiceReply::of(reply.messages, reply.event)
+    }
+}
+
+/// COMMAND_LONG / COMMAND_INT / SET_MODE: decoded into the command to apply (the vehicle answers it with
+/// its ACK once applied).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Commands;
+
+impl Microservice for Commands {
+    type State = ();
+    type Effect = InboundCommand;
+
+    fn handle(&mut self, ctx: &MessageContext<'_>, msg: &MavMessage, (): &mut ()) -> ServiceReply<InboundCommand> {
+        ServiceReply::of(Vec::new(), decode_command(ctx.sysid, ctx.header, msg, &ctx.command))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[allow(deprecated)]
+    use ::mavlink::dialects::common::{HEARTBEAT_DATA, PARAM_SET_DATA, PING_DATA};
+
+    use super::*;
+
+    #[test]
+    #[allow(deprecated)]
+    fn given_messages_of_each_protocol_then_exactly_one_service_claims_each_and_heartbeats_none() {
+        assert_eq!(route(&MavMessage::PING(PING_DATA::default())), Some(Service::Housekeeping));
+        assert_eq!(route(&MavMessage::PARAM_SET(PARAM_SET_DATA::default())), Some(Service::Params));
+        assert_eq!(route(&MavMessage::HEARTBEAT(HEARTBEAT_DATA::default())), None);
+        let mission = MavMessage::MISSION_REQUEST_LIST(Default::default());
+        assert_eq!(route(&mission), Some(Service::Mission));
+        assert_eq!(route(&MavMessage::COMMAND_LONG(Default::default())), Some(Service::Command));
+        assert_eq!(route(&MavMessage::SET_ATTITUDE_TARGET(Default::default())), Some(Service::Offboard));
+    }
+}
