@@ -17,7 +17,7 @@ use ::mavlink::MavHeader;
 use ::mavlink::dialects::common::{MISSION_CURRENT_DATA, MISSION_ITEM_REACHED_DATA, MavMessage, MavSeverity};
 use nalgebra::Vector3;
 
-use crate::core::commander::{Commander, CommanderInputs, CommanderOutput, Estimate, Event, LandedState, Request};
+use crate::core::commander::{Commander, CommanderInputs, CommanderOutput, Estimate, LandedState, Request};
 pub use crate::core::config::{AirborneStart, VehicleConfig, VehicleError};
 use crate::core::control::{ControlInput, Controller, Reference, distributor, try_new_controller};
 use crate::core::estimator::{
@@ -146,12 +146,10 @@ impl Vehicle {
         let controller = try_new_controller(config.controller, &config.control)?;
         let mut commander = Commander::new(config.commander)?;
         let output = commander.step(&CommanderInputs::default());
-        let mut home = None;
         if let Some(start) = config.start_airborne {
-            let hold = Vector3::from(start.hold_ned_m);
-            commander.start_airborne(hold, start.yaw_rad);
-            home = Some(Home { pos_ned_m: Vector3::new(hold.x, hold.y, 0.0), geodetic: None });
+            commander.start_airborne(Vector3::from(start.hold_ned_m), start.yaw_rad);
         }
+        let home = commander.home_ned_m().map(|pos_ned_m| Home { pos_ned_m, geodetic: None });
         let airframe = &config.control.aco.airframe;
         let throttle_low_pwm_us = distributor::pwm_from_lift_us(0.3 * airframe.hover_rotor_lift_n());
         let mut mavlink = MavlinkService::new(config.sysid);
@@ -235,6 +233,25 @@ impl Vehicle {
     #[must_use]
     pub fn controller(&self) -> &dyn Controller {
         self.controller.as_ref()
+    }
+
+    /// Home as the commander keeps it, with its geodetic position once the estimator has an origin; a
+    /// change is sent as HOME_POSITION at the next step.
+    fn sync_home(&mut self) {
+        let origin = self.estimator.state().origin;
+        let geodetic = |p: &Vector3<f64>| origin.map(|o| o.geodetic_from_ned(p));
+        match (self.commander.home_ned_m(), &mut self.home) {
+            (Some(p), Some(home)) if home.pos_ned_m == p => {
+                if home.geodetic.is_none() {
+                    home.geodetic = geodetic(&p);
+                }
+            }
+            (Some(p), _) => {
+                self.home = Some(Home { pos_ned_m: p, geodetic: geodetic(&p) });
+                self.home_changed = true;
+            }
+            (None, _) => {}
+        }
     }
 
     /// Home altitude (m AMSL): home once set, else the ground under the vehicle; None without an origin.
@@ -399,14 +416,9 @@ impl Vehicle {
                 Ok(())
             }
             VehicleCommand::SetHome { point } => {
-                let est = *self.estimator.state();
-                let pos_ned_m = match point {
-                    None if finite3(&est.pos_ned_m) => est.pos_ned_m,
-                    None => return Err(Some("Set home: no position".to_owned())),
-                    Some(p) => self.local_point(&p)?,
-                };
-                self.home = Some(Home { pos_ned_m, geodetic: est.origin.map(|o| o.geodetic_from_ned(&pos_ned_m)) });
-                self.home_changed = true;
+                let pos_ned_m = point.map(|p| self.local_point(&p)).transpose()?;
+                self.commander.request(now_us, Request::SetHome { pos_ned_m }).map_err(|r| Some(r.to_string()))?;
+                self.sync_home();
                 Ok(())
             }
             VehicleCommand::Reposition { point, yaw_rad } => {
@@ -550,30 +562,15 @@ impl Vehicle {
             yaw_rad: state.euler_rad.z,
             position_valid: state.flags.position_valid,
             converged: state.flags.converged,
+            has_origin: state.origin.is_some(),
         };
         let out = self.commander.step(&CommanderInputs {
             now_us,
             estimate,
             throttle_low: mean_pwm_us.is_nan() || mean_pwm_us <= self.throttle_low_pwm_us,
-            home_ned_m: self.home.map(|h| h.pos_ned_m),
             nav: self.navigator.status(),
         });
-        // Home: where the vehicle first has a converged global position on the ground (as PX4: ground
-        // stations and MAVSDK want it before arming), then where it arms.
-        let first_fix = self.home.is_none() && !out.armed && state.flags.converged && state.origin.is_some();
-        if (first_fix || out.events.iter().any(|e| matches!(e, Event::Armed { .. }))) && finite3(&state.pos_ned_m) {
-            self.home = Some(Home {
-                pos_ned_m: state.pos_ned_m,
-                geodetic: state.origin.map(|o| o.geodetic_from_ned(&state.pos_ned_m)),
-            });
-            self.home_changed = true;
-        }
-        if let Some(home) = &mut self.home
-            && home.geodetic.is_none()
-            && let Some(origin) = state.origin
-        {
-            home.geodetic = Some(origin.geodetic_from_ned(&home.pos_ned_m));
-        }
+        self.sync_home();
         let reference = self.plan(now_us, &state, &out);
         self.reference = reference;
         if tick {

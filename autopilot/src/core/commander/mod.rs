@@ -112,6 +112,8 @@ pub struct Estimate {
     pub position_valid: bool,
     /// The estimator's converged flag: the arming check.
     pub converged: bool,
+    /// The estimate has a geodetic origin (a global position): home can be set.
+    pub has_origin: bool,
 }
 
 impl Default for Estimate {
@@ -122,6 +124,7 @@ impl Default for Estimate {
             yaw_rad: 0.0,
             position_valid: false,
             converged: false,
+            has_origin: false,
         }
     }
 }
@@ -134,8 +137,6 @@ pub struct CommanderInputs {
     pub estimate: Estimate,
     /// The controller's collective thrust is at its minimum.
     pub throttle_low: bool,
-    /// Home (m, NED); its down coordinate is the ground. None: the ground is where the vehicle armed.
-    pub home_ned_m: Option<Vector3<f64>>,
     /// The navigator's status of the previous step (mission valid and done, landing, offboard fresh).
     pub nav: NavStatus,
 }
@@ -166,6 +167,8 @@ pub enum Request {
     Mission,
     /// OFFBOARD: follow the streamed setpoints (only while they flow).
     Offboard,
+    /// DO_SET_HOME: home at `pos_ned_m` (None: where the vehicle is).
+    SetHome { pos_ned_m: Option<Vector3<f64>> },
     /// DO_REPOSITION: hold at `pos_ned_m` (None: here, QGroundControl's pause) with `yaw_rad` (None:
     /// keep), flown to from where the vehicle is; in the air only.
     Goto { pos_ned_m: Option<Vector3<f64>>, yaw_rad: Option<f64> },
@@ -218,6 +221,8 @@ pub enum Refusal {
     NoSetpoints(Action),
     #[error("{0} denied: landed")]
     Landed(Action),
+    #[error("Set home: no position")]
+    NoPosition,
 }
 
 /// Why the vehicle disarmed.
@@ -379,6 +384,12 @@ impl Commander {
         self.mode
     }
 
+    /// Home (NED m): its down coordinate is the ground. None until the first converged global position.
+    #[must_use]
+    pub fn home_ned_m(&self) -> Option<Vector3<f64>> {
+        self.home_ned_m
+    }
+
     /// The altitude (m above home) of a takeoff asked for while disarmed, if any.
     #[must_use]
     pub fn pending_takeoff_alt_m(&self) -> Option<f64> {
@@ -433,6 +444,7 @@ impl Commander {
     /// for experiments that begin in the air, as the paper's do (`sitl run --scenario`). Call before the
     /// first step; no Armed event is raised (there was no arming), the first HEARTBEAT shows it armed.
     pub fn start_airborne(&mut self, hold_ned_m: Vector3<f64>, yaw_rad: f64) {
+        self.home_ned_m = Some(Vector3::new(hold_ned_m.x, hold_ned_m.y, 0.0));
         self.state = State::Hold;
         self.hold_ned_m = Some(hold_ned_m);
         self.yaw_sp_rad = yaw_rad;
@@ -510,9 +522,13 @@ impl Commander {
         self.est.position_valid = e.position_valid && finite;
         self.est.converged = e.converged && finite;
         self.est_ok = self.est.position_valid && self.est.converged;
-        self.home_ned_m = inputs.home_ned_m.filter(|h| h.iter().all(|x| x.is_finite()));
         if self.state == State::Disarmed {
             self.arm_ground_d_m = self.est.pos_ned_m.z;
+            // Home: where the vehicle first has a converged global position on the ground (as PX4: ground
+            // stations and MAVSDK want it before arming); arming moves it to where the vehicle arms.
+            if self.home_ned_m.is_none() && self.est.converged && e.has_origin {
+                self.home_ned_m = Some(self.est.pos_ned_m);
+            }
         }
     }
 
@@ -617,6 +633,14 @@ impl Commander {
                 State::Disarmed | State::Killed => Err(Refusal::NotInState { action: Action::Offboard, state }),
                 _ => self.transition(now, C::OFFBOARD_REQUESTED, Action::Offboard),
             },
+            Request::SetHome { pos_ned_m } => {
+                let p = pos_ned_m.unwrap_or(self.est.pos_ned_m);
+                if !(p.iter().all(|x| x.is_finite()) && (pos_ned_m.is_some() || self.est_ok)) {
+                    return Err(Refusal::NoPosition);
+                }
+                self.home_ned_m = Some(p);
+                Ok(())
+            }
             Request::Goto { pos_ned_m, yaw_rad } => {
                 if !self.state.is_armed() || self.state == State::ArmedIdle || self.land_detector.landed() {
                     return Err(Refusal::Landed(Action::Reposition));
@@ -719,6 +743,7 @@ impl Commander {
             }
             State::ArmedIdle => {
                 self.armed_idle_since_us = now;
+                self.home_ned_m = Some(pos);
                 self.events.push(Event::Armed { forced: c.contains(C::FORCE) });
             }
             State::Takeoff => {

@@ -35,9 +35,9 @@ impl Sim {
                 yaw_rad: 0.3,
                 position_valid: self.converged,
                 converged: self.converged,
+                has_origin: true,
             },
             throttle_low: self.throttle_low,
-            home_ned_m: Some(Vector3::new(1.0, -2.0, 0.0)),
             nav: self.nav,
         }
     }
@@ -571,4 +571,30 @@ fn given_a_reposition_then_hold_at_the_new_point_in_the_air_only() {
     c.request(sim.now_us, Request::Mission).expect("mission");
     c.request(sim.now_us, Request::Goto { pos_ned_m: None, yaw_rad: None }).expect("pause");
     assert_eq!(c.state(), State::Hold);
+}
+
+#[test]
+fn given_a_converged_global_position_then_home_is_set_on_the_ground_moved_at_arming_and_set_on_request() {
+    // GIVEN no converged estimate: no home.
+    let mut sim = Sim::new();
+    sim.converged = false;
+    let mut c = commander();
+    sim.run(&mut c, 5);
+    assert_eq!(c.home_ned_m(), None);
+    // WHEN it converges on the ground THEN home is where the vehicle stands (before arming, as PX4).
+    sim.converged = true;
+    sim.run(&mut c, 1);
+    assert_eq!(c.home_ned_m(), Some(Vector3::new(1.0, -2.0, 0.0)));
+    // WHEN it arms somewhere else (the estimate drifted) THEN home moves there.
+    sim.pos_d_m = -0.01;
+    sim.run(&mut c, 1);
+    c.request(sim.now_us, Request::Arm { force: false }).expect("arm");
+    assert_eq!(c.home_ned_m(), Some(Vector3::new(1.0, -2.0, -0.01)));
+    // WHEN DO_SET_HOME names a point THEN home is there; a non-finite one is refused, home unchanged.
+    let there = Vector3::new(5.0, 6.0, -1.0);
+    c.request(sim.now_us, Request::SetHome { pos_ned_m: Some(there) }).expect("set home");
+    assert_eq!(c.home_ned_m(), Some(there));
+    let err = c.request(sim.now_us, Request::SetHome { pos_ned_m: Some(Vector3::new(f64::NAN, 0.0, 0.0)) });
+    assert_eq!(err.unwrap_err().to_string(), "Set home: no position");
+    assert_eq!(c.home_ned_m(), Some(there));
 }
