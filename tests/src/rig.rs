@@ -212,4 +212,21 @@ impl Rig {
         }
         panic!("no MISSION_ACK after {} items", items.len());
     }
+
+    /// Uploads `items`, arms and switches to AUTO MISSION, as a ground station starts a mission.
+    ///
+    /// # Panics
+    /// When the upload, the arming or the mode change is not accepted.
+    pub fn start_mission(&mut self, items: &[autopilot::core::mavlink::common::MISSION_ITEM_INT_DATA]) {
+        use autopilot::core::mavlink::common::MavMissionResult;
+        assert_eq!(self.upload(items), MavMissionResult::MAV_MISSION_ACCEPTED);
+        assert_eq!(
+            self.command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+            MavResult::MAV_RESULT_ACCEPTED
+        );
+        assert_eq!(
+            self.command(MavCmd::MAV_CMD_DO_SET_MODE, [1.0, 4.0, 4.0, 0.0, 0.0, 0.0, 0.0]),
+            MavResult::MAV_RESULT_ACCEPTED
+        );
+    }
 }

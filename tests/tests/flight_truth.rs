@@ -7,7 +7,7 @@
 //! --nocapture` prints every figure.
 
 use autopilot::core::estimator::EstimatorSource;
-use autopilot::core::mavlink::common::{COMMAND_INT_DATA, MavCmd, MavFrame, MavMessage, MavMissionResult, MavResult};
+use autopilot::core::mavlink::common::{COMMAND_INT_DATA, MavCmd, MavFrame, MavMessage, MavResult};
 use autopilot::core::navigator::NavigatorConfig;
 use autopilot::core::navigator::trajectory::{Limits, Motion1, Profile};
 use nalgebra::{Vector2, Vector3};
@@ -301,15 +301,7 @@ fn a_10_m_square_mission_never_passes_a_corner_by_more_than_15_cm() {
         }
         let (lat, lon) = at(0.0, 0.0);
         items.push(mission_item(5, MavCmd::MAV_CMD_NAV_LAND, [0.0, 0.0, 0.0, NAN], lat, lon, 0.0));
-        assert_eq!(rig.upload(&items), MavMissionResult::MAV_MISSION_ACCEPTED);
-        assert_eq!(
-            rig.command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
-            MavResult::MAV_RESULT_ACCEPTED
-        );
-        assert_eq!(
-            rig.command(MavCmd::MAV_CMD_DO_SET_MODE, [1.0, 4.0, 4.0, 0.0, 0.0, 0.0, 0.0]),
-            MavResult::MAV_RESULT_ACCEPTED
-        );
+        rig.start_mission(&items);
         let (mut outside, mut speed, mut acc) = (0.0_f64, 0.0_f64, 0.0_f64);
         fly_until(
             &mut rig,

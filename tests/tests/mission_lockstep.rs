@@ -4,7 +4,7 @@
 //! spline the in-process figure-8 scenario flies. Also RTL and a mission that lands.
 
 use autopilot::core::estimator::EstimatorSource;
-use autopilot::core::mavlink::common::{MavCmd, MavMessage, MavMissionResult, MavResult};
+use autopilot::core::mavlink::common::{MavCmd, MavMessage, MavResult};
 use autopilot::core::navigator::spline::{FIGURE8_NE_M, SplinePath};
 use nalgebra::{Vector2, Vector3};
 use sitl::plant::{PlantConfig, SensorConfig};
@@ -94,15 +94,7 @@ fn fly_figure8_mission(laps: u16) -> Figure8Flight {
             item.frame = autopilot::core::mavlink::common::MavFrame::MAV_FRAME_MISSION;
         }
     }
-    assert_eq!(rig.upload(&items), MavMissionResult::MAV_MISSION_ACCEPTED);
-    assert_eq!(
-        rig.command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
-        MavResult::MAV_RESULT_ACCEPTED
-    );
-    assert_eq!(
-        rig.command(MavCmd::MAV_CMD_DO_SET_MODE, [1.0, 4.0, 4.0, 0.0, 0.0, 0.0, 0.0]),
-        MavResult::MAV_RESULT_ACCEPTED
-    );
+    rig.start_mission(&items);
     rig.take_messages();
 
     let path = SplinePath::new(&FIGURE8_NE_M);
