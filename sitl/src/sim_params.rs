@@ -40,11 +40,9 @@ use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
 use std::time::{Duration, Instant};
 
 use autopilot::core::hil::{FrameDecoder, encode_frame_v1, encode_frame_v2};
-use mavlink::dialects::common::{
-    HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavParamType, MavSeverity, MavState, MavType,
-    PARAM_SET_DATA, PARAM_VALUE_DATA, STATUSTEXT_DATA,
-};
-use mavlink::types::CharArray;
+use autopilot::core::mavlink::params::{Applied, ParamService};
+use autopilot::core::params::{ParamDef, ParamKind, ParamStore};
+use mavlink::dialects::common::{HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavState, MavType};
 use mavlink::{MavHeader, MavlinkVersion};
 use nalgebra::Vector3;
 
@@ -70,29 +68,6 @@ pub fn sim_param_port(instance: u16) -> Option<u16> {
     SIM_PARAM_PORT_BASE.checked_add(instance)
 }
 
-/// What values a parameter takes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ParamKind {
-    /// Any finite value in the range.
-    Real,
-    /// A whole number in the range (0/1 for a switch).
-    Integer,
-}
-
-/// One SIM_ parameter: declared once, here.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SimParamDef {
-    /// At most 16 characters.
-    pub name: &'static str,
-    /// The value with no wind configured (the plant's configured wind overrides it at start).
-    pub default: f32,
-    pub min: f32,
-    pub max: f32,
-    pub kind: ParamKind,
-    pub unit: &'static str,
-    pub description: &'static str,
-}
-
 /// Index of each parameter in [`SIM_PARAMS`] (its `param_index`; never reused).
 mod idx {
     pub const WIND_N: usize = 0;
@@ -106,129 +81,68 @@ mod idx {
     pub const BEAUFORT: usize = 8;
 }
 
-/// The SIM_ parameters.
-pub const SIM_PARAMS: [SimParamDef; 9] = [
+/// A SIM_ parameter: the autopilot's parameter definition with no docs group and no config binding (the
+/// service applies each set to the plant itself).
+pub type SimParamDef = ParamDef<(), ()>;
+
+/// A real-valued SIM_ parameter.
+const fn real(
+    name: &'static str,
+    default: f32,
+    min: f32,
+    max: f32,
+    unit: &'static str,
+    description: &'static str,
+) -> SimParamDef {
     SimParamDef {
-        name: "SIM_WIND_N",
-        default: 0.0,
-        min: -30.0,
-        max: 30.0,
+        name,
+        group: (),
         kind: ParamKind::Real,
-        unit: "m/s",
-        description: "Steady wind toward north (NED)",
-    },
+        default,
+        min,
+        max,
+        unit,
+        restart: false,
+        description,
+        binding: (),
+    }
+}
+
+/// A whole-numbered SIM_ parameter (0/1 for a switch).
+const fn whole(name: &'static str, default: f32, min: f32, max: f32, description: &'static str) -> SimParamDef {
     SimParamDef {
-        name: "SIM_WIND_E",
-        default: 0.0,
-        min: -30.0,
-        max: 30.0,
-        kind: ParamKind::Real,
-        unit: "m/s",
-        description: "Steady wind toward east (NED)",
-    },
-    SimParamDef {
-        name: "SIM_WIND_D",
-        default: 0.0,
-        min: -10.0,
-        max: 10.0,
-        kind: ParamKind::Real,
-        unit: "m/s",
-        description: "Steady wind downward (NED)",
-    },
-    SimParamDef {
-        name: "SIM_GUST_SPD",
-        default: 6.7,
-        min: 0.0,
-        max: 30.0,
-        kind: ParamKind::Real,
-        unit: "m/s",
-        description: "Peak speed of the next gust (6.7 = Beaufort 4, the spec's gust)",
-    },
-    SimParamDef {
-        name: "SIM_GUST_DIR",
-        default: 90.0,
-        min: 0.0,
-        max: 360.0,
-        kind: ParamKind::Real,
-        unit: "deg",
-        description: "Direction the next gust blows toward (0 north, 90 east)",
-    },
-    SimParamDef {
-        name: "SIM_GUST_RISE",
-        default: 1.0,
-        min: 0.1,
-        max: 10.0,
-        kind: ParamKind::Real,
-        unit: "s",
-        description: "Rise and fall time of the next 1-cos gust",
-    },
-    SimParamDef {
-        name: "SIM_GUST_ON",
-        default: 0.0,
-        min: 0.0,
-        max: 1.0,
+        name,
+        group: (),
         kind: ParamKind::Integer,
+        default,
+        min,
+        max,
         unit: "",
-        description: "1 starts a gust now with SIM_GUST_SPD/DIR/RISE; 0 releases it",
-    },
-    SimParamDef {
-        name: "SIM_TURB",
-        default: 0.0,
-        min: 0.0,
-        max: 1.0,
-        kind: ParamKind::Integer,
-        unit: "",
-        description: "1: the spec's Gauss-Markov turbulence, scaled by the gust profile",
-    },
-    SimParamDef {
-        name: "SIM_BEAUFORT",
-        default: 4.0,
-        min: 0.0,
-        max: 8.0,
-        kind: ParamKind::Integer,
-        unit: "",
-        description: "Beaufort force of SIM_GUST_SPD; setting it sets SIM_GUST_SPD to the force's mid speed",
-    },
+        restart: false,
+        description,
+        binding: (),
+    }
+}
+
+/// The SIM_ parameters. The defaults are the values with no wind configured (the plant's configured wind
+/// overrides them at start).
+pub static SIM_PARAMS: [SimParamDef; 9] = [
+    real("SIM_WIND_N", 0.0, -30.0, 30.0, "m/s", "Steady wind toward north (NED)"),
+    real("SIM_WIND_E", 0.0, -30.0, 30.0, "m/s", "Steady wind toward east (NED)"),
+    real("SIM_WIND_D", 0.0, -10.0, 10.0, "m/s", "Steady wind downward (NED)"),
+    real("SIM_GUST_SPD", 6.7, 0.0, 30.0, "m/s", "Peak speed of the next gust (6.7 = Beaufort 4, the spec's gust)"),
+    real("SIM_GUST_DIR", 90.0, 0.0, 360.0, "deg", "Direction the next gust blows toward (0 north, 90 east)"),
+    real("SIM_GUST_RISE", 1.0, 0.1, 10.0, "s", "Rise and fall time of the next 1-cos gust"),
+    whole("SIM_GUST_ON", 0.0, 0.0, 1.0, "1 starts a gust now with SIM_GUST_SPD/DIR/RISE; 0 releases it"),
+    whole("SIM_TURB", 0.0, 0.0, 1.0, "1: the spec's Gauss-Markov turbulence, scaled by the gust profile"),
+    whole(
+        "SIM_BEAUFORT",
+        4.0,
+        0.0,
+        8.0,
+        "Beaufort force of SIM_GUST_SPD; setting it sets SIM_GUST_SPD to the force's mid speed",
+    ),
 ];
-
-/// The index of parameter `name`.
-#[must_use]
-pub fn index_of(name: &str) -> Option<usize> {
-    SIM_PARAMS.iter().position(|d| d.name == name)
-}
-
-/// Why a set was refused.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum SimParamError {
-    #[error("{name}: no such parameter")]
-    Unknown { name: String },
-    #[error("{name}: {value} is not a number")]
-    NotFinite { name: &'static str, value: f32 },
-    #[error("{name}: {value} out of range {min}..{max}")]
-    OutOfRange { name: &'static str, value: f32, min: f32, max: f32 },
-    #[error("{name}: {value} is not a whole number")]
-    NotWhole { name: &'static str, value: f32 },
-    #[error("{name}: the plant refused it: {reason}")]
-    Plant { name: &'static str, reason: String },
-}
-
-/// Checks `value` against parameter `index`'s range and kind.
-///
-/// # Errors
-/// [`SimParamError::NotFinite`], [`SimParamError::OutOfRange`] or [`SimParamError::NotWhole`].
-pub fn check(index: usize, value: f32) -> Result<(), SimParamError> {
-    let d = &SIM_PARAMS[index];
-    if !value.is_finite() {
-        return Err(SimParamError::NotFinite { name: d.name, value });
-    }
-    if !(d.min..=d.max).contains(&value) {
-        return Err(SimParamError::OutOfRange { name: d.name, value, min: d.min, max: d.max });
-    }
-    if d.kind == ParamKind::Integer && value.fract() != 0.0 {
-        return Err(SimParamError::NotWhole { name: d.name, value });
-    }
-    Ok(())
-}
 
 /// The Beaufort force of a wind speed (m/s): the highest force whose range starts at or below it.
 #[must_use]
@@ -243,17 +157,21 @@ pub fn direction_ned(deg: f64) -> Vector3<f64> {
     Vector3::new(rad.cos(), rad.sin(), 0.0)
 }
 
-/// The parameter protocol's state: the values (as carried on the wire, f32) and the system id.
+/// The SIM_ parameters' state: their values (as carried on the wire, f32) in the autopilot's
+/// [`ParamStore`], the PARAM protocol in the autopilot's [`ParamService`] (for component
+/// [`PLANT_COMPONENT_ID`]), and the system id.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SimParamService {
     system_id: u8,
-    values: [f32; SIM_PARAMS.len()],
+    store: ParamStore<(), ()>,
+    protocol: ParamService,
 }
 
 impl SimParamService {
     /// The service of system `system_id`, its values read from the plant's wind as configured: the steady
     /// wind, the configured gust's amplitude, direction and rise (else the table's defaults), whether that
-    /// gust blows at the current plant time, and whether a turbulence model is on.
+    /// gust blows at the current plant time, and whether a turbulence model is on. They are taken as they
+    /// are, even outside the table's ranges (a configured wind is the plant's, not a ground station's).
     #[must_use]
     pub fn new(system_id: u8, plant: &Plant) -> Self {
         let wind = plant.wind();
@@ -270,160 +188,114 @@ impl SimParamService {
         }
         values[idx::TURB] = f32::from(u8::from(wind.has_turbulence()));
         values[idx::BEAUFORT] = f32::from(beaufort_force_of(f64::from(values[idx::GUST_SPD])));
-        Self { system_id, values }
+        Self {
+            system_id,
+            store: ParamStore::from_fn(&SIM_PARAMS, |i, _| values[i]),
+            protocol: ParamService::for_component(PLANT_COMPONENT_ID),
+        }
     }
 
     /// The current value of parameter `index`.
     #[must_use]
     pub fn value(&self, index: usize) -> Option<f32> {
-        self.values.get(index).copied()
+        self.store.get_index(index)
     }
 
     /// The current value of parameter `name`.
     #[must_use]
     pub fn get(&self, name: &str) -> Option<f32> {
-        index_of(name).and_then(|i| self.value(i))
-    }
-
-    fn addressed_to_us(&self, target_system: u8, target_component: u8) -> bool {
-        (target_system == self.system_id || target_system == 0)
-            && (target_component == PLANT_COMPONENT_ID || target_component == 0)
+        self.store.get(name)
     }
 
     /// The replies to one received message (in order); applies a set to `plant`'s wind at once, so it
-    /// acts from the plant's next step. A message not addressed to us, or not a PARAM request, gets
-    /// nothing.
+    /// acts from the plant's next step. A list request is answered whole (the autopilot's stream, drained
+    /// at once: nine values). A message not addressed to us, or not a PARAM request, gets nothing.
     pub fn on_message(&mut self, msg: &MavMessage, plant: &mut Plant) -> Vec<MavMessage> {
-        match msg {
-            MavMessage::PARAM_REQUEST_LIST(m) if self.addressed_to_us(m.target_system, m.target_component) => {
-                (0..SIM_PARAMS.len()).map(|i| self.param_value(i)).collect()
-            }
-            MavMessage::PARAM_REQUEST_READ(m) if self.addressed_to_us(m.target_system, m.target_component) => {
-                let index = match usize::try_from(m.param_index) {
-                    Ok(i) => (i < SIM_PARAMS.len()).then_some(i),
-                    Err(_) => index_of(&param_name(&m.param_id)),
-                };
-                index.map(|i| self.param_value(i)).into_iter().collect()
-            }
-            MavMessage::PARAM_SET(m) if self.addressed_to_us(m.target_system, m.target_component) => {
-                self.on_set(m, plant)
-            }
-            _ => Vec::new(),
+        let reply = self
+            .protocol
+            .on_message_with(self.system_id, msg, &mut self.store, |store, i, v| apply(store, i, v, plant));
+        let mut out = reply.messages;
+        while self.protocol.list_in_progress() {
+            out.extend(self.protocol.due(&self.store));
         }
+        out
     }
+}
 
-    fn on_set(&mut self, m: &PARAM_SET_DATA, plant: &mut Plant) -> Vec<MavMessage> {
-        let name = param_name(&m.param_id);
-        let Some(index) = index_of(&name) else {
-            return vec![statustext(MavSeverity::MAV_SEVERITY_WARNING, &SimParamError::Unknown { name }.to_string())];
-        };
-        match self.set(index, m.param_value, plant) {
-            Ok((changed, note)) => {
-                // The note first: a client that stops listening at the echo has it already.
-                let mut out: Vec<MavMessage> =
-                    note.map(|text| statustext(MavSeverity::MAV_SEVERITY_INFO, &text)).into_iter().collect();
-                out.extend(changed.into_iter().map(|i| self.param_value(i)));
-                out
-            }
-            Err(refusal) => {
-                vec![statustext(MavSeverity::MAV_SEVERITY_WARNING, &refusal.to_string()), self.param_value(index)]
+/// The value of SIM_ parameter `index` in `store` (the table's default if the index were not in it).
+fn value_of(store: &ParamStore<(), ()>, index: usize) -> f32 {
+    store.get_index(index).unwrap_or(SIM_PARAMS[index].default)
+}
+
+/// Apply a set of parameter `index` to `value` (range-checked already, not yet stored) to the plant's
+/// wind, and to the parameter that follows it (SIM_BEAUFORT from SIM_GUST_SPD and back). Returns the
+/// followers to echo and a note for the ground station (a gust started or released); a refusal is the
+/// wind's own, with nothing changed.
+fn apply(store: &mut ParamStore<(), ()>, index: usize, value: f32, plant: &mut Plant) -> Result<Applied, String> {
+    let refused = |e: crate::plant::PlantError| format!("the plant refused it: {e}");
+    let now_s = plant.time_us() as f64 * 1e-6;
+    let mut applied = Applied::default();
+    match index {
+        idx::WIND_N | idx::WIND_E | idx::WIND_D => {
+            let mut steady = plant.wind().steady_ned_mps();
+            steady[index - idx::WIND_N] = f64::from(value);
+            plant.wind_mut().set_steady_ned_mps(steady);
+        }
+        idx::GUST_SPD => {
+            let force = f32::from(beaufort_force_of(f64::from(value)));
+            if force != value_of(store, idx::BEAUFORT) {
+                store.set_index(idx::BEAUFORT, force).map_err(|e| e.to_string())?;
+                applied.also_changed.push(idx::BEAUFORT);
             }
         }
-    }
-
-    /// Set parameter `index` to `value` and apply it to the plant's wind. Returns the indices whose
-    /// PARAM_VALUE to send (the one set first, then any that followed it) and a note for the ground
-    /// station (a gust started or released).
-    ///
-    /// # Errors
-    /// A [`SimParamError`] from [`check`], or the wind's own refusal; nothing changes then.
-    pub fn set(
-        &mut self,
-        index: usize,
-        value: f32,
-        plant: &mut Plant,
-    ) -> Result<(Vec<usize>, Option<String>), SimParamError> {
-        check(index, value)?;
-        let name = SIM_PARAMS[index].name;
-        let refused = |e: crate::plant::PlantError| SimParamError::Plant { name, reason: e.to_string() };
-        let now_s = plant.time_us() as f64 * 1e-6;
-        let mut changed = vec![index];
-        let mut note = None;
-        match index {
-            idx::WIND_N | idx::WIND_E | idx::WIND_D => {
-                let mut steady = plant.wind().steady_ned_mps();
-                steady[index - idx::WIND_N] = f64::from(value);
-                plant.wind_mut().set_steady_ned_mps(steady);
-            }
-            idx::GUST_SPD => {
-                let force = f32::from(beaufort_force_of(f64::from(value)));
-                if force != self.values[idx::BEAUFORT] {
-                    self.values[idx::BEAUFORT] = force;
-                    changed.push(idx::BEAUFORT);
+        idx::BEAUFORT => {
+            let speed = beaufort(value as u8).map_err(refused)?.mid_mps() as f32;
+            store.set_index(idx::GUST_SPD, speed).map_err(|e| e.to_string())?;
+            applied.also_changed.push(idx::GUST_SPD);
+        }
+        idx::GUST_ON if value != value_of(store, idx::GUST_ON) => {
+            applied.note = Some(if value == 1.0 {
+                let gust = held_gust(store, now_s);
+                plant.wind_mut().set_gust(Some(&gust)).map_err(refused)?;
+                format!(
+                    "gust {:.1} m/s to {:.0} deg, rise {:.1} s, t={now_s:.2}",
+                    value_of(store, idx::GUST_SPD),
+                    value_of(store, idx::GUST_DIR),
+                    value_of(store, idx::GUST_RISE)
+                )
+            } else {
+                let release_s = release(plant.wind_mut(), now_s).map_err(refused)?;
+                format!("gust released, t={release_s:.2}")
+            });
+        }
+        idx::TURB if value != value_of(store, idx::TURB) => {
+            if value == 1.0 {
+                if plant.wind().gust().is_none() {
+                    let dormant = GustConfig { onset_s: DORMANT_ONSET_S, ..held_gust(store, now_s) };
+                    plant.wind_mut().set_gust(Some(&dormant)).map_err(refused)?;
                 }
+                let spec = GaussMarkovConfig { scale_with_gust: true, ..GaussMarkovConfig::default() };
+                plant.wind_mut().set_turbulence(Some(&TurbulenceConfig::GaussMarkov(spec))).map_err(refused)?;
+            } else {
+                plant.wind_mut().set_turbulence(None).map_err(refused)?;
             }
-            idx::BEAUFORT => {
-                let speed = beaufort(value as u8).map_err(refused)?.mid_mps() as f32;
-                self.values[idx::GUST_SPD] = speed;
-                changed.push(idx::GUST_SPD);
-            }
-            idx::GUST_ON if value != self.values[idx::GUST_ON] => {
-                note = Some(if value == 1.0 {
-                    let gust = self.held_gust(now_s);
-                    plant.wind_mut().set_gust(Some(&gust)).map_err(refused)?;
-                    format!(
-                        "gust {:.1} m/s to {:.0} deg, rise {:.1} s, t={now_s:.2}",
-                        self.values[idx::GUST_SPD],
-                        self.values[idx::GUST_DIR],
-                        self.values[idx::GUST_RISE]
-                    )
-                } else {
-                    let release_s = release(plant.wind_mut(), now_s).map_err(refused)?;
-                    format!("gust released, t={release_s:.2}")
-                });
-            }
-            idx::TURB if value != self.values[idx::TURB] => {
-                if value == 1.0 {
-                    if plant.wind().gust().is_none() {
-                        let dormant = GustConfig { onset_s: DORMANT_ONSET_S, ..self.held_gust(now_s) };
-                        plant.wind_mut().set_gust(Some(&dormant)).map_err(refused)?;
-                    }
-                    let spec = GaussMarkovConfig { scale_with_gust: true, ..GaussMarkovConfig::default() };
-                    plant.wind_mut().set_turbulence(Some(&TurbulenceConfig::GaussMarkov(spec))).map_err(refused)?;
-                } else {
-                    plant.wind_mut().set_turbulence(None).map_err(refused)?;
-                }
-            }
-            _ => {}
         }
-        self.values[index] = value;
-        Ok((changed, note))
+        _ => {}
     }
+    Ok(applied)
+}
 
-    /// A gust from the current SIM_GUST_SPD/DIR/RISE, rising from `onset_s` and held until released.
-    fn held_gust(&self, onset_s: f64) -> GustConfig {
-        let rise_s = f64::from(self.values[idx::GUST_RISE]);
-        let dir = direction_ned(f64::from(self.values[idx::GUST_DIR]));
-        GustConfig {
-            amplitude_mps: Some(f64::from(self.values[idx::GUST_SPD])),
-            direction_ned: [dir.x, dir.y, dir.z],
-            onset_s,
-            rise_s,
-            release_s: HOLD_UNTIL_S.max(onset_s + rise_s),
-            fall_s: rise_s,
-        }
-    }
-
-    /// The PARAM_VALUE of parameter `index`.
-    #[must_use]
-    pub fn param_value(&self, index: usize) -> MavMessage {
-        MavMessage::PARAM_VALUE(PARAM_VALUE_DATA {
-            param_value: self.values[index],
-            param_count: SIM_PARAMS.len() as u16,
-            param_index: index as u16,
-            param_id: CharArray::from(SIM_PARAMS[index].name),
-            param_type: MavParamType::MAV_PARAM_TYPE_REAL32,
-        })
+/// A gust from the current SIM_GUST_SPD/DIR/RISE, rising from `onset_s` and held until released.
+fn held_gust(store: &ParamStore<(), ()>, onset_s: f64) -> GustConfig {
+    let rise_s = f64::from(value_of(store, idx::GUST_RISE));
+    let dir = direction_ned(f64::from(value_of(store, idx::GUST_DIR)));
+    GustConfig {
+        amplitude_mps: Some(f64::from(value_of(store, idx::GUST_SPD))),
+        direction_ned: [dir.x, dir.y, dir.z],
+        onset_s,
+        rise_s,
+        release_s: HOLD_UNTIL_S.max(onset_s + rise_s),
+        fall_s: rise_s,
     }
 }
 
@@ -450,25 +322,6 @@ fn release(wind: &mut Wind, now_s: f64) -> Result<f64, crate::plant::PlantError>
     }
     wind.set_gust(Some(&config))?;
     Ok(config.release_s)
-}
-
-/// The name in a `param_id`: up to the first NUL, or all 16 bytes.
-#[must_use]
-pub fn param_name(id: &CharArray<16>) -> String {
-    let bytes: &[u8; 16] = id;
-    let len = bytes.iter().position(|&b| b == 0).unwrap_or(bytes.len());
-    String::from_utf8_lossy(&bytes[..len]).into_owned()
-}
-
-/// A STATUSTEXT of at most 50 bytes.
-#[must_use]
-pub fn statustext(severity: MavSeverity, text: &str) -> MavMessage {
-    let mut end = text.len().min(50);
-    while !text.is_char_boundary(end) {
-        end -= 1;
-    }
-    // `..Default::default()`: the MAVLink 2 extension fields (id, chunk_seq) stay 0, a single chunk.
-    MavMessage::STATUSTEXT(STATUSTEXT_DATA { severity, text: text[..end].into(), ..Default::default() })
 }
 
 /// The plant's HEARTBEAT (see the module documentation for the type).
@@ -607,7 +460,14 @@ impl PlantHook for SimParamLink {
 mod tests {
     use super::*;
     use crate::plant::{InitialState, PlantConfig, WindConfig};
-    use mavlink::dialects::common::{PARAM_REQUEST_LIST_DATA, PARAM_REQUEST_READ_DATA};
+    use autopilot::core::mavlink::params::param_name;
+    use autopilot::core::params::ParamError;
+    use mavlink::dialects::common::{MavParamType, PARAM_REQUEST_LIST_DATA, PARAM_REQUEST_READ_DATA, PARAM_SET_DATA};
+    use mavlink::types::CharArray;
+
+    fn index_of(name: &str) -> Option<usize> {
+        SIM_PARAMS.iter().position(|d| d.name == name)
+    }
 
     const SYS: u8 = 3;
 
@@ -667,7 +527,7 @@ mod tests {
         for (i, d) in SIM_PARAMS.iter().enumerate() {
             assert!(d.name.len() <= 16 && d.name.starts_with("SIM_"), "{}", d.name);
             assert!(d.min <= d.default && d.default <= d.max, "{}", d.name);
-            assert!(check(i, d.default).is_ok(), "{}", d.name);
+            assert!(d.check(d.default).is_ok(), "{}", d.name);
             assert!(!d.description.is_empty());
             assert_eq!(index_of(d.name), Some(i));
         }
@@ -686,9 +546,10 @@ mod tests {
                 "SIM_BEAUFORT"
             ]
         );
-        assert!(matches!(check(idx::GUST_SPD, 30.5), Err(SimParamError::OutOfRange { .. })));
-        assert!(matches!(check(idx::GUST_SPD, f32::NAN), Err(SimParamError::NotFinite { .. })));
-        assert!(matches!(check(idx::GUST_ON, 0.5), Err(SimParamError::NotWhole { .. })));
+        let spd = &SIM_PARAMS[idx::GUST_SPD];
+        assert!(matches!(spd.check(30.5), Err(ParamError::OutOfRange { .. })));
+        assert!(matches!(spd.check(f32::NAN), Err(ParamError::NotFinite { .. })));
+        assert!(matches!(SIM_PARAMS[idx::GUST_ON].check(0.5), Err(ParamError::NotWhole { .. })));
         assert_eq!(beaufort_force_of(6.7), 4);
         assert_eq!(beaufort_force_of(0.0), 0);
         assert_eq!(beaufort_force_of(5.45), 3);
@@ -765,20 +626,23 @@ mod tests {
         assert_eq!(values(&replies), [("SIM_WIND_N".into(), 2.5, 0, 9)]);
         assert_eq!(plant.wind().steady_ned_mps(), Vector3::new(2.5, 0.0, 0.0));
 
-        for (name, bad) in
-            [("SIM_GUST_SPD", 31.0), ("SIM_GUST_SPD", f32::NAN), ("SIM_GUST_ON", 0.5), ("SIM_WIND_E", -40.0)]
-        {
+        // The autopilot's refusal texts, word for word.
+        for (name, bad, text) in [
+            ("SIM_GUST_SPD", 31.0, "SIM_GUST_SPD: 31 not in 0..30"),
+            ("SIM_GUST_SPD", f32::NAN, "SIM_GUST_SPD: NaN is not finite"),
+            ("SIM_GUST_ON", 0.5, "SIM_GUST_ON: 0.5 is not a whole number"),
+            ("SIM_WIND_E", -40.0, "SIM_WIND_E: -40 not in -30..30"),
+        ] {
             let before = s.get(name).expect("known");
             let replies = s.on_message(&set_msg(name, bad), &mut plant);
-            let t = texts(&replies);
-            assert_eq!(t.len(), 1, "{name} = {bad}: {replies:?}");
-            assert!(t[0].starts_with(name), "{t:?}");
+            assert_eq!(texts(&replies), [text], "{name} = {bad}: {replies:?}");
             assert_eq!(values(&replies), [(name.to_owned(), before, index_of(name).unwrap() as u16, 9)]);
             assert_eq!(s.get(name), Some(before));
         }
         assert_eq!(plant.wind().steady_ned_mps(), Vector3::new(2.5, 0.0, 0.0));
         let unknown = s.on_message(&set_msg("SIM_NOPE", 1.0), &mut plant);
-        assert!(values(&unknown).is_empty() && texts(&unknown)[0].contains("no such parameter"));
+        assert!(values(&unknown).is_empty());
+        assert_eq!(texts(&unknown), ["unknown parameter SIM_NOPE"]);
 
         // Beaufort sets the gust speed, and the gust speed moves the Beaufort force.
         let replies = s.on_message(&set_msg("SIM_BEAUFORT", 6.0), &mut plant);

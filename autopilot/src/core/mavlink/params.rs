@@ -1,7 +1,9 @@
-//! The PARAM microservice (MAVLink parameter protocol) as a sans-I/O handler.
+//! The PARAM microservice (MAVLink parameter protocol) as a sans-I/O handler, over any table of
+//! parameters: the vehicle's [`ParamStore`] (component 1, [`ParamService::new`]) or another component's
+//! (the SITL plant's SIM_ parameters, [`ParamService::for_component`]).
 //!
 //! In: PARAM_REQUEST_LIST, PARAM_REQUEST_READ (by `param_index` when >= 0, by `param_id` when negative)
-//! and PARAM_SET, each only when addressed to us ([`addressed_to_us`]), with the [`ParamStore`]; and once
+//! and PARAM_SET, each only when addressed to us (our system or 0, our component or 0), with the store; and once
 //! per vehicle step (2 ms at 500 Hz) a call to [`ParamService::due`]. Out: PARAM_VALUE messages (every
 //! parameter REAL32, `param_count` = the table size, `param_index` = its table index, `param_id` its name,
 //! not NUL-terminated when it has exactly 16 characters), STATUSTEXT (WARNING) for a refused set, and for a
@@ -17,13 +19,19 @@
 //! a STATUSTEXT gives the reason and, for a known name, a PARAM_VALUE repeats the current value (clients
 //! resend a set until they see a PARAM_VALUE for it). The `param_type` of a set is not checked: every
 //! parameter is declared REAL32 and its value is read as the f32 it carries.
+//!
+//! A table whose owner acts on its values (the plant applies a SIM_ set to its wind) passes that action to
+//! [`ParamService::on_message_with`]: it runs after the range check and before the value is stored, may
+//! refuse (a STATUSTEXT `NAME: reason`, then the current value, as for a range refusal), may add a note
+//! (a STATUSTEXT INFO sent before the echo) and may change other parameters of the store, whose
+//! PARAM_VALUEs follow the echo.
 
 use ::mavlink::MavHeader;
 use ::mavlink::dialects::common::{MavMessage, MavParamType, MavSeverity, PARAM_SET_DATA, PARAM_VALUE_DATA};
 use ::mavlink::types::CharArray;
 
-use super::{addressed_to_us, statustext};
-use crate::core::params::{ParamError, ParamStore, def};
+use super::{AUTOPILOT_COMPONENT_ID, statustext};
+use crate::core::params::{ParamError, ParamStore};
 
 /// PARAM_VALUE messages a list stream emits per [`ParamService::due`] call.
 pub const PARAMS_PER_STEP: usize = 8;
@@ -49,18 +57,46 @@ pub struct ParamReply {
     pub changed: Option<ParamChange>,
 }
 
-/// The parameter protocol's state: where a list stream is.
-#[derive(Debug, Clone, PartialEq, Eq, Default)]
+/// What the owner of a table did with a set its range check accepted (see
+/// [`ParamService::on_message_with`]).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Applied {
+    /// A line for the ground station (STATUSTEXT INFO), sent before the echo.
+    pub note: Option<String>,
+    /// Other parameters (indices) the set changed in the store; their PARAM_VALUEs follow the echo.
+    pub also_changed: Vec<usize>,
+}
+
+/// The parameter protocol's state: which component it answers for and where a list stream is.
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ParamService {
+    component_id: u8,
     /// The next index of a list stream in progress.
     list_cursor: Option<usize>,
 }
 
+impl Default for ParamService {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 impl ParamService {
-    /// A service with no stream in progress.
+    /// The autopilot's service (component [`AUTOPILOT_COMPONENT_ID`]) with no stream in progress.
     #[must_use]
     pub fn new() -> Self {
-        Self::default()
+        Self::for_component(AUTOPILOT_COMPONENT_ID)
+    }
+
+    /// The service of component `component_id` (requests for it or for component 0 are ours).
+    #[must_use]
+    pub fn for_component(component_id: u8) -> Self {
+        Self { component_id, list_cursor: None }
+    }
+
+    fn addressed_to_us(&self, sysid: u8, target_system: u8, target_component: u8) -> bool {
+        (target_system == sysid || target_system == 0)
+            && (target_component == self.component_id || target_component == 0)
     }
 
     /// True while a PARAM_REQUEST_LIST is being answered.
@@ -72,28 +108,42 @@ impl ParamService {
     /// A received message for system `sysid`. `header` is the sender's; the replies are for every ground
     /// station (PARAM_VALUE is broadcast, so that all of them see a change). Anything that is not a PARAM
     /// request addressed to us gets an empty reply.
-    pub fn on_message(
+    pub fn on_message<G, B>(
         &mut self,
         sysid: u8,
         header: &MavHeader,
         msg: &MavMessage,
-        store: &mut ParamStore,
+        store: &mut ParamStore<G, B>,
     ) -> ParamReply {
         let _ = header;
+        self.on_message_with(sysid, msg, store, |_, _, _| Ok(Applied::default()))
+    }
+
+    /// [`on_message`](Self::on_message) for a table whose owner acts on a set: `apply(store, index,
+    /// value)` runs once the value passed the table's check and before it is stored. It may change other
+    /// parameters of the store (listed in [`Applied::also_changed`]) and may refuse with a reason; then
+    /// the value is not stored (what `apply` changed before refusing stays: refuse first).
+    pub fn on_message_with<G, B>(
+        &mut self,
+        sysid: u8,
+        msg: &MavMessage,
+        store: &mut ParamStore<G, B>,
+        apply: impl FnOnce(&mut ParamStore<G, B>, usize, f32) -> Result<Applied, String>,
+    ) -> ParamReply {
         match msg {
-            MavMessage::PARAM_REQUEST_LIST(m) if addressed_to_us(sysid, m.target_system, m.target_component) => {
+            MavMessage::PARAM_REQUEST_LIST(m) if self.addressed_to_us(sysid, m.target_system, m.target_component) => {
                 self.list_cursor = Some(0);
                 ParamReply::default()
             }
-            MavMessage::PARAM_REQUEST_READ(m) if addressed_to_us(sysid, m.target_system, m.target_component) => {
+            MavMessage::PARAM_REQUEST_READ(m) if self.addressed_to_us(sysid, m.target_system, m.target_component) => {
                 let index = match usize::try_from(m.param_index) {
                     Ok(index) => Some(index),
                     Err(_) => store.index_of(&param_name(&m.param_id)),
                 };
                 ParamReply { messages: index.and_then(|i| param_value(store, i)).into_iter().collect(), changed: None }
             }
-            MavMessage::PARAM_SET(m) if addressed_to_us(sysid, m.target_system, m.target_component) => {
-                Self::on_set(m, store)
+            MavMessage::PARAM_SET(m) if self.addressed_to_us(sysid, m.target_system, m.target_component) => {
+                Self::on_set(m, store, apply)
             }
             _ => ParamReply::default(),
         }
@@ -101,7 +151,7 @@ impl ParamService {
 
     /// The next PARAM_VALUEs of a list stream, at most [`PARAMS_PER_STEP`]; empty when none is running.
     /// Call once per vehicle step.
-    pub fn due(&mut self, store: &ParamStore) -> Vec<MavMessage> {
+    pub fn due<G, B>(&mut self, store: &ParamStore<G, B>) -> Vec<MavMessage> {
         let Some(start) = self.list_cursor else {
             return Vec::new();
         };
@@ -110,22 +160,35 @@ impl ParamService {
         (start..end).filter_map(|i| param_value(store, i)).collect()
     }
 
-    fn on_set(m: &PARAM_SET_DATA, store: &mut ParamStore) -> ParamReply {
+    fn on_set<G, B>(
+        m: &PARAM_SET_DATA,
+        store: &mut ParamStore<G, B>,
+        apply: impl FnOnce(&mut ParamStore<G, B>, usize, f32) -> Result<Applied, String>,
+    ) -> ParamReply {
         let name = param_name(&m.param_id);
-        let Some(index) = store.index_of(&name) else {
+        let Some((index, d)) = store.index_of(&name).and_then(|i| Some((i, store.def(i)?))) else {
             let refusal = ParamError::Unknown { name };
             return ParamReply { messages: vec![warning(&refusal)], changed: None };
         };
         let before = store.get_index(index);
-        match store.set_index(index, m.param_value) {
-            Ok(()) => {
-                let changed = match (def(index), before) {
-                    (Some(d), Some(old)) if old.to_bits() != m.param_value.to_bits() => {
-                        Some(ParamChange { index, name: d.name, value: m.param_value, restart_required: d.restart })
+        let value = m.param_value;
+        let outcome = d
+            .check(value)
+            .and_then(|()| apply(store, index, value).map_err(|reason| ParamError::Refused { name: d.name, reason }))
+            .and_then(|applied| store.set_index(index, value).map(|()| applied));
+        match outcome {
+            Ok(applied) => {
+                let changed = match before {
+                    Some(old) if old.to_bits() != value.to_bits() => {
+                        Some(ParamChange { index, name: d.name, value, restart_required: d.restart })
                     }
                     _ => None,
                 };
-                ParamReply { messages: param_value(store, index).into_iter().collect(), changed }
+                let mut messages: Vec<MavMessage> =
+                    applied.note.map(|text| statustext(MavSeverity::MAV_SEVERITY_INFO, &text)).into_iter().collect();
+                messages
+                    .extend(std::iter::once(index).chain(applied.also_changed).filter_map(|i| param_value(store, i)));
+                ParamReply { messages, changed }
             }
             Err(refusal) => {
                 let mut messages = vec![warning(&refusal)];
@@ -138,8 +201,8 @@ impl ParamService {
 
 /// A PARAM_VALUE for the parameter at `index` with its current value (None past the table).
 #[must_use]
-pub fn param_value(store: &ParamStore, index: usize) -> Option<MavMessage> {
-    let d = def(index)?;
+pub fn param_value<G, B>(store: &ParamStore<G, B>, index: usize) -> Option<MavMessage> {
+    let d = store.def(index)?;
     let value = store.get_index(index)?;
     Some(MavMessage::PARAM_VALUE(PARAM_VALUE_DATA {
         param_value: value,

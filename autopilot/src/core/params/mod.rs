@@ -12,6 +12,13 @@
 //! config holds f64: `from_config` rounds to f32, and `apply` writes a field only when the parameter
 //! differs from that rounding, so `apply(from_config(c))` leaves any config `c` as it is (5.2 stays the
 //! f64 5.2) while a value that was set arrives exactly (`from_config(apply(s)) == s`).
+//!
+//! The declarations, the store, its range checks and texts work over any table of [`ParamDef`]s, so that
+//! another component declares its parameters the same way and serves them with the same PARAM service
+//! (`crate::core::mavlink::params`): the SITL plant's SIM_ parameters do. A definition is generic over
+//! its docs group `G` and what its value is bound to `B`; the vehicle's table ([`PARAMS`]) is the
+//! instance `ParamDef<ParamGroup, Binding>` (the defaults, so `ParamDef` and `ParamStore` alone name it),
+//! and only that instance maps onto a [`VehicleConfig`] and has docs.
 
 use std::fmt;
 
@@ -103,21 +110,23 @@ pub enum ParamKind {
     Boolean,
 }
 
-/// Where a parameter lives in the [`VehicleConfig`].
+/// Where a parameter of the vehicle's table lives in the [`VehicleConfig`].
 #[derive(Debug, Clone, Copy)]
-enum Binding {
+pub enum Binding {
     /// Read from and written to config fields (f64; whole numbers and 0/1 converted by the table).
     Config { get: fn(&VehicleConfig) -> f64, set: fn(&mut VehicleConfig, f64) },
     /// Held by the store only; `from_config` gives the default.
     StoreOnly,
 }
 
-/// One parameter's declaration.
+/// One parameter's declaration. `G` is the docs section it is listed under and `B` what its value is
+/// bound to: the vehicle's table uses the defaults, a table without docs whose owner applies every value
+/// itself (the SITL plant's) uses `ParamDef<(), ()>`.
 #[derive(Debug, Clone, Copy)]
-pub struct ParamDef {
+pub struct ParamDef<G = ParamGroup, B = Binding> {
     /// PX4-style name: upper case, digits and `_`, at most 16 characters.
     pub name: &'static str,
-    pub group: ParamGroup,
+    pub group: G,
     pub kind: ParamKind,
     pub default: f32,
     pub min: f32,
@@ -127,10 +136,10 @@ pub struct ParamDef {
     /// The value takes effect only at the next start.
     pub restart: bool,
     pub description: &'static str,
-    binding: Binding,
+    pub binding: B,
 }
 
-impl ParamDef {
+impl<G, B> ParamDef<G, B> {
     /// Whether `value` is acceptable: finite, in `[min, max]`, whole for integers, 0 or 1 for booleans.
     ///
     /// # Errors
@@ -151,7 +160,9 @@ impl ParamDef {
         }
         Ok(())
     }
+}
 
+impl<G> ParamDef<G, Binding> {
     /// True when the parameter has no config field (see [`ParamStore::from_config`]).
     #[must_use]
     pub fn store_only(&self) -> bool {
@@ -193,6 +204,9 @@ pub enum ParamError {
     NotWhole { name: &'static str, value: f32 },
     #[error("{name}: {} must be 0 or 1", Value(*.value))]
     NotBoolean { name: &'static str, value: f32 },
+    /// The table's owner could not apply a value the check allows (a plant that refused it).
+    #[error("{name}: {reason}")]
+    Refused { name: &'static str, reason: String },
 }
 
 /// Why a saved parameter text was refused (nothing of it is taken then).
@@ -210,10 +224,31 @@ pub enum ParamFileError {
 const TEXT_HEADER: &str =
     "# Parameters that differ from their defaults, one NAME<TAB>VALUE a line (written by the autopilot).";
 
-/// The current value of every parameter, index = table order.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ParamStore {
+/// The current value of every parameter of one table, index = table order. The vehicle's store (plain
+/// `ParamStore`, over [`PARAMS`]) also maps onto a [`VehicleConfig`].
+pub struct ParamStore<G: 'static = ParamGroup, B: 'static = Binding> {
+    table: &'static [ParamDef<G, B>],
     values: Vec<f32>,
+}
+
+impl<G, B> Clone for ParamStore<G, B> {
+    fn clone(&self) -> Self {
+        Self { table: self.table, values: self.values.clone() }
+    }
+}
+
+/// Equal when over the same table with the same values.
+impl<G, B> PartialEq for ParamStore<G, B> {
+    fn eq(&self, other: &Self) -> bool {
+        std::ptr::eq(self.table, other.table) && self.values == other.values
+    }
+}
+
+/// The values (the table is static and long).
+impl<G, B> fmt::Debug for ParamStore<G, B> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("ParamStore").field("values", &self.values).finish_non_exhaustive()
+    }
 }
 
 impl Default for ParamStore {
@@ -223,10 +258,10 @@ impl Default for ParamStore {
 }
 
 impl ParamStore {
-    /// Every parameter at its default.
+    /// Every parameter of the vehicle at its default.
     #[must_use]
     pub fn defaults() -> Self {
-        Self { values: PARAMS.iter().map(|d| d.default).collect() }
+        Self::with_defaults(PARAMS)
     }
 
     /// The values `config` holds (rounded to f32; store-only parameters at their defaults). Values are
@@ -234,14 +269,10 @@ impl ParamStore {
     /// several fields (the airframe of the three controllers, PID_VEL_I_NE), the first is read.
     #[must_use]
     pub fn from_config(config: &VehicleConfig) -> Self {
-        let values = PARAMS
-            .iter()
-            .map(|d| match d.binding {
-                Binding::Config { get, .. } => get(config) as f32,
-                Binding::StoreOnly => d.default,
-            })
-            .collect();
-        Self { values }
+        Self::from_fn(PARAMS, |_, d| match d.binding {
+            Binding::Config { get, .. } => get(config) as f32,
+            Binding::StoreOnly => d.default,
+        })
     }
 
     /// Write every parameter onto its config field(s), skipping those whose field already rounds to the
@@ -249,13 +280,40 @@ impl ParamStore {
     /// config's own validation still applies when it is used (e.g. LOOP_POS_HZ must divide
     /// LOOP_INNER_HZ).
     pub fn apply(&self, config: &mut VehicleConfig) {
-        for (d, value) in PARAMS.iter().zip(self.values.iter()) {
+        for (d, value) in self.iter() {
             if let Binding::Config { get, set } = d.binding
                 && (get(config) as f32).to_bits() != value.to_bits()
             {
-                set(config, f64::from(*value));
+                set(config, f64::from(value));
             }
         }
+    }
+
+    /// ACO_WEIGHTS_HZ: the rate of the adaptive-weight stream (Hz; 0 = off).
+    #[must_use]
+    pub fn aco_weights_hz(&self) -> f32 {
+        self.get("ACO_WEIGHTS_HZ").unwrap_or(0.0)
+    }
+}
+
+impl<G, B> ParamStore<G, B> {
+    /// Every parameter of `table` at its default.
+    #[must_use]
+    pub fn with_defaults(table: &'static [ParamDef<G, B>]) -> Self {
+        Self { table, values: table.iter().map(|d| d.default).collect() }
+    }
+
+    /// The values `value(index, def)` gives `table`'s parameters, taken as they are, even out of range
+    /// (a state read from elsewhere; `set` is the gate for new values).
+    #[must_use]
+    pub fn from_fn(table: &'static [ParamDef<G, B>], mut value: impl FnMut(usize, &ParamDef<G, B>) -> f32) -> Self {
+        Self { table, values: table.iter().enumerate().map(|(i, d)| value(i, d)).collect() }
+    }
+
+    /// The declaration at `index`, if any.
+    #[must_use]
+    pub fn def(&self, index: usize) -> Option<&'static ParamDef<G, B>> {
+        self.table.get(index)
     }
 
     /// The number of parameters (MAVLink's `param_count`).
@@ -264,7 +322,7 @@ impl ParamStore {
         self.values.len()
     }
 
-    /// Never true: the table is not empty.
+    /// True only for an empty table.
     #[must_use]
     pub fn is_empty(&self) -> bool {
         self.values.is_empty()
@@ -273,7 +331,7 @@ impl ParamStore {
     /// The index of `name` (exact, case-sensitive), if it is a parameter.
     #[must_use]
     pub fn index_of(&self, name: &str) -> Option<usize> {
-        PARAMS.iter().position(|d| d.name == name)
+        self.table.iter().position(|d| d.name == name)
     }
 
     /// The value of `name`.
@@ -302,7 +360,7 @@ impl ParamStore {
     /// # Errors
     /// [`ParamError::UnknownIndex`] past the table, else the check's error.
     pub fn set_index(&mut self, index: usize, value: f32) -> Result<(), ParamError> {
-        let d = def(index).ok_or(ParamError::UnknownIndex { index })?;
+        let d = self.def(index).ok_or(ParamError::UnknownIndex { index })?;
         d.check(value)?;
         if let Some(slot) = self.values.get_mut(index) {
             *slot = value;
@@ -311,14 +369,8 @@ impl ParamStore {
     }
 
     /// Every declaration with its current value, in index order.
-    pub fn iter(&self) -> impl Iterator<Item = (&'static ParamDef, f32)> + '_ {
-        PARAMS.iter().zip(self.values.iter().copied())
-    }
-
-    /// ACO_WEIGHTS_HZ: the rate of the adaptive-weight stream (Hz; 0 = off).
-    #[must_use]
-    pub fn aco_weights_hz(&self) -> f32 {
-        self.get("ACO_WEIGHTS_HZ").unwrap_or(0.0)
+    pub fn iter(&self) -> impl Iterator<Item = (&'static ParamDef<G, B>, f32)> + '_ {
+        self.table.iter().zip(self.values.iter().copied())
     }
 
     /// The persistence text: a `#` comment, then `NAME<TAB>VALUE` for every parameter whose value differs
@@ -346,7 +398,7 @@ impl ParamStore {
     /// number or one [`set`] refuses; nothing of the text is taken then.
     ///
     /// [`set`]: ParamStore::set
-    pub fn from_text(text: &str, base: ParamStore) -> Result<(ParamStore, Vec<String>), ParamFileError> {
+    pub fn from_text(text: &str, base: Self) -> Result<(Self, Vec<String>), ParamFileError> {
         let mut store = base;
         let mut warnings = Vec::new();
         let mut first_line: Vec<Option<usize>> = vec![None; store.len()];
