@@ -22,6 +22,17 @@
 //! polled by the plant server between steps (see [`crate::link::PlantHook`]: every 50 steps and at least
 //! every 20 ms of wall time while the plant waits, never once per step).
 //!
+//! The parameter machinery is the autopilot's, not a copy: [`SIM_PARAMS`] is a table of the autopilot's
+//! [`ParamDef`] with no docs group and no config binding ([`SimParamDef`] = `ParamDef<(), ()>`), its values
+//! live in the autopilot's [`ParamStore`] over that table, and the protocol (addressing, lookup by index or
+//! id, range and kind checks, PARAM_VALUE encoding, refusal texts) is the autopilot's [`ParamService`] for
+//! component [`crate::link::PLANT_COMPONENT_ID`]. What is the plant's own is `apply`, the hook
+//! [`ParamService::on_message_with`] calls with a set that passed the table's check: it changes the wind,
+//! moves SIM_BEAUFORT and SIM_GUST_SPD together and writes the gust's note, or refuses with the wind's own
+//! reason. A refusal therefore reads as the autopilot's does (`SIM_GUST_SPD: 40 not in 0..30`, `unknown
+//! parameter SIM_NOPE`, `SIM_TURB: the plant refused it: ...`), and a list request, which the shared
+//! service streams a few values per call, is drained at once (nine values in one reply).
+//!
 //! The gust: SIM_GUST_ON = 1 starts the spec's 1-cos gust at the current plant time with the current
 //! SIM_GUST_SPD (m/s), SIM_GUST_DIR (deg, the direction it blows toward, 0 = north, 90 = east) and
 //! SIM_GUST_RISE (s); SIM_GUST_ON = 0 releases it: it falls over its rise time from now (or from the end

@@ -3,8 +3,8 @@
 //! (the SITL plant's SIM_ parameters, [`ParamService::for_component`]).
 //!
 //! In: PARAM_REQUEST_LIST, PARAM_REQUEST_READ (by `param_index` when >= 0, by `param_id` when negative)
-//! and PARAM_SET, each only when addressed to us (our system or 0, our component or 0), with the store; and once
-//! per vehicle step (2 ms at 500 Hz) a call to [`ParamService::due`]. Out: PARAM_VALUE messages (every
+//! and PARAM_SET, each only when addressed to us (our system or 0, our component or 0), with the store;
+//! and once per vehicle step (2 ms at 500 Hz) a call to [`ParamService::due`]. Out: PARAM_VALUE messages (every
 //! parameter REAL32, `param_count` = the table size, `param_index` = its table index, `param_id` its name,
 //! not NUL-terminated when it has exactly 16 characters), STATUSTEXT (WARNING) for a refused set, and for a
 //! set that changed a value a [`ParamChange`] so the vehicle can apply it to its config and persist the
@@ -14,10 +14,12 @@
 //! with PX4, without a warning on the ground station's screen). A list is streamed, at most
 //! [`PARAMS_PER_STEP`] PARAM_VALUE per [`ParamService::due`] (8 per 2 ms: the whole table in ~20 ms
 //! without a burst that overflows a serial link or a client's socket buffer); a new PARAM_REQUEST_LIST
-//! restarts the stream from index 0. A set is checked by [`ParamStore::set_index`]: on success the new
-//! value is echoed in a PARAM_VALUE (also when it equals the current value); on a refusal nothing changes,
-//! a STATUSTEXT gives the reason and, for a known name, a PARAM_VALUE repeats the current value (clients
-//! resend a set until they see a PARAM_VALUE for it). The `param_type` of a set is not checked: every
+//! restarts the stream from index 0. A set is checked by the table's
+//! [`ParamDef::check`](crate::core::params::ParamDef::check) (finite, in range, whole or 0/1 by kind) and
+//! stored by [`ParamStore::set_index`]: on success the new value is echoed in a PARAM_VALUE (also when it
+//! equals the current value); on a refusal nothing changes, a STATUSTEXT gives the reason and, for a known
+//! name, a PARAM_VALUE repeats the current value (clients resend a set until they see a PARAM_VALUE for
+//! it). The `param_type` of a set is not checked: every
 //! parameter is declared REAL32 and its value is read as the f32 it carries.
 //!
 //! A table whose owner acts on its values (the plant applies a SIM_ set to its wind) passes that action to
