@@ -1,4 +1,4 @@
-//! The vehicle core must stay pure (DESIGN.md): nothing under `src/core/` may use an async runtime,
+//! The vehicle core must stay pure (`docs/design.md`): nothing under `src/core/` may use an async runtime,
 //! sockets, files or clocks, so that it runs identically in lockstep, in SITL and on the airframe.
 
 use std::path::Path;

@@ -5,7 +5,7 @@
 //! ([`plant_link`], blocking I/O: the lockstep round trip is latency-bound). Also the configuration
 //! ([`config`]), the `.tlog` writer and the shutdown signal every task selects on.
 //!
-//! Nothing here decides anything about the vehicle; see `DESIGN.md`, "The one idea".
+//! Nothing here decides anything about the vehicle; see `docs/design.md`, the sans-I/O core.
 
 pub mod config;
 pub mod frame;

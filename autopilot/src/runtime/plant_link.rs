@@ -16,7 +16,7 @@
 //! are commanded to their minimum (1000 µs, disarmed) on the link, so a board that still listens stops
 //! them; the vehicle clock stops with the plant's and resumes when the plant does. Until the plant first
 //! speaks, and after each silence, the autopilot announces itself with a HEARTBEAT every second, as the
-//! plant only answers peers that spoke (DESIGN.md, "The plant protocol").
+//! plant only answers peers that spoke (`docs/design.md`, the plant protocol).
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};

@@ -39,10 +39,9 @@
 //!   the mission -> [`MissionEvent::SetCurrent`] (the vehicle answers with MISSION_CURRENT); beyond it -> a
 //!   STATUSTEXT only (as PX4: a MISSION_ACK here could end an unrelated transfer of the client's).
 //! - The `current` flag of uploaded items is ignored: a new mission starts at item 0.
-//! - Mission types: the mavlink crate is built without `mav2-message-extensions`, so `mission_type` is not
-//!   on the wire: every message is taken as type 0 (mission). A fence or rally transfer cannot be told
-//!   apart, so the vehicle must not advertise MISSION_FENCE / MISSION_RALLY (clients then do not send
-//!   them).
+//! - Mission types: `mission_type` (a MAVLink 2 extension field) tells the transfers apart. Only type 0
+//!   (mission) is stored; a fence or rally download answers count 0 and an upload is refused
+//!   (MAV_MISSION_UNSUPPORTED), and the vehicle does not advertise MISSION_FENCE / MISSION_RALLY.
 //! - Only messages for our system (or broadcast) and component 1 (or 0) are handled ([`addressed_to_us`]).
 
 // MISSION_ITEM, MISSION_REQUEST and MISSION_SET_CURRENT are deprecated in the dialect, but QGroundControl,
