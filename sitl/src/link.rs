@@ -80,7 +80,7 @@ pub struct UdpTransport {
 
 impl UdpTransport {
     /// Bind `addr` (e.g. `127.0.0.1:4560`, or port 0 in tests); no peer until one speaks. A `recv` polls
-    /// for [`UDP_SPIN`], then waits at most [`POLL_INTERVAL`].
+    /// for [`UDP_SPIN`](autopilot::runtime::transport::UDP_SPIN), then waits at most [`POLL_INTERVAL`].
     ///
     /// # Errors
     /// The bind or socket-option error.

@@ -2,7 +2,7 @@
 //! the commander's [`Task`] (idle, take off to a point, hold a point or where the vehicle stops, land
 //! here, or an automatic mode), vehicle time `now_us` (µs), the estimate (NED m, m/s, rad, with its
 //! geodetic origin), home and whether the vehicle is landed ([`NavInput`]); and, when they arrive, the
-//! mission (as [`NavItem`]s), offboard setpoints and speed changes. Out: one [`control::Reference`]
+//! mission (as [`NavItem`]s), offboard setpoints and speed changes. Out: one [`Reference`]
 //! (position, velocity and acceleration feed-forward, yaw; or an attitude) or `None` for motors idle; the
 //! [`NavStatus`] the commander's transitions read at the next step (mission valid and done, landing,
 //! offboard fresh); and [`NavEvent`]s for the ground station (MISSION_CURRENT, MISSION_ITEM_REACHED,
@@ -22,7 +22,7 @@
 //! - **Land** ([`Task::Land`], NAV_LAND, the end of a return): a vertical leg at the land speed to
 //!   `land_below_ground_m` below the ground; the vehicle touches down on the way and the commander's land
 //!   detector ends it.
-//! - **Missions** ([`executor`]), **return to launch** ([`rtl`]), **offboard** ([`offboard`]).
+//! - **Missions** (`executor.rs`), **return to launch** (`rtl.rs`), **offboard** (`offboard.rs`).
 
 use nalgebra::{Vector2, Vector3};
 use serde::{Deserialize, Serialize};
