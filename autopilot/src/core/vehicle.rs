@@ -36,7 +36,7 @@ use crate::core::mavlink::{
     command_replies, housekeeping, statustext, statustext_chunks,
 };
 use crate::core::mission::{Mission, MissionError};
-use crate::core::navigator::{NavEvent, NavInput, Navigator, nav_items};
+use crate::core::navigator::{MAX_SETPOINT_FROM_HOME_M, NavEvent, NavInput, Navigator, nav_items};
 use crate::core::params::ParamStore;
 
 /// Motor command with the motors stopped (µs).
@@ -278,7 +278,12 @@ impl Vehicle {
             sysid: self.config.sysid,
             header,
             command: CommandContext { home_alt_amsl_m },
-            offboard: OffboardContext { origin: est.origin, home_alt_amsl_m, yaw_rad: est.euler_rad.z },
+            offboard: OffboardContext {
+                origin: est.origin,
+                home_alt_amsl_m,
+                yaw_rad: est.euler_rad.z,
+                home_ned_m: self.home.map(|h| h.pos_ned_m),
+            },
         };
         match service {
             Service::Housekeeping => Housekeeping.handle(&ctx, msg, &mut ()).messages,
@@ -423,6 +428,12 @@ impl Vehicle {
             }
             VehicleCommand::Reposition { point, yaw_rad } => {
                 let pos_ned_m = point.map(|p| self.local_point(&p)).transpose()?;
+                if let (Some(p), Some(home)) = (pos_ned_m, self.home)
+                    && (p - home.pos_ned_m).norm() > MAX_SETPOINT_FROM_HOME_M
+                {
+                    let km = MAX_SETPOINT_FROM_HOME_M / 1000.0;
+                    return Err(Some(format!("Reposition: over {km:.0} km from home")));
+                }
                 self.commander.request(now_us, Request::Goto { pos_ned_m, yaw_rad }).map_err(|r| Some(r.to_string()))
             }
             VehicleCommand::MissionStart { first } => {
@@ -1105,6 +1116,57 @@ mod tests {
             assert_eq!(v.params(), &before, "{name}");
             assert!(v.take_effects().is_empty(), "{name}: nothing saved");
         }
+    }
+
+    #[test]
+    fn given_positions_beyond_the_hard_limit_from_home_then_offboard_and_reposition_refuse_them_with_a_reason() {
+        use ::mavlink::dialects::common::{PositionTargetTypemask, SET_POSITION_TARGET_LOCAL_NED_DATA};
+        let (mut v, mut t) = (truth_vehicle(), 0);
+        run(&mut v, &mut t, 1.0);
+        assert!(v.home().is_some(), "home set at the first converged fix");
+        let target = |x: f32, y: f32, z: f32| {
+            MavMessage::SET_POSITION_TARGET_LOCAL_NED(SET_POSITION_TARGET_LOCAL_NED_DATA {
+                x,
+                y,
+                z,
+                target_system: 1,
+                target_component: 1,
+                coordinate_frame: MavFrame::MAV_FRAME_LOCAL_NED,
+                type_mask: PositionTargetTypemask::from_bits_truncate(2552),
+                ..Default::default()
+            })
+        };
+        // GIVEN a finite but absurd offboard position (1e30 m) THEN refused in words, once.
+        let replies = v.handle_message(t, &GCS, &target(1e30, -1e30, -1e30));
+        let text = replies.iter().find_map(|m| match m {
+            MavMessage::STATUSTEXT(s) => s.text.to_str().ok().map(str::to_owned),
+            _ => None,
+        });
+        assert_eq!(text.as_deref(), Some("Offboard: setpoint over 10 km from home"));
+        assert!(v.handle_message(t, &GCS, &target(1e30, -1e30, -1e30)).is_empty(), "said once");
+        // A setpoint 9.9 km away is a position like any other.
+        assert!(v.handle_message(t, &GCS, &target(9_900.0, 0.0, -5.0)).is_empty());
+        // GIVEN a DO_REPOSITION 20 km north, in the air THEN refused with the reason.
+        v.handle_message(t, &GCS, &long(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, ARM, 1));
+        let far = int(
+            MavCmd::MAV_CMD_DO_REPOSITION,
+            [-1.0, 1.0, 0.0, f32::NAN, 0.0, 0.0, 5.0],
+            MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT,
+        );
+        let far = match far {
+            MavMessage::COMMAND_INT(mut c) => {
+                c.x = ((ORIGIN.lat_deg + 0.18) * 1e7) as i32;
+                c.y = (ORIGIN.lon_deg * 1e7) as i32;
+                MavMessage::COMMAND_INT(c)
+            }
+            other => other,
+        };
+        let replies = v.handle_message(t, &GCS, &far);
+        assert_eq!(ack_of(&replies).map(|a| a.1), Some(MavResult::MAV_RESULT_DENIED), "{replies:?}");
+        let said = replies.iter().any(|m| {
+            matches!(m, MavMessage::STATUSTEXT(s) if s.text.to_str().is_ok_and(|t| t == "Reposition: over 10 km from home"))
+        });
+        assert!(said, "{replies:?}");
     }
 
     #[test]

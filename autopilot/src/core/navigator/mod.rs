@@ -47,6 +47,11 @@ use leg::{Leg, LegPath, MIN_LEG_M, Motion3};
 pub use offboard::OffboardSetpoint;
 use trajectory::Limits;
 
+/// The farthest from home (m, in 3D) a commanded position may be: an offboard position setpoint or a
+/// DO_REPOSITION beyond it is refused with a reason, not flown (a setpoint of 1e30 m is finite, but no
+/// flight of this airframe goes there).
+pub const MAX_SETPOINT_FROM_HOME_M: f64 = 10_000.0;
+
 /// The navigator's parameters (PX4 names in the field docs).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
