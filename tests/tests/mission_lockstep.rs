@@ -251,8 +251,14 @@ fn given_offboard_setpoints_when_they_stop_then_the_vehicle_holds_after_half_a_s
     // AND when they stop, THEN Hold (AUTO LOITER) after 0.5 s of vehicle time, not before.
     rig.run_s(0.45, |_| {});
     assert_eq!(custom_mode(&rig), 0x0006_0000, "0.45 s without setpoints: still OFFBOARD");
+    rig.take_messages();
     rig.run_s(0.1, |_| {});
     assert_eq!(custom_mode(&rig), 0x0304_0000, "0.55 s without setpoints: Hold");
+    // AND it says why.
+    let said = rig.take_messages().into_iter().any(|(_, m)| {
+        matches!(m, MavMessage::STATUSTEXT(s) if s.text.to_str().is_ok_and(|t| t == "Failsafe: offboard setpoints lost, holding"))
+    });
+    assert!(said, "the switch to Hold is announced");
 }
 
 #[test]

@@ -29,7 +29,7 @@ use crate::core::mavlink::mission::{MissionEvent, MissionService};
 use crate::core::mavlink::offboard::OffboardContext;
 use crate::core::mavlink::params::{ParamChange, ParamService, param_value};
 use crate::core::mavlink::router::{
-    self, Commands, Housekeeping, MessageContext, Microservice, OffboardReceiver, Service,
+    self, Commands, GcsHeartbeats, Housekeeping, MessageContext, Microservice, OffboardReceiver, Service,
 };
 use crate::core::mavlink::{
     CommandContext, CommandEffect, CommandPoint, Home, MavlinkService, Stream, TelemetrySnapshot, VehicleCommand,
@@ -100,6 +100,8 @@ pub struct Vehicle {
     comm_errors: u64,
     /// The id of the last chunked STATUSTEXT.
     text_id: u16,
+    /// When a ground station last sent a HEARTBEAT (µs of vehicle time).
+    gcs_heartbeat_us: Option<u64>,
     navigator: Navigator,
     last_nav_us: Option<u64>,
     home_changed: bool,
@@ -168,6 +170,7 @@ impl Vehicle {
             throttle_low_pwm_us,
             comm_errors: 0,
             text_id: 0,
+            gcs_heartbeat_us: None,
             navigator: {
                 let mut navigator = Navigator::new(config.navigator);
                 if let Some(start) = config.start_airborne {
@@ -318,6 +321,12 @@ impl Vehicle {
                     messages.extend(self.on_mission_event(event));
                 }
                 messages
+            }
+            Service::Heartbeat => {
+                if let Some(t) = GcsHeartbeats.handle(&ctx, msg, &mut ()).effect {
+                    self.gcs_heartbeat_us = Some(t);
+                }
+                Vec::new()
             }
             Service::Command => match Commands.handle(&ctx, msg, &mut ()).effect {
                 Some(cmd) => self.apply_command(now_us, &cmd),
@@ -580,6 +589,7 @@ impl Vehicle {
             estimate,
             throttle_low: mean_pwm_us.is_nan() || mean_pwm_us <= self.throttle_low_pwm_us,
             nav: self.navigator.status(),
+            gcs_heartbeat_us: self.gcs_heartbeat_us,
         });
         self.sync_home();
         let reference = self.plan(now_us, &state, &out);

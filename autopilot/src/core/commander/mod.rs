@@ -21,6 +21,7 @@ use nalgebra::{Vector2, Vector3};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+pub mod failsafe;
 pub mod land_detector;
 pub mod mode;
 pub mod state_machine;
@@ -28,6 +29,7 @@ pub mod state_machine;
 #[cfg(test)]
 mod tests;
 
+pub use failsafe::{FailsafeAction, Trigger};
 pub use land_detector::{LandDetector, LandDetectorConfig, LandedState};
 pub use mode::{FlightMode, SystemStatus};
 pub use state_machine::{Conditions, State};
@@ -47,6 +49,11 @@ pub struct CommanderConfig {
     pub disarm_preflight_s: f64,
     /// The takeoff is complete within this distance of its altitude (m).
     pub takeoff_acceptance_m: f64,
+    /// The ground-station link is lost after this long without a GCS HEARTBEAT (s; COM_DL_LOSS_T).
+    pub datalink_loss_s: f64,
+    /// What the vehicle does when it is (PX4's NAV_DLL_ACT: 0 nothing, 1 hold, 2 return, 3 land, 5
+    /// terminate; see [`FailsafeAction::from_px4`]).
+    pub datalink_loss_action: u32,
     pub land_detector: LandDetectorConfig,
 }
 
@@ -57,6 +64,8 @@ impl Default for CommanderConfig {
             disarm_land_s: 2.0,
             disarm_preflight_s: 10.0,
             takeoff_acceptance_m: 0.1,
+            datalink_loss_s: 10.0,
+            datalink_loss_action: 0,
             land_detector: LandDetectorConfig::default(),
         }
     }
@@ -79,6 +88,7 @@ impl CommanderConfig {
         let positive = [
             ("takeoff_alt_m", self.takeoff_alt_m),
             ("takeoff_acceptance_m", self.takeoff_acceptance_m),
+            ("datalink_loss_s", self.datalink_loss_s),
             ("land_detector.max_vel_d_mps", ld.max_vel_d_mps),
             ("land_detector.max_vel_ne_mps", ld.max_vel_ne_mps),
             ("land_detector.ground_height_m", ld.ground_height_m),
@@ -97,6 +107,13 @@ impl CommanderConfig {
             if !value.is_finite() {
                 return Err(ConfigError { field, value, must: "finite" });
             }
+        }
+        if let Err(n) = FailsafeAction::from_px4(self.datalink_loss_action) {
+            return Err(ConfigError {
+                field: "datalink_loss_action",
+                value: f64::from(n),
+                must: "0 (off), 1 hold, 2 return, 3 land or 5 terminate",
+            });
         }
         Ok(())
     }
@@ -139,6 +156,8 @@ pub struct CommanderInputs {
     pub throttle_low: bool,
     /// The navigator's status of the previous step (mission valid and done, landing, offboard fresh).
     pub nav: NavStatus,
+    /// When a ground station (MAV_TYPE_GCS) last sent a HEARTBEAT (µs of vehicle time).
+    pub gcs_heartbeat_us: Option<u64>,
 }
 
 /// What a ground station (through the MAVLink handlers) asks of the commander.
@@ -243,12 +262,27 @@ pub enum DisarmReason {
 /// Something the MAVLink layer reports: arm and mode changes want a HEARTBEAT at once, all a STATUSTEXT.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Event {
-    Armed { forced: bool },
-    Disarmed { reason: DisarmReason },
+    Armed {
+        forced: bool,
+    },
+    Disarmed {
+        reason: DisarmReason,
+    },
     Killed,
-    ModeChanged { mode: FlightMode },
+    ModeChanged {
+        mode: FlightMode,
+    },
     Landed,
     TakeoffComplete,
+    /// A failsafe fired; `action` is what the vehicle does (None: nothing, it is only said).
+    Failsafe {
+        trigger: Trigger,
+        action: Option<FailsafeAction>,
+    },
+    /// A failsafe's condition cleared (the vehicle stays in the mode the failsafe chose).
+    FailsafeCleared {
+        trigger: Trigger,
+    },
 }
 
 impl Event {
@@ -269,6 +303,12 @@ impl Event {
             Self::ModeChanged { mode, .. } => format!("Mode: {mode}"),
             Self::Landed => "Landing detected".into(),
             Self::TakeoffComplete => "Takeoff complete".into(),
+            Self::Failsafe { trigger, action: Some(action) } => {
+                format!("Failsafe: {}, {}", trigger.what(), action.doing())
+            }
+            Self::Failsafe { trigger, action: None } => format!("Failsafe: {}", trigger.what()),
+            Self::FailsafeCleared { trigger: Trigger::DatalinkLost } => "GCS link regained".into(),
+            Self::FailsafeCleared { trigger } => format!("Cleared: {}", trigger.what()),
         }
     }
 
@@ -322,6 +362,8 @@ pub struct Commander {
     yaw_sp_rad: f64,
     armed_idle_since_us: u64,
     touchdown_us: Option<u64>,
+    /// The ground-station link counts as lost (a datalink failsafe episode is under way).
+    datalink_lost: bool,
     events: Vec<Event>,
 }
 
@@ -351,6 +393,7 @@ impl Commander {
             yaw_sp_rad: 0.0,
             armed_idle_since_us: 0,
             touchdown_us: None,
+            datalink_lost: false,
             events: Vec::new(),
         })
     }
@@ -488,6 +531,7 @@ impl Commander {
         let landing =
             self.state == State::Land || (matches!(self.state, State::Mission | State::Rtl) && self.nav.landing);
         self.touchdown_us = if landing && landed { Some(self.touchdown_us.unwrap_or(now)) } else { None };
+        self.datalink_failsafe(now, inputs.gcs_heartbeat_us);
         // A few rounds at most: arming with a pending takeoff goes ArmedIdle -> Takeoff on the next step.
         for _ in 0..State::ALL.len() {
             let c = self.conditions(now);
@@ -506,6 +550,42 @@ impl Commander {
             task: self.task(),
             events: std::mem::take(&mut self.events),
         }
+    }
+
+    /// The datalink row of the failsafe table ([`failsafe`]): on losing the link while armed, say so and,
+    /// in the air, take `NAV_DLL_ACT`'s action; on regaining it, say so (the mode stays).
+    fn datalink_failsafe(&mut self, now: u64, gcs_heartbeat_us: Option<u64>) {
+        let lost = failsafe::datalink_lost(now, gcs_heartbeat_us, self.config.datalink_loss_s);
+        if lost == self.datalink_lost {
+            return;
+        }
+        self.datalink_lost = lost;
+        if !self.state.is_armed() {
+            return;
+        }
+        let trigger = Trigger::DatalinkLost;
+        if !lost {
+            self.events.push(Event::FailsafeCleared { trigger });
+            return;
+        }
+        let in_air = self.state != State::ArmedIdle && self.state != State::Killed && !self.land_detector.landed();
+        let action = FailsafeAction::from_px4(self.config.datalink_loss_action).ok().flatten().filter(|_| in_air);
+        let Some(action) = action else {
+            self.events.push(Event::Failsafe { trigger, action: None });
+            return;
+        };
+        self.events.push(Event::Failsafe { trigger, action: Some(action) });
+        let (request, what) = match action {
+            FailsafeAction::Hold => (Conditions::HOLD_REQUESTED, Action::Hold),
+            FailsafeAction::Return => (Conditions::RTL_REQUESTED, Action::Return),
+            FailsafeAction::Land => (Conditions::LAND_REQUESTED, Action::Land),
+            FailsafeAction::Terminate => (Conditions::KILL, Action::Disarm),
+        };
+        if action == FailsafeAction::Hold {
+            self.hold_mode = FlightMode::Hold;
+        }
+        // Already in that mode (holding, returning, landing): nothing to change.
+        let _ = self.transition(now, request, what);
     }
 
     fn take_estimate(&mut self, inputs: &CommanderInputs) {
@@ -760,6 +840,11 @@ impl Commander {
                 } else {
                     // Stop and hold where the vehicle stops, as PX4's Hold does.
                     self.hold_ned_m = None;
+                }
+                if from == State::Offboard && c.contains(C::OFFBOARD_LOST) && !c.contains(C::HOLD_REQUESTED) {
+                    self.hold_mode = FlightMode::Hold;
+                    let trigger = Trigger::OffboardLost;
+                    self.events.push(Event::Failsafe { trigger, action: Some(FailsafeAction::Hold) });
                 }
                 self.set_mode(self.hold_mode);
             }

@@ -19,11 +19,20 @@ struct Sim {
     converged: bool,
     throttle_low: bool,
     nav: NavStatus,
+    gcs_heartbeat_us: Option<u64>,
 }
 
 impl Sim {
     fn new() -> Self {
-        Self { now_us: 0, pos_d_m: 0.0, vel_d_mps: 0.0, converged: true, throttle_low: true, nav: NavStatus::default() }
+        Self {
+            now_us: 0,
+            pos_d_m: 0.0,
+            vel_d_mps: 0.0,
+            converged: true,
+            throttle_low: true,
+            nav: NavStatus::default(),
+            gcs_heartbeat_us: None,
+        }
     }
 
     fn inputs(&self) -> CommanderInputs {
@@ -39,6 +48,7 @@ impl Sim {
             },
             throttle_low: self.throttle_low,
             nav: self.nav,
+            gcs_heartbeat_us: self.gcs_heartbeat_us,
         }
     }
 

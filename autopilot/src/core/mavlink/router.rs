@@ -3,10 +3,11 @@
 //! ([`MessageContext`]). Out: which service the message belongs to ([`route`]: one match, so no message
 //! reaches two services and none is claimed by a hand-kept predicate), and that service's
 //! [`ServiceReply`]: the messages to send back, and what it asks of the vehicle (an effect the vehicle
-//! applies: a parameter change, a mission event, a command, an offboard setpoint).
+//! applies: a parameter change, a mission event, a command, an offboard setpoint, a ground station's
+//! HEARTBEAT for the datalink failsafe).
 
 use ::mavlink::MavHeader;
-use ::mavlink::dialects::common::{MavMessage, MavSeverity};
+use ::mavlink::dialects::common::{MavMessage, MavSeverity, MavType};
 
 use super::command::{CommandContext, InboundCommand, decode_command};
 use super::housekeeping;
@@ -30,6 +31,8 @@ pub enum Service {
     Mission,
     /// COMMAND_LONG, COMMAND_INT, SET_MODE.
     Command,
+    /// HEARTBEAT: a ground station's keeps the datalink alive.
+    Heartbeat,
 }
 
 /// The service `msg` belongs to (None: nothing of ours, such as a ground station's HEARTBEAT).
@@ -54,6 +57,7 @@ pub fn route(msg: &MavMessage) -> Option<Service> {
         | M::MISSION_CLEAR_ALL(_)
         | M::MISSION_SET_CURRENT(_) => Service::Mission,
         M::COMMAND_LONG(_) | M::COMMAND_INT(_) | M::SET_MODE(_) => Service::Command,
+        M::HEARTBEAT(_) => Service::Heartbeat,
         _ => return None,
     })
 }
@@ -177,6 +181,22 @@ impl Microservice for Commands {
     }
 }
 
+/// Ground-station HEARTBEATs (MAV_TYPE_GCS, from another system): each is the vehicle time it came at, the
+/// datalink failsafe's clock. Other components' heartbeats (a companion, the plant) do not count.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct GcsHeartbeats;
+
+impl Microservice for GcsHeartbeats {
+    type State = ();
+    type Effect = u64;
+
+    fn handle(&mut self, ctx: &MessageContext<'_>, msg: &MavMessage, (): &mut ()) -> ServiceReply<u64> {
+        let from_gcs = matches!(msg, MavMessage::HEARTBEAT(h) if h.mavtype == MavType::MAV_TYPE_GCS)
+            && ctx.header.system_id != u32::from(ctx.sysid);
+        ServiceReply::of(Vec::new(), from_gcs.then_some(ctx.now_us))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     #[allow(deprecated)]
@@ -189,7 +209,8 @@ mod tests {
     fn given_messages_of_each_protocol_then_exactly_one_service_claims_each_and_heartbeats_none() {
         assert_eq!(route(&MavMessage::PING(PING_DATA::default())), Some(Service::Housekeeping));
         assert_eq!(route(&MavMessage::PARAM_SET(PARAM_SET_DATA::default())), Some(Service::Params));
-        assert_eq!(route(&MavMessage::HEARTBEAT(HEARTBEAT_DATA::default())), None);
+        assert_eq!(route(&MavMessage::HEARTBEAT(HEARTBEAT_DATA::default())), Some(Service::Heartbeat));
+        assert_eq!(route(&MavMessage::ATTITUDE(Default::default())), None);
         let mission = MavMessage::MISSION_REQUEST_LIST(Default::default());
         assert_eq!(route(&mission), Some(Service::Mission));
         assert_eq!(route(&MavMessage::COMMAND_LONG(Default::default())), Some(Service::Command));

@@ -510,7 +510,7 @@ pub fn statustext_chunks(severity: MavSeverity, text: &str, id: u16) -> Vec<MavM
 #[must_use]
 pub fn event_severity(event: &Event) -> MavSeverity {
     match event {
-        Event::Killed => MavSeverity::MAV_SEVERITY_CRITICAL,
+        Event::Killed | Event::Failsafe { .. } => MavSeverity::MAV_SEVERITY_CRITICAL,
         Event::Disarmed { .. } => MavSeverity::MAV_SEVERITY_NOTICE,
         _ => MavSeverity::MAV_SEVERITY_INFO,
     }

@@ -676,4 +676,24 @@ pub static PARAMS: &[ParamDef] = &[
         "Jerk limit of every automatic move.",
         navigator.jerk_mps3
     ),
+    // Failsafes (appended).
+    real!(
+        Commander,
+        "COM_DL_LOSS_T",
+        10.0,
+        [5.0, 300.0],
+        "s",
+        "The ground-station link is lost after this long without a GCS HEARTBEAT.",
+        commander.datalink_loss_s
+    ),
+    whole!(
+        Commander,
+        "NAV_DLL_ACT",
+        0.0,
+        [0.0, 5.0],
+        "",
+        restart = false,
+        "What the vehicle does when the ground-station link is lost: 0 nothing, 1 hold, 2 return, 3 land, 5 terminate.",
+        commander.datalink_loss_action
+    ),
 ];
