@@ -278,6 +278,15 @@ impl Driver {
                 self.inputs.mag = samples.mag;
                 self.inputs.baro = samples.baro;
                 let now_us = fields.time_us;
+                if self.stats.last_time_us.is_some_and(|last| now_us < last) {
+                    // The plant's clock went back: a new simulation, not a pause. The vehicle restarts
+                    // (disarmed, its telemetry on the new timeline from this step on) from its stored
+                    // parameters and mission, and says so.
+                    tracing::warn!(now_us, "the plant restarted (its clock went back): the vehicle restarts, disarmed");
+                    let text = "Plant restarted: vehicle restarted, disarmed";
+                    self.send_gcs(None, Destination::All, statustext(MavSeverity::MAV_SEVERITY_CRITICAL, text));
+                    self.vehicle = None;
+                }
                 self.now_us = now_us;
                 self.stats.first_time_us.get_or_insert(now_us);
                 self.stats.last_time_us = Some(now_us);
@@ -519,6 +528,45 @@ mod tests {
         assert_eq!(stats.steps, 3);
         assert_eq!((stats.first_time_us, stats.last_time_us), (Some(0), Some(4_000)));
         assert!(stats.plant_decoder.malformed() >= 1, "{stats:?}");
+    }
+
+    #[test]
+    fn a_plant_whose_clock_restarts_gets_a_restarted_disarmed_vehicle_whose_heartbeat_resumes_at_once() {
+        let mut h = start(3);
+        let mut buf = vec![0u8; 2048];
+        let (_, autopilot) = h.plant.recv_from(&mut buf).expect("announce");
+        let mut decoder = FrameDecoder::new();
+        let mut step = |h: &mut Harness, time_us: u64| loop {
+            h.plant.send_to(&sensor_frame(time_us), autopilot).expect("send");
+            let len = h.plant.recv(&mut buf).expect("reply");
+            let frames = decoder.decode_datagram(&buf[..len]);
+            if let Some(MavMessage::HIL_ACTUATOR_CONTROLS(m)) = frames.first().map(|f| &f.message) {
+                break decode_actuator_controls(m);
+            }
+        };
+        // GIVEN a simulation 3 s in.
+        for k in 0..1500_u64 {
+            step(&mut h, k * 2_000);
+        }
+        while h.out_rx.try_recv().is_ok() {}
+        // WHEN the plant starts a new simulation (its clock back at 0).
+        let cmd = step(&mut h, 0);
+        // THEN the step is answered, the vehicle says it restarted and its HEARTBEAT comes at once.
+        assert_eq!(cmd.time_us, 0);
+        assert!(!cmd.armed);
+        // (Telemetry is batched: stopping the link flushes it.)
+        h.stop.store(true, Ordering::Relaxed);
+        h.thread.join().expect("join").expect("clean stop");
+        let messages: Vec<MavMessage> = std::iter::from_fn(|| h.out_rx.try_recv().ok()).map(|o| o.message).collect();
+        let restart = messages.iter().position(|m| {
+            matches!(m, MavMessage::STATUSTEXT(s)
+                if s.text.to_str().is_ok_and(|t| t == "Plant restarted: vehicle restarted, disarmed"))
+        });
+        let restart = restart.expect("the restart is announced");
+        let heartbeat = messages[restart..]
+            .iter()
+            .any(|m| matches!(m, MavMessage::HEARTBEAT(hb) if !hb.base_mode.contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED)));
+        assert!(heartbeat, "a HEARTBEAT on the new timeline's first step");
     }
 
     #[test]
