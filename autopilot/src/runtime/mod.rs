@@ -55,8 +55,6 @@ pub enum RuntimeError {
     Tlog(#[from] TlogError),
     #[error(transparent)]
     Persist(#[from] PersistError),
-    #[error("{path}: {message}")]
-    StateFile { path: PathBuf, message: String },
     #[error("cannot create log directory {path}: {source}")]
     LogDir {
         path: PathBuf,
@@ -97,31 +95,71 @@ fn open_plant(endpoint: &PlantEndpoint) -> Result<Box<dyn Transport + Send>, Pla
     })
 }
 
-/// What an earlier run left in `dir` (parameters over `vehicle`'s, the mission), and the saver.
+/// What an earlier run left in `dir` (parameters over `vehicle`'s, the mission), and the saver. A state
+/// file never stops the autopilot from starting (as PX4 starts on defaults): a parameter line that cannot
+/// be read, or a value out of range or that makes the configuration unusable with the values before it
+/// (loop rates that do not divide), falls back to its default with a warning naming the file, the line
+/// and the parameter; a file that cannot be read or parsed at all is moved aside (`NAME.corrupt-<time>`)
+/// with a warning, and the vehicle starts without it.
 ///
 /// # Errors
-/// [`RuntimeError::StateFile`] naming the file and line of a malformed or out-of-range entry (nothing is
-/// loaded then: the autopilot does not start on a half-read state), or the directory's I/O error.
+/// The state directory's own I/O error (it cannot be created).
 fn load_state(dir: &std::path::Path, vehicle: &crate::core::config::VehicleConfig) -> Result<Persisted, RuntimeError> {
-    let file_error = |name: &str, message: String| RuntimeError::StateFile { path: dir.join(name), message };
+    use crate::core::params::ParamStore;
     let persister = Persister::start(dir)?;
-    let params = match persist::load(dir, PARAMS_FILE)? {
-        Some(text) => {
-            let base = crate::core::params::ParamStore::from_config(vehicle);
-            let (store, warnings) = crate::core::params::ParamStore::from_text(&text, base)
-                .map_err(|e| file_error(PARAMS_FILE, e.to_string()))?;
-            for w in warnings {
-                tracing::warn!(file = %dir.join(PARAMS_FILE).display(), "{w}");
+    let aside = |name: &str, why: &dyn std::fmt::Display| match persist::move_aside(dir, name) {
+        Ok(to) => {
+            tracing::warn!(file = %dir.join(name).display(), moved_to = %to.display(), "{why}: moved aside, starting without it")
+        }
+        Err(e) => tracing::warn!(file = %dir.join(name).display(), "{why}; {e}: starting without it"),
+    };
+    let params = match persist::load(dir, PARAMS_FILE) {
+        Ok(Some(text)) => {
+            let file = dir.join(PARAMS_FILE);
+            let base = ParamStore::from_config(vehicle);
+            let loaded = ParamStore::from_text_lenient(&text, base.clone());
+            for w in &loaded.warnings {
+                tracing::warn!(file = %file.display(), "{w}");
+            }
+            // Replayed in file order over the defaults: a value that makes the configuration unusable with
+            // the ones before it keeps its default.
+            let mut store = base.clone();
+            for &(line, index) in &loaded.taken {
+                let (Some(value), Some(default)) = (loaded.store.get_index(index), base.get_index(index)) else {
+                    continue;
+                };
+                if store.set_index(index, value).is_err() {
+                    continue;
+                }
+                let mut config = vehicle.clone();
+                store.apply(&mut config);
+                if let Err(e) = config.validate() {
+                    let _ = store.set_index(index, default);
+                    let name = store.def(index).map_or("?", |d| d.name);
+                    tracing::warn!(file = %file.display(), "line {line}: {name} = {value}: {e}: the default {default} is used");
+                }
             }
             Some(store)
         }
-        None => None,
-    };
-    let mission = match persist::load(dir, MISSION_FILE)? {
-        Some(text) => {
-            Some(crate::core::mission::Mission::from_wpl(&text).map_err(|e| file_error(MISSION_FILE, e.to_string()))?)
+        Ok(None) => None,
+        Err(e) => {
+            aside(PARAMS_FILE, &e);
+            None
         }
-        None => None,
+    };
+    let mission = match persist::load(dir, MISSION_FILE) {
+        Ok(Some(text)) => match crate::core::mission::Mission::from_wpl(&text) {
+            Ok(mission) => Some(mission),
+            Err(e) => {
+                aside(MISSION_FILE, &e);
+                None
+            }
+        },
+        Ok(None) => None,
+        Err(e) => {
+            aside(MISSION_FILE, &e);
+            None
+        }
     };
     tracing::info!(
         dir = %dir.display(),
@@ -270,5 +308,53 @@ pub async fn run(config: RuntimeConfig) -> Result<PlantLinkStats, RuntimeError> 
     match first_error {
         Some(e) => Err(e),
         None => Ok(stats),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::config::VehicleConfig;
+    use crate::core::vehicle::Vehicle;
+
+    fn temp_dir(name: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("aco-state-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        dir
+    }
+
+    #[test]
+    fn a_hand_edited_params_file_with_a_bricking_rate_and_garbage_starts_the_vehicle_on_those_defaults() {
+        // GIVEN a params.txt with a loop rate that does not divide the inner rate, a garbage line, a value
+        // that is not a number, an out-of-range value, and one good value.
+        let dir = temp_dir("params");
+        let text = "LOOP_POS_HZ\t300\nthis is not a parameter line\nMPC_XY_CRUISE\tfast\nMPC_TKO_SPEED\t99\nMPC_XY_CRUISE\t2\n";
+        std::fs::write(dir.join(PARAMS_FILE), text).expect("write");
+        let vehicle = VehicleConfig::default();
+        // WHEN the autopilot loads its state THEN it starts, on the good value and the defaults of the rest.
+        let persisted = load_state(&dir, &vehicle).expect("a state file never stops the start");
+        let store = persisted.params.expect("the parameters");
+        assert_eq!(store.get("MPC_XY_CRUISE"), Some(2.0));
+        assert_eq!(store.get("LOOP_POS_HZ"), Some(100.0), "the default: 300 does not divide 500");
+        assert_eq!(store.get("MPC_TKO_SPEED"), Some(1.0), "the default: 99 is out of range");
+        Vehicle::with_params(vehicle, store).expect("the vehicle starts");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn a_mission_file_that_cannot_be_parsed_is_moved_aside_and_the_vehicle_starts_without_it() {
+        let dir = temp_dir("mission");
+        std::fs::write(dir.join(MISSION_FILE), "not a QGC WPL file\n").expect("write");
+        let persisted = load_state(&dir, &VehicleConfig::default()).expect("starts");
+        assert!(persisted.mission.is_none());
+        assert!(!dir.join(MISSION_FILE).exists(), "moved away");
+        let aside: Vec<_> = std::fs::read_dir(&dir)
+            .expect("dir")
+            .flatten()
+            .filter(|e| e.file_name().to_string_lossy().starts_with(&format!("{MISSION_FILE}.corrupt-")))
+            .collect();
+        assert_eq!(aside.len(), 1, "kept for a person to look at");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

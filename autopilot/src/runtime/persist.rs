@@ -68,6 +68,18 @@ pub fn load(dir: &Path, name: &str) -> Result<Option<String>, PersistError> {
     }
 }
 
+/// Moves `dir/name` aside to `dir/name.corrupt-<unix seconds>`: a state file that cannot be read is kept
+/// for a person to look at, neither loaded nor overwritten by the next save. Returns the new path.
+///
+/// # Errors
+/// [`PersistError::Write`] when the rename fails.
+pub fn move_aside(dir: &Path, name: &str) -> Result<PathBuf, PersistError> {
+    let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
+    let to = dir.join(format!("{name}.corrupt-{secs}"));
+    std::fs::rename(dir.join(name), &to).map_err(|source| PersistError::Write { path: to.clone(), source })?;
+    Ok(to)
+}
+
 /// The saving thread; see the module docs.
 #[derive(Debug)]
 pub struct Persister {

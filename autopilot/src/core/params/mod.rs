@@ -430,6 +430,54 @@ impl<G, B> ParamStore<G, B> {
     }
 }
 
+/// A parameter file read leniently ([`ParamStore::from_text_lenient`]): the store, and for each line that
+/// was skipped or value that was dropped, a warning naming the line and the parameter.
+#[derive(Debug, Clone)]
+pub struct LenientLoad {
+    pub store: ParamStore,
+    /// (line, parameter index) of every value taken, in file order.
+    pub taken: Vec<(usize, usize)>,
+    pub warnings: Vec<String>,
+}
+
+impl ParamStore {
+    /// [`Self::from_text`] for a file a person may have edited, or an older version wrote: a line that
+    /// cannot be read, an unknown name, a value that is not a number or out of range is skipped with a
+    /// warning (the parameter keeps `base`'s value), never an error.
+    #[must_use]
+    pub fn from_text_lenient(text: &str, base: Self) -> LenientLoad {
+        let mut store = base;
+        let mut warnings = Vec::new();
+        let mut taken = Vec::new();
+        for (i, raw) in text.lines().enumerate() {
+            let line = i + 1;
+            let content = raw.find('#').map_or(raw, |hash| &raw[..hash]).trim();
+            if content.is_empty() {
+                continue;
+            }
+            let mut fields = content.split_whitespace();
+            let (Some(name), Some(value_text), None) = (fields.next(), fields.next(), fields.next()) else {
+                warnings.push(format!("line {line}: `{}` is not NAME VALUE: skipped", raw.trim()));
+                continue;
+            };
+            let Some(index) = store.index_of(name) else {
+                warnings.push(format!("line {line}: unknown parameter {name} skipped"));
+                continue;
+            };
+            let Ok(value) = value_text.parse::<f32>() else {
+                warnings.push(format!("line {line}: {name} = `{value_text}` is not a number: the default is kept"));
+                continue;
+            };
+            if let Err(e) = store.set_index(index, value) {
+                warnings.push(format!("line {line}: {e}: the default is kept"));
+                continue;
+            }
+            taken.push((line, index));
+        }
+        LenientLoad { store, taken, warnings }
+    }
+}
+
 /// `docs/params.md`: a title, how it is made, then one table per [`ParamGroup`] (name, default, min,
 /// max, unit, restart, description).
 #[must_use]
