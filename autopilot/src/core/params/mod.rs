@@ -399,8 +399,20 @@ impl<G, B> ParamStore<G, B> {
     ///
     /// [`set`]: ParamStore::set
     pub fn from_text(text: &str, base: Self) -> Result<(Self, Vec<String>), ParamFileError> {
+        let (read, first_error) = Self::read_text(text, base);
+        match first_error {
+            Some(e) => Err(e),
+            None => Ok((read.store, read.warnings)),
+        }
+    }
+
+    /// Reads a parameter file over `base`: a malformed line, a non-number or a refused value is a warning
+    /// (the parameter keeps `base`'s value) and the first of them is returned beside the result.
+    fn read_text(text: &str, base: Self) -> (LenientLoad<G, B>, Option<ParamFileError>) {
+        let mut first_error = None;
         let mut store = base;
         let mut warnings = Vec::new();
+        let mut taken = Vec::new();
         let mut first_line: Vec<Option<usize>> = vec![None; store.len()];
         for (i, raw) in text.lines().enumerate() {
             let line = i + 1;
@@ -409,72 +421,60 @@ impl<G, B> ParamStore<G, B> {
                 continue;
             }
             let mut fields = content.split_whitespace();
-            let (Some(name), Some(value_text), None) = (fields.next(), fields.next(), fields.next()) else {
-                return Err(ParamFileError::Malformed { line, text: raw.trim().to_owned() });
+            let parsed = match (fields.next(), fields.next(), fields.next()) {
+                (Some(name), Some(value_text), None) => match store.index_of(name) {
+                    None => {
+                        warnings.push(format!("line {line}: unknown parameter {name} skipped"));
+                        continue;
+                    }
+                    Some(index) => value_text
+                        .parse::<f32>()
+                        .map_err(|_| ParamFileError::BadNumber {
+                            line,
+                            name: name.to_owned(),
+                            text: value_text.to_owned(),
+                        })
+                        .and_then(|value| {
+                            store.set_index(index, value).map_err(|source| ParamFileError::Invalid { line, source })
+                        })
+                        .map(|()| (index, name)),
+                },
+                _ => Err(ParamFileError::Malformed { line, text: raw.trim().to_owned() }),
             };
-            let Some(index) = store.index_of(name) else {
-                warnings.push(format!("line {line}: unknown parameter {name} skipped"));
-                continue;
-            };
-            let value: f32 = value_text.parse().map_err(|_| ParamFileError::BadNumber {
-                line,
-                name: name.to_owned(),
-                text: value_text.to_owned(),
-            })?;
-            store.set_index(index, value).map_err(|source| ParamFileError::Invalid { line, source })?;
-            if let Some(first) = first_line.get_mut(index).and_then(|slot| slot.replace(line)) {
-                warnings.push(format!("line {line}: {name} also on line {first}; the last value is taken"));
+            match parsed {
+                Ok((index, name)) => {
+                    taken.push((line, index));
+                    if let Some(first) = first_line.get_mut(index).and_then(|slot| slot.replace(line)) {
+                        warnings.push(format!("line {line}: {name} also on line {first}; the last value is taken"));
+                    }
+                }
+                Err(e) => {
+                    warnings.push(format!("{e}: the default is kept"));
+                    first_error.get_or_insert(e);
+                }
             }
         }
-        Ok((store, warnings))
+        (LenientLoad { store, taken, warnings }, first_error)
     }
 }
 
 /// A parameter file read leniently ([`ParamStore::from_text_lenient`]): the store, and for each line that
 /// was skipped or value that was dropped, a warning naming the line and the parameter.
 #[derive(Debug, Clone)]
-pub struct LenientLoad {
-    pub store: ParamStore,
+pub struct LenientLoad<G: 'static = ParamGroup, B: 'static = Binding> {
+    pub store: ParamStore<G, B>,
     /// (line, parameter index) of every value taken, in file order.
     pub taken: Vec<(usize, usize)>,
     pub warnings: Vec<String>,
 }
 
-impl ParamStore {
+impl<G, B> ParamStore<G, B> {
     /// [`Self::from_text`] for a file a person may have edited, or an older version wrote: a line that
     /// cannot be read, an unknown name, a value that is not a number or out of range is skipped with a
     /// warning (the parameter keeps `base`'s value), never an error.
     #[must_use]
-    pub fn from_text_lenient(text: &str, base: Self) -> LenientLoad {
-        let mut store = base;
-        let mut warnings = Vec::new();
-        let mut taken = Vec::new();
-        for (i, raw) in text.lines().enumerate() {
-            let line = i + 1;
-            let content = raw.find('#').map_or(raw, |hash| &raw[..hash]).trim();
-            if content.is_empty() {
-                continue;
-            }
-            let mut fields = content.split_whitespace();
-            let (Some(name), Some(value_text), None) = (fields.next(), fields.next(), fields.next()) else {
-                warnings.push(format!("line {line}: `{}` is not NAME VALUE: skipped", raw.trim()));
-                continue;
-            };
-            let Some(index) = store.index_of(name) else {
-                warnings.push(format!("line {line}: unknown parameter {name} skipped"));
-                continue;
-            };
-            let Ok(value) = value_text.parse::<f32>() else {
-                warnings.push(format!("line {line}: {name} = `{value_text}` is not a number: the default is kept"));
-                continue;
-            };
-            if let Err(e) = store.set_index(index, value) {
-                warnings.push(format!("line {line}: {e}: the default is kept"));
-                continue;
-            }
-            taken.push((line, index));
-        }
-        LenientLoad { store, taken, warnings }
+    pub fn from_text_lenient(text: &str, base: Self) -> LenientLoad<G, B> {
+        Self::read_text(text, base).0
     }
 }
 
