@@ -168,6 +168,21 @@ impl Leg {
         limits_for: impl Fn(&LegPath) -> Limits,
         make_path: impl Fn(Vector3<f64>) -> LegPath,
     ) -> Self {
+        Self::plan_continuing(start, now_us, yaw_rad, knots, limits_for, make_path, CROSS_MPS)
+    }
+
+    /// [`Self::plan`], continuing a start that moves across the path at up to `cross_mps` (its across
+    /// component is dropped) instead of braking first: for a target that moves a little at every update
+    /// (an offboard position stream along a curve), where braking at each would stall the vehicle.
+    pub fn plan_continuing(
+        start: &Motion3,
+        now_us: u64,
+        yaw_rad: f64,
+        knots: Vec<(f64, u16)>,
+        limits_for: impl Fn(&LegPath) -> Limits,
+        make_path: impl Fn(Vector3<f64>) -> LegPath,
+        cross_mps: f64,
+    ) -> Self {
         let start = if start.finite() {
             *start
         } else {
@@ -181,7 +196,7 @@ impl Leg {
         let (_, tangent, _) = path.eval(0.0);
         let along = start.vel_ned_mps.dot(&tangent);
         let across = (start.vel_ned_mps - tangent * along).norm();
-        if tangent.norm() > 0.5 && across <= CROSS_MPS && along >= 0.0 {
+        if tangent.norm() > 0.5 && across <= cross_mps && along >= 0.0 {
             let m = Motion1 { pos_m: 0.0, vel_mps: along, acc_mps2: start.acc_ned_mps2.dot(&tangent) };
             return Self::new(path, m, None, now_us, yaw_rad, knots, &limits_for);
         }

@@ -240,6 +240,8 @@ pub(crate) enum Climb {
 /// (PX4 ramps its takeoff the same way): an airframe heavier or weaker than the controller's model then
 /// lifts off a few centimetres behind its reference instead of lagging it by a metre and catching up.
 const LIFTOFF_SPEED_FRAC: f64 = 0.25;
+/// A retargeted leg continues a reference moving across its new direction at up to this speed (m/s).
+const RETARGET_CROSS_MPS: f64 = 0.5;
 /// The vehicle has lifted off once this high above the ground (m).
 const LIFTOFF_M: f64 = 0.05;
 
@@ -341,6 +343,21 @@ impl Planner {
             *leg = self.line(input, leg.end(), Climb::Takeoff, None);
             *climb = Climb::Takeoff;
         }
+    }
+
+    /// A straight leg to a target that moves with every update (an offboard position stream): continues
+    /// the reference's motion towards it when it moves across the new direction at up to 0.5 m/s.
+    pub fn retarget(&self, input: &NavInput, to: Vector3<f64>) -> Leg {
+        let start = self.start(input);
+        Leg::plan_continuing(
+            &start,
+            input.now_us,
+            self.yaw_rad,
+            Vec::new(),
+            |p| self.limits(p, Climb::Move),
+            |from| LegPath::Line { from, to },
+            RETARGET_CROSS_MPS,
+        )
     }
 
     /// A landing: straight down at `ne` (NED m) at the land speed, through the ground without braking,

@@ -14,7 +14,7 @@
 use nalgebra::Vector3;
 
 use super::leg::{Leg, MIN_LEG_M, Motion3};
-use super::{Climb, NavInput, Planner, track};
+use super::{NavInput, Planner, track};
 use crate::core::control::Reference;
 use crate::core::control::frames::wrap_pi;
 
@@ -98,7 +98,7 @@ impl Offboard {
             (Some(pos), None) if sp.acc_ned_mps2.is_none() => {
                 self.carrot_ned_m = None;
                 if self.target.as_ref().is_none_or(|(t, _)| (t - pos).norm() > MIN_LEG_M) {
-                    self.target = Some((pos, p.line(input, pos, Climb::Move, None)));
+                    self.target = Some((pos, p.retarget(input, pos)));
                 }
                 let Some((_, leg)) = self.target.as_mut() else { return track(&p.start(input), yaw) };
                 p.fly(leg, input)
