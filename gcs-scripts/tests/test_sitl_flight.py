@@ -2,8 +2,9 @@
 then judged on the plant's truth against the commanded point (home + 1.5 m): the autopilot runs with
 `--estimator truth`, so LOCAL_POSITION_NED is the plant's truth. The climb overshoots by at most 0.03 m,
 the 20 s hover that follows stays within 0.05 m of home + 1.5 m; then it lands and disarms by itself. Twice: with `sitl run` (plant and autopilot over UDP), and with the plant and the
-autopilot on the two ends of a socat pty pair (the serial plant link of the real airframe). Every wait is measured on the vehicle's clock (time_boot_ms), never on the
-wall clock, so the test holds at any simulation speed; a wall-clock deadline only stops a hung run."""
+autopilot on the two ends of a socat pty pair (the serial plant link of the real airframe), paced at 20x real
+time. Every wait is measured on the vehicle's clock (time_boot_ms), never on the wall clock; a wall-clock
+deadline only stops a hung run."""
 
 import math
 import os
@@ -94,7 +95,20 @@ def log_file(tmp_path, name):
 def start_udp(instance, tmp_path):
     """`sitl run -i N`: the plant and the autopilot over UDP."""
     proc = subprocess.Popen(
-        [str(binary("sitl")), "run", "-i", str(instance), "--estimator", "truth", "--state-dir", str(tmp_path / "state")],
+        # Paced at 20x: unpaced lockstep sends about 11 000 messages per wall second, more than a pymavlink
+        # reader keeps up with (its socket drops datagrams, an ACK among them).
+        [
+            str(binary("sitl")),
+            "run",
+            "-i",
+            str(instance),
+            "--estimator",
+            "truth",
+            "--speed",
+            "20",
+            "--state-dir",
+            str(tmp_path / "state"),
+        ],
         stdout=subprocess.DEVNULL,
         stderr=log_file(tmp_path, "sitl-run"),
         start_new_session=True,
@@ -119,7 +133,7 @@ def start_serial(instance, tmp_path):
         assert time.monotonic() < deadline and pty.poll() is None, "socat made no pty pair"
         time.sleep(0.05)
     plant = subprocess.Popen(
-        [str(binary("sitl")), "serve", "--serial", f"{plant_tty}:921600", "-i", str(instance)],
+        [str(binary("sitl")), "serve", "--serial", f"{plant_tty}:921600", "-i", str(instance), "--speed", "20"],
         stdout=subprocess.DEVNULL,
         stderr=log_file(tmp_path, "sitl-serve"),
         start_new_session=True,
