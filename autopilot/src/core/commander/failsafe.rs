@@ -15,6 +15,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::core::seconds_to_us;
+
 /// What a failsafe makes the vehicle do.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum FailsafeAction {
@@ -81,8 +83,7 @@ impl Trigger {
 /// more than `timeout_s` since. Never lost before the first one (nothing to lose yet).
 #[must_use]
 pub fn datalink_lost(now_us: u64, last_us: Option<u64>, timeout_s: f64) -> bool {
-    let timeout_us = (timeout_s.max(0.0) * 1e6).min(u64::MAX as f64) as u64;
-    last_us.is_some_and(|t| now_us.saturating_sub(t) > timeout_us)
+    last_us.is_some_and(|t| now_us.saturating_sub(t) > seconds_to_us(timeout_s))
 }
 
 #[cfg(test)]

@@ -5,6 +5,7 @@
 //! of the ground); held for `dwell_s` it means landed. Any failing condition means in the air at once (PX4
 //! releases faster than it sets, too). Disarmed means landed. Non-finite inputs are never ground contact.
 
+use crate::core::seconds_to_us;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
@@ -146,12 +147,6 @@ impl LandDetector {
             (true, _, false) => LandedState::InAir,
         }
     }
-}
-
-/// Seconds to whole microseconds (negative and non-finite to 0).
-#[must_use]
-pub fn seconds_to_us(s: f64) -> u64 {
-    if s.is_finite() && s > 0.0 { (s * 1e6).round() as u64 } else { 0 }
 }
 
 #[cfg(test)]

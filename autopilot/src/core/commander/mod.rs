@@ -35,7 +35,9 @@ pub use mode::{FlightMode, SystemStatus};
 pub use state_machine::{Conditions, State};
 
 use crate::core::navigator::{AutoMode, NavStatus, Task};
-use land_detector::{LandDetectorSample, Phase, seconds_to_us};
+use land_detector::{LandDetectorSample, Phase};
+
+use crate::core::seconds_to_us;
 
 /// The commander's parameters (PX4 names in the field docs).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

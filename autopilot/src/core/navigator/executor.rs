@@ -28,13 +28,14 @@ use nalgebra::Vector3;
 use super::leg::{Leg, LegPath, MIN_LEG_M, Motion3};
 use super::spline::SplinePath;
 use super::{Climb, NavCommand, NavEvent, NavInput, NavItem, NavTarget, Planner, rtl, still};
+use crate::core::seconds_to_us;
 
 /// Runs hold at most this many waypoints (the spline is solved once per run).
 const MAX_RUN: usize = 64;
 
 /// `now_us` plus `t_s` seconds, saturating (a hold of 1e30 s lasts as long as the clock).
 pub(crate) fn after_us(now_us: u64, t_s: f64) -> u64 {
-    now_us.saturating_add((t_s.max(0.0) * 1e6).min(u64::MAX as f64) as u64)
+    now_us.saturating_add(seconds_to_us(t_s))
 }
 
 /// Where a mission is within its current item.
@@ -514,7 +515,6 @@ impl Executor {
             Box::new(Leg::plan(
                 &Motion3::rest(here),
                 0,
-                p.yaw_rad,
                 Vec::new(),
                 |_| rest_limits(p),
                 |from| LegPath::Line { from, to: from },
@@ -572,7 +572,6 @@ fn run_leg(p: &Planner, input: &NavInput, points: &[Vector3<f64>], knots: &[u16]
     Some(Leg::plan(
         &start,
         input.now_us,
-        p.yaw_rad,
         knot_arcs,
         |_| limits,
         |from| {

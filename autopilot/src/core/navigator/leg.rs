@@ -14,6 +14,7 @@ use nalgebra::Vector3;
 
 use super::spline::SplinePath;
 use super::trajectory::{Limits, Motion1, Profile};
+use crate::core::seconds_to_us;
 
 /// A motion of the reference in NED (m, m/s, m/s², m/s³).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -99,10 +100,6 @@ impl LegPath {
             }
         }
     }
-
-    fn start(&self) -> Vector3<f64> {
-        self.eval(0.0).0
-    }
 }
 
 /// A stop before the path: along the reference's velocity from where the leg began.
@@ -138,7 +135,6 @@ pub struct Leg {
     last_us: Option<u64>,
     /// The clock's rate (1: vehicle time; less while the vehicle lags the reference along the path).
     rate: f64,
-    pub yaw_rad: f64,
     /// (arc length, item seq) of each point on the leg after its start, in order; the last is its end.
     knots: Vec<(f64, u16)>,
     /// Knots reported passed so far.
@@ -151,11 +147,6 @@ pub struct Leg {
     floor_d_m: Option<f64>,
 }
 
-fn seconds_us(t_s: f64) -> u64 {
-    // Saturates: a profile is never longer than u64 µs, but a limit of 1e-300 must not wrap.
-    (t_s.max(0.0) * 1e6).min(u64::MAX as f64) as u64
-}
-
 impl Leg {
     /// The leg from `start` (the reference's motion at `now_us`) along the path `make_path` builds from
     /// the point it leaves: `start`'s position, or where it stops first when it moves across the path.
@@ -163,12 +154,11 @@ impl Leg {
     pub fn plan(
         start: &Motion3,
         now_us: u64,
-        yaw_rad: f64,
         knots: Vec<(f64, u16)>,
         limits_for: impl Fn(&LegPath) -> Limits,
         make_path: impl Fn(Vector3<f64>) -> LegPath,
     ) -> Self {
-        Self::plan_continuing(start, now_us, yaw_rad, knots, limits_for, make_path, CROSS_MPS)
+        Self::plan_continuing(start, now_us, knots, limits_for, make_path, CROSS_MPS)
     }
 
     /// [`Self::plan`], continuing a start that moves across the path at up to `cross_mps` (its across
@@ -177,7 +167,6 @@ impl Leg {
     pub fn plan_continuing(
         start: &Motion3,
         now_us: u64,
-        yaw_rad: f64,
         knots: Vec<(f64, u16)>,
         limits_for: impl Fn(&LegPath) -> Limits,
         make_path: impl Fn(Vector3<f64>) -> LegPath,
@@ -191,14 +180,14 @@ impl Leg {
         let speed = start.vel_ned_mps.norm();
         let path = make_path(start.pos_ned_m);
         if speed <= REST_MPS && start.acc_ned_mps2.norm() <= REST_MPS {
-            return Self::new(path, Motion1::rest(0.0), None, now_us, yaw_rad, knots, &limits_for);
+            return Self::new(path, Motion1::rest(0.0), None, now_us, knots, &limits_for);
         }
         let (_, tangent, _) = path.eval(0.0);
         let along = start.vel_ned_mps.dot(&tangent);
         let across = (start.vel_ned_mps - tangent * along).norm();
         if tangent.norm() > 0.5 && across <= cross_mps && along >= 0.0 {
             let m = Motion1 { pos_m: 0.0, vel_mps: along, acc_mps2: start.acc_ned_mps2.dot(&tangent) };
-            return Self::new(path, m, None, now_us, yaw_rad, knots, &limits_for);
+            return Self::new(path, m, None, now_us, knots, &limits_for);
         }
         // Brake along the velocity, then fly the path from where the reference stops.
         let dir = start.vel_ned_mps / speed.max(REST_MPS);
@@ -207,8 +196,8 @@ impl Leg {
         let profile = Profile::stop(m, limits_for(&brake_line));
         let stop_at = start.pos_ned_m + dir * profile.target_m();
         let brake = Brake { from: start.pos_ned_m, dir, profile };
-        let t0_us = now_us.saturating_add(seconds_us(brake.profile.duration_s()));
-        Self::new(make_path(stop_at), Motion1::rest(0.0), Some(brake), t0_us, yaw_rad, knots, &limits_for)
+        let t0_us = now_us.saturating_add(seconds_to_us(brake.profile.duration_s()));
+        Self::new(make_path(stop_at), Motion1::rest(0.0), Some(brake), t0_us, knots, &limits_for)
     }
 
     fn new(
@@ -216,7 +205,6 @@ impl Leg {
         start: Motion1,
         brake: Option<Brake>,
         t0_us: u64,
-        yaw_rad: f64,
         knots: Vec<(f64, u16)>,
         limits_for: &impl Fn(&LegPath) -> Limits,
     ) -> Self {
@@ -231,7 +219,6 @@ impl Leg {
             clock_s: 0.0,
             last_us: None,
             rate: 1.0,
-            yaw_rad,
             knots,
             passed: 0,
             length_m,
@@ -366,17 +353,5 @@ impl Leg {
             self.passed += 1;
         }
         out
-    }
-
-    /// The leg's first point (after any brake).
-    #[must_use]
-    pub fn start(&self) -> Vector3<f64> {
-        self.path.start()
-    }
-
-    /// The progress limits (m/s, m/s², m/s³).
-    #[must_use]
-    pub fn limits(&self) -> Limits {
-        self.limits
     }
 }

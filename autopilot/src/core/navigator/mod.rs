@@ -314,14 +314,7 @@ impl Planner {
     pub fn line(&self, input: &NavInput, to: Vector3<f64>, climb: Climb, seq: Option<u16>) -> Leg {
         let start = self.start(input);
         let knots = seq.map(|s| vec![((to - start.pos_ned_m).norm(), s)]).unwrap_or_default();
-        Leg::plan(
-            &start,
-            input.now_us,
-            self.yaw_rad,
-            knots,
-            |p| self.limits(p, climb),
-            |from| LegPath::Line { from, to },
-        )
+        Leg::plan(&start, input.now_us, knots, |p| self.limits(p, climb), |from| LegPath::Line { from, to })
     }
 
     /// A takeoff to `to`: from the ground it creeps up at the liftoff speed (`Climb::Liftoff`) until
@@ -352,7 +345,6 @@ impl Planner {
         Leg::plan_continuing(
             &start,
             input.now_us,
-            self.yaw_rad,
             Vec::new(),
             |p| self.limits(p, Climb::Move),
             |from| LegPath::Line { from, to },
@@ -370,7 +362,6 @@ impl Planner {
         Leg::plan(
             &start,
             input.now_us,
-            self.yaw_rad,
             Vec::new(),
             |p| self.limits(p, Climb::Land),
             |from| LegPath::Line { from, to: Vector3::new(ne.x, ne.y, beyond.max(from.z)) },
@@ -384,7 +375,6 @@ impl Planner {
         Leg::plan(
             &start,
             input.now_us,
-            self.yaw_rad,
             Vec::new(),
             |p| self.limits(p, Climb::Move),
             |from| LegPath::Line { from, to: from },

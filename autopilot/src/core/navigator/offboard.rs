@@ -17,6 +17,7 @@ use super::leg::{Leg, MIN_LEG_M, Motion3};
 use super::{NavInput, Planner, track};
 use crate::core::control::Reference;
 use crate::core::control::frames::wrap_pi;
+use crate::core::seconds_to_us;
 
 /// How far a velocity setpoint's carrot may run ahead of the vehicle (m).
 const CARROT_MAX_M: f64 = 1.0;
@@ -54,8 +55,7 @@ impl Offboard {
 
     /// Whether the latest setpoint is younger than `timeout_s` at `now_us`.
     pub fn fresh(&self, now_us: u64, timeout_s: f64) -> bool {
-        let timeout_us = (timeout_s.max(0.0) * 1e6).min(u64::MAX as f64) as u64;
-        self.latest.is_some_and(|(t, _)| now_us.saturating_sub(t) <= timeout_us)
+        self.latest.is_some_and(|(t, _)| now_us.saturating_sub(t) <= seconds_to_us(timeout_s))
     }
 
     /// Offboard control ended: the next entry starts afresh from the vehicle.
