@@ -6,6 +6,7 @@
 
 use std::hint::black_box;
 
+use autopilot::core::battery::BatterySample;
 use autopilot::core::estimator::{BaroSample, GpsSample, ImuSample, MagSample};
 use autopilot::core::hil::{ActuatorCommand, encode_actuator_controls, encode_frame_v2};
 use autopilot::core::mavlink::{MavHeader, common::MavMessage};
@@ -38,6 +39,14 @@ fn inputs(time_us: u64) -> VehicleInputs {
             epv_m: 0.8,
         }),
         truth: None,
+        battery: time_us.is_multiple_of(100_000).then_some(BatterySample {
+            voltage_v: 22.8,
+            current_a: Some(30.0),
+            remaining: Some(0.8),
+            consumed_mah: Some(2000.0),
+            consumed_j: Some(160_000.0),
+            cells: 6,
+        }),
     }
 }
 

@@ -1,10 +1,11 @@
 //! The plant's end of the plant protocol (MAVLink 2 HIL messages, see `autopilot::core::hil`), over UDP
 //! or serial. Out, once per plant step (`dt_us`, default 2 ms = 500 Hz) for plant time `t`: one datagram
 //! holding `HIL_GPS` (when the plant releases a fix, 10 Hz by default), `HIL_STATE_QUATERNION` (truth,
-//! optionally with the paper's state noise), optionally `ODOMETRY` (the same truth at float precision) and
+//! optionally with the paper's state noise), optionally `ODOMETRY` (the same truth at float precision),
+//! `BATTERY_STATUS` (the pack, every [`BATTERY_PERIOD_US`] = 0.1 s, when the plant has one) and
 //! `HIL_SENSOR` last (the autopilot ticks on it). In: `HIL_ACTUATOR_CONTROLS` with `time_usec == t`, whose
 //! four controls are the PWM (µs) of the paper's rotors 1..4 held over the step (1000 µs each when
-//! disarmed).
+//! disarmed; stopped motors draw nothing from the pack).
 //!
 //! Lockstep: the plant steps only when it has the reply for `t`; replies for other times are stale and
 //! counted. No reply within `resend_timeout` (wall clock, default 1 s): the same datagram is resent and
@@ -30,18 +31,20 @@ use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+use autopilot::core::battery::BatterySample;
 use autopilot::core::estimator::{GeoOrigin, GpsSample as ApGpsSample, TruthSample};
 use autopilot::core::hil::{
     ActuatorCommand, DecoderStats, FrameDecoder, HilBaroFields, HilInput, HilSensorFields, decode_hil_message,
-    encode_frame_v2, encode_hil_gps, encode_hil_sensor, encode_hil_state_quaternion, encode_odometry,
+    encode_battery_status, encode_frame_v2, encode_hil_gps, encode_hil_sensor, encode_hil_state_quaternion,
+    encode_odometry,
 };
 use mavlink::MavHeader;
-use mavlink::dialects::common::MavMessage;
+use mavlink::dialects::common::{MavBatteryChargeState, MavMessage};
 use nalgebra::UnitQuaternion;
 
 use crate::plant::sensors::HomeConfig;
 use crate::plant::sensors::NoisyState;
-use crate::plant::{GpsSample, Plant, SensorSample, StateNoise, Truth};
+use crate::plant::{BatteryReading, GpsSample, Plant, SensorSample, StateNoise, Truth};
 
 /// MAVLink system id the plant sends with.
 pub const PLANT_SYSTEM_ID: u8 = 1;
@@ -248,6 +251,28 @@ pub fn home_origin(home: &HomeConfig) -> GeoOrigin {
     GeoOrigin { lat_deg: home.lat_deg, lon_deg: home.lon_deg, alt_amsl_m: home.alt_amsl_m }
 }
 
+/// Plant time between two `BATTERY_STATUS` (µs): 10 Hz, as a battery monitor samples.
+pub const BATTERY_PERIOD_US: u64 = 100_000;
+
+/// Whether the step at `time_us` (of length `dt_us`) is the first of a [`BATTERY_PERIOD_US`] period.
+#[must_use]
+pub fn battery_due(time_us: u64, dt_us: u64) -> bool {
+    time_us % BATTERY_PERIOD_US < dt_us.max(1)
+}
+
+/// A plant pack reading as the protocol's battery sample (the ARM board's monitor reads the same).
+#[must_use]
+pub fn battery_fields(r: &BatteryReading) -> BatterySample {
+    BatterySample {
+        voltage_v: r.voltage_v,
+        current_a: Some(r.current_a),
+        remaining: Some(r.remaining),
+        consumed_mah: Some(r.consumed_mah),
+        consumed_j: Some(r.consumed_j),
+        cells: r.cells,
+    }
+}
+
 /// A plant sensor sample as `HIL_SENSOR` fields (the plant updates every field at every sample).
 #[must_use]
 pub fn sensor_fields(sample: &SensorSample) -> HilSensorFields {
@@ -431,6 +456,15 @@ impl<T: Transport> PlantServer<T> {
         if self.config.truth_odometry {
             datagram.extend(self.frame(&MavMessage::ODOMETRY(encode_odometry(&reported))));
         }
+        if let Some(battery) = self.plant.battery()
+            && battery_due(truth.time_us, self.config.dt_us)
+        {
+            let msg = MavMessage::BATTERY_STATUS(encode_battery_status(
+                &battery_fields(&battery.reading()),
+                MavBatteryChargeState::MAV_BATTERY_CHARGE_STATE_UNDEFINED,
+            ));
+            datagram.extend(self.frame(&msg));
+        }
         let msg = MavMessage::HIL_SENSOR(encode_hil_sensor(&sensor_fields(&sample)));
         datagram.extend(self.frame(&msg));
         datagram
@@ -458,6 +492,7 @@ impl<T: Transport> PlantServer<T> {
         let command = reply?;
         self.pending = None;
         self.pace(t)?;
+        self.plant.set_motors_running(command.armed);
         self.plant.step(command.effective_pwm_us(), self.config.dt_us);
         self.stats.steps += 1;
         self.last_command = Some(command);

@@ -31,7 +31,7 @@
 //! moves SIM_BEAUFORT and SIM_GUST_SPD together and writes the gust's note, or refuses with the wind's own
 //! reason. A refusal therefore reads as the autopilot's does (`SIM_GUST_SPD: 40 not in 0..30`, `unknown
 //! parameter SIM_NOPE`, `SIM_TURB: the plant refused it: ...`), and a list request, which the shared
-//! service streams a few values per call, is drained at once (nine values in one reply).
+//! service streams a few values per call, is drained at once (every value in one reply).
 //!
 //! The gust: SIM_GUST_ON = 1 starts the spec's 1-cos gust at the current plant time with the current
 //! SIM_GUST_SPD (m/s), SIM_GUST_DIR (deg, the direction it blows toward, 0 = north, 90 = east) and
@@ -45,6 +45,11 @@
 //! the speed). At start every value reflects the plant's configured wind (the table's default otherwise),
 //! SIM_GUST_ON = 1 only if a configured gust blows at that moment, SIM_TURB = 1 if any turbulence model is
 //! on.
+//!
+//! The pack: SIM_BAT_DRAIN (s, PX4's) > 0 drains it linearly from full to empty in that time while the
+//! motors run (0: by the current the rotors draw, the default), SIM_BAT_MIN_PCT (%, PX4's; default 0
+//! here, 50 in PX4) is the floor its state of charge never falls below; both act from the next step and
+//! start at the plant's `[battery]` values.
 
 use std::io;
 use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
@@ -90,6 +95,8 @@ mod idx {
     pub const GUST_ON: usize = 6;
     pub const TURB: usize = 7;
     pub const BEAUFORT: usize = 8;
+    pub const BAT_DRAIN: usize = 9;
+    pub const BAT_MIN_PCT: usize = 10;
 }
 
 /// A SIM_ parameter: the autopilot's parameter definition with no docs group and no config binding (the
@@ -137,7 +144,7 @@ const fn whole(name: &'static str, default: f32, min: f32, max: f32, description
 
 /// The SIM_ parameters. The defaults are the values with no wind configured (the plant's configured wind
 /// overrides them at start).
-pub static SIM_PARAMS: [SimParamDef; 9] = [
+pub static SIM_PARAMS: [SimParamDef; 11] = [
     real("SIM_WIND_N", 0.0, -30.0, 30.0, "m/s", "Steady wind toward north (NED)"),
     real("SIM_WIND_E", 0.0, -30.0, 30.0, "m/s", "Steady wind toward east (NED)"),
     real("SIM_WIND_D", 0.0, -10.0, 10.0, "m/s", "Steady wind downward (NED)"),
@@ -153,6 +160,15 @@ pub static SIM_PARAMS: [SimParamDef; 9] = [
         8.0,
         "Beaufort force of SIM_GUST_SPD; setting it sets SIM_GUST_SPD to the force's mid speed",
     ),
+    real(
+        "SIM_BAT_DRAIN",
+        0.0,
+        0.0,
+        86_400.0,
+        "s",
+        "> 0: the pack drains linearly from full to empty in this time while the motors run; 0: by the current drawn",
+    ),
+    real("SIM_BAT_MIN_PCT", 0.0, 0.0, 100.0, "%", "The pack's state of charge never falls below this"),
 ];
 
 /// The Beaufort force of a wind speed (m/s): the highest force whose range starts at or below it.
@@ -199,6 +215,9 @@ impl SimParamService {
         }
         values[idx::TURB] = f32::from(u8::from(wind.has_turbulence()));
         values[idx::BEAUFORT] = f32::from(beaufort_force_of(f64::from(values[idx::GUST_SPD])));
+        let battery = plant.config().battery;
+        values[idx::BAT_DRAIN] = battery.drain_s as f32;
+        values[idx::BAT_MIN_PCT] = (battery.min_remaining * 100.0) as f32;
         Self {
             system_id,
             store: ParamStore::from_fn(&SIM_PARAMS, |i, _| values[i]),
@@ -220,7 +239,7 @@ impl SimParamService {
 
     /// The replies to one received message (in order); applies a set to `plant`'s wind at once, so it
     /// acts from the plant's next step. A list request is answered whole (the autopilot's stream, drained
-    /// at once: nine values). A message not addressed to us, or not a PARAM request, gets nothing.
+    /// at once: every value). A message not addressed to us, or not a PARAM request, gets nothing.
     pub fn on_message(&mut self, msg: &MavMessage, plant: &mut Plant) -> Vec<MavMessage> {
         let reply = self
             .protocol
@@ -279,6 +298,8 @@ fn apply(store: &mut ParamStore<(), ()>, index: usize, value: f32, plant: &mut P
                 format!("gust released, t={release_s:.2}")
             });
         }
+        idx::BAT_DRAIN => plant.battery_mut().set_drain_s(f64::from(value)),
+        idx::BAT_MIN_PCT => plant.battery_mut().set_min_remaining(f64::from(value) / 100.0),
         idx::TURB if value != value_of(store, idx::TURB) => {
             if value == 1.0 {
                 if plant.wind().gust().is_none() {
@@ -554,7 +575,9 @@ mod tests {
                 "SIM_GUST_RISE",
                 "SIM_GUST_ON",
                 "SIM_TURB",
-                "SIM_BEAUFORT"
+                "SIM_BEAUFORT",
+                "SIM_BAT_DRAIN",
+                "SIM_BAT_MIN_PCT"
             ]
         );
         let spd = &SIM_PARAMS[idx::GUST_SPD];
@@ -582,7 +605,7 @@ mod tests {
         .expect("toml");
         let s = SimParamService::new(SYS, &plant_with(windy));
         let got: Vec<f32> = (0..SIM_PARAMS.len()).map(|i| s.value(i).expect("value")).collect();
-        assert_eq!(got, [1.0, -2.0, 0.5, 3.0, 0.0, 2.0, 0.0, 1.0, 2.0]);
+        assert_eq!(got, [1.0, -2.0, 0.5, 3.0, 0.0, 2.0, 0.0, 1.0, 2.0, 0.0, 0.0]);
     }
 
     #[test]
@@ -622,10 +645,10 @@ mod tests {
         };
         assert_eq!(
             values(&s.on_message(&read(-1, "SIM_GUST_RISE"), &mut plant)),
-            [("SIM_GUST_RISE".into(), 1.0, 5, 9)]
+            [("SIM_GUST_RISE".into(), 1.0, 5, 11)]
         );
-        assert_eq!(values(&s.on_message(&read(8, ""), &mut plant)), [("SIM_BEAUFORT".into(), 4.0, 8, 9)]);
-        assert!(s.on_message(&read(9, ""), &mut plant).is_empty());
+        assert_eq!(values(&s.on_message(&read(8, ""), &mut plant)), [("SIM_BEAUFORT".into(), 4.0, 8, 11)]);
+        assert!(s.on_message(&read(11, ""), &mut plant).is_empty());
         assert!(s.on_message(&read(-1, "SIM_NOPE"), &mut plant).is_empty());
     }
 
@@ -634,7 +657,7 @@ mod tests {
         let mut plant = calm_plant();
         let mut s = SimParamService::new(SYS, &plant);
         let replies = s.on_message(&set_msg("SIM_WIND_N", 2.5), &mut plant);
-        assert_eq!(values(&replies), [("SIM_WIND_N".into(), 2.5, 0, 9)]);
+        assert_eq!(values(&replies), [("SIM_WIND_N".into(), 2.5, 0, 11)]);
         assert_eq!(plant.wind().steady_ned_mps(), Vector3::new(2.5, 0.0, 0.0));
 
         // The autopilot's refusal texts, word for word.
@@ -647,7 +670,7 @@ mod tests {
             let before = s.get(name).expect("known");
             let replies = s.on_message(&set_msg(name, bad), &mut plant);
             assert_eq!(texts(&replies), [text], "{name} = {bad}: {replies:?}");
-            assert_eq!(values(&replies), [(name.to_owned(), before, index_of(name).unwrap() as u16, 9)]);
+            assert_eq!(values(&replies), [(name.to_owned(), before, index_of(name).unwrap() as u16, 11)]);
             assert_eq!(s.get(name), Some(before));
         }
         assert_eq!(plant.wind().steady_ned_mps(), Vector3::new(2.5, 0.0, 0.0));
@@ -657,9 +680,9 @@ mod tests {
 
         // Beaufort sets the gust speed, and the gust speed moves the Beaufort force.
         let replies = s.on_message(&set_msg("SIM_BEAUFORT", 6.0), &mut plant);
-        assert_eq!(values(&replies), [("SIM_BEAUFORT".into(), 6.0, 8, 9), ("SIM_GUST_SPD".into(), 12.3, 3, 9)]);
+        assert_eq!(values(&replies), [("SIM_BEAUFORT".into(), 6.0, 8, 11), ("SIM_GUST_SPD".into(), 12.3, 3, 11)]);
         let replies = s.on_message(&set_msg("SIM_GUST_SPD", 6.7), &mut plant);
-        assert_eq!(values(&replies), [("SIM_GUST_SPD".into(), 6.7, 3, 9), ("SIM_BEAUFORT".into(), 4.0, 8, 9)]);
+        assert_eq!(values(&replies), [("SIM_GUST_SPD".into(), 6.7, 3, 11), ("SIM_BEAUFORT".into(), 4.0, 8, 11)]);
     }
 
     #[test]
@@ -672,7 +695,7 @@ mod tests {
         }
         assert_eq!(plant.truth().wind_ned_mps, Vector3::zeros());
         let on = s.on_message(&set_msg("SIM_GUST_ON", 1.0), &mut plant);
-        assert_eq!(values(&on), [("SIM_GUST_ON".into(), 1.0, 6, 9)]);
+        assert_eq!(values(&on), [("SIM_GUST_ON".into(), 1.0, 6, 11)]);
         assert!(texts(&on)[0].contains("t=2.00"), "{:?}", texts(&on));
         // The wind is evaluated at the start of each step: the step from t = 2.0 holds s(2.0) = 0.
         plant.step([1000.0; 4], 2000);
@@ -715,7 +738,7 @@ mod tests {
     fn given_turbulence_on_then_it_blows_only_with_the_gust_and_off_removes_it() {
         let mut plant = calm_plant();
         let mut s = SimParamService::new(SYS, &plant);
-        assert_eq!(values(&s.on_message(&set_msg("SIM_TURB", 1.0), &mut plant)), [("SIM_TURB".into(), 1.0, 7, 9)]);
+        assert_eq!(values(&s.on_message(&set_msg("SIM_TURB", 1.0), &mut plant)), [("SIM_TURB".into(), 1.0, 7, 11)]);
         assert!(plant.wind().has_turbulence());
         step_to(&mut plant, 1.0);
         assert_eq!(plant.truth().wind_ned_mps, Vector3::zeros(), "no gust, no turbulence");
@@ -756,7 +779,7 @@ mod tests {
         );
         assert!(got.iter().any(|f| matches!(f.message, MavMessage::HEARTBEAT(_))), "a heartbeat: {got:?}");
         let echoed: Vec<_> = got.iter().map(|f| f.message.clone()).collect();
-        assert_eq!(values(&echoed)[..2], [("SIM_GUST_SPD".into(), 5.0, 3, 9), ("SIM_BEAUFORT".into(), 3.0, 8, 9)]);
+        assert_eq!(values(&echoed)[..2], [("SIM_GUST_SPD".into(), 5.0, 3, 11), ("SIM_BEAUFORT".into(), 3.0, 8, 11)]);
         assert_eq!(link.service().get("SIM_GUST_SPD"), Some(5.0));
         // No more heartbeats before a second has passed.
         link.poll(&mut plant).expect("poll");
@@ -778,6 +801,6 @@ mod tests {
         let frames = decoder.decode_datagram(&buf[..n]);
         assert_eq!(frames.len(), 1);
         assert_eq!(frames[0].version, MavlinkVersion::V1);
-        assert_eq!(values(&[frames[0].message.clone()]), [("SIM_WIND_N".into(), 0.0, 0, 9)]);
+        assert_eq!(values(&[frames[0].message.clone()]), [("SIM_WIND_N".into(), 0.0, 0, 11)]);
     }
 }

@@ -1,6 +1,7 @@
 //! The whole vehicle core in-process, in lockstep with the real plant (`sitl::plant`) at 500 Hz, driven
-//! by MAVLink messages as a ground station sends them (`Vehicle::handle_message`). Sensor samples are
-//! converted directly (no HIL encode/decode round trip). Pure simulated time: no sleeps.
+//! by MAVLink messages as a ground station sends them (`Vehicle::handle_message`). Sensor samples and the
+//! pack's readings (10 Hz, as the plant link sends them) are converted directly (no HIL encode/decode
+//! round trip). Pure simulated time: no sleeps.
 
 use autopilot::core::estimator::{
     BaroSample, EstimatorSource, GeoOrigin, GpsSample, ImuSample, MagSample, TruthSample,
@@ -83,6 +84,11 @@ impl Rig {
                 rate_frd_radps: t.rate_frd_radps,
                 specific_force_frd_mps2: t.specific_force_frd_mps2,
             }),
+            battery: self
+                .plant
+                .battery()
+                .filter(|_| sitl::link::battery_due(s.time_us, DT_US))
+                .map(|b| sitl::link::battery_fields(&b.reading())),
         };
         self.now_us = s.time_us;
         let out = self.vehicle.step(self.now_us, &inputs);
@@ -95,6 +101,7 @@ impl Rig {
             }
             self.messages.push((self.now_us, m));
         }
+        self.plant.set_motors_running(out.armed);
         self.plant.step(out.pwm_us, DT_US);
     }
 

@@ -146,3 +146,74 @@ fn given_nav_dll_act_0_when_the_link_is_lost_then_it_is_only_said_and_the_mode_s
     assert_eq!(said(&mut rig, "Failsafe: GCS link lost").len(), 1);
     assert_eq!(rig.vehicle.commander_output().mode, FlightMode::Hold, "the takeoff's hold goes on");
 }
+
+#[test]
+fn given_com_low_bat_act_3_when_sim_bat_drain_empties_the_pack_in_a_mission_then_warn_return_and_land_before_empty() {
+    // GIVEN a pack at 20 % drained in 1000 s of motor time (SIM_BAT_DRAIN; 5 % every 50 s), BAT_CRIT_THR
+    // 10 % and BAT_EMERGEN_THR 3 % (so the return has 70 s before the emergency), COM_LOW_BAT_ACT 3, and a
+    // mission out to 15 m that ends holding there.
+    let mut config = sitl::plant::PlantConfig {
+        sensors: sitl::plant::SensorConfig::modest_noise(),
+        ..sitl::plant::PlantConfig::default()
+    };
+    config.battery.initial_remaining = 0.2;
+    config.battery.drain_s = 1000.0;
+    let mut rig = Rig::with(config, EstimatorSource::Fused, |_| {});
+    rig.wait_until(30.0, "estimator convergence", |r| r.vehicle.estimate().flags.converged);
+    fly(&mut rig, 1.0, true);
+    set_param(&mut rig, "BAT_CRIT_THR", 0.10);
+    set_param(&mut rig, "BAT_EMERGEN_THR", 0.03);
+    let home = rig.plant.truth().pos_ned_m;
+    let origin = rig.vehicle.estimate().origin.expect("origin");
+    let est_home = rig.vehicle.home().expect("home").pos_ned_m;
+    let (lat, lon, _) = origin.geodetic_from_ned(&(est_home + Vector3::new(15.0, 0.0, 0.0)));
+    let items = [
+        mission_item(0, MavCmd::MAV_CMD_NAV_TAKEOFF, [0.0, 0.0, 0.0, NAN], f64::NAN, f64::NAN, 5.0),
+        mission_item(1, MavCmd::MAV_CMD_NAV_WAYPOINT, [0.0, 0.0, 0.0, NAN], lat, lon, 5.0),
+    ];
+    rig.start_mission(&items);
+    rig.take_messages();
+    // WHEN the pack drains.
+    let start = rig.now_us;
+    let mut rtl_at = None;
+    let mut messages = Vec::new();
+    let mut remaining_at_rtl = 0.0;
+    while rig.armed() || rig.now_us - start < 5_000_000 {
+        assert!(rig.now_us - start < 300_000_000, "not landed within 300 s");
+        fly(&mut rig, 0.1, true);
+        let remaining = rig.plant.battery().expect("a pack").reading().remaining;
+        if rtl_at.is_none() && rig.vehicle.commander_output().mode == FlightMode::ReturnToLaunch {
+            rtl_at = Some(rig.now_us);
+            remaining_at_rtl = remaining;
+        }
+        messages.extend(rig.take_messages());
+    }
+    // THEN a warning at 15 %, a return at 10 %, said once each, in that order; it lands at home with
+    // charge left (the plant's truth).
+    let text_at = |text: &str| -> Vec<u64> {
+        messages
+            .iter()
+            .filter(|(_, m)| matches!(m, MavMessage::STATUSTEXT(s) if s.text.to_str().is_ok_and(|t| t == text)))
+            .map(|(t, _)| *t)
+            .collect()
+    };
+    let low = text_at("Battery low: 14% remaining");
+    let critical = text_at("Failsafe: battery critical (9%), returning");
+    let landed = rig.plant.truth().pos_ned_m;
+    let left = rig.plant.battery().expect("a pack").reading().remaining;
+    println!(
+        "battery: low warning at {:.1} s, return at {:.1} s ({:.3} left), landed {:.3} m from home with {:.3} left",
+        (low[0] - start) as f64 * 1e-6,
+        (critical[0] - start) as f64 * 1e-6,
+        remaining_at_rtl,
+        (landed - home).xy().norm(),
+        left
+    );
+    assert_eq!(low.len(), 1, "one warning");
+    assert_eq!(critical.len(), 1, "one return");
+    assert!(low[0] < critical[0]);
+    assert!(rtl_at.is_some_and(|t| t.abs_diff(critical[0]) <= 2_000), "switched as it said");
+    assert!((0.095..0.101).contains(&remaining_at_rtl), "returned at {remaining_at_rtl}");
+    assert!(left > 0.03, "landed before the emergency level: {left}");
+    assert!((landed - home).xy().norm() <= 0.15, "landed {landed:?}, home {home:?}");
+}

@@ -1,8 +1,8 @@
 //! The plant protocol (MAVLink 2 HIL messages, as PX4 uses with its simulators), pure: no sockets, clocks or
 //! files. In from the plant: byte streams or datagrams holding `HIL_SENSOR` (every plant step, 500 Hz by
-//! default), `HIL_GPS` (when a fix is released, 10 Hz by default) and `HIL_STATE_QUATERNION` (ground truth,
-//! every step); out to the estimator: [`ImuSample`], [`MagSample`], [`BaroSample`], [`GpsSample`] and
-//! [`TruthSample`]. Out to the plant, once per sensor sample: the four motor commands as
+//! default), `HIL_GPS` (when a fix is released, 10 Hz by default), `HIL_STATE_QUATERNION` (ground truth,
+//! every step) and `BATTERY_STATUS` (the pack, 10 Hz); out to the estimator: [`ImuSample`], [`MagSample`],
+//! [`BaroSample`], [`GpsSample`] and [`TruthSample`], and to the battery monitor a [`BatterySample`]. Out to the plant, once per sensor sample: the four motor commands as
 //! `HIL_ACTUATOR_CONTROLS` (`controls[i] = (pwm_us - 1000) / 1000` for the paper's rotors 1..4, the armed
 //! flag in `mode`, `time_usec` echoing the sensor sample it answers).
 //!
@@ -25,6 +25,9 @@
 //! | truth specific force | `xacc/yacc/zacc` | mG (1 mG = 9.80665e-3 m/s²), i16 (±32.767 g, saturating) | ≤ 4.9e-3 m/s² |
 //! | precise truth (optional) | `ODOMETRY` x/y/z, vx/vy/vz, q, rates | m, m/s, rad/s NED/FRD; f32 | ≤ 6e-8 relative |
 //! | motor command | `controls[0..4]` | (pwm_us - 1000)/1000, f32 | ≤ 3e-5 µs |
+//! | pack voltage | `voltages` (per cell), `voltages_ext` | mV, u16 | ≤ 0.5 mV per cell |
+//! | pack current, charge, energy | `current_battery`, `current_consumed`, `energy_consumed` | cA i16, mAh i32, hJ i32 | ≤ 5 mA, 0.5 mAh, 50 J |
+//! | state of charge | `battery_remaining` | %, i8, truncated (a gauge never overstates) | < 1 % low |
 //!
 //! Integer fields saturate at their range (NaN encodes as 0). The extension fields (`HIL_SENSOR.id`,
 //! `HIL_GPS.id`, `HIL_GPS.yaw`) are left 0 (sensor instance 0, no GPS yaw); MAVLink 2 truncates trailing
@@ -38,12 +41,14 @@
 //! are accepted with the signature skipped, not verified.
 
 use mavlink::dialects::common::{
-    HIL_ACTUATOR_CONTROLS_DATA, HIL_GPS_DATA, HIL_SENSOR_DATA, HIL_STATE_QUATERNION_DATA, HilActuatorControlsFlags,
-    HilSensorUpdatedFlags, MavFrame, MavMessage, MavModeFlag, ODOMETRY_DATA,
+    BATTERY_STATUS_DATA, HIL_ACTUATOR_CONTROLS_DATA, HIL_GPS_DATA, HIL_SENSOR_DATA, HIL_STATE_QUATERNION_DATA,
+    HilActuatorControlsFlags, HilSensorUpdatedFlags, MavBatteryChargeState, MavBatteryFunction, MavBatteryType,
+    MavFrame, MavMessage, MavModeFlag, ODOMETRY_DATA,
 };
 use mavlink::{MAVLinkV1MessageRaw, MAVLinkV2MessageRaw, MavHeader, MavlinkVersion, Message};
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
+use super::battery::BatterySample;
 use super::estimator::{BaroSample, GeoOrigin, GpsSample, ImuSample, MagSample, TruthSample};
 
 /// The plant's default UDP port (the plant listens on it), as PX4's simulators.
@@ -509,6 +514,65 @@ pub fn decode_actuator_controls(msg: &HIL_ACTUATOR_CONTROLS_DATA) -> ActuatorCom
 }
 
 // ---------------------------------------------------------------------------------------------------------
+// BATTERY_STATUS
+// ---------------------------------------------------------------------------------------------------------
+
+/// [`BatterySample`] -> `BATTERY_STATUS` (the plant's and the ARM board's pack, and the autopilot's report
+/// to ground stations with its `charge_state`): the pack voltage split evenly over `cells` cells in mV
+/// (cells 1-10 in `voltages`, 11-14 in `voltages_ext`; with `cells` 0 the total in cell 1), current in cA,
+/// charge in mAh, energy in hJ, state of charge in whole percent (truncated); unknowns as MAVLink's invalid values.
+#[must_use]
+pub fn encode_battery_status(b: &BatterySample, charge_state: MavBatteryChargeState) -> BATTERY_STATUS_DATA {
+    let mut voltages = [u16::MAX; 10];
+    let mut voltages_ext = [0_u16; 4];
+    let cells = usize::from(b.cells.min(14));
+    let cell_mv = |v: f64| (v * 1e3).round().clamp(1.0, f64::from(u16::MAX - 1)) as u16;
+    if cells == 0 {
+        voltages[0] = cell_mv(b.voltage_v);
+    } else {
+        let per_cell = cell_mv(b.voltage_v / cells as f64);
+        for i in 0..cells {
+            if i < 10 { voltages[i] = per_cell } else { voltages_ext[i - 10] = per_cell }
+        }
+    }
+    let opt_i32 =
+        |v: Option<f64>, scale: f64| v.map_or(-1, |x| (x * scale).round().clamp(0.0, f64::from(i32::MAX)) as i32);
+    BATTERY_STATUS_DATA {
+        current_consumed: opt_i32(b.consumed_mah, 1.0),
+        energy_consumed: opt_i32(b.consumed_j, 0.01),
+        temperature: i16::MAX,
+        voltages,
+        current_battery: b.current_a.map_or(-1, |a| (a * 100.0).round().clamp(0.0, f64::from(i16::MAX)) as i16),
+        id: 0,
+        battery_function: MavBatteryFunction::MAV_BATTERY_FUNCTION_ALL,
+        mavtype: MavBatteryType::MAV_BATTERY_TYPE_LIPO,
+        battery_remaining: b.remaining.map_or(-1, |r| (r * 100.0 + 1e-9).floor().clamp(0.0, 100.0) as i8),
+        charge_state,
+        voltages_ext,
+        ..Default::default()
+    }
+}
+
+/// `BATTERY_STATUS` -> [`BatterySample`]: the voltage is the sum of the valid cells, `cells` how many there
+/// were (a single total in cell 1 counts as 0 cells); MAVLink's invalid values are `None`.
+#[must_use]
+pub fn decode_battery_status(m: &BATTERY_STATUS_DATA) -> BatterySample {
+    let main = m.voltages.iter().take_while(|&&v| v != u16::MAX);
+    let ext = m.voltages_ext.iter().take_while(|&&v| v != 0);
+    let cells_mv: Vec<u16> = main.chain(ext).copied().collect();
+    let voltage_v = cells_mv.iter().map(|&v| f64::from(v)).sum::<f64>() * 1e-3;
+    let cells = if cells_mv.len() == 1 && voltage_v > 5.0 { 0 } else { cells_mv.len() as u8 };
+    BatterySample {
+        voltage_v,
+        current_a: (m.current_battery >= 0).then(|| f64::from(m.current_battery) * 0.01),
+        remaining: (0..=100).contains(&m.battery_remaining).then(|| f64::from(m.battery_remaining) * 0.01),
+        consumed_mah: (m.current_consumed >= 0).then(|| f64::from(m.current_consumed)),
+        consumed_j: (m.energy_consumed >= 0).then(|| f64::from(m.energy_consumed) * 100.0),
+        cells,
+    }
+}
+
+// ---------------------------------------------------------------------------------------------------------
 // Dispatch and framing
 // ---------------------------------------------------------------------------------------------------------
 
@@ -521,6 +585,7 @@ pub enum HilInput {
     /// Precise truth, refining the `Truth` of the same datagram.
     LocalTruth(LocalTruth),
     Actuators(ActuatorCommand),
+    Battery(BatterySample),
 }
 
 /// The plant-protocol content of `msg` (truth positions about `home`), or `None` for any other message.
@@ -532,6 +597,7 @@ pub fn decode_hil_message(msg: &MavMessage, home: &GeoOrigin) -> Option<HilInput
         MavMessage::HIL_STATE_QUATERNION(m) => Some(HilInput::Truth(decode_hil_state_quaternion(m, home))),
         MavMessage::ODOMETRY(m) => decode_odometry(m).map(HilInput::LocalTruth),
         MavMessage::HIL_ACTUATOR_CONTROLS(m) => Some(HilInput::Actuators(decode_actuator_controls(m))),
+        MavMessage::BATTERY_STATUS(m) => Some(HilInput::Battery(decode_battery_status(m))),
         _ => None,
     }
 }
@@ -1099,5 +1165,45 @@ mod tests {
             assert_eq!(decode_hil_message(&f.message, &HOME), Some(HilInput::Actuators(cmd)));
         }
         assert_eq!(dec.stats(), DecoderStats { frames_ok: 3, ..DecoderStats::default() });
+    }
+
+    #[test]
+    fn given_a_pack_reading_when_battery_status_round_trips_then_within_the_wire_resolution() {
+        use crate::core::battery::BatterySample;
+        for cells in [0_u8, 6, 12, 14] {
+            let b = BatterySample {
+                voltage_v: 22.2,
+                current_a: Some(31.234),
+                remaining: Some(0.4567),
+                consumed_mah: Some(5432.4),
+                consumed_j: Some(123_456.0),
+                cells,
+            };
+            let msg = MavMessage::BATTERY_STATUS(encode_battery_status(
+                &b,
+                MavBatteryChargeState::MAV_BATTERY_CHARGE_STATE_OK,
+            ));
+            let frame = encode_frame_v2(header(), &msg);
+            let decoded = FrameDecoder::new().push(&frame);
+            let Some(HilInput::Battery(got)) = decode_hil_message(&decoded[0].message, &HOME) else {
+                panic!("not a battery")
+            };
+            assert_eq!(got.cells, cells);
+            assert!(
+                (got.voltage_v - 22.2).abs() <= 0.0005 * f64::from(cells.max(1)),
+                "{cells} cells: {}",
+                got.voltage_v
+            );
+            assert_eq!(got.current_a, Some(31.23));
+            assert_eq!(got.remaining, Some(0.45), "truncated to whole percent");
+            assert_eq!(got.consumed_mah, Some(5432.0));
+            assert_eq!(got.consumed_j, Some(123_500.0));
+        }
+        let unknown = BatterySample { voltage_v: 12.0, ..BatterySample::default() };
+        let got = decode_battery_status(&encode_battery_status(
+            &unknown,
+            MavBatteryChargeState::MAV_BATTERY_CHARGE_STATE_UNDEFINED,
+        ));
+        assert_eq!((got.current_a, got.remaining, got.consumed_mah, got.consumed_j), (None, None, None, None));
     }
 }

@@ -1,5 +1,6 @@
 //! The pure vehicle core: no clocks, sockets, files or async runtime; time and randomness come in as inputs.
 
+pub mod battery;
 pub mod commander;
 pub mod config;
 pub mod control;

@@ -17,6 +17,7 @@ use ::mavlink::MavHeader;
 use ::mavlink::dialects::common::{MISSION_CURRENT_DATA, MISSION_ITEM_REACHED_DATA, MavMessage, MavSeverity};
 use nalgebra::Vector3;
 
+use crate::core::battery::BatterySample;
 use crate::core::commander::{Commander, CommanderInputs, CommanderOutput, Estimate, LandedState, Request};
 pub use crate::core::config::{AirborneStart, VehicleConfig, VehicleError};
 use crate::core::control::{ControlInput, Controller, Reference, distributor, try_new_controller};
@@ -52,6 +53,8 @@ pub struct VehicleInputs {
     pub baro: Option<BaroSample>,
     pub gps: Option<GpsSample>,
     pub truth: Option<TruthSample>,
+    /// A reading of the pack (BATTERY_STATUS from the plant or the ARM board).
+    pub battery: Option<BatterySample>,
 }
 
 /// One step's outputs.
@@ -590,6 +593,7 @@ impl Vehicle {
             throttle_low: mean_pwm_us.is_nan() || mean_pwm_us <= self.throttle_low_pwm_us,
             nav: self.navigator.status(),
             gcs_heartbeat_us: self.gcs_heartbeat_us,
+            battery: inputs.battery,
         });
         self.sync_home();
         let reference = self.plan(now_us, &state, &out);

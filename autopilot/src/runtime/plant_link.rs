@@ -266,6 +266,7 @@ impl Driver {
         let home = self.home.unwrap_or(GeoOrigin { lat_deg: 0.0, lon_deg: 0.0, alt_amsl_m: 0.0 });
         match decode_hil_message(message, &home) {
             Some(HilInput::Gps(gps)) => self.inputs.gps = Some(gps),
+            Some(HilInput::Battery(battery)) => self.inputs.battery = Some(battery),
             Some(HilInput::Truth(truth)) if self.home.is_some() => self.inputs.truth = Some(truth),
             Some(HilInput::LocalTruth(local)) => {
                 if let Some(truth) = self.inputs.truth.as_mut().filter(|t| t.time_us == local.time_us) {

@@ -9,10 +9,12 @@
 //! 3. `equations_of_motion`: RK4 substeps of `integrator_step_s` (1 ms) of the Newton-Euler model with
 //!    rotor lag (Eqs 7, 27), the last substep shorter if the step is not a multiple;
 //! 4. `ground_contact`: the contact constraint after every substep;
-//! 5. time advances; sensors are reconstructed from the resulting state on demand (`truth`,
+//! 5. `drain_battery`: the pack delivers the rotors' power ([`battery`]);
+//! 6. time advances; sensors are reconstructed from the resulting state on demand (`truth`,
 //!    `sample_sensors`, `sample_state`).
 
 pub mod airframe;
+pub mod battery;
 pub mod ground;
 pub mod rigid_body;
 pub mod rotor;
@@ -25,6 +27,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::Deserialize;
 
 pub use airframe::{Airframe, AirframeConfig};
+pub use battery::{Battery, BatteryConfig, BatteryReading};
 pub use ground::GroundConfig;
 pub use rigid_body::RigidBodyState;
 pub use sensors::{BaroSample, GpsSample, NoisyState, SensorConfig, SensorSample, Sensors, StateNoise};
@@ -71,7 +74,7 @@ pub fn stream_rng(seed: u64, stream: u64) -> ChaCha8Rng {
 }
 
 /// Everything that defines a plant. Deserialises from TOML tables `[airframe]`, `[wind]`, `[sensors]`,
-/// `[ground]` and a top-level `integrator_step_s`; every key is optional.
+/// `[ground]`, `[battery]` and a top-level `integrator_step_s`; every key is optional.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PlantConfig {
@@ -81,10 +84,12 @@ pub struct PlantConfig {
     /// RK4 substep (s); default 1 ms.
     pub integrator_step_s: f64,
     pub ground: GroundConfig,
+    /// The flight pack (see [`battery`]).
+    pub battery: BatteryConfig,
 }
 
 impl Default for PlantConfig {
-    /// Nominal airframe, no wind, noise-free sensors, 1 ms RK4, ground at D = 0.
+    /// Nominal airframe, no wind, noise-free sensors, 1 ms RK4, ground at D = 0, a full 6-cell 10 Ah pack.
     fn default() -> Self {
         Self {
             airframe: Airframe::nominal(),
@@ -92,6 +97,7 @@ impl Default for PlantConfig {
             sensors: SensorConfig::default(),
             integrator_step_s: 0.001,
             ground: GroundConfig::default(),
+            battery: BatteryConfig::default(),
         }
     }
 }
@@ -114,6 +120,7 @@ impl PlantConfig {
         self.airframe.validate()?;
         self.sensors.validate()?;
         self.ground.validate()?;
+        self.battery.validate()?;
         airframe::positive("integrator_step_s", self.integrator_step_s)?;
         if self.integrator_step_s > self.airframe.motor_tau_s {
             return Err(PlantError::InvalidValue {
@@ -186,6 +193,9 @@ pub struct Plant {
     sensors: Sensors,
     state_noise_rng: ChaCha8Rng,
     on_ground: bool,
+    battery: Battery,
+    /// The motors run (the actuator command's armed flag): they draw power from the pack.
+    motors_running: bool,
 }
 
 impl Plant {
@@ -230,7 +240,10 @@ impl Plant {
             });
         }
         let last_pwm_us = std::array::from_fn(|i| rotor::pwm_holding_lift_us(rotor_lift_n[i], i, &config.airframe));
+        let battery = Battery::new(config.battery)?;
         let mut plant = Self {
+            battery,
+            motors_running: true,
             state,
             time_us: 0,
             last_pwm_us,
@@ -259,7 +272,31 @@ impl Plant {
         let wind_ned_mps = self.update_wind();
         let inputs = self.rotor_forces(&pwm_us, wind_ned_mps);
         self.equations_of_motion(&inputs, dt_us as f64 * 1e-6);
+        self.drain_battery(dt_us as f64 * 1e-6);
         self.time_us += dt_us;
+    }
+
+    /// Phase 5: the pack delivers the rotors' power at the lifts the step ended with.
+    fn drain_battery(&mut self, dt_s: f64) {
+        let rho = self.config.airframe.air_density_kgpm3;
+        self.battery.step(dt_s, &self.state.rotor_lift_n, self.motors_running, rho);
+    }
+
+    /// Whether the motors run from the next step (the armed flag of the actuator command): stopped
+    /// motors draw nothing from the pack. A new plant's motors run (the paper's runs start in the air).
+    pub fn set_motors_running(&mut self, running: bool) {
+        self.motors_running = running;
+    }
+
+    /// The pack (None when the plant simulates none).
+    #[must_use]
+    pub fn battery(&self) -> Option<&Battery> {
+        self.config.battery.enabled.then_some(&self.battery)
+    }
+
+    /// The pack, for run-time changes (SIM_BAT_DRAIN, SIM_BAT_MIN_PCT).
+    pub fn battery_mut(&mut self) -> &mut Battery {
+        &mut self.battery
     }
 
     /// Phase 1: the wind to hold over this step.

@@ -9,12 +9,15 @@
 //! |---|---|---|---|
 //! | no ground-station HEARTBEAT (`MAV_TYPE_GCS`) for `COM_DL_LOSS_T` s, after one was heard | `COM_DL_LOSS_T`, `NAV_DLL_ACT` | 10 s, 0 (off) | PX4's NAV_DLL_ACT: 1 hold, 2 return, 3 land, 5 terminate |
 //! | offboard setpoints older than `COM_OF_LOSS_T` in offboard mode | `COM_OF_LOSS_T` | 0.5 s | hold |
+//! | battery below `BAT_LOW_THR` while armed | `BAT_LOW_THR` | 15 % | warning (and arming refused below it) |
+//! | battery below `BAT_CRIT_THR` / `BAT_EMERGEN_THR` while armed | `COM_LOW_BAT_ACT`, thresholds | 3, 7 %, 5 % | PX4's COM_LOW_BAT_ACT: 0 warn, 2 land, 3 return at critical and land at emergency |
 //!
 //! An action is taken only in the air (armed, not landed); the vehicle stays in the failsafe's mode when
 //! the trigger clears (regaining the link is announced), until a pilot changes it, as PX4 does.
 
 use serde::{Deserialize, Serialize};
 
+use crate::core::battery::BatteryWarning;
 use crate::core::seconds_to_us;
 
 /// What a failsafe makes the vehicle do.
@@ -59,6 +62,24 @@ impl FailsafeAction {
     }
 }
 
+/// PX4's `COM_LOW_BAT_ACT` at battery `level`: 0 warn only (`Ok(None)`), 2 land at critical and
+/// emergency, 3 return at critical and land at emergency; nothing below critical.
+///
+/// # Errors
+/// `Err(n)` for a number that is not one of 0, 2, 3.
+pub const fn low_battery_action(n: u32, level: BatteryWarning) -> Result<Option<FailsafeAction>, u32> {
+    let critical = matches!(level, BatteryWarning::Critical);
+    let emergency = matches!(level, BatteryWarning::Emergency);
+    match n {
+        0 => Ok(None),
+        2 if critical || emergency => Ok(Some(FailsafeAction::Land)),
+        3 if critical => Ok(Some(FailsafeAction::Return)),
+        3 if emergency => Ok(Some(FailsafeAction::Land)),
+        2 | 3 => Ok(None),
+        other => Err(other),
+    }
+}
+
 /// What set a failsafe off.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum Trigger {
@@ -66,15 +87,18 @@ pub enum Trigger {
     DatalinkLost,
     /// Offboard setpoints stopped in offboard mode.
     OffboardLost,
+    /// The battery fell below BAT_CRIT_THR or BAT_EMERGEN_THR (with the state of charge, %).
+    Battery { level: BatteryWarning, remaining_pct: u8 },
 }
 
 impl Trigger {
     /// The condition, for the announcement.
     #[must_use]
-    pub const fn what(self) -> &'static str {
+    pub fn what(self) -> String {
         match self {
-            Self::DatalinkLost => "GCS link lost",
-            Self::OffboardLost => "offboard setpoints lost",
+            Self::DatalinkLost => "GCS link lost".into(),
+            Self::OffboardLost => "offboard setpoints lost".into(),
+            Self::Battery { level, remaining_pct } => format!("battery {} ({remaining_pct}%)", level.word()),
         }
     }
 }
@@ -97,6 +121,17 @@ mod tests {
         assert_eq!(FailsafeAction::from_px4(5), Ok(Some(FailsafeAction::Terminate)));
         assert_eq!(FailsafeAction::from_px4(4), Err(4));
         assert_eq!(FailsafeAction::from_px4(6), Err(6));
+    }
+
+    #[test]
+    fn given_com_low_bat_act_then_px4s_actions_per_level() {
+        use BatteryWarning as W;
+        assert_eq!(low_battery_action(0, W::Emergency), Ok(None));
+        assert_eq!(low_battery_action(2, W::Critical), Ok(Some(FailsafeAction::Land)));
+        assert_eq!(low_battery_action(3, W::Critical), Ok(Some(FailsafeAction::Return)));
+        assert_eq!(low_battery_action(3, W::Emergency), Ok(Some(FailsafeAction::Land)));
+        assert_eq!(low_battery_action(3, W::Low), Ok(None));
+        assert_eq!(low_battery_action(1, W::Critical), Err(1));
     }
 
     #[test]

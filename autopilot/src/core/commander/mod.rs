@@ -34,6 +34,7 @@ pub use land_detector::{LandDetector, LandDetectorConfig, LandedState};
 pub use mode::{FlightMode, SystemStatus};
 pub use state_machine::{Conditions, State};
 
+use crate::core::battery::{BatteryConfig, BatteryMonitor, BatterySample, BatteryStatus, BatteryWarning};
 use crate::core::navigator::{AutoMode, NavStatus, Task};
 use land_detector::{LandDetectorSample, Phase};
 
@@ -56,6 +57,12 @@ pub struct CommanderConfig {
     /// What the vehicle does when it is (PX4's NAV_DLL_ACT: 0 nothing, 1 hold, 2 return, 3 land, 5
     /// terminate; see [`FailsafeAction::from_px4`]).
     pub datalink_loss_action: u32,
+    /// What the vehicle does at the battery's critical and emergency levels (PX4's COM_LOW_BAT_ACT: 0
+    /// warn only, 2 land, 3 return at critical and land at emergency; see
+    /// [`failsafe::low_battery_action`]).
+    pub low_battery_action: u32,
+    /// The battery thresholds (BAT_LOW_THR, BAT_CRIT_THR, BAT_EMERGEN_THR).
+    pub battery: BatteryConfig,
     pub land_detector: LandDetectorConfig,
 }
 
@@ -68,10 +75,15 @@ impl Default for CommanderConfig {
             takeoff_acceptance_m: 0.1,
             datalink_loss_s: 10.0,
             datalink_loss_action: 0,
+            low_battery_action: 3,
+            battery: BatteryConfig::default(),
             land_detector: LandDetectorConfig::default(),
         }
     }
 }
+
+/// The rule the battery thresholds follow.
+const BATTERY_ORDER: &str = "0 < BAT_EMERGEN_THR < BAT_CRIT_THR < BAT_LOW_THR < 1";
 
 /// A configuration value out of range.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -109,6 +121,16 @@ impl CommanderConfig {
             if !value.is_finite() {
                 return Err(ConfigError { field, value, must: "finite" });
             }
+        }
+        if self.battery.validate().is_err() {
+            return Err(ConfigError { field: "battery", value: self.battery.low_thr, must: BATTERY_ORDER });
+        }
+        if failsafe::low_battery_action(self.low_battery_action, BatteryWarning::Emergency).is_err() {
+            return Err(ConfigError {
+                field: "low_battery_action",
+                value: f64::from(self.low_battery_action),
+                must: "0 (warn), 2 land or 3 return then land",
+            });
         }
         if let Err(n) = FailsafeAction::from_px4(self.datalink_loss_action) {
             return Err(ConfigError {
@@ -160,6 +182,8 @@ pub struct CommanderInputs {
     pub nav: NavStatus,
     /// When a ground station (MAV_TYPE_GCS) last sent a HEARTBEAT (µs of vehicle time).
     pub gcs_heartbeat_us: Option<u64>,
+    /// A reading of the pack that arrived this step.
+    pub battery: Option<BatterySample>,
 }
 
 /// What a ground station (through the MAVLink handlers) asks of the commander.
@@ -244,6 +268,8 @@ pub enum Refusal {
     Landed(Action),
     #[error("Set home: no position")]
     NoPosition,
+    #[error("Arming denied: battery {remaining_pct}% below {low_pct}%")]
+    BatteryLow { remaining_pct: u8, low_pct: u8 },
 }
 
 /// Why the vehicle disarmed.
@@ -285,6 +311,10 @@ pub enum Event {
     FailsafeCleared {
         trigger: Trigger,
     },
+    /// The battery fell below BAT_LOW_THR while armed (a warning: no action).
+    BatteryLow {
+        remaining_pct: u8,
+    },
 }
 
 impl Event {
@@ -311,6 +341,7 @@ impl Event {
             Self::Failsafe { trigger, action: None } => format!("Failsafe: {}", trigger.what()),
             Self::FailsafeCleared { trigger: Trigger::DatalinkLost } => "GCS link regained".into(),
             Self::FailsafeCleared { trigger } => format!("Cleared: {}", trigger.what()),
+            Self::BatteryLow { remaining_pct } => format!("Battery low: {remaining_pct}% remaining"),
         }
     }
 
@@ -334,6 +365,8 @@ pub struct CommanderOutput {
     pub motors_enabled: bool,
     /// What the navigator is to fly.
     pub task: Task,
+    /// The pack's latest reading and warning level.
+    pub battery: BatteryStatus,
     /// What happened since the previous step (requests included), in order.
     pub events: Vec<Event>,
 }
@@ -366,6 +399,7 @@ pub struct Commander {
     touchdown_us: Option<u64>,
     /// The ground-station link counts as lost (a datalink failsafe episode is under way).
     datalink_lost: bool,
+    battery: BatteryMonitor,
     events: Vec<Event>,
 }
 
@@ -396,6 +430,11 @@ impl Commander {
             armed_idle_since_us: 0,
             touchdown_us: None,
             datalink_lost: false,
+            battery: BatteryMonitor::new(config.battery).map_err(|_| ConfigError {
+                field: "battery",
+                value: config.battery.low_thr,
+                must: BATTERY_ORDER,
+            })?,
             events: Vec::new(),
         })
     }
@@ -415,6 +454,8 @@ impl Commander {
         if config.land_detector != self.config.land_detector {
             self.land_detector.set_config(config.land_detector);
         }
+        // Checked above with the rest.
+        let _ = self.battery.set_config(config.battery);
         self.config = config;
         Ok(())
     }
@@ -534,6 +575,7 @@ impl Commander {
             self.state == State::Land || (matches!(self.state, State::Mission | State::Rtl) && self.nav.landing);
         self.touchdown_us = if landing && landed { Some(self.touchdown_us.unwrap_or(now)) } else { None };
         self.datalink_failsafe(now, inputs.gcs_heartbeat_us);
+        self.battery_failsafe(now, inputs.battery);
         // A few rounds at most: arming with a pending takeoff goes ArmedIdle -> Takeoff on the next step.
         for _ in 0..State::ALL.len() {
             let c = self.conditions(now);
@@ -550,6 +592,7 @@ impl Commander {
             armed: self.armed(),
             motors_enabled: self.armed(),
             task: self.task(),
+            battery: self.battery.status(now),
             events: std::mem::take(&mut self.events),
         }
     }
@@ -570,9 +613,34 @@ impl Commander {
             self.events.push(Event::FailsafeCleared { trigger });
             return;
         }
+        let action = FailsafeAction::from_px4(self.config.datalink_loss_action).ok().flatten();
+        self.fail(now, trigger, action);
+    }
+
+    /// The battery rows of the failsafe table: the monitor takes the reading; a level that rose while
+    /// armed is said (low) or acted on (critical, emergency: COM_LOW_BAT_ACT).
+    fn battery_failsafe(&mut self, now: u64, sample: Option<BatterySample>) {
+        let before = self.battery.status(now).level;
+        self.battery.update(now, sample, self.state.is_armed());
+        let status = self.battery.status(now);
+        if status.level <= before || !self.state.is_armed() {
+            return;
+        }
+        let remaining_pct = status.remaining_pct().unwrap_or(0);
+        if status.level == BatteryWarning::Low {
+            self.events.push(Event::BatteryLow { remaining_pct });
+            return;
+        }
+        let trigger = Trigger::Battery { level: status.level, remaining_pct };
+        let action = failsafe::low_battery_action(self.config.low_battery_action, status.level).ok().flatten();
+        self.fail(now, trigger, action);
+    }
+
+    /// A failsafe fired: take `action` if the vehicle is in the air, and say so (what happened and what
+    /// the vehicle does, or only what happened).
+    fn fail(&mut self, now: u64, trigger: Trigger, action: Option<FailsafeAction>) {
         let in_air = self.state != State::ArmedIdle && self.state != State::Killed && !self.land_detector.landed();
-        let action = FailsafeAction::from_px4(self.config.datalink_loss_action).ok().flatten().filter(|_| in_air);
-        let Some(action) = action else {
+        let Some(action) = action.filter(|_| in_air) else {
             self.events.push(Event::Failsafe { trigger, action: None });
             return;
         };
@@ -650,6 +718,13 @@ impl Commander {
         let state = self.state;
         match req {
             Request::Arm { force } => match state {
+                State::Disarmed if !force && self.battery.status(now).level >= BatteryWarning::Low => {
+                    let status = self.battery.status(now);
+                    Err(Refusal::BatteryLow {
+                        remaining_pct: status.remaining_pct().unwrap_or(0),
+                        low_pct: (self.config.battery.low_thr * 100.0).round() as u8,
+                    })
+                }
                 State::Disarmed => self.transition(now, C::ARM_REQUESTED.with(C::FORCE, force), Action::Arm),
                 State::Killed => Err(Refusal::NotInState { action: Action::Arm, state }),
                 _ => Ok(()),

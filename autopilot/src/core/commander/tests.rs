@@ -20,6 +20,8 @@ struct Sim {
     throttle_low: bool,
     nav: NavStatus,
     gcs_heartbeat_us: Option<u64>,
+    /// The pack's state of charge the monitor reads every step (None: no pack).
+    battery_remaining: Option<f64>,
 }
 
 impl Sim {
@@ -32,6 +34,7 @@ impl Sim {
             throttle_low: true,
             nav: NavStatus::default(),
             gcs_heartbeat_us: None,
+            battery_remaining: None,
         }
     }
 
@@ -49,6 +52,11 @@ impl Sim {
             throttle_low: self.throttle_low,
             nav: self.nav,
             gcs_heartbeat_us: self.gcs_heartbeat_us,
+            battery: self.battery_remaining.map(|r| crate::core::battery::BatterySample {
+                voltage_v: 6.0 * 3.8,
+                remaining: Some(r),
+                ..Default::default()
+            }),
         }
     }
 
@@ -607,4 +615,66 @@ fn given_a_converged_global_position_then_home_is_set_on_the_ground_moved_at_arm
     let err = c.request(sim.now_us, Request::SetHome { pos_ned_m: Some(Vector3::new(f64::NAN, 0.0, 0.0)) });
     assert_eq!(err.unwrap_err().to_string(), "Set home: no position");
     assert_eq!(c.home_ned_m(), Some(there));
+}
+
+fn texts(outs: &[CommanderOutput]) -> Vec<String> {
+    outs.iter().flat_map(|o| o.events.iter().map(Event::text)).collect()
+}
+
+#[test]
+fn given_a_low_pack_on_the_ground_then_arming_is_refused_with_the_charge_unless_forced() {
+    let mut sim = Sim::new();
+    sim.battery_remaining = Some(0.12);
+    let mut c = commander();
+    sim.run(&mut c, 1);
+    let refusal = c.request(sim.now_us, Request::Arm { force: false }).unwrap_err();
+    assert_eq!(refusal.to_string(), "Arming denied: battery 12% below 15%");
+    assert_eq!(c.state(), State::Disarmed);
+    c.request(sim.now_us, Request::Arm { force: true }).expect("a forced arm skips the check, as PX4's");
+}
+
+#[test]
+fn given_com_low_bat_act_3_when_the_pack_drains_in_the_air_then_warn_return_then_land_in_order() {
+    // GIVEN holding in the air on a full pack.
+    let mut sim = Sim::new();
+    sim.battery_remaining = Some(0.9);
+    let mut c = holding(&mut sim);
+    // WHEN it falls below 15 %: a warning, the mode stays.
+    sim.battery_remaining = Some(0.14);
+    let outs = sim.run(&mut c, 2);
+    assert_eq!(texts(&outs), ["Battery low: 14% remaining"]);
+    assert_eq!(c.state(), State::Hold);
+    // A pack that reads fuller again (less load) does not clear it in the air.
+    sim.battery_remaining = Some(0.2);
+    assert!(texts(&sim.run(&mut c, 2)).is_empty());
+    // Below 7 %: return.
+    sim.battery_remaining = Some(0.06);
+    let outs = sim.run(&mut c, 2);
+    assert_eq!(texts(&outs), ["Failsafe: battery critical (6%), returning", "Mode: Return"]);
+    assert_eq!(c.state(), State::Rtl);
+    // Below 5 %: land where it is.
+    sim.battery_remaining = Some(0.04);
+    let outs = sim.run(&mut c, 2);
+    assert_eq!(texts(&outs), ["Failsafe: battery emergency (4%), landing", "Mode: Land"]);
+    assert_eq!(c.state(), State::Land);
+    assert_eq!(outs[1].battery.level, BatteryWarning::Emergency);
+}
+
+#[test]
+fn given_com_low_bat_act_0_then_critical_and_emergency_are_only_said() {
+    let mut sim = Sim::new();
+    sim.battery_remaining = Some(0.9);
+    let mut c = holding(&mut sim);
+    let mut config = *c.config();
+    config.low_battery_action = 0;
+    c.set_config(config).unwrap();
+    sim.battery_remaining = Some(0.04);
+    let outs = sim.run(&mut c, 2);
+    assert_eq!(texts(&outs), ["Failsafe: battery emergency (4%)"]);
+    assert_eq!(c.state(), State::Hold);
+    config.low_battery_action = 1;
+    assert!(c.set_config(config).is_err(), "1 is not one of PX4's COM_LOW_BAT_ACT values");
+    config.low_battery_action = 0;
+    config.battery.crit_thr = 0.2;
+    assert!(c.set_config(config).is_err(), "critical above low");
 }

@@ -9,22 +9,26 @@
 //! the ACO_WEIGHTS_HZ parameter). A stream due without its data is skipped, not queued. Every rate can
 //! be changed per message id (SET_MESSAGE_INTERVAL).
 //!
-//! Units on the wire: angles rad (ATTITUDE) or cdeg, positions degE7 and mm, speeds cm/s. Nothing here
-//! measures the battery: SYS_STATUS and BATTERY_STATUS carry MAVLink's "unknown" values (voltage
-//! UINT16_MAX, current -1, remaining -1, temperature INT16_MAX, consumption -1).
+//! Units on the wire: angles rad (ATTITUDE) or cdeg, positions degE7 and mm, speeds cm/s. The battery is
+//! the pack's latest reading (from the plant or the ARM board, see `core::battery`): SYS_STATUS voltage
+//! (mV), current (cA) and remaining (%), BATTERY_STATUS in full with the warning level as
+//! `charge_state`; without a reading in the last 5 s, MAVLink's "unknown" values (voltage UINT16_MAX,
+//! current -1, remaining -1, temperature INT16_MAX, consumption -1).
 
 use ::mavlink::dialects::common::{
     ATTITUDE_DATA, ATTITUDE_QUATERNION_DATA, BATTERY_STATUS_DATA, DEBUG_VECT_DATA, EXTENDED_SYS_STATE_DATA,
     GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA,
-    MISSION_CURRENT_DATA, MavBatteryFunction, MavBatteryType, MavMessage, MavSeverity, MavSysStatusSensor,
-    MavVtolState, STATUSTEXT_DATA, SYS_STATUS_DATA, VFR_HUD_DATA,
+    MISSION_CURRENT_DATA, MavBatteryChargeState, MavBatteryFunction, MavBatteryType, MavMessage, MavSeverity,
+    MavSysStatusSensor, MavVtolState, STATUSTEXT_DATA, SYS_STATUS_DATA, VFR_HUD_DATA,
 };
 use nalgebra::Vector3;
 
 use super::{identity, next_due_us};
+use crate::core::battery::{BatteryStatus, BatteryWarning};
 use crate::core::commander::{CommanderOutput, Event, LandedState};
 use crate::core::control::Controller;
 use crate::core::estimator::{EstimatorState, GpsSample};
+use crate::core::hil::encode_battery_status;
 
 /// Home: where the vehicle armed (m, NED about the estimator's origin) and, with an origin, geodetic.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -146,7 +150,7 @@ impl Stream {
     #[must_use]
     pub fn message(self, snap: &TelemetrySnapshot<'_>) -> Option<MavMessage> {
         match self {
-            Self::SysStatus => Some(sys_status(snap.estimate, snap.comm_errors)),
+            Self::SysStatus => Some(sys_status(snap.estimate, &snap.commander.battery, snap.comm_errors)),
             Self::Attitude => Some(attitude(snap)),
             Self::AttitudeQuaternion => Some(attitude_quaternion(snap)),
             Self::LocalPositionNed => Some(local_position_ned(snap)),
@@ -155,7 +159,7 @@ impl Stream {
             Self::ExtendedSysState => Some(extended_sys_state(snap.commander.landed)),
             Self::HomePosition => snap.home.and_then(home_position),
             Self::VfrHud => Some(vfr_hud(snap)),
-            Self::BatteryStatus => Some(battery_status()),
+            Self::BatteryStatus => Some(battery_status(&snap.commander.battery)),
             Self::MissionCurrent => snap
                 .mission_seq
                 .map(|seq| MavMessage::MISSION_CURRENT(MISSION_CURRENT_DATA { seq, ..Default::default() })),
@@ -286,17 +290,19 @@ fn sensors(bits: &[(bool, MavSysStatusSensor)]) -> MavSysStatusSensor {
 }
 
 /// SYS_STATUS: gyro, accel, mag, baro, GPS and PREARM_CHECK present and enabled; healthy from the estimator
-/// flags (IMU: attitude valid; PREARM_CHECK: converged, i.e. armable). Battery unknown. `errors_comm`: the
+/// flags (IMU: attitude valid; PREARM_CHECK: converged, i.e. armable). The battery present while it
+/// reports, healthy above its critical level; its voltage, current and remaining. `errors_comm`: the
 /// malformed frames dropped on every link (saturating at 65535).
 #[must_use]
-pub fn sys_status(est: &EstimatorState, comm_errors: u64) -> MavMessage {
+pub fn sys_status(est: &EstimatorState, battery: &BatteryStatus, comm_errors: u64) -> MavMessage {
     use MavSysStatusSensor as S;
     let all = S::MAV_SYS_STATUS_SENSOR_3D_GYRO
         | S::MAV_SYS_STATUS_SENSOR_3D_ACCEL
         | S::MAV_SYS_STATUS_SENSOR_3D_MAG
         | S::MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
         | S::MAV_SYS_STATUS_SENSOR_GPS
-        | S::MAV_SYS_STATUS_PREARM_CHECK;
+        | S::MAV_SYS_STATUS_PREARM_CHECK
+        | if battery.sample.is_some() { S::MAV_SYS_STATUS_SENSOR_BATTERY } else { S::empty() };
     let f = &est.flags;
     let health = sensors(&[
         // No geofence exists, so none is breached: healthy, neither present nor enabled (MAVProxy reads
@@ -308,15 +314,19 @@ pub fn sys_status(est: &EstimatorState, comm_errors: u64) -> MavMessage {
         (f.baro_ok, S::MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE),
         (f.gps_ok, S::MAV_SYS_STATUS_SENSOR_GPS),
         (f.converged, S::MAV_SYS_STATUS_PREARM_CHECK),
+        (battery.level < BatteryWarning::Critical, S::MAV_SYS_STATUS_SENSOR_BATTERY),
     ]);
+    let sample = battery.sample;
     MavMessage::SYS_STATUS(SYS_STATUS_DATA {
         onboard_control_sensors_present: all,
         onboard_control_sensors_enabled: all,
         onboard_control_sensors_health: health,
         load: 0,
-        voltage_battery: u16::MAX,
-        current_battery: -1,
-        battery_remaining: -1,
+        voltage_battery: sample.map_or(u16::MAX, |b| (b.voltage_v * 1e3).round().clamp(0.0, 65_534.0) as u16),
+        current_battery: sample
+            .and_then(|b| b.current_a)
+            .map_or(-1, |a| (a * 100.0).round().clamp(0.0, f64::from(i16::MAX)) as i16),
+        battery_remaining: battery.remaining_pct().map_or(-1, |p| p as i8),
         errors_comm: u16::try_from(comm_errors).unwrap_or(u16::MAX),
         ..SYS_STATUS_DATA::default()
     })
@@ -455,19 +465,31 @@ fn vfr_hud(snap: &TelemetrySnapshot<'_>) -> MavMessage {
 }
 
 /// BATTERY_STATUS with every value unknown, as MAVLink spells it.
-fn battery_status() -> MavMessage {
-    MavMessage::BATTERY_STATUS(BATTERY_STATUS_DATA {
-        current_consumed: -1,
-        energy_consumed: -1,
-        temperature: i16::MAX,
-        voltages: [u16::MAX; 10],
-        current_battery: -1,
-        id: 0,
-        battery_function: MavBatteryFunction::MAV_BATTERY_FUNCTION_ALL,
-        mavtype: MavBatteryType::MAV_BATTERY_TYPE_UNKNOWN,
-        battery_remaining: -1,
-        ..Default::default()
-    })
+/// BATTERY_STATUS: the pack's latest reading with the monitor's level as `charge_state` (OK, LOW,
+/// CRITICAL, EMERGENCY); with no reading, MAVLink's unknown values.
+fn battery_status(battery: &BatteryStatus) -> MavMessage {
+    use MavBatteryChargeState as C;
+    let Some(sample) = battery.sample else {
+        return MavMessage::BATTERY_STATUS(BATTERY_STATUS_DATA {
+            current_consumed: -1,
+            energy_consumed: -1,
+            temperature: i16::MAX,
+            voltages: [u16::MAX; 10],
+            current_battery: -1,
+            id: 0,
+            battery_function: MavBatteryFunction::MAV_BATTERY_FUNCTION_ALL,
+            mavtype: MavBatteryType::MAV_BATTERY_TYPE_UNKNOWN,
+            battery_remaining: -1,
+            ..Default::default()
+        });
+    };
+    let charge_state = match battery.level {
+        BatteryWarning::None => C::MAV_BATTERY_CHARGE_STATE_OK,
+        BatteryWarning::Low => C::MAV_BATTERY_CHARGE_STATE_LOW,
+        BatteryWarning::Critical => C::MAV_BATTERY_CHARGE_STATE_CRITICAL,
+        BatteryWarning::Emergency => C::MAV_BATTERY_CHARGE_STATE_EMERGENCY,
+    };
+    MavMessage::BATTERY_STATUS(encode_battery_status(&sample, charge_state))
 }
 
 /// A STATUSTEXT (text cut to MAVLink's 50 bytes at a character boundary).
@@ -506,11 +528,13 @@ pub fn statustext_chunks(severity: MavSeverity, text: &str, id: u16) -> Vec<MavM
     chunks
 }
 
-/// The severity of an event's STATUSTEXT: a kill is critical, a disarm a notice, the rest info.
+/// The severity of an event's STATUSTEXT: a kill or failsafe is critical, a low battery a warning, a
+/// disarm a notice, the rest info.
 #[must_use]
 pub fn event_severity(event: &Event) -> MavSeverity {
     match event {
         Event::Killed | Event::Failsafe { .. } => MavSeverity::MAV_SEVERITY_CRITICAL,
+        Event::BatteryLow { .. } => MavSeverity::MAV_SEVERITY_WARNING,
         Event::Disarmed { .. } => MavSeverity::MAV_SEVERITY_NOTICE,
         _ => MavSeverity::MAV_SEVERITY_INFO,
     }

@@ -696,4 +696,41 @@ pub static PARAMS: &[ParamDef] = &[
         "What the vehicle does when the ground-station link is lost: 0 nothing, 1 hold, 2 return, 3 land, 5 terminate.",
         commander.datalink_loss_action
     ),
+    whole!(
+        Commander,
+        "COM_LOW_BAT_ACT",
+        3.0,
+        [0.0, 3.0],
+        "",
+        restart = false,
+        "What the vehicle does at the battery's critical and emergency levels: 0 warn only, 2 land, 3 return at critical and land at emergency (PX4's default is 0).",
+        commander.low_battery_action
+    ),
+    real!(
+        Commander,
+        "BAT_LOW_THR",
+        0.15,
+        [0.12, 0.5],
+        "norm",
+        "Battery low below this state of charge: a warning, and arming is refused.",
+        commander.battery.low_thr
+    ),
+    real!(
+        Commander,
+        "BAT_CRIT_THR",
+        0.07,
+        [0.05, 0.5],
+        "norm",
+        "Battery critical below this state of charge: COM_LOW_BAT_ACT's first action.",
+        commander.battery.crit_thr
+    ),
+    real!(
+        Commander,
+        "BAT_EMERGEN_THR",
+        0.05,
+        [0.03, 0.5],
+        "norm",
+        "Battery emergency below this state of charge: COM_LOW_BAT_ACT's last action.",
+        commander.battery.emergen_thr
+    ),
 ];
