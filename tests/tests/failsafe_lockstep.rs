@@ -217,3 +217,153 @@ fn given_com_low_bat_act_3_when_sim_bat_drain_empties_the_pack_in_a_mission_then
     assert!(left > 0.03, "landed before the emergency level: {left}");
     assert!((landed - home).xy().norm() <= 0.15, "landed {landed:?}, home {home:?}");
 }
+
+/// A SET_POSITION_TARGET_LOCAL_NED with a velocity only (NED m/s; position, acceleration and yaw ignored).
+fn velocity_target(vn_mps: f32, ve_mps: f32) -> MavMessage {
+    use autopilot::core::mavlink::common::{MavFrame, PositionTargetTypemask, SET_POSITION_TARGET_LOCAL_NED_DATA};
+    MavMessage::SET_POSITION_TARGET_LOCAL_NED(SET_POSITION_TARGET_LOCAL_NED_DATA {
+        vx: vn_mps,
+        vy: ve_mps,
+        type_mask: PositionTargetTypemask::from_bits_truncate(7 | 448 | 1024 | 2048),
+        target_system: 1,
+        target_component: 1,
+        coordinate_frame: MavFrame::MAV_FRAME_LOCAL_NED,
+        ..Default::default()
+    })
+}
+
+/// A converged rig that took off to 3 m and holds there.
+fn airborne_rig() -> Rig {
+    let mut rig = converged_rig();
+    rig.command(MavCmd::MAV_CMD_NAV_TAKEOFF, [0.0, 0.0, 0.0, NAN, NAN, NAN, 3.0]);
+    rig.command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+    fly(&mut rig, 10.0, true);
+    assert_eq!(rig.vehicle.commander_output().mode, FlightMode::Hold);
+    rig
+}
+
+#[test]
+fn given_gf_max_hor_dist_10_when_a_goto_20_m_away_is_asked_then_it_is_refused_with_the_reason() {
+    use autopilot::core::mavlink::common::{COMMAND_INT_DATA, MavFrame, MavResult};
+    let mut rig = airborne_rig();
+    set_param(&mut rig, "GF_MAX_HOR_DIST", 10.0);
+    let origin = rig.vehicle.estimate().origin.expect("origin");
+    let home = rig.vehicle.home().expect("home").pos_ned_m;
+    let goto = |rig: &mut Rig, n: f64| {
+        let (lat, lon, _) = origin.geodetic_from_ned(&(home + Vector3::new(n, 0.0, 0.0)));
+        rig.send(&MavMessage::COMMAND_INT(COMMAND_INT_DATA {
+            param1: -1.0,
+            param4: f32::NAN,
+            x: (lat * 1e7).round() as i32,
+            y: (lon * 1e7).round() as i32,
+            z: 3.0,
+            command: MavCmd::MAV_CMD_DO_REPOSITION,
+            target_system: 1,
+            target_component: 1,
+            frame: MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT,
+            ..Default::default()
+        }))
+    };
+    let replies = goto(&mut rig, 20.0);
+    assert!(
+        matches!(&replies[0], MavMessage::COMMAND_ACK(a) if a.result == MavResult::MAV_RESULT_DENIED),
+        "{replies:?}"
+    );
+    assert!(
+        replies.iter().any(|m| matches!(m, MavMessage::STATUSTEXT(s)
+            if s.text.to_str().is_ok_and(|t| t == "Reposition: beyond GF_MAX_HOR_DIST"))),
+        "{replies:?}"
+    );
+    let before = rig.plant.truth().pos_ned_m;
+    fly(&mut rig, 5.0, true);
+    let truth = rig.plant.truth().pos_ned_m;
+    assert!((truth - before).xy().norm() < 0.3, "not flown: {before:?} -> {truth:?}");
+    // Within the limit it is flown.
+    let replies = goto(&mut rig, 8.0);
+    assert!(matches!(&replies[0], MavMessage::COMMAND_ACK(a) if a.result == MavResult::MAV_RESULT_ACCEPTED));
+}
+
+#[test]
+fn given_gf_max_hor_dist_10_when_an_offboard_velocity_pushes_outward_then_it_holds_before_10_5_m_on_the_truth() {
+    // GIVEN GF_MAX_HOR_DIST 10 m and GF_ACTION 2 (hold, the default), hovering at home.
+    let mut rig = airborne_rig();
+    set_param(&mut rig, "GF_MAX_HOR_DIST", 10.0);
+    let home = rig.plant.truth().pos_ned_m;
+    // WHEN an offboard stream flies north at 1.5 m/s (20 Hz), for 30 s.
+    let replies = rig.send(&velocity_target(1.5, 0.0));
+    assert!(replies.is_empty(), "{replies:?}");
+    let result = rig.command(MavCmd::MAV_CMD_DO_SET_MODE, [1.0, 6.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+    assert_eq!(result, autopilot::core::mavlink::common::MavResult::MAV_RESULT_ACCEPTED, "{:?}", rig.take_messages());
+    assert_eq!(rig.vehicle.commander().mode(), FlightMode::Offboard);
+    rig.take_messages();
+    let mut farthest_m: f64 = 0.0;
+    let mut held_at_m = None;
+    for _ in 0..600 {
+        fly(&mut rig, 0.05, true);
+        rig.send(&velocity_target(1.5, 0.0));
+        let d = (rig.plant.truth().pos_ned_m - home).xy().norm();
+        farthest_m = farthest_m.max(d);
+        if held_at_m.is_none() && rig.vehicle.commander_output().mode == FlightMode::Hold {
+            held_at_m = Some(d);
+        }
+    }
+    // THEN it switched to Hold, said why once, and never left 10.5 m from home (the plant's truth).
+    let said_at = said(&mut rig, "Failsafe: fence, beyond GF_MAX_HOR_DIST, holding");
+    println!("geofence: hold at {:.2} m from home, farthest {farthest_m:.2} m", held_at_m.unwrap_or(f64::NAN));
+    assert_eq!(said_at.len(), 1);
+    assert!(held_at_m.is_some_and(|d| d < 10.0), "predicted: held at {held_at_m:?}");
+    assert!(farthest_m < 10.5, "farthest {farthest_m} m");
+    assert_eq!(rig.vehicle.commander_output().mode, FlightMode::Hold);
+}
+
+#[test]
+fn given_a_rally_point_closer_than_home_when_returning_then_it_lands_at_the_rally_point() {
+    use autopilot::core::mavlink::common::{MISSION_COUNT_DATA, MavFrame, MavMissionResult, MavMissionType};
+    let mut rig = airborne_rig();
+    let home_truth = rig.plant.truth().pos_ned_m;
+    let origin = rig.vehicle.estimate().origin.expect("origin");
+    let home = rig.vehicle.home().expect("home").pos_ned_m;
+    // GIVEN a rally point 12 m north of home, uploaded as a RALLY transfer.
+    let (lat, lon, _) = origin.geodetic_from_ned(&(home + Vector3::new(12.0, 0.0, 0.0)));
+    let count = MISSION_COUNT_DATA {
+        count: 1,
+        target_system: 1,
+        target_component: 1,
+        mission_type: MavMissionType::MAV_MISSION_TYPE_RALLY,
+        ..Default::default()
+    };
+    rig.send(&MavMessage::MISSION_COUNT(count));
+    let mut item = mission_item(0, MavCmd::MAV_CMD_NAV_RALLY_POINT, [0.0; 4], lat, lon, 5.0);
+    item.frame = MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT;
+    item.mission_type = MavMissionType::MAV_MISSION_TYPE_RALLY;
+    let replies = rig.send(&MavMessage::MISSION_ITEM_INT(item));
+    assert!(
+        matches!(replies.first(), Some(MavMessage::MISSION_ACK(a)) if a.mavtype == MavMissionResult::MAV_MISSION_ACCEPTED),
+        "{replies:?}"
+    );
+    // WHEN the vehicle, 9 m north, is told to return.
+    let (lat9, lon9, _) = origin.geodetic_from_ned(&(home + Vector3::new(9.0, 0.0, 0.0)));
+    rig.send(&MavMessage::COMMAND_INT(autopilot::core::mavlink::common::COMMAND_INT_DATA {
+        param1: -1.0,
+        param4: f32::NAN,
+        x: (lat9 * 1e7).round() as i32,
+        y: (lon9 * 1e7).round() as i32,
+        z: 3.0,
+        command: MavCmd::MAV_CMD_DO_REPOSITION,
+        target_system: 1,
+        target_component: 1,
+        frame: MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT,
+        ..Default::default()
+    }));
+    fly(&mut rig, 20.0, true);
+    rig.command(MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH, [0.0; 7]);
+    let start = rig.now_us;
+    while rig.armed() {
+        assert!(rig.now_us - start < 90_000_000, "not landed within 90 s");
+        fly(&mut rig, 0.1, true);
+    }
+    // THEN it landed at the rally point (3 m away), not at home (9 m away), on the plant's truth.
+    let landed = rig.plant.truth().pos_ned_m - home_truth;
+    println!("rally: landed at N {:.3} E {:.3} m from home (rally point at N 12)", landed.x, landed.y);
+    assert!((landed.xy() - nalgebra::Vector2::new(12.0, 0.0)).norm() < 0.3, "landed {landed:?}");
+}

@@ -5,6 +5,7 @@ pub mod commander;
 pub mod config;
 pub mod control;
 pub mod estimator;
+pub mod geofence;
 pub mod hil;
 pub mod mavlink;
 pub mod mission;

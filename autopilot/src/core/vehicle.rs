@@ -14,16 +14,17 @@
 //! the ground; it is clamped to [1000, 2000] and never NaN.
 
 use ::mavlink::MavHeader;
-use ::mavlink::dialects::common::{MISSION_CURRENT_DATA, MISSION_ITEM_REACHED_DATA, MavMessage, MavSeverity};
+use ::mavlink::dialects::common::{MISSION_CURRENT_DATA, MISSION_ITEM_REACHED_DATA, MavFrame, MavMessage, MavSeverity};
 use nalgebra::Vector3;
 
 use crate::core::battery::BatterySample;
-use crate::core::commander::{Commander, CommanderInputs, CommanderOutput, Estimate, LandedState, Request};
+use crate::core::commander::{Commander, CommanderInputs, CommanderOutput, Estimate, FlightMode, LandedState, Request};
 pub use crate::core::config::{AirborneStart, VehicleConfig, VehicleError};
 use crate::core::control::{ControlInput, Controller, Reference, distributor, try_new_controller};
 use crate::core::estimator::{
     BaroSample, Estimator, EstimatorSource, EstimatorState, GpsSample, ImuSample, MagSample, TruthSample,
 };
+use crate::core::geofence::{Fence, Rally, Violation};
 use crate::core::mavlink::command::AUTOPILOT_VERSION_ID;
 use crate::core::mavlink::command::InboundCommand;
 use crate::core::mavlink::mission::{MissionEvent, MissionService};
@@ -36,8 +37,8 @@ use crate::core::mavlink::{
     CommandContext, CommandEffect, CommandPoint, Home, MavlinkService, Stream, TelemetrySnapshot, VehicleCommand,
     command_replies, housekeeping, statustext, statustext_chunks,
 };
-use crate::core::mission::{Mission, MissionError};
-use crate::core::navigator::{MAX_SETPOINT_FROM_HOME_M, NavEvent, NavInput, Navigator, nav_items};
+use crate::core::mission::{Mission, MissionError, XY_UNSET, items_to_wpl};
+use crate::core::navigator::{AutoMode, MAX_SETPOINT_FROM_HOME_M, NavEvent, NavInput, Navigator, Task, nav_items};
 use crate::core::params::ParamStore;
 
 /// Motor command with the motors stopped (µs).
@@ -77,6 +78,10 @@ pub enum ShellEffect {
     SaveMission(String),
     /// Persist the parameters: their text (`NAME<TAB>VALUE` lines, those that differ from the defaults).
     SaveParams(String),
+    /// Persist the geofence: its items as QGC WPL 110 text (empty: only the header).
+    SaveFence(String),
+    /// Persist the rally points: their items as QGC WPL 110 text (empty: only the header).
+    SaveRally(String),
 }
 
 /// The interval (µs) of the adaptive-weight stream at `hz` (0 or less: off).
@@ -106,6 +111,8 @@ pub struct Vehicle {
     /// When a ground station last sent a HEARTBEAT (µs of vehicle time).
     gcs_heartbeat_us: Option<u64>,
     navigator: Navigator,
+    /// Where the return under way goes (home or a rally point), chosen as it started.
+    return_ned_m: Option<Vector3<f64>>,
     last_nav_us: Option<u64>,
     home_changed: bool,
     offboard: OffboardReceiver,
@@ -183,6 +190,7 @@ impl Vehicle {
                 navigator
             },
             last_nav_us: None,
+            return_ned_m: None,
             home_changed: false,
             offboard: OffboardReceiver::default(),
             effects: Vec::new(),
@@ -294,9 +302,14 @@ impl Vehicle {
         match service {
             Service::Housekeeping => Housekeeping.handle(&ctx, msg, &mut ()).messages,
             Service::Offboard => {
-                let reply = self.offboard.handle(&ctx, msg, &mut ());
+                let mut reply = self.offboard.handle(&ctx, msg, &mut ());
                 if let Some(sp) = reply.effect {
-                    self.navigator.set_offboard(now_us, sp);
+                    match sp.pos_ned_m.map(|p| self.check_setpoint(&p)) {
+                        Some(Err(why)) => {
+                            reply.messages.extend(self.offboard.refuse(format!("Offboard: setpoint {why}")))
+                        }
+                        _ => self.navigator.set_offboard(now_us, sp),
+                    }
                 }
                 reply.messages
             }
@@ -345,6 +358,10 @@ impl Vehicle {
         self.navigator.refresh(now_us, self.estimator.state().origin);
         self.commander.set_nav_status(self.navigator.status());
         let outcome = match cmd.effect.clone() {
+            CommandEffect::Request(req @ (Request::Mission | Request::SetMode(FlightMode::Mission))) => self
+                .check_mission()
+                .map_err(Some)
+                .and_then(|()| self.commander.request(now_us, req).map_err(|r| Some(r.to_string()))),
             CommandEffect::Request(req) => self.commander.request(now_us, req).map_err(|r| Some(r.to_string())),
             CommandEffect::Vehicle(command) => self.vehicle_command(now_us, command, &mut extra),
             CommandEffect::Deny(text) => Err(Some(text)),
@@ -440,11 +457,8 @@ impl Vehicle {
             }
             VehicleCommand::Reposition { point, yaw_rad } => {
                 let pos_ned_m = point.map(|p| self.local_point(&p)).transpose()?;
-                if let (Some(p), Some(home)) = (pos_ned_m, self.home)
-                    && (p - home.pos_ned_m).norm() > MAX_SETPOINT_FROM_HOME_M
-                {
-                    let km = MAX_SETPOINT_FROM_HOME_M / 1000.0;
-                    return Err(Some(format!("Reposition: over {km:.0} km from home")));
+                if let Some(p) = pos_ned_m {
+                    self.check_setpoint(&p).map_err(|why| Some(format!("Reposition: {why}")))?;
                 }
                 self.commander.request(now_us, Request::Goto { pos_ned_m, yaw_rad }).map_err(|r| Some(r.to_string()))
             }
@@ -452,6 +466,7 @@ impl Vehicle {
                 if self.navigator.mission_len() == 0 {
                     return Err(Some("Mission start: no mission".to_owned()));
                 }
+                self.check_mission().map_err(Some)?;
                 self.navigator.set_current(first);
                 self.commander.request(now_us, Request::Mission).map_err(|r| Some(r.to_string()))
             }
@@ -508,12 +523,37 @@ impl Vehicle {
                 self.navigator.set_mission(nav_items(&mission));
                 self.missions.set_current_seq(0);
                 self.effects.push(ShellEffect::SaveMission(mission.to_wpl()));
-                Vec::new()
+                // Accepted (it is a valid mission), but said now: it will not start while it leaves the fence.
+                self.check_mission()
+                    .err()
+                    .map(|why| statustext(MavSeverity::MAV_SEVERITY_WARNING, &why))
+                    .into_iter()
+                    .collect()
             }
             MissionEvent::Cleared => {
                 self.navigator.set_mission(Vec::new());
                 self.missions.set_current_seq(0);
                 self.effects.push(ShellEffect::SaveMission(self.missions.mission().to_wpl()));
+                Vec::new()
+            }
+            MissionEvent::FenceReplaced(fence) => {
+                self.effects.push(ShellEffect::SaveFence(items_to_wpl(fence.items())));
+                let mut out = Vec::new();
+                if let Err(why) = self.check_mission() {
+                    out.push(statustext(MavSeverity::MAV_SEVERITY_WARNING, &why));
+                }
+                out
+            }
+            MissionEvent::RallyReplaced(rally) => {
+                self.effects.push(ShellEffect::SaveRally(items_to_wpl(rally.items())));
+                Vec::new()
+            }
+            MissionEvent::ClearedAll => {
+                self.navigator.set_mission(Vec::new());
+                self.missions.set_current_seq(0);
+                self.effects.push(ShellEffect::SaveMission(self.missions.mission().to_wpl()));
+                self.effects.push(ShellEffect::SaveFence(items_to_wpl(&[])));
+                self.effects.push(ShellEffect::SaveRally(items_to_wpl(&[])));
                 Vec::new()
             }
             MissionEvent::SetCurrent(seq) => {
@@ -532,6 +572,80 @@ impl Vehicle {
         let items = nav_items(&mission);
         self.missions.set_mission(mission)?;
         self.navigator.set_mission(items);
+        Ok(())
+    }
+
+    /// A geofence loaded at start (persisted by an earlier run).
+    pub fn load_fence(&mut self, fence: Fence) {
+        self.missions.set_fence(fence);
+    }
+
+    /// Rally points loaded at start (persisted by an earlier run).
+    pub fn load_rally(&mut self, rally: Rally) {
+        self.missions.set_rally(rally);
+    }
+
+    /// The geofence and the rally points as uploaded.
+    #[must_use]
+    pub fn fence_and_rally(&self) -> (&Fence, &Rally) {
+        (self.missions.fence(), self.missions.rally())
+    }
+
+    /// Why the vehicle will not fly to `pos_ned_m` (NED m): farther than
+    /// [`MAX_SETPOINT_FROM_HOME_M`] from home, or outside the geofence.
+    fn check_setpoint(&self, pos_ned_m: &Vector3<f64>) -> Result<(), String> {
+        let home = self.home.map(|h| h.pos_ned_m);
+        if let Some(home) = home
+            && (pos_ned_m - home).norm() > MAX_SETPOINT_FROM_HOME_M
+        {
+            return Err(format!("over {:.0} km from home", MAX_SETPOINT_FROM_HOME_M / 1000.0));
+        }
+        let origin = self.estimator.state().origin;
+        match self.missions.fence().violation(&self.config.commander.geofence, origin.as_ref(), home, pos_ned_m) {
+            Some(v) => Err(v.to_string()),
+            None => Ok(()),
+        }
+    }
+
+    /// The geofence breach predicted from the estimate (see `core::geofence`), braking as the navigator
+    /// brakes (MPC_ACC_HOR, MPC_JERK_AUTO).
+    fn fence_breach(&self, state: &EstimatorState) -> Option<Violation> {
+        if !state.flags.position_valid {
+            return None;
+        }
+        let nav = &self.config.navigator;
+        self.missions.fence().predicted_breach(
+            &self.config.commander.geofence,
+            state.origin.as_ref(),
+            self.home.map(|h| h.pos_ned_m),
+            &state.pos_ned_m,
+            &state.vel_ned_mps,
+            nav.acc_hor_mps2,
+            nav.jerk_mps3,
+        )
+    }
+
+    /// Why the mission cannot be flown: an item whose position is outside the geofence (or too far).
+    // The *_INT frames are deprecated in the dialect, but ground stations upload them.
+    #[allow(deprecated)]
+    fn check_mission(&self) -> Result<(), String> {
+        let Some(origin) = self.estimator.state().origin else { return Ok(()) };
+        let home_alt = self.home_alt_amsl_m();
+        for item in &self.missions.mission().items {
+            if !item.has_position() || item.x == XY_UNSET || item.y == XY_UNSET {
+                continue;
+            }
+            let relative = matches!(
+                item.frame,
+                MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT | MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+            );
+            let z = f64::from(item.z);
+            let alt_amsl_m = if relative { home_alt.map_or(origin.alt_amsl_m + z, |h| h + z) } else { z };
+            let p = origin.ned_from_geodetic(f64::from(item.x) * 1e-7, f64::from(item.y) * 1e-7, alt_amsl_m);
+            if let Err(why) = self.check_setpoint(&p) {
+                return Err(format!("Mission: item {} {why}", item.seq));
+            }
+        }
         Ok(())
     }
 
@@ -594,6 +708,7 @@ impl Vehicle {
             nav: self.navigator.status(),
             gcs_heartbeat_us: self.gcs_heartbeat_us,
             battery: inputs.battery,
+            fence_breach: self.fence_breach(&state),
         });
         self.sync_home();
         let reference = self.plan(now_us, &state, &out);
@@ -631,6 +746,17 @@ impl Vehicle {
 
     /// What the controller flies this step: the navigator's reference for the commander's task.
     fn plan(&mut self, now_us: u64, state: &EstimatorState, out: &CommanderOutput) -> Option<Reference> {
+        // Where a return goes, chosen as it starts and kept until it ends: the nearest rally point when one
+        // is closer than home.
+        let returning = out.task == Task::Auto(AutoMode::ReturnToLaunch);
+        if !returning {
+            self.return_ned_m = None;
+        } else if self.return_ned_m.is_none()
+            && let Some(home) = self.home
+        {
+            let to = self.missions.rally().return_point(state.origin.as_ref(), home.pos_ned_m, &state.pos_ned_m);
+            self.return_ned_m = Some(to);
+        }
         let dt_s = self.last_nav_us.map_or(0.0, |t| now_us.saturating_sub(t) as f64 * 1e-6).min(0.05);
         self.last_nav_us = Some(now_us);
         let input = NavInput {
@@ -642,6 +768,7 @@ impl Vehicle {
             origin: state.origin,
             home_ned_m: self.home.map(|h| h.pos_ned_m),
             home_alt_amsl_m: self.home_alt_amsl_m(),
+            return_ned_m: self.return_ned_m,
             landed: out.landed == LandedState::OnGround,
             takeoff_alt_m: self.config.commander.takeoff_alt_m,
             takeoff_acceptance_m: self.config.commander.takeoff_acceptance_m,

@@ -30,7 +30,12 @@ use tokio::task::JoinSet;
 pub use config::{ConfigError, ConfigFile, Overrides, PlantEndpoint, RuntimeConfig};
 use link::{CHANNEL_CAPACITY, LinkError};
 use persist::{PersistError, Persister};
-use plant_link::{GcsOutputs, MISSION_FILE, PARAMS_FILE, Persisted, PlantLinkError, PlantLinkStats, TlogFrame};
+use plant_link::{
+    FENCE_FILE, GcsOutputs, MISSION_FILE, PARAMS_FILE, Persisted, PlantLinkError, PlantLinkStats, RALLY_FILE, TlogFrame,
+};
+
+use crate::core::geofence::{FENCE_COMMANDS, Fence, Rally};
+use crate::core::mavlink::common::MavCmd;
 use serial::{SerialConfig, SerialLink};
 use tcp::TcpLink;
 use tlog::{TlogError, TlogWriter};
@@ -161,13 +166,35 @@ fn load_state(dir: &std::path::Path, vehicle: &crate::core::config::VehicleConfi
             None
         }
     };
+    // The fence and the rally points: their own commands, validated as an upload is.
+    let plan = |file: &str, command_of: fn(u32) -> Option<MavCmd>| match persist::load(dir, file) {
+        Ok(Some(text)) => match crate::core::mission::items_from_wpl(&text, command_of) {
+            Ok(items) => Some(items),
+            Err(e) => {
+                aside(file, &e);
+                None
+            }
+        },
+        Ok(None) => None,
+        Err(e) => {
+            aside(file, &e);
+            None
+        }
+    };
+    let fence = plan(FENCE_FILE, |n| FENCE_COMMANDS.into_iter().find(|c| *c as u32 == n))
+        .and_then(|items| Fence::new(items).map_err(|e| aside(FENCE_FILE, &e)).ok());
+    let rally =
+        plan(RALLY_FILE, |n| (n == MavCmd::MAV_CMD_NAV_RALLY_POINT as u32).then_some(MavCmd::MAV_CMD_NAV_RALLY_POINT))
+            .and_then(|items| Rally::new(items).map_err(|e| aside(RALLY_FILE, &e)).ok());
     tracing::info!(
         dir = %dir.display(),
         params = params.is_some(),
         mission_items = mission.as_ref().map_or(0, crate::core::mission::Mission::len),
+        fence_items = fence.as_ref().map_or(0, |f| f.items().len()),
+        rally_points = rally.as_ref().map_or(0, |r| r.items().len()),
         "state directory"
     );
-    Ok(Persisted { params, mission, persister: Some(persister) })
+    Ok(Persisted { params, mission, fence, rally, persister: Some(persister) })
 }
 
 /// Resolves when standard input reaches its end (a detached thread reads it, so a pending read never
@@ -355,6 +382,73 @@ mod tests {
             .filter(|e| e.file_name().to_string_lossy().starts_with(&format!("{MISSION_FILE}.corrupt-")))
             .collect();
         assert_eq!(aside.len(), 1, "kept for a person to look at");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn a_polygon_fence_uploaded_is_saved_and_after_a_restart_downloads_identical() {
+        use crate::core::mavlink::MavHeader;
+        use crate::core::mavlink::common::{
+            MISSION_COUNT_DATA, MISSION_ITEM_INT_DATA, MISSION_REQUEST_INT_DATA, MISSION_REQUEST_LIST_DATA, MavFrame,
+            MavMessage, MavMissionType,
+        };
+        use crate::core::vehicle::ShellEffect;
+        const GCS: MavHeader = MavHeader { system_id: 255, component_id: 190, sequence: 0 };
+        const FENCE: MavMissionType = MavMissionType::MAV_MISSION_TYPE_FENCE;
+        let vertex = |seq: u16, lat: i32, lon: i32| MISSION_ITEM_INT_DATA {
+            param1: 4.0,
+            x: lat,
+            y: lon,
+            seq,
+            command: MavCmd::MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
+            target_system: 1,
+            target_component: 1,
+            frame: MavFrame::MAV_FRAME_GLOBAL,
+            mission_type: FENCE,
+            ..Default::default()
+        };
+        let polygon = [
+            vertex(0, 473_970_000, 85_450_000),
+            vertex(1, 473_980_000, 85_450_000),
+            vertex(2, 473_980_000, 85_465_000),
+            vertex(3, 473_970_000, 85_465_000),
+        ];
+        // GIVEN a fence uploaded as QGroundControl uploads it, and saved where the autopilot saves it.
+        let dir = temp_dir("fence");
+        let mut vehicle = Vehicle::new(VehicleConfig::default()).expect("vehicle");
+        let count = MISSION_COUNT_DATA {
+            count: 4,
+            target_system: 1,
+            target_component: 1,
+            mission_type: FENCE,
+            ..Default::default()
+        };
+        vehicle.handle_message(0, &GCS, &MavMessage::MISSION_COUNT(count));
+        for item in &polygon {
+            vehicle.handle_message(0, &GCS, &MavMessage::MISSION_ITEM_INT(item.clone()));
+        }
+        let saved: Vec<String> = vehicle
+            .take_effects()
+            .into_iter()
+            .filter_map(|e| if let ShellEffect::SaveFence(text) = e { Some(text) } else { None })
+            .collect();
+        assert_eq!(saved.len(), 1, "saved once, when the upload completed");
+        std::fs::write(dir.join(FENCE_FILE), &saved[0]).expect("write");
+        // WHEN the autopilot restarts from its state directory.
+        let persisted = load_state(&dir, &VehicleConfig::default()).expect("starts");
+        let mut restarted = Vehicle::new(VehicleConfig::default()).expect("vehicle");
+        restarted.load_fence(persisted.fence.expect("the fence is loaded"));
+        // THEN a download gives back the items uploaded.
+        let list = MISSION_REQUEST_LIST_DATA { target_system: 1, target_component: 1, mission_type: FENCE };
+        let reply = restarted.handle_message(0, &GCS, &MavMessage::MISSION_REQUEST_LIST(list));
+        assert!(matches!(reply.as_slice(), [MavMessage::MISSION_COUNT(c)] if c.count == 4 && c.mission_type == FENCE));
+        for (seq, sent) in (0..4).zip(&polygon) {
+            let request = MISSION_REQUEST_INT_DATA { seq, target_system: 1, target_component: 1, mission_type: FENCE };
+            let reply = restarted.handle_message(0, &GCS, &MavMessage::MISSION_REQUEST_INT(request));
+            let [MavMessage::MISSION_ITEM_INT(got)] = reply.as_slice() else { panic!("{reply:?}") };
+            let expect = MISSION_ITEM_INT_DATA { target_system: 255, target_component: 190, ..sent.clone() };
+            assert_eq!(*got, expect);
+        }
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

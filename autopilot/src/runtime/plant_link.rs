@@ -30,6 +30,7 @@ use tokio::sync::mpsc;
 use tokio::sync::mpsc::error::{TryRecvError, TrySendError};
 
 use crate::core::estimator::{EstimatorSource, GeoOrigin};
+use crate::core::geofence::{Fence, Rally};
 use crate::core::hil::{
     ActuatorCommand, DecoderStats, FrameDecoder, HilInput, SensorSamples, decode_hil_message, dege7_to_deg,
     encode_actuator_controls, encode_frame_v2, mm_to_m,
@@ -103,6 +104,8 @@ pub struct PlantLinkStats {
 pub struct Persisted {
     pub params: Option<ParamStore>,
     pub mission: Option<Mission>,
+    pub fence: Option<Fence>,
+    pub rally: Option<Rally>,
     /// Where parameter and mission changes are saved; `None`: not saved.
     pub persister: Option<Persister>,
 }
@@ -111,6 +114,10 @@ pub struct Persisted {
 pub const PARAMS_FILE: &str = "params.txt";
 /// The mission file in the state directory (QGC WPL 110).
 pub const MISSION_FILE: &str = "mission.waypoints";
+/// The geofence file in the state directory (QGC WPL 110, fence commands).
+pub const FENCE_FILE: &str = "fence.waypoints";
+/// The rally-point file in the state directory (QGC WPL 110, NAV_RALLY_POINT).
+pub const RALLY_FILE: &str = "rally.waypoints";
 
 /// The senders towards each ground-station link (index = [`LinkId`]) and the `.tlog`, and the links'
 /// counters (their malformed frames are reported in SYS_STATUS).
@@ -216,6 +223,12 @@ impl Driver {
             {
                 tracing::error!(error = %e, "the saved mission is not valid any more; starting without one");
             }
+            if let Some(fence) = self.persisted.fence.clone() {
+                vehicle.load_fence(fence);
+            }
+            if let Some(rally) = self.persisted.rally.clone() {
+                vehicle.load_rally(rally);
+            }
             self.vehicle = Some(vehicle);
         }
         Ok(self.vehicle.as_mut())
@@ -236,6 +249,18 @@ impl Driver {
                     self.persisted.mission = Some(vehicle.mission().clone());
                     if let Some(p) = &self.persisted.persister {
                         p.save(MISSION_FILE, text);
+                    }
+                }
+                ShellEffect::SaveFence(text) => {
+                    self.persisted.fence = Some(vehicle.fence_and_rally().0.clone());
+                    if let Some(p) = &self.persisted.persister {
+                        p.save(FENCE_FILE, text);
+                    }
+                }
+                ShellEffect::SaveRally(text) => {
+                    self.persisted.rally = Some(vehicle.fence_and_rally().1.clone());
+                    if let Some(p) = &self.persisted.persister {
+                        p.save(RALLY_FILE, text);
                     }
                 }
                 ShellEffect::Reboot => {

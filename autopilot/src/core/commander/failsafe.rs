@@ -11,6 +11,7 @@
 //! | offboard setpoints older than `COM_OF_LOSS_T` in offboard mode | `COM_OF_LOSS_T` | 0.5 s | hold |
 //! | battery below `BAT_LOW_THR` while armed | `BAT_LOW_THR` | 15 % | warning (and arming refused below it) |
 //! | battery below `BAT_CRIT_THR` / `BAT_EMERGEN_THR` while armed | `COM_LOW_BAT_ACT`, thresholds | 3, 7 %, 5 % | PX4's COM_LOW_BAT_ACT: 0 warn, 2 land, 3 return at critical and land at emergency |
+//! | geofence breached, or predicted to be before the vehicle can stop, in the air | `GF_ACTION`, `GF_MAX_HOR_DIST`, `GF_MAX_VER_DIST`, the uploaded fence | 2, 0 (off), 0 (off) | PX4's GF_ACTION: 0 none, 1 warning, 2 hold, 3 return, 4 terminate, 5 land |
 //!
 //! An action is taken only in the air (armed, not landed); the vehicle stays in the failsafe's mode when
 //! the trigger clears (regaining the link is announced), until a pilot changes it, as PX4 does.
@@ -18,6 +19,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::core::battery::BatteryWarning;
+use crate::core::geofence::Violation;
 use crate::core::seconds_to_us;
 
 /// What a failsafe makes the vehicle do.
@@ -80,6 +82,23 @@ pub const fn low_battery_action(n: u32, level: BatteryWarning) -> Result<Option<
     }
 }
 
+/// PX4's `GF_ACTION`: 0 none (`Ok(None)`: not even said), 1 warning (`Ok(Some(None))`: said only), 2 hold,
+/// 3 return, 4 terminate, 5 land.
+///
+/// # Errors
+/// `Err(n)` for any other number.
+pub const fn geofence_action(n: u32) -> Result<Option<Option<FailsafeAction>>, u32> {
+    match n {
+        0 => Ok(None),
+        1 => Ok(Some(None)),
+        2 => Ok(Some(Some(FailsafeAction::Hold))),
+        3 => Ok(Some(Some(FailsafeAction::Return))),
+        4 => Ok(Some(Some(FailsafeAction::Terminate))),
+        5 => Ok(Some(Some(FailsafeAction::Land))),
+        other => Err(other),
+    }
+}
+
 /// What set a failsafe off.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum Trigger {
@@ -89,6 +108,8 @@ pub enum Trigger {
     OffboardLost,
     /// The battery fell below BAT_CRIT_THR or BAT_EMERGEN_THR (with the state of charge, %).
     Battery { level: BatteryWarning, remaining_pct: u8 },
+    /// The geofence is breached, or would be before the vehicle could stop.
+    Geofence(Violation),
 }
 
 impl Trigger {
@@ -99,6 +120,7 @@ impl Trigger {
             Self::DatalinkLost => "GCS link lost".into(),
             Self::OffboardLost => "offboard setpoints lost".into(),
             Self::Battery { level, remaining_pct } => format!("battery {} ({remaining_pct}%)", level.word()),
+            Self::Geofence(v) => format!("fence, {v}"),
         }
     }
 }

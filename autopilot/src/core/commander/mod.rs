@@ -35,6 +35,7 @@ pub use mode::{FlightMode, SystemStatus};
 pub use state_machine::{Conditions, State};
 
 use crate::core::battery::{BatteryConfig, BatteryMonitor, BatterySample, BatteryStatus, BatteryWarning};
+use crate::core::geofence::{GeofenceConfig, Violation};
 use crate::core::navigator::{AutoMode, NavStatus, Task};
 use land_detector::{LandDetectorSample, Phase};
 
@@ -63,6 +64,8 @@ pub struct CommanderConfig {
     pub low_battery_action: u32,
     /// The battery thresholds (BAT_LOW_THR, BAT_CRIT_THR, BAT_EMERGEN_THR).
     pub battery: BatteryConfig,
+    /// The geofence's action and distance limits (GF_ACTION, GF_MAX_HOR_DIST, GF_MAX_VER_DIST).
+    pub geofence: GeofenceConfig,
     pub land_detector: LandDetectorConfig,
 }
 
@@ -77,6 +80,7 @@ impl Default for CommanderConfig {
             datalink_loss_action: 0,
             low_battery_action: 3,
             battery: BatteryConfig::default(),
+            geofence: GeofenceConfig::default(),
             land_detector: LandDetectorConfig::default(),
         }
     }
@@ -132,6 +136,21 @@ impl CommanderConfig {
                 must: "0 (warn), 2 land or 3 return then land",
             });
         }
+        let gf = &self.geofence;
+        for (field, value) in
+            [("geofence.max_hor_dist_m", gf.max_hor_dist_m), ("geofence.max_ver_dist_m", gf.max_ver_dist_m)]
+        {
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(ConfigError { field, value, must: "finite and >= 0 (0: no limit)" });
+            }
+        }
+        if failsafe::geofence_action(gf.action).is_err() {
+            return Err(ConfigError {
+                field: "geofence.action",
+                value: f64::from(gf.action),
+                must: "0 none, 1 warning, 2 hold, 3 return, 4 terminate or 5 land",
+            });
+        }
         if let Err(n) = FailsafeAction::from_px4(self.datalink_loss_action) {
             return Err(ConfigError {
                 field: "datalink_loss_action",
@@ -184,6 +203,8 @@ pub struct CommanderInputs {
     pub gcs_heartbeat_us: Option<u64>,
     /// A reading of the pack that arrived this step.
     pub battery: Option<BatterySample>,
+    /// The geofence is breached, or will be before the vehicle can stop (see `core::geofence`).
+    pub fence_breach: Option<Violation>,
 }
 
 /// What a ground station (through the MAVLink handlers) asks of the commander.
@@ -400,6 +421,8 @@ pub struct Commander {
     /// The ground-station link counts as lost (a datalink failsafe episode is under way).
     datalink_lost: bool,
     battery: BatteryMonitor,
+    /// A geofence breach episode is under way (the action was taken at its start).
+    fence_breached: bool,
     events: Vec<Event>,
 }
 
@@ -435,6 +458,7 @@ impl Commander {
                 value: config.battery.low_thr,
                 must: BATTERY_ORDER,
             })?,
+            fence_breached: false,
             events: Vec::new(),
         })
     }
@@ -576,6 +600,7 @@ impl Commander {
         self.touchdown_us = if landing && landed { Some(self.touchdown_us.unwrap_or(now)) } else { None };
         self.datalink_failsafe(now, inputs.gcs_heartbeat_us);
         self.battery_failsafe(now, inputs.battery);
+        self.geofence_failsafe(now, inputs.fence_breach);
         // A few rounds at most: arming with a pending takeoff goes ArmedIdle -> Takeoff on the next step.
         for _ in 0..State::ALL.len() {
             let c = self.conditions(now);
@@ -634,6 +659,21 @@ impl Commander {
         let trigger = Trigger::Battery { level: status.level, remaining_pct };
         let action = failsafe::low_battery_action(self.config.low_battery_action, status.level).ok().flatten();
         self.fail(now, trigger, action);
+    }
+
+    /// The geofence row: a breach (or a predicted one) that starts while armed in the air is acted on per
+    /// GF_ACTION (0: not even said); it re-arms once the vehicle is inside again.
+    fn geofence_failsafe(&mut self, now: u64, breach: Option<Violation>) {
+        let in_air = self.state.is_armed() && self.state != State::ArmedIdle && !self.land_detector.landed();
+        let breached = breach.is_some() && in_air;
+        if breached == self.fence_breached {
+            return;
+        }
+        self.fence_breached = breached;
+        let (Some(violation), true) = (breach, breached) else { return };
+        if let Ok(Some(action)) = failsafe::geofence_action(self.config.geofence.action) {
+            self.fail(now, Trigger::Geofence(violation), action);
+        }
     }
 
     /// A failsafe fired: take `action` if the vehicle is in the air, and say so (what happened and what

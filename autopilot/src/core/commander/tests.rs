@@ -22,6 +22,8 @@ struct Sim {
     gcs_heartbeat_us: Option<u64>,
     /// The pack's state of charge the monitor reads every step (None: no pack).
     battery_remaining: Option<f64>,
+    /// The geofence breach the vehicle would report.
+    fence_breach: Option<crate::core::geofence::Violation>,
 }
 
 impl Sim {
@@ -35,6 +37,7 @@ impl Sim {
             nav: NavStatus::default(),
             gcs_heartbeat_us: None,
             battery_remaining: None,
+            fence_breach: None,
         }
     }
 
@@ -57,6 +60,7 @@ impl Sim {
                 remaining: Some(r),
                 ..Default::default()
             }),
+            fence_breach: self.fence_breach,
         }
     }
 
@@ -677,4 +681,26 @@ fn given_com_low_bat_act_0_then_critical_and_emergency_are_only_said() {
     config.low_battery_action = 0;
     config.battery.crit_thr = 0.2;
     assert!(c.set_config(config).is_err(), "critical above low");
+}
+
+#[test]
+fn given_gf_action_hold_when_a_breach_starts_in_the_air_then_hold_once_and_rearm_inside() {
+    use crate::core::geofence::Violation;
+    let mut sim = Sim::new();
+    let mut c = holding(&mut sim);
+    let mut config = *c.config();
+    config.geofence.action = 3;
+    c.set_config(config).unwrap();
+    sim.fence_breach = Some(Violation::MaxHorizontal);
+    let outs = sim.run(&mut c, 3);
+    assert_eq!(texts(&outs), ["Failsafe: fence, beyond GF_MAX_HOR_DIST, returning", "Mode: Return"]);
+    // Back inside, then out again: acted on again.
+    c.request(sim.now_us, Request::Hold).unwrap();
+    sim.fence_breach = None;
+    sim.run(&mut c, 1);
+    sim.fence_breach = Some(Violation::InsideExclusion);
+    let outs = sim.run(&mut c, 1);
+    assert_eq!(texts(&outs), ["Failsafe: fence, in an exclusion zone, returning", "Mode: Return"]);
+    config.geofence.action = 6;
+    assert!(c.set_config(config).is_err());
 }

@@ -7,7 +7,7 @@
 //!   instead of waiting ~11 s for FTP to time out.
 //! - AUTOPILOT_VERSION (#148): PX4's identity: capabilities MISSION_INT, COMMAND_INT, MAVLINK2,
 //!   PARAM_ENCODE_BYTEWISE, SET_POSITION_TARGET_LOCAL_NED/GLOBAL_INT, SET_ATTITUDE_TARGET,
-//!   FLIGHT_TERMINATION (no FTP, fence or rally bits: those services do not exist); flight software
+//!   FLIGHT_TERMINATION, MISSION_FENCE and MISSION_RALLY (no FTP: there is no file system); flight software
 //!   1.15.0 in PX4's encoding `(major << 24) | (minor << 16) | (patch << 8) | 0xFF` (a release).
 //! - MESSAGE_INTERVAL (#244): the answer to GET_MESSAGE_INTERVAL.
 
@@ -41,7 +41,9 @@ pub fn autopilot_version(sysid: u8) -> MavMessage {
         | C::MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
         | C::MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT
         | C::MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET
-        | C::MAV_PROTOCOL_CAPABILITY_FLIGHT_TERMINATION;
+        | C::MAV_PROTOCOL_CAPABILITY_FLIGHT_TERMINATION
+        | C::MAV_PROTOCOL_CAPABILITY_MISSION_FENCE
+        | C::MAV_PROTOCOL_CAPABILITY_MISSION_RALLY;
     MavMessage::AUTOPILOT_VERSION(AUTOPILOT_VERSION_DATA {
         capabilities,
         uid: 0x4143_4F00_0000_0000 | u64::from(sysid),
@@ -140,7 +142,7 @@ mod tests {
     }
 
     #[test]
-    fn given_the_identity_then_px4_1_15_with_mission_int_command_int_mavlink2_and_no_ftp() {
+    fn given_the_identity_then_px4_1_15_with_mission_int_command_int_mavlink2_fence_rally_and_no_ftp() {
         let MavMessage::AUTOPILOT_VERSION(v) = autopilot_version(3) else { panic!("not AUTOPILOT_VERSION") };
         assert_eq!(v.flight_sw_version >> 8, 0x01_0F_00);
         let c = v.capabilities;
@@ -148,7 +150,8 @@ mod tests {
         assert!(c.contains(MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_COMMAND_INT));
         assert!(c.contains(MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_MAVLINK2));
         assert!(!c.contains(MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_FTP));
-        assert!(!c.contains(MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_MISSION_FENCE));
+        assert!(c.contains(MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_MISSION_FENCE));
+        assert!(c.contains(MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_MISSION_RALLY));
         assert_eq!(v.uid & 0xff, 3);
     }
 }

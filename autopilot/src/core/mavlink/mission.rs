@@ -39,9 +39,14 @@
 //!   the mission -> [`MissionEvent::SetCurrent`] (the vehicle answers with MISSION_CURRENT); beyond it -> a
 //!   STATUSTEXT only (as PX4: a MISSION_ACK here could end an unrelated transfer of the client's).
 //! - The `current` flag of uploaded items is ignored: a new mission starts at item 0.
-//! - Mission types: `mission_type` (a MAVLink 2 extension field) tells the transfers apart. Only type 0
-//!   (mission) is stored; a fence or rally download answers count 0 and an upload is refused
-//!   (MAV_MISSION_UNSUPPORTED), and the vehicle does not advertise MISSION_FENCE / MISSION_RALLY.
+//! - Mission types: `mission_type` (a MAVLink 2 extension field) tells the transfers apart: MISSION (0),
+//!   FENCE (1) and RALLY (2) each have their own stored plan, uploaded, downloaded and cleared by the same
+//!   protocol; every reply carries the transfer's type. Fence and rally items are validated as
+//!   `core::geofence` says ([`Fence::new`], [`Rally::new`]): a completed upload gives
+//!   [`MissionEvent::FenceReplaced`] / [`MissionEvent::RallyReplaced`], a clear the same with an empty
+//!   plan. MISSION_CLEAR_ALL of type ALL (255) clears all three ([`MissionEvent::ClearedAll`]); ALL in any
+//!   other message is answered MAV_MISSION_UNSUPPORTED. MISSION_SET_CURRENT and the `current` flag are the
+//!   mission's only.
 //! - Only messages for our system (or broadcast) and component 1 (or 0) are handled ([`addressed_to_us`]).
 
 // MISSION_ITEM, MISSION_REQUEST and MISSION_SET_CURRENT are deprecated in the dialect, but QGroundControl,
@@ -50,12 +55,13 @@
 
 use ::mavlink::MavHeader;
 use ::mavlink::dialects::common::{
-    MISSION_ACK_DATA, MISSION_COUNT_DATA, MISSION_REQUEST_DATA, MISSION_REQUEST_INT_DATA, MavMessage, MavMissionResult,
-    MavMissionType, MavSeverity,
+    MISSION_ACK_DATA, MISSION_COUNT_DATA, MISSION_ITEM_DATA, MISSION_ITEM_INT_DATA, MISSION_REQUEST_DATA,
+    MISSION_REQUEST_INT_DATA, MavMessage, MavMissionResult, MavMissionType, MavSeverity,
 };
 
 use super::addressed_to_us;
 use super::telemetry::statustext;
+use crate::core::geofence::{Fence, Rally, validate_fence_item, validate_rally_item};
 use crate::core::mission::{Mission, MissionError, MissionItem, validate_item};
 
 /// The service's tunables.
@@ -75,6 +81,45 @@ impl Default for MissionServiceConfig {
     }
 }
 
+/// Which plan a transfer carries (MAVLink's `mission_type`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PlanKind {
+    Mission,
+    Fence,
+    Rally,
+}
+
+impl PlanKind {
+    /// The plan of a `mission_type` (None for ALL, which only a clear may name).
+    #[must_use]
+    pub fn of(mission_type: MavMissionType) -> Option<Self> {
+        match mission_type {
+            MavMissionType::MAV_MISSION_TYPE_MISSION => Some(Self::Mission),
+            MavMissionType::MAV_MISSION_TYPE_FENCE => Some(Self::Fence),
+            MavMissionType::MAV_MISSION_TYPE_RALLY => Some(Self::Rally),
+            _ => None,
+        }
+    }
+
+    /// The `mission_type` on the wire.
+    #[must_use]
+    pub fn wire(self) -> MavMissionType {
+        match self {
+            Self::Mission => MavMissionType::MAV_MISSION_TYPE_MISSION,
+            Self::Fence => MavMissionType::MAV_MISSION_TYPE_FENCE,
+            Self::Rally => MavMissionType::MAV_MISSION_TYPE_RALLY,
+        }
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            Self::Mission => "Mission",
+            Self::Fence => "Fence",
+            Self::Rally => "Rally",
+        }
+    }
+}
+
 /// What the vehicle must apply after a message.
 #[derive(Debug, Clone, PartialEq)]
 pub enum MissionEvent {
@@ -85,6 +130,12 @@ pub enum MissionEvent {
     Cleared,
     /// The client asked to continue from this item (within the mission); answer with MISSION_CURRENT.
     SetCurrent(u16),
+    /// A fence upload completed valid, or the fence was cleared (empty): store and persist it.
+    FenceReplaced(Fence),
+    /// A rally upload completed valid, or the rally points were cleared (empty): store and persist them.
+    RallyReplaced(Rally),
+    /// MISSION_CLEAR_ALL of type ALL: the mission, the fence and the rally points are cleared.
+    ClearedAll,
 }
 
 /// The result of one message or poll.
@@ -134,6 +185,7 @@ impl Flavour {
 
 #[derive(Debug, Clone, PartialEq)]
 struct Upload {
+    kind: PlanKind,
     peer: Peer,
     count: u16,
     /// Items 0..received, validated.
@@ -153,6 +205,7 @@ impl Upload {
 /// The end of the last completed upload, to repeat its ACK to a client that resends its last item.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct Finished {
+    kind: PlanKind,
     peer: Peer,
     last_seq: u16,
 }
@@ -162,110 +215,40 @@ struct Finished {
 pub struct MissionService {
     config: MissionServiceConfig,
     mission: Mission,
+    fence: Fence,
+    rally: Rally,
     current_seq: u16,
     upload: Option<Upload>,
     finished: Option<Finished>,
 }
 
-fn ack(peer: Peer, result: MavMissionResult) -> MavMessage {
+fn ack(peer: Peer, result: MavMissionResult, kind: PlanKind) -> MavMessage {
+    ack_typed(peer, result, kind.wire())
+}
+
+fn ack_typed(peer: Peer, result: MavMissionResult, mission_type: MavMissionType) -> MavMessage {
     MavMessage::MISSION_ACK(MISSION_ACK_DATA {
         target_system: peer.system,
         target_component: peer.component,
         mavtype: result,
+        mission_type,
         ..Default::default()
     })
 }
 
-fn request(peer: Peer, seq: u16, flavour: Flavour) -> MavMessage {
-    let (target_system, target_component) = (peer.system, peer.component);
+fn request(peer: Peer, seq: u16, flavour: Flavour, kind: PlanKind) -> MavMessage {
+    let (target_system, target_component, mission_type) = (peer.system, peer.component, kind.wire());
     match flavour {
         Flavour::Int => MavMessage::MISSION_REQUEST_INT(MISSION_REQUEST_INT_DATA {
             seq,
             target_system,
             target_component,
-            ..Default::default()
-        }),
-        Flavour::Legacy => MavMessage::MISSION_REQUEST(MISSION_REQUEST_DATA {
-            seq,
-            target_system,
-            target_component,
-            ..Default::default()
-        }),
-    }
-}
-
-/// Fence (type 1) and rally (type 2) transfers, which this vehicle does not support: a download gets
-/// MISSION_COUNT 0, an empty upload or a clear is accepted, an upload of items is refused
-/// (MAV_MISSION_UNSUPPORTED) and nothing is stored; requests and items of those types get
-/// INVALID_SEQUENCE / UNSUPPORTED. MISSION_CLEAR_ALL of type ALL (255) also clears the mission, so it is
-/// left to the mission handling. `None` for mission (type 0) messages.
-fn other_mission_type(msg: &MavMessage, ours: &impl Fn(u8, u8) -> bool, peer: Peer) -> Option<MissionReply> {
-    use MavMissionType as T;
-    let typed = |mission_type: T, target_system: u8, target_component: u8| {
-        (mission_type != T::MAV_MISSION_TYPE_MISSION
-            && mission_type != T::MAV_MISSION_TYPE_ALL
-            && ours(target_system, target_component))
-        .then_some(mission_type)
-    };
-    let ack_of = |mission_type: T, result: MavMissionResult| {
-        MavMessage::MISSION_ACK(MISSION_ACK_DATA {
-            target_system: peer.system,
-            target_component: peer.component,
-            mavtype: result,
             mission_type,
-            ..Default::default()
-        })
-    };
-    let reply = match msg {
-        MavMessage::MISSION_REQUEST_LIST(m) => {
-            let t = typed(m.mission_type, m.target_system, m.target_component)?;
-            MissionReply::send(vec![MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
-                count: 0,
-                target_system: peer.system,
-                target_component: peer.component,
-                mission_type: t,
-                ..Default::default()
-            })])
+        }),
+        Flavour::Legacy => {
+            MavMessage::MISSION_REQUEST(MISSION_REQUEST_DATA { seq, target_system, target_component, mission_type })
         }
-        MavMessage::MISSION_COUNT(m) => {
-            let t = typed(m.mission_type, m.target_system, m.target_component)?;
-            if m.count == 0 {
-                MissionReply::send(vec![ack_of(t, MavMissionResult::MAV_MISSION_ACCEPTED)])
-            } else {
-                MissionReply::send(vec![
-                    ack_of(t, MavMissionResult::MAV_MISSION_UNSUPPORTED),
-                    warning("Geofences and rally points not supported"),
-                ])
-            }
-        }
-        MavMessage::MISSION_CLEAR_ALL(m) => {
-            let t = typed(m.mission_type, m.target_system, m.target_component)?;
-            MissionReply::send(vec![ack_of(t, MavMissionResult::MAV_MISSION_ACCEPTED)])
-        }
-        MavMessage::MISSION_REQUEST_INT(m) => {
-            let t = typed(m.mission_type, m.target_system, m.target_component)?;
-            MissionReply::send(vec![ack_of(t, MavMissionResult::MAV_MISSION_INVALID_SEQUENCE)])
-        }
-        MavMessage::MISSION_REQUEST(m) => {
-            let t = typed(m.mission_type, m.target_system, m.target_component)?;
-            MissionReply::send(vec![ack_of(t, MavMissionResult::MAV_MISSION_INVALID_SEQUENCE)])
-        }
-        MavMessage::MISSION_ITEM_INT(m) => {
-            let t = typed(m.mission_type, m.target_system, m.target_component)?;
-            MissionReply::send(vec![ack_of(t, MavMissionResult::MAV_MISSION_UNSUPPORTED)])
-        }
-        MavMessage::MISSION_ITEM(m) => {
-            let t = typed(m.mission_type, m.target_system, m.target_component)?;
-            MissionReply::send(vec![ack_of(t, MavMissionResult::MAV_MISSION_UNSUPPORTED)])
-        }
-        // The client's ACK that ends its fence or rally download.
-        MavMessage::MISSION_ACK(m) => {
-            typed(m.mission_type, m.target_system, m.target_component)?;
-            MissionReply::default()
-        }
-        _ => return None,
-    };
-    Some(reply)
+    }
 }
 
 fn warning(text: &str) -> MavMessage {
@@ -273,8 +256,8 @@ fn warning(text: &str) -> MavMessage {
 }
 
 /// An upload refused: the MISSION_ACK with the error's result and a STATUSTEXT with the reason.
-fn refusal(peer: Peer, error: &MissionError) -> MissionReply {
-    MissionReply::send(vec![ack(peer, error.result()), warning(&format!("Mission: {error}"))])
+fn refusal(peer: Peer, error: &MissionError, kind: PlanKind) -> MissionReply {
+    MissionReply::send(vec![ack(peer, error.result(), kind), warning(&format!("{}: {error}", kind.name()))])
 }
 
 impl MissionService {
@@ -307,6 +290,28 @@ impl MissionService {
         Ok(())
     }
 
+    /// The stored fence.
+    #[must_use]
+    pub fn fence(&self) -> &Fence {
+        &self.fence
+    }
+
+    /// The stored rally points.
+    #[must_use]
+    pub fn rally(&self) -> &Rally {
+        &self.rally
+    }
+
+    /// Stores a fence (e.g. the persisted one at start).
+    pub fn set_fence(&mut self, fence: Fence) {
+        self.fence = fence;
+    }
+
+    /// Stores rally points (e.g. the persisted ones at start).
+    pub fn set_rally(&mut self, rally: Rally) {
+        self.rally = rally;
+    }
+
     /// The item flagged `current` in downloads.
     #[must_use]
     pub fn current_seq(&self) -> u16 {
@@ -329,34 +334,48 @@ impl MissionService {
     pub fn on_message(&mut self, now_us: u64, sysid: u8, header: &MavHeader, msg: &MavMessage) -> MissionReply {
         let ours = |target_system, target_component| addressed_to_us(sysid, target_system, target_component);
         let peer = Peer::of(header);
-        if let Some(reply) = other_mission_type(msg, &ours, peer) {
-            return reply;
-        }
+        // The plan a message is about; ALL (or an unknown type) is answered UNSUPPORTED except by a clear.
+        let kind = |t: MavMissionType| PlanKind::of(t).ok_or(t);
+        let unsupported = |t| MissionReply::send(vec![ack_typed(peer, MavMissionResult::MAV_MISSION_UNSUPPORTED, t)]);
         match msg {
-            MavMessage::MISSION_COUNT(m) if ours(m.target_system, m.target_component) => {
-                self.on_count(now_us, peer, m.count)
-            }
+            MavMessage::MISSION_COUNT(m) if ours(m.target_system, m.target_component) => match kind(m.mission_type) {
+                Ok(k) => self.on_count(now_us, peer, m.count, k),
+                Err(t) => unsupported(t),
+            },
             MavMessage::MISSION_ITEM_INT(m) if ours(m.target_system, m.target_component) => {
-                self.on_item(now_us, peer, Flavour::Int, m.seq, Ok(MissionItem::from_item_int(m)))
+                match kind(m.mission_type) {
+                    Ok(k) => self.on_item(now_us, peer, Flavour::Int, m.seq, k, Ok(MissionItem::from_item_int(m))),
+                    Err(t) => unsupported(t),
+                }
             }
-            MavMessage::MISSION_ITEM(m) if ours(m.target_system, m.target_component) => {
-                self.on_item(now_us, peer, Flavour::Legacy, m.seq, MissionItem::from_item(m))
-            }
+            MavMessage::MISSION_ITEM(m) if ours(m.target_system, m.target_component) => match kind(m.mission_type) {
+                Ok(k) => self.on_item(now_us, peer, Flavour::Legacy, m.seq, k, MissionItem::from_item(m)),
+                Err(t) => unsupported(t),
+            },
             MavMessage::MISSION_REQUEST_LIST(m) if ours(m.target_system, m.target_component) => {
-                self.on_request_list(peer)
+                match kind(m.mission_type) {
+                    Ok(k) => self.on_request_list(peer, k),
+                    Err(t) => unsupported(t),
+                }
             }
             MavMessage::MISSION_REQUEST_INT(m) if ours(m.target_system, m.target_component) => {
-                self.on_request(peer, m.seq, Flavour::Int)
+                match kind(m.mission_type) {
+                    Ok(k) => self.on_request(peer, m.seq, Flavour::Int, k),
+                    Err(t) => unsupported(t),
+                }
             }
-            MavMessage::MISSION_REQUEST(m) if ours(m.target_system, m.target_component) => {
-                self.on_request(peer, m.seq, Flavour::Legacy)
+            MavMessage::MISSION_REQUEST(m) if ours(m.target_system, m.target_component) => match kind(m.mission_type) {
+                Ok(k) => self.on_request(peer, m.seq, Flavour::Legacy, k),
+                Err(t) => unsupported(t),
+            },
+            MavMessage::MISSION_CLEAR_ALL(m) if ours(m.target_system, m.target_component) => {
+                self.on_clear(peer, PlanKind::of(m.mission_type), m.mission_type)
             }
-            MavMessage::MISSION_CLEAR_ALL(m) if ours(m.target_system, m.target_component) => self.on_clear(peer),
             MavMessage::MISSION_SET_CURRENT(m) if ours(m.target_system, m.target_component) => {
                 self.on_set_current(m.seq)
             }
             MavMessage::MISSION_ACK(m) if ours(m.target_system, m.target_component) => {
-                self.on_ack(now_us, peer, m.mavtype)
+                self.on_ack(now_us, peer, m.mavtype, PlanKind::of(m.mission_type))
             }
             _ => MissionReply::default(),
         }
@@ -376,28 +395,29 @@ impl MissionService {
             if upload.items.is_empty() {
                 upload.flavour = upload.flavour.other();
             }
-            return MissionReply::send(vec![request(upload.peer, upload.expected_seq(), upload.flavour)]);
+            return MissionReply::send(vec![request(upload.peer, upload.expected_seq(), upload.flavour, upload.kind)]);
         }
-        let peer = upload.peer;
+        let (peer, kind) = (upload.peer, upload.kind);
         self.upload = None;
         MissionReply::send(vec![
-            ack(peer, MavMissionResult::MAV_MISSION_OPERATION_CANCELLED),
-            warning("Mission upload timed out"),
+            ack(peer, MavMissionResult::MAV_MISSION_OPERATION_CANCELLED, kind),
+            warning(&format!("{} upload timed out", kind.name())),
         ])
     }
 
-    fn on_count(&mut self, now_us: u64, peer: Peer, count: u16) -> MissionReply {
+    fn on_count(&mut self, now_us: u64, peer: Peer, count: u16, kind: PlanKind) -> MissionReply {
         self.upload = None;
         self.finished = None;
         if count == 0 {
-            return self.clear(peer);
+            return self.clear(peer, kind);
         }
         if count > self.config.max_items {
             let error =
                 MissionError::TooManyItems { count: usize::from(count), max: usize::from(self.config.max_items) };
-            return refusal(peer, &error);
+            return refusal(peer, &error, kind);
         }
         let upload = Upload {
+            kind,
             peer,
             count,
             items: Vec::with_capacity(usize::from(count)),
@@ -405,7 +425,7 @@ impl MissionService {
             requested_at_us: now_us,
             retries: 0,
         };
-        let first = request(peer, 0, upload.flavour);
+        let first = request(peer, 0, upload.flavour, kind);
         self.upload = Some(upload);
         MissionReply::send(vec![first])
     }
@@ -416,100 +436,158 @@ impl MissionService {
         peer: Peer,
         flavour: Flavour,
         seq: u16,
+        kind: PlanKind,
         item: Result<MissionItem, MissionError>,
     ) -> MissionReply {
-        let Some(upload) = self.upload.as_mut().filter(|u| u.peer == peer) else {
-            return self.on_stray_item(peer, seq);
+        let Some(upload) = self.upload.as_mut().filter(|u| u.peer == peer && u.kind == kind) else {
+            return self.on_stray_item(peer, seq, kind);
         };
         upload.flavour = flavour;
         let expected = upload.expected_seq();
         if seq != expected {
-            return MissionReply::send(vec![request(peer, expected, flavour)]);
+            return MissionReply::send(vec![request(peer, expected, flavour, kind)]);
         }
         let count = usize::from(upload.count);
-        let item = match item.and_then(|item| validate_item(&item, count).map(|()| item)) {
+        let valid = |item: &MissionItem| match kind {
+            PlanKind::Mission => validate_item(item, count),
+            PlanKind::Fence => validate_fence_item(item),
+            PlanKind::Rally => validate_rally_item(item),
+        };
+        let item = match item.and_then(|item| valid(&item).map(|()| item)) {
             Ok(item) => item,
             Err(error) => {
                 self.upload = None;
-                return refusal(peer, &error);
+                return refusal(peer, &error, kind);
             }
         };
         upload.items.push(item);
         upload.retries = 0;
         upload.requested_at_us = now_us;
         if upload.items.len() < count {
-            return MissionReply::send(vec![request(peer, upload.expected_seq(), flavour)]);
+            return MissionReply::send(vec![request(peer, upload.expected_seq(), flavour, kind)]);
         }
         let items = std::mem::take(&mut upload.items);
         self.upload = None;
-        match Mission::new(items) {
-            Ok(mission) => {
+        let event = match kind {
+            PlanKind::Mission => Mission::new(items).map(|mission| {
                 self.mission = mission.clone();
                 self.current_seq = 0;
-                self.finished = Some(Finished { peer, last_seq: seq });
+                MissionEvent::Replaced(mission)
+            }),
+            PlanKind::Fence => Fence::new(items).map(|fence| {
+                self.fence = fence.clone();
+                MissionEvent::FenceReplaced(fence)
+            }),
+            PlanKind::Rally => Rally::new(items).map(|rally| {
+                self.rally = rally.clone();
+                MissionEvent::RallyReplaced(rally)
+            }),
+        };
+        match event {
+            Ok(event) => {
+                self.finished = Some(Finished { kind, peer, last_seq: seq });
                 MissionReply {
-                    messages: vec![ack(peer, MavMissionResult::MAV_MISSION_ACCEPTED)],
-                    event: Some(MissionEvent::Replaced(mission)),
+                    messages: vec![ack(peer, MavMissionResult::MAV_MISSION_ACCEPTED, kind)],
+                    event: Some(event),
                 }
             }
-            Err(error) => refusal(peer, &error),
+            Err(error) => refusal(peer, &error, kind),
         }
     }
 
     /// An item outside an upload of the sender's.
-    fn on_stray_item(&self, peer: Peer, seq: u16) -> MissionReply {
+    fn on_stray_item(&self, peer: Peer, seq: u16, kind: PlanKind) -> MissionReply {
         if self.upload.is_some() {
             return MissionReply::send(vec![
-                ack(peer, MavMissionResult::MAV_MISSION_ERROR),
-                warning("Mission item ignored: busy"),
+                ack(peer, MavMissionResult::MAV_MISSION_ERROR, kind),
+                warning(&format!("{} item ignored: busy", kind.name())),
             ]);
         }
-        if self.finished == Some(Finished { peer, last_seq: seq }) {
-            return MissionReply::send(vec![ack(peer, MavMissionResult::MAV_MISSION_ACCEPTED)]);
+        if self.finished == Some(Finished { kind, peer, last_seq: seq }) {
+            return MissionReply::send(vec![ack(peer, MavMissionResult::MAV_MISSION_ACCEPTED, kind)]);
         }
         MissionReply::send(vec![
-            ack(peer, MavMissionResult::MAV_MISSION_ERROR),
-            warning("Mission item ignored: no upload"),
+            ack(peer, MavMissionResult::MAV_MISSION_ERROR, kind),
+            warning(&format!("{} item ignored: no upload", kind.name())),
         ])
     }
 
-    fn on_request_list(&mut self, peer: Peer) -> MissionReply {
+    /// The stored items of a plan.
+    fn items(&self, kind: PlanKind) -> &[MissionItem] {
+        match kind {
+            PlanKind::Mission => &self.mission.items,
+            PlanKind::Fence => self.fence.items(),
+            PlanKind::Rally => self.rally.items(),
+        }
+    }
+
+    fn on_request_list(&mut self, peer: Peer, kind: PlanKind) -> MissionReply {
         if self.upload.as_ref().is_some_and(|u| u.peer == peer) {
             self.upload = None;
         }
-        let count = u16::try_from(self.mission.len()).unwrap_or(u16::MAX);
+        let count = u16::try_from(self.items(kind).len()).unwrap_or(u16::MAX);
         MissionReply::send(vec![MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
             count,
             target_system: peer.system,
             target_component: peer.component,
+            mission_type: kind.wire(),
             ..Default::default()
         })])
     }
 
-    fn on_request(&self, peer: Peer, seq: u16, flavour: Flavour) -> MissionReply {
-        let Some(item) = self.mission.items.get(usize::from(seq)) else {
-            return MissionReply::send(vec![ack(peer, MavMissionResult::MAV_MISSION_INVALID_SEQUENCE)]);
+    fn on_request(&self, peer: Peer, seq: u16, flavour: Flavour, kind: PlanKind) -> MissionReply {
+        let Some(item) = self.items(kind).get(usize::from(seq)) else {
+            return MissionReply::send(vec![ack(peer, MavMissionResult::MAV_MISSION_INVALID_SEQUENCE, kind)]);
         };
-        let current = seq == self.current_seq;
+        let current = kind == PlanKind::Mission && seq == self.current_seq;
         MissionReply::send(vec![match flavour {
-            Flavour::Int => MavMessage::MISSION_ITEM_INT(item.to_item_int(peer.system, peer.component, current)),
-            Flavour::Legacy => MavMessage::MISSION_ITEM(item.to_item(peer.system, peer.component, current)),
+            Flavour::Int => MavMessage::MISSION_ITEM_INT(MISSION_ITEM_INT_DATA {
+                mission_type: kind.wire(),
+                ..item.to_item_int(peer.system, peer.component, current)
+            }),
+            Flavour::Legacy => MavMessage::MISSION_ITEM(MISSION_ITEM_DATA {
+                mission_type: kind.wire(),
+                ..item.to_item(peer.system, peer.component, current)
+            }),
         }])
     }
 
-    fn on_clear(&mut self, peer: Peer) -> MissionReply {
+    fn on_clear(&mut self, peer: Peer, kind: Option<PlanKind>, mission_type: MavMissionType) -> MissionReply {
         self.upload = None;
         self.finished = None;
-        self.clear(peer)
-    }
-
-    fn clear(&mut self, peer: Peer) -> MissionReply {
+        if let Some(kind) = kind {
+            return self.clear(peer, kind);
+        }
+        if mission_type != MavMissionType::MAV_MISSION_TYPE_ALL {
+            return MissionReply::send(vec![ack_typed(peer, MavMissionResult::MAV_MISSION_UNSUPPORTED, mission_type)]);
+        }
         self.mission = Mission::default();
+        self.fence = Fence::default();
+        self.rally = Rally::default();
         self.current_seq = 0;
         MissionReply {
-            messages: vec![ack(peer, MavMissionResult::MAV_MISSION_ACCEPTED)],
-            event: Some(MissionEvent::Cleared),
+            messages: vec![ack_typed(peer, MavMissionResult::MAV_MISSION_ACCEPTED, mission_type)],
+            event: Some(MissionEvent::ClearedAll),
         }
+    }
+
+    fn clear(&mut self, peer: Peer, kind: PlanKind) -> MissionReply {
+        let event = match kind {
+            PlanKind::Mission => {
+                self.mission = Mission::default();
+                self.current_seq = 0;
+                MissionEvent::Cleared
+            }
+            PlanKind::Fence => {
+                self.fence = Fence::default();
+                MissionEvent::FenceReplaced(Fence::default())
+            }
+            PlanKind::Rally => {
+                self.rally = Rally::default();
+                MissionEvent::RallyReplaced(Rally::default())
+            }
+        };
+        MissionReply { messages: vec![ack(peer, MavMissionResult::MAV_MISSION_ACCEPTED, kind)], event: Some(event) }
     }
 
     fn on_set_current(&mut self, seq: u16) -> MissionReply {
@@ -521,8 +599,8 @@ impl MissionService {
         MissionReply::send(vec![warning(&text)])
     }
 
-    fn on_ack(&mut self, now_us: u64, peer: Peer, result: MavMissionResult) -> MissionReply {
-        let Some(upload) = self.upload.as_mut().filter(|u| u.peer == peer) else {
+    fn on_ack(&mut self, now_us: u64, peer: Peer, result: MavMissionResult, kind: Option<PlanKind>) -> MissionReply {
+        let Some(upload) = self.upload.as_mut().filter(|u| u.peer == peer && Some(u.kind) == kind) else {
             return MissionReply::default();
         };
         match result {
@@ -534,7 +612,7 @@ impl MissionService {
                 upload.retries += 1;
                 upload.requested_at_us = now_us;
                 upload.flavour = upload.flavour.other();
-                MissionReply::send(vec![request(peer, upload.expected_seq(), upload.flavour)])
+                MissionReply::send(vec![request(peer, upload.expected_seq(), upload.flavour, upload.kind)])
             }
             _ => MissionReply::default(),
         }
@@ -1175,5 +1253,105 @@ mod tests {
         let bad = Mission { items: vec![wp(0, XY_UNSET, 1, 1.0)] };
         assert_eq!(svc.set_mission(bad).map_err(|e| e.result()), Err(MavMissionResult::MAV_MISSION_INVALID_PARAM5_X));
         assert_eq!(svc.mission().items, waypoints(2, 10.0));
+    }
+
+    /// A client's fence or rally transfer as QGroundControl runs it: every message carries the type.
+    fn typed_upload(svc: &mut MissionService, kind: PlanKind, items: &[MissionItem]) -> MissionReply {
+        let t = kind.wire();
+        let n = u16::try_from(items.len()).expect("small");
+        let mut reply = svc.on_message(
+            0,
+            SYSID,
+            &GCS,
+            &MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
+                count: n,
+                target_system: SYSID,
+                target_component: 1,
+                mission_type: t,
+                ..Default::default()
+            }),
+        );
+        loop {
+            let seq = match reply.messages.first() {
+                Some(MavMessage::MISSION_REQUEST_INT(r)) => {
+                    assert_eq!(r.mission_type, t, "requests carry the transfer's type");
+                    r.seq
+                }
+                _ => return reply,
+            };
+            let item =
+                MISSION_ITEM_INT_DATA { mission_type: t, ..items[usize::from(seq)].to_item_int(SYSID, 1, false) };
+            reply = svc.on_message(0, SYSID, &GCS, &MavMessage::MISSION_ITEM_INT(item));
+        }
+    }
+
+    fn typed_download(svc: &mut MissionService, kind: PlanKind) -> Vec<MissionItem> {
+        let t = kind.wire();
+        let list = MavMessage::MISSION_REQUEST_LIST(MISSION_REQUEST_LIST_DATA {
+            target_system: SYSID,
+            target_component: 1,
+            mission_type: t,
+        });
+        let reply = svc.on_message(0, SYSID, &GCS, &list);
+        let [MavMessage::MISSION_COUNT(c)] = reply.messages.as_slice() else { panic!("{reply:?}") };
+        assert_eq!(c.mission_type, t);
+        (0..c.count)
+            .map(|seq| {
+                let req = MavMessage::MISSION_REQUEST_INT(MISSION_REQUEST_INT_DATA {
+                    seq,
+                    target_system: SYSID,
+                    target_component: 1,
+                    mission_type: t,
+                });
+                match svc.on_message(0, SYSID, &GCS, &req).messages.as_slice() {
+                    [MavMessage::MISSION_ITEM_INT(m)] if m.mission_type == t => MissionItem::from_item_int(m),
+                    other => panic!("{other:?}"),
+                }
+            })
+            .collect()
+    }
+
+    fn fence_vertex(seq: u16, n: u16, lat_dege7: i32, lon_dege7: i32) -> MissionItem {
+        MissionItem {
+            command: MavCmd::MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
+            frame: MavFrame::MAV_FRAME_GLOBAL,
+            param1: f32::from(n),
+            param2: 0.0,
+            param4: 0.0,
+            z: 0.0,
+            ..wp(seq, lat_dege7, lon_dege7, 0.0)
+        }
+    }
+
+    #[test]
+    fn given_fence_and_rally_uploads_then_each_is_stored_apart_from_the_mission_and_downloaded_identically() {
+        let mut svc = with_mission(waypoints(3, 10.0));
+        let fence: Vec<MissionItem> = (0..4)
+            .map(|s| fence_vertex(s, 4, 473_970_000 + i32::from(s % 2) * 1000, 85_450_000 + i32::from(s / 2) * 1000))
+            .collect();
+        let reply = typed_upload(&mut svc, PlanKind::Fence, &fence);
+        assert!(matches!(reply.messages.as_slice(), [MavMessage::MISSION_ACK(a)]
+            if a.mavtype == MavMissionResult::MAV_MISSION_ACCEPTED && a.mission_type == MavMissionType::MAV_MISSION_TYPE_FENCE));
+        assert!(matches!(reply.event, Some(MissionEvent::FenceReplaced(ref f)) if f.zones().len() == 1));
+        let rally = [MissionItem { command: MavCmd::MAV_CMD_NAV_RALLY_POINT, ..wp(0, 473_971_000, 85_451_000, 15.0) }];
+        assert!(matches!(typed_upload(&mut svc, PlanKind::Rally, &rally).event, Some(MissionEvent::RallyReplaced(_))));
+        assert_eq!(typed_download(&mut svc, PlanKind::Fence), fence);
+        assert_eq!(typed_download(&mut svc, PlanKind::Rally), rally);
+        assert_eq!(svc.mission().len(), 3, "the mission is untouched");
+        // A waypoint in a fence upload, and a 2-vertex polygon, are refused with their reasons.
+        let reply = typed_upload(&mut svc, PlanKind::Fence, &waypoints(1, 10.0));
+        assert_eq!(acks(&reply), vec![MavMissionResult::MAV_MISSION_UNSUPPORTED]);
+        let short = [fence_vertex(0, 4, 473_970_000, 85_450_000), fence_vertex(1, 4, 473_971_000, 85_450_000)];
+        let reply = typed_upload(&mut svc, PlanKind::Fence, &short);
+        assert_eq!(texts(&reply), vec!["Fence: item 0: polygon vertex count mismatch".to_owned()]);
+        assert_eq!(typed_download(&mut svc, PlanKind::Fence), fence, "a refused upload changes nothing");
+        // Clear ALL clears the three.
+        let clear = MavMessage::MISSION_CLEAR_ALL(MISSION_CLEAR_ALL_DATA {
+            target_system: SYSID,
+            target_component: 1,
+            mission_type: MavMissionType::MAV_MISSION_TYPE_ALL,
+        });
+        assert_eq!(svc.on_message(0, SYSID, &GCS, &clear).event, Some(MissionEvent::ClearedAll));
+        assert!(typed_download(&mut svc, PlanKind::Fence).is_empty() && svc.mission().is_empty());
     }
 }

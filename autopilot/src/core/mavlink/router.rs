@@ -122,6 +122,19 @@ pub struct OffboardReceiver {
     last_refusal: Option<String>,
 }
 
+impl OffboardReceiver {
+    /// Refuses a setpoint the decoder took but the vehicle will not fly (outside the geofence): the
+    /// STATUSTEXT, once per run of the same refusal.
+    pub fn refuse(&mut self, text: String) -> Vec<MavMessage> {
+        if self.last_refusal.as_deref() == Some(text.as_str()) {
+            return Vec::new();
+        }
+        let reply = statustext(MavSeverity::MAV_SEVERITY_WARNING, &text);
+        self.last_refusal = Some(text);
+        vec![reply]
+    }
+}
+
 impl Microservice for OffboardReceiver {
     type State = ();
     type Effect = OffboardSetpoint;

@@ -36,7 +36,7 @@ mod wpl;
 
 pub use nav::{NavCommand, NavItem, NavTarget, nav_items};
 
-pub use wpl::{WPL_HEADER, WplError};
+pub use wpl::{WPL_HEADER, WplError, items_from_wpl, items_to_wpl};
 
 /// x/y meaning "not given" (MAVLink's INT32_MAX for integer parameters; NaN in the float forms).
 pub const XY_UNSET: i32 = i32::MAX;

@@ -62,8 +62,16 @@ impl Mission {
     /// The mission as QGC WPL 110 text (LF line ends, one line per item).
     #[must_use]
     pub fn to_wpl(&self) -> String {
+        items_to_wpl(&self.items)
+    }
+}
+
+/// Any plan's items (mission, fence or rally) as QGC WPL 110 text (LF line ends, one line per item).
+#[must_use]
+pub fn items_to_wpl(items: &[MissionItem]) -> String {
+    {
         let mut text = format!("{WPL_HEADER}\n");
-        for (i, item) in self.items.iter().enumerate() {
+        for (i, item) in items.iter().enumerate() {
             let decimals = xy_decimals(item.frame);
             text.push_str(&format!(
                 "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\n",
@@ -83,13 +91,49 @@ impl Mission {
         }
         text
     }
+}
 
+impl Mission {
     /// A mission from QGC WPL 110 text, validated as an upload is.
     ///
     /// # Errors
     /// [`WplError`] at the first bad line: header, field count, a number that does not parse, a frame or
     /// command this vehicle does not fly, a seq out of order or an item [`validate_item`] refuses.
     pub fn from_wpl(text: &str) -> Result<Self, WplError> {
+        let (items, item_lines) = parse_items(text, supported_command)?;
+        if items.len() > Self::MAX_ITEMS {
+            let line = item_lines.get(Self::MAX_ITEMS).copied().unwrap_or_default();
+            return Err(WplError::Invalid {
+                line,
+                source: MissionError::TooManyItems { count: items.len(), max: Self::MAX_ITEMS },
+            });
+        }
+        for (item, &line) in items.iter().zip(&item_lines) {
+            validate_item(item, items.len()).map_err(|source| WplError::Invalid { line, source })?;
+        }
+        Ok(Self { items })
+    }
+}
+
+/// Any plan's items from QGC WPL 110 text, each command looked up by `command_of` (the plan's own
+/// commands), in order, with their 1-based line numbers; not validated beyond frame, command and seq.
+///
+/// # Errors
+/// [`WplError`] at the first bad line.
+pub fn items_from_wpl(
+    text: &str,
+    command_of: impl Fn(u32) -> Option<::mavlink::dialects::common::MavCmd>,
+) -> Result<Vec<MissionItem>, WplError> {
+    parse_items(text, command_of).map(|(items, _)| items)
+}
+
+type CommandOf<'a> = &'a dyn Fn(u32) -> Option<::mavlink::dialects::common::MavCmd>;
+
+fn parse_items(
+    text: &str,
+    command_of: impl Fn(u32) -> Option<::mavlink::dialects::common::MavCmd>,
+) -> Result<(Vec<MissionItem>, Vec<usize>), WplError> {
+    {
         let mut lines = text.lines().enumerate().map(|(i, l)| (i + 1, l));
         let header = lines.next().map_or("", |(_, l)| l.trim_start_matches('\u{feff}').trim());
         if header != WPL_HEADER {
@@ -106,7 +150,7 @@ impl Mission {
             if fields.len() != FIELDS.len() {
                 return Err(WplError::FieldCount { line, found: fields.len() });
             }
-            let item = parse_item(line, &fields)?;
+            let item = parse_item(line, &fields, &command_of)?;
             if usize::from(item.seq) != items.len() {
                 return Err(WplError::Invalid {
                     line,
@@ -116,21 +160,11 @@ impl Mission {
             items.push(item);
             item_lines.push(line);
         }
-        if items.len() > Self::MAX_ITEMS {
-            let line = item_lines.get(Self::MAX_ITEMS).copied().unwrap_or_default();
-            return Err(WplError::Invalid {
-                line,
-                source: MissionError::TooManyItems { count: items.len(), max: Self::MAX_ITEMS },
-            });
-        }
-        for (item, &line) in items.iter().zip(&item_lines) {
-            validate_item(item, items.len()).map_err(|source| WplError::Invalid { line, source })?;
-        }
-        Ok(Self { items })
+        Ok((items, item_lines))
     }
 }
 
-fn parse_item(line: usize, fields: &[&str]) -> Result<MissionItem, WplError> {
+fn parse_item(line: usize, fields: &[&str], command_of: CommandOf<'_>) -> Result<MissionItem, WplError> {
     let number_error = |i: usize| WplError::Number { line, field: FIELDS[i], text: fields[i].to_owned() };
     let int = |i: usize| fields[i].parse::<u32>().map_err(|_| number_error(i));
     let float = |i: usize| fields[i].parse::<f32>().map_err(|_| number_error(i));
@@ -139,7 +173,7 @@ fn parse_item(line: usize, fields: &[&str]) -> Result<MissionItem, WplError> {
     let frame_number = int(2)?;
     let frame = supported_frame(frame_number).ok_or(WplError::Frame { line, frame: frame_number })?;
     let command_number = int(3)?;
-    let command = supported_command(command_number).ok_or(WplError::Command { line, command: command_number })?;
+    let command = command_of(command_number).ok_or(WplError::Command { line, command: command_number })?;
     let xy =
         |i: usize| fields[i].parse::<f64>().ok().and_then(|v| xy_from_float(v, frame)).ok_or_else(|| number_error(i));
     Ok(MissionItem {

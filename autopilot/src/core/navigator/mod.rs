@@ -208,6 +208,8 @@ pub struct NavInput {
     pub home_ned_m: Option<Vector3<f64>>,
     /// Home altitude (m AMSL), for AMSL targets.
     pub home_alt_amsl_m: Option<f64>,
+    /// Where a return goes when not home (a rally point; its down coordinate is the ground).
+    pub return_ned_m: Option<Vector3<f64>>,
     pub landed: bool,
     /// Default takeoff altitude above home (m; MIS_TAKEOFF_ALT).
     pub takeoff_alt_m: f64,

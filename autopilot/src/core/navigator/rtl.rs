@@ -1,5 +1,5 @@
-//! Return to launch: climb to `rtl_return_alt_m` above home (if lower), fly level to above home, land
-//! there. In, per step: the [`Planner`] and the [`NavInput`]. Out: the reference's motion; the planner's
+//! Return to launch: climb to `rtl_return_alt_m` above home (if lower), fly level to above home (or to
+//! the rally point the vehicle chose, `NavInput::return_ned_m`), land there. In, per step: the [`Planner`] and the [`NavInput`]. Out: the reference's motion; the planner's
 //! `landing` status while descending. Each phase is a jerk-limited leg that starts from the reference's
 //! motion, so the return is smooth from wherever it is entered (a mission, a hold, offboard).
 
@@ -27,9 +27,9 @@ impl Rtl {
     }
 }
 
-/// Home (NED m), or the ground below the vehicle without one.
+/// Where the return goes (a rally point, or home), or the ground below the vehicle without either.
 fn home(input: &NavInput) -> Vector3<f64> {
-    input.home_ned_m.unwrap_or(Vector3::new(input.pos_ned_m.x, input.pos_ned_m.y, 0.0))
+    input.return_ned_m.or(input.home_ned_m).unwrap_or(Vector3::new(input.pos_ned_m.x, input.pos_ned_m.y, 0.0))
 }
 
 fn return_leg(p: &Planner, input: &NavInput, from: Vector3<f64>) -> Rtl {

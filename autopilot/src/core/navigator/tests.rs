@@ -36,6 +36,7 @@ impl Ideal {
             origin: Some(ORIGIN),
             home_ned_m: Some(Vector3::zeros()),
             home_alt_amsl_m: Some(ORIGIN.alt_amsl_m),
+            return_ned_m: None,
             landed: self.pos.z >= -1e-3,
             takeoff_alt_m: 2.5,
             takeoff_acceptance_m: 0.1,

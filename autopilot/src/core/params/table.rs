@@ -733,4 +733,32 @@ pub static PARAMS: &[ParamDef] = &[
         "Battery emergency below this state of charge: COM_LOW_BAT_ACT's last action.",
         commander.battery.emergen_thr
     ),
+    whole!(
+        Commander,
+        "GF_ACTION",
+        2.0,
+        [0.0, 5.0],
+        "",
+        restart = false,
+        "What the vehicle does on a geofence breach (predicted from its stopping distance): 0 none, 1 warning, 2 hold, 3 return, 4 terminate, 5 land.",
+        commander.geofence.action
+    ),
+    real!(
+        Commander,
+        "GF_MAX_HOR_DIST",
+        0.0,
+        [0.0, 10000.0],
+        "m",
+        "Largest horizontal distance from home (0: no limit); setpoints beyond it are refused.",
+        commander.geofence.max_hor_dist_m
+    ),
+    real!(
+        Commander,
+        "GF_MAX_VER_DIST",
+        0.0,
+        [0.0, 10000.0],
+        "m",
+        "Largest height above home (0: no limit); setpoints above it are refused.",
+        commander.geofence.max_ver_dist_m
+    ),
 ];
