@@ -81,6 +81,50 @@ def same_float32(a, b):
     return a == b or (math.isnan(a) and math.isnan(b))
 
 
+# The integer parameter types, each as the `struct` format of its bytes at the start of the field.
+_PARAM_INT_FORMATS = {
+    mavlink.MAV_PARAM_TYPE_UINT8: "<B",
+    mavlink.MAV_PARAM_TYPE_INT8: "<b",
+    mavlink.MAV_PARAM_TYPE_UINT16: "<H",
+    mavlink.MAV_PARAM_TYPE_INT16: "<h",
+    mavlink.MAV_PARAM_TYPE_UINT32: "<I",
+    mavlink.MAV_PARAM_TYPE_INT32: "<i",
+}
+
+
+def decode_param(field, param_type):
+    """The value in the float field `param_value` of a PARAM_VALUE of `param_type`, decoded as PX4 encodes
+    it (MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE): REAL32 is the float itself; an integer type's bytes
+    stand in the field as they are (the INT32 2 arrives as the float 2.8e-45) and come back as an int.
+    Exact for every value of the vehicle's and the plant's tables (Python's float conversion would only
+    change the bit patterns of signalling NaNs, integers beyond +-2^22)."""
+    fmt = _PARAM_INT_FORMATS.get(param_type)
+    if fmt is None:
+        return field
+    return struct.unpack_from(fmt, struct.pack("<f", field))[0]
+
+
+def encode_param(value, param_type):
+    """The float field `param_value` of a PARAM_SET of `value` as `param_type`, the inverse of
+    `decode_param`: an integer's bytes placed as they are (the rest 0), a REAL32 the float itself."""
+    fmt = _PARAM_INT_FORMATS.get(param_type)
+    if fmt is None:
+        return float(value)
+    return struct.unpack("<f", struct.pack(fmt, int(value)).ljust(4, b"\0"))[0]
+
+
+def int_fits(value, param_type):
+    """Whether `value` is a whole number that integer type `param_type` holds."""
+    value = float(value)
+    if not value.is_integer():
+        return False
+    try:
+        struct.pack(_PARAM_INT_FORMATS[param_type], int(value))
+    except struct.error:
+        return False
+    return True
+
+
 def result_name(result):
     """MAV_RESULT as its name."""
     entry = mavlink.enums["MAV_RESULT"].get(result)
@@ -411,19 +455,22 @@ class Vehicle(Link):
 
 class Params:
     """The MAVLink parameter protocol against one component of a link (vehicle or plant); waits on the
-    link's clock."""
+    link's clock. Values are decoded by their `param_type` as PX4 encodes them (`decode_param`: a real is
+    REAL32, an integer INT32 with its bytes as they are) and set in the type the component declared."""
 
     def __init__(self, link, component):
         self.link = link
         self.component = component
-        self.values = {}  # name -> value
+        self.values = {}  # name -> value (an int for an integer type)
+        self.types = {}  # name -> MAV_PARAM_TYPE of its PARAM_VALUEs
         self.by_index = {}  # index -> name
         self.count = None
         link.listeners.append(self._on_message)
 
     def _on_message(self, msg):
         if msg.get_type() == "PARAM_VALUE" and msg.get_srcComponent() == self.component:
-            self.values[msg.param_id] = msg.param_value
+            self.values[msg.param_id] = decode_param(msg.param_value, msg.param_type)
+            self.types[msg.param_id] = msg.param_type
             if msg.param_index != 65535:
                 self.by_index[msg.param_index] = msg.param_id
             self.count = msg.param_count
@@ -459,21 +506,28 @@ class Params:
             link.conn.mav.param_request_read_send(link.system_id, self.component, name.encode(), -1)
             got = link.next_message(seconds, lambda m: m.get_type() == "PARAM_VALUE" and m.param_id == name)
             if got is not None:
-                return got.param_value
+                return decode_param(got.param_value, got.param_type)
         return None
 
     def set(self, name, value, seconds=5.0, attempts=3):
-        """PARAM_SET (REAL32) and wait for the echo. Returns (echoed value or None, texts the component sent
-        meanwhile): the set was taken when the echo equals `value` as a REAL32."""
+        """PARAM_SET and wait for the echo. Returns (echoed value or None, texts the component sent
+        meanwhile): the set was taken when the echo equals `value` as a REAL32. The set is in the type the
+        component declared for `name` (read first if no PARAM_VALUE of it was seen): an integer as INT32
+        bytewise when `value` is whole; otherwise REAL32, so that the component says why it refuses a
+        fraction for an integer, and a name it does not know is refused by name."""
         link = self.link
+        if name not in self.types:
+            self.get(name, attempts=1)
+        param_type = self.types.get(name, mavlink.MAV_PARAM_TYPE_REAL32)
+        if param_type in _PARAM_INT_FORMATS and not int_fits(value, param_type):
+            param_type = mavlink.MAV_PARAM_TYPE_REAL32
+        field = encode_param(value, param_type)
         since = link.now_s()
         for _ in range(attempts):
-            link.conn.mav.param_set_send(
-                link.system_id, self.component, name.encode(), float(value), mavlink.MAV_PARAM_TYPE_REAL32
-            )
+            link.conn.mav.param_set_send(link.system_id, self.component, name.encode(), field, param_type)
             got = link.next_message(seconds, lambda m: m.get_type() == "PARAM_VALUE" and m.param_id == name)
             if got is not None:
-                return got.param_value, link.texts_since(since)
+                return decode_param(got.param_value, got.param_type), link.texts_since(since)
             if link.texts_since(since):
                 break  # refused without an echo (an unknown name): no point in resending
         return None, link.texts_since(since)

@@ -1,6 +1,7 @@
 """Parameters (pymavlink): `dump FILE` writes every parameter of the vehicle as `NAME VALUE` lines (the
-MAVProxy / QGroundControl text style; `-` for standard output), `load FILE` sets each (PARAM_SET, REAL32)
-and checks the echoed PARAM_VALUE, reporting refusals; `get NAME` and `set NAME VALUE` do one. With
+MAVProxy / QGroundControl text style; `-` for standard output), `load FILE` sets each (PARAM_SET in the
+type the vehicle declares, as PX4's: INT32 with its bytes as they are for an integer or a switch, REAL32 for
+a real) and checks the echoed PARAM_VALUE, reporting refusals; `get NAME` and `set NAME VALUE` do one. With
 --plant they talk to the plant's SIM_ parameters (UDP 19550+N) instead of the autopilot. Exit 1 if any
 set is refused or a parameter is not answered, 2 if no vehicle (or plant) answers.
 
@@ -44,7 +45,7 @@ def parser():
 
 
 def format_value(value):
-    """A REAL32 as the shortest text that reads back to the same f32."""
+    """A value (a REAL32's, or a decoded INT32's) as the shortest text that reads back to the same f32."""
     value = float32(value)
     if value == int(value) and abs(value) < 1e7:
         return str(int(value))
@@ -108,6 +109,7 @@ def run(args):
         return report([(args.name, args.value, echoed, texts)])
     with open(args.file) as f:
         wanted = parse_file(f.read())
+    params.fetch_all()  # every parameter's type, to set each in its own
     results = []
     for name, value in wanted:
         echoed, texts = params.set(name, value)

@@ -1,13 +1,15 @@
 """The ground stations the field flies PX4 with, against the real SITL (`sitl run`, lockstep): MAVSDK-Python
 (classic API) through a whole session (telemetry and health, arm, takeoff, the paper's figure-8 uploaded
-and flown to its end, goto, return and land); pymavlink's PX4 mode handling; MAVProxy (lean install)
-downloading every parameter and the mission; pymavlink over the TCP server; and the connection sequence of
+and flown to its end, goto, return and land) and its param plugin on integer and float parameters;
+pymavlink's PX4 mode handling and PX4's bytewise INT32 parameters; MAVProxy (lean install) downloading
+every parameter and the mission; pymavlink over the TCP server; and the connection sequence of
 QGroundControl. Waits are on the vehicle's telemetry; wall-clock limits only stop a hung run."""
 
 import asyncio
 import math
 import os
 import random
+import struct
 import subprocess
 import sys
 import threading
@@ -21,12 +23,32 @@ os.environ["MAVLINK20"] = "1"
 sys.path.insert(0, str(ROOT / "gcs-scripts"))
 from aco_gcs import link  # noqa: E402
 from aco_gcs.figure8_mission import FIGURE8_NE_M  # noqa: E402
-from pymavlink import mavutil  # noqa: E402
+from pymavlink import mavparm, mavutil  # noqa: E402
 
 mavlink = mavutil.mavlink
 EARTH_RADIUS_M = 6_378_137.0
-# How many parameters the vehicle has: the rows of docs/params.md, which is generated from the table.
-PARAM_COUNT = sum(1 for line in (ROOT / "docs" / "params.md").read_text().splitlines() if line.startswith("| `"))
+
+
+def param_rows():
+    """{name: (MAVLink type, default as text)} of every parameter of the vehicle: the rows of
+    docs/params.md, which is generated from the table."""
+    rows = {}
+    for line in (ROOT / "docs" / "params.md").read_text().splitlines():
+        if line.startswith("| `"):
+            name, param_type, default = (cell.strip() for cell in line.strip("|").split("|")[:3])
+            rows[name.strip("`")] = (param_type, default)
+    return rows
+
+
+PARAM_ROWS = param_rows()
+PARAM_COUNT = len(PARAM_ROWS)
+INT32_PARAMS = {name for name, (param_type, _) in PARAM_ROWS.items() if param_type == "INT32"}
+
+
+def bytewise_int32(field):
+    """The int32 whose four bytes a PARAM_VALUE of type INT32 carries in its float field (PX4's encoding),
+    written out here rather than taken from the scripts' `link.decode_param`."""
+    return struct.unpack("<i", struct.pack("<f", field))[0]
 
 
 @pytest.fixture
@@ -144,6 +166,46 @@ def test_mavsdk_flies_takeoff_the_figure8_mission_goto_and_return(sitl):
     print(f"MAVSDK mission progress: {seen}")
 
 
+async def mavsdk_params(instance):
+    """What a MAVSDK script written for PX4 does with parameters: integers through `*_param_int` (INT32,
+    bytewise), reals through `*_param_float` (REAL32)."""
+    from mavsdk import System
+    from mavsdk.param import ParamError
+
+    drone = System(port=random.randint(50100, 50900))
+    await drone.connect(system_address=f"udpin://0.0.0.0:{14540 + instance}")
+    await first(drone.core.connection_state(), lambda s: s.is_connected, "connection")
+    param = drone.param
+    assert await param.get_param_int("NAV_DLL_ACT") == 0
+    assert await param.get_param_int("LOOP_INNER_HZ") == 500
+    assert await param.get_param_int("ACO_ADAPT_EN") == 1
+    await param.set_param_int("NAV_DLL_ACT", 2)
+    assert await param.get_param_int("NAV_DLL_ACT") == 2
+    assert await param.get_param_float("COM_DL_LOSS_T") == 10.0
+    await param.set_param_float("COM_DL_LOSS_T", 7.5)
+    assert await param.get_param_float("COM_DL_LOSS_T") == 7.5
+    # The vehicle's types are PX4's: an integer is not a float, nor a float an integer.
+    with pytest.raises(ParamError) as wrong:
+        await param.get_param_float("NAV_DLL_ACT")
+    assert "WRONG_TYPE" in str(wrong.value), wrong.value
+    with pytest.raises(ParamError) as wrong:
+        await param.get_param_int("COM_DL_LOSS_T")
+    assert "WRONG_TYPE" in str(wrong.value), wrong.value
+    # Out of range (0..5): refused, the value stays.
+    with pytest.raises(ParamError):
+        await param.set_param_int("NAV_DLL_ACT", 9)
+    assert await param.get_param_int("NAV_DLL_ACT") == 2
+    everything = await param.get_all_params()
+    ints = {p.name: p.value for p in everything.int_params}
+    floats = {p.name: p.value for p in everything.float_params}
+    assert set(ints) == INT32_PARAMS and len(ints) + len(floats) == PARAM_COUNT, (sorted(ints), len(floats))
+    assert (ints["NAV_DLL_ACT"], ints["LOOP_POS_HZ"], floats["COM_DL_LOSS_T"]) == (2, 100, 7.5)
+
+
+def test_mavsdk_param_plugin_gets_and_sets_integers_as_int32_and_reals_as_float(sitl):
+    asyncio.run(asyncio.wait_for(mavsdk_params(sitl.instance), 300))
+
+
 # -- pymavlink ----------------------------------------------------------------------------------------
 
 
@@ -162,6 +224,69 @@ def test_pymavlink_knows_the_px4_modes_and_set_mode_loiter_switches(sitl):
     while conn.flightmode != "LOITER":
         assert time.monotonic() < deadline, f"still {conn.flightmode}"
         conn.recv_match(type="HEARTBEAT", blocking=True, timeout=1)
+
+
+def test_pymavlink_reads_int32_parameters_bytewise_and_sets_them_as_int32_or_real32(sitl):
+    """A pymavlink script written for PX4: every parameter read, an INT32 one decoded from its bytes (as
+    MAVProxy does for a PX4), set by an older script's REAL32 and by pymavlink's own bytewise encoder."""
+    conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{14550 + sitl.instance}", source_system=255)
+    assert conn.wait_heartbeat(timeout=30) is not None
+    int32, real32 = mavlink.MAV_PARAM_TYPE_INT32, mavlink.MAV_PARAM_TYPE_REAL32
+
+    def answer(send, match, what, timeout_s=30):
+        """`send()`, then the first message `match` accepts; `send()` again after each wall second without
+        one, as clients resend (at lockstep speed a burst of telemetry can overflow the socket)."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            send()
+            resend = time.monotonic() + 1.0
+            while time.monotonic() < resend:
+                msg = conn.recv_match(type=["PARAM_VALUE", "STATUSTEXT"], blocking=True, timeout=0.2)
+                if msg is not None and match(msg):
+                    return msg
+        pytest.fail(f"no {what}")
+
+    def param_value(name):
+        return lambda m: m.get_type() == "PARAM_VALUE" and m.param_id == name
+
+    def read(name):
+        return answer(lambda: conn.param_fetch_one(name), param_value(name), f"PARAM_VALUE of {name}")
+
+    # Every parameter, missing indices re-requested (a burst may overflow the socket at lockstep speed).
+    conn.param_fetch_all()
+    got, quiet_since = {}, time.monotonic()
+    while len(got) < PARAM_COUNT:
+        assert time.monotonic() - quiet_since < 20, f"{len(got)} of {PARAM_COUNT} parameters"
+        msg = conn.recv_match(type="PARAM_VALUE", blocking=True, timeout=1)
+        if msg is not None:
+            got[msg.param_id], quiet_since = msg, time.monotonic()
+        elif got:
+            for index in sorted(set(range(PARAM_COUNT)) - {m.param_index for m in got.values()}):
+                conn.mav.param_request_read_send(conn.target_system, 1, b"", index)
+    for name, (param_type, default) in PARAM_ROWS.items():
+        msg = got[name]
+        if param_type == "INT32":
+            assert (msg.param_type, bytewise_int32(msg.param_value)) == (int32, int(default)), name
+        else:
+            assert msg.param_type == real32 and link.same_float32(msg.param_value, float(default)), name
+    # 500's four bytes, not the float 500.0: read as a float it is a denormal.
+    assert 0 < got["LOOP_INNER_HZ"].param_value < 1e-40
+
+    # An older script's set: the value as a float, REAL32 (pymavlink's default type). Echoed as INT32.
+    echo = answer(lambda: conn.param_set_send("NAV_DLL_ACT", 2.0), param_value("NAV_DLL_ACT"), "echo")
+    assert (echo.param_type, bytewise_int32(echo.param_value)) == (int32, 2)
+    # pymavlink's bytewise encoder (mavparm, as MAVProxy sets a PX4 integer): INT32.
+    assert mavparm.MAVParmDict().mavset(conn, "NAV_DLL_ACT", 3, retries=10, parm_type=int32)
+    assert bytewise_int32(read("NAV_DLL_ACT").param_value) == 3
+    # A fraction is refused in words and the value stays.
+    refusal = "NAV_DLL_ACT: 2.5 is not a whole number"
+    answer(
+        lambda: conn.param_set_send("NAV_DLL_ACT", 2.5),
+        lambda m: m.get_type() == "STATUSTEXT" and m.text == refusal,
+        "refusal",
+    )
+    assert bytewise_int32(read("NAV_DLL_ACT").param_value) == 3
+    conn.close()
 
 
 def test_pymavlink_over_tcp_reads_a_parameter_and_the_adaptive_weights(sitl):
@@ -223,7 +348,7 @@ def test_mavproxy_lean_install_downloads_every_parameter_and_the_mission(sitl, t
     mavproxy = Path(sys.executable).with_name("mavproxy.py")
     assert mavproxy.exists(), "MAVProxy is installed (scripts/test: requirements-mavproxy.txt, --no-deps)"
     # MAVProxy reads commands from standard input once it runs; give it the connection first.
-    script = "wp list\nparam show RTL_RETURN_ALT\n"
+    script = "wp list\nparam show RTL_RETURN_ALT\nparam show LOOP_INNER_HZ\n"
     proc = subprocess.Popen(
         [sys.executable, str(mavproxy), f"--master=udpin:127.0.0.1:{14550 + sitl.instance}", "--source-system=250"],
         stdin=subprocess.PIPE,
@@ -245,7 +370,7 @@ def test_mavproxy_lean_install_downloads_every_parameter_and_the_mission(sitl, t
                 proc.stdin.flush()
                 sent = True
             after = output.split(f"Received {PARAM_COUNT} parameters")[-1]
-            if sent and "RTL_RETURN_ALT" in after and "Requesting 4 waypoints" in after:
+            if sent and "RTL_RETURN_ALT" in after and "LOOP_INNER_HZ" in after and "Requesting 4 waypoints" in after:
                 break
             time.sleep(0.1)
         time.sleep(1.0)
@@ -260,6 +385,8 @@ def test_mavproxy_lean_install_downloads_every_parameter_and_the_mission(sitl, t
     assert "RTL_RETURN_ALT" in output.split(f"Received {PARAM_COUNT} parameters")[-1]
     saved = (tmp_path / f"mav_{sitl.instance + 1}_1.parm").read_text().splitlines()
     assert len([line for line in saved if line.strip()]) == PARAM_COUNT
+    # MAVProxy decodes a PX4's INT32 parameters bytewise: the whole 500, not the float of its bytes.
+    assert ["LOOP_INNER_HZ", "500"] in [line.split() for line in saved], [ln for ln in saved if "LOOP" in ln]
 
 
 # -- QGroundControl -----------------------------------------------------------------------------------
@@ -275,8 +402,9 @@ def test_the_qgroundcontrol_connection_sequence_completes(sitl):
     v.send(v.conn.mav.command_long_encode(sysid, 1, mavlink.MAV_CMD_REQUEST_MESSAGE, 0, 148, 0, 0, 0, 0, 0, 0))
     version = v.next_message(10, lambda m: m.get_type() == "AUTOPILOT_VERSION")
     assert version is not None, "AUTOPILOT_VERSION"
-    for bit in ("MISSION_INT", "COMMAND_INT", "MAVLINK2"):
+    for bit in ("MISSION_INT", "COMMAND_INT", "MAVLINK2", "PARAM_ENCODE_BYTEWISE"):
         assert version.capabilities & getattr(mavlink, f"MAV_PROTOCOL_CAPABILITY_{bit}"), bit
+    assert not version.capabilities & mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_C_CAST
     assert version.flight_sw_version >> 8 >= 0x010F00, hex(version.flight_sw_version)
     # The full parameter list; missing indices re-requested one by one.
     v.send(v.conn.mav.param_request_list_encode(sysid, 1))
@@ -292,7 +420,12 @@ def test_the_qgroundcontrol_connection_sequence_completes(sitl):
             for index in sorted(set(range(count)) - set(values)):
                 v.send(v.conn.mav.param_request_read_encode(sysid, 1, b"", index))
         assert time.monotonic() - quiet_since < 20, f"{len(values)} of {count} parameters"
-    assert count == PARAM_COUNT and all(m.param_type == mavlink.MAV_PARAM_TYPE_REAL32 for m in values.values())
+    assert count == PARAM_COUNT
+    # Each parameter in its own type: integers and switches INT32 (bytewise), reals REAL32.
+    types = {m.param_id: m.param_type for m in values.values()}
+    assert types == {name: getattr(mavlink, f"MAV_PARAM_TYPE_{t}") for name, (t, _) in PARAM_ROWS.items()}
+    assert (types["NAV_DLL_ACT"], types["ACO_ADAPT_EN"]) == (mavlink.MAV_PARAM_TYPE_INT32,) * 2
+    assert (types["ACO_WEIGHTS_HZ"], types["COM_DL_LOSS_T"]) == (mavlink.MAV_PARAM_TYPE_REAL32,) * 2
     assert {"MIS_TAKEOFF_ALT", "RTL_RETURN_ALT"} <= {m.param_id for m in values.values()}
     # The plan: mission (type 0), geofence (1), rally points (2).
     for mission_type in (mavlink.MAV_MISSION_TYPE_MISSION, mavlink.MAV_MISSION_TYPE_FENCE, mavlink.MAV_MISSION_TYPE_RALLY):

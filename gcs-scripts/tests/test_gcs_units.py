@@ -1,8 +1,9 @@
-"""The scripts' pure parts, without a vehicle: parameter files, REAL32 formatting, the figure-8 mission's
-geometry, the gust metrics and the instance's ports."""
+"""The scripts' pure parts, without a vehicle: parameter files, REAL32 formatting and PX4's bytewise INT32
+encoding, the figure-8 mission's geometry, the gust metrics and the instance's ports."""
 
 import argparse
 import math
+import struct
 import sys
 from pathlib import Path
 
@@ -28,6 +29,33 @@ def test_parameter_values_round_trip_as_real32_text():
         assert link.same_float32(float(text), value), (value, text)
     assert params.format_value(4.0) == "4"
     assert params.format_value(6.7) == "6.7"
+
+
+def test_integer_parameters_travel_bytewise_as_px4_encodes_them():
+    mav = link.mavlink
+    bits = lambda field: struct.unpack("<I", struct.pack("<f", field))[0]  # noqa: E731
+    # The int32's bytes as they are in the float field: 2 is the denormal 2.8e-45, -3 is 0xFFFFFFFD.
+    for value, expected_bits in [(2, 0x2), (500, 0x1F4), (0, 0x0), (-3, 0xFFFF_FFFD)]:
+        field = link.encode_param(value, mav.MAV_PARAM_TYPE_INT32)
+        assert bits(field) == expected_bits, (value, hex(bits(field)))
+        assert link.decode_param(field, mav.MAV_PARAM_TYPE_INT32) == value
+    assert 0 < link.encode_param(2, mav.MAV_PARAM_TYPE_INT32) < 1e-44
+    for param_type, value, expected_bits in [
+        (mav.MAV_PARAM_TYPE_UINT8, 255, 0xFF),
+        (mav.MAV_PARAM_TYPE_INT8, -128, 0x80),
+        (mav.MAV_PARAM_TYPE_UINT16, 65535, 0xFFFF),
+        (mav.MAV_PARAM_TYPE_INT16, -2, 0xFFFE),
+        (mav.MAV_PARAM_TYPE_UINT32, 7, 0x7),
+    ]:
+        field = link.encode_param(value, param_type)
+        assert bits(field) == expected_bits and link.decode_param(field, param_type) == value, param_type
+    # A REAL32 is the float itself, both ways.
+    assert link.encode_param(2, mav.MAV_PARAM_TYPE_REAL32) == 2.0
+    assert link.decode_param(2.5, mav.MAV_PARAM_TYPE_REAL32) == 2.5
+    assert link.int_fits(5, mav.MAV_PARAM_TYPE_INT32) and link.int_fits(5.0, mav.MAV_PARAM_TYPE_UINT8)
+    assert not link.int_fits(2.5, mav.MAV_PARAM_TYPE_INT32)
+    assert not link.int_fits(float("nan"), mav.MAV_PARAM_TYPE_INT32)
+    assert not link.int_fits(1e20, mav.MAV_PARAM_TYPE_INT32) and not link.int_fits(256, mav.MAV_PARAM_TYPE_UINT8)
 
 
 def test_parameter_files_in_mavproxy_and_qgroundcontrol_style_parse():

@@ -5,8 +5,10 @@
 //! N+1 (or 0), component [`crate::link::PLANT_COMPONENT_ID`] (or 0): PARAM_REQUEST_LIST, PARAM_REQUEST_READ
 //! (by `param_index` when >= 0, else by `param_id`) and PARAM_SET; any other message (a client's
 //! HEARTBEAT) only makes its sender a peer. Out, to the sender's address in the MAVLink version it used:
-//! PARAM_VALUE (every parameter REAL32, `param_count` = [`SIM_PARAMS`]`.len()`, `param_index` = its table
-//! index), STATUSTEXT for a refused set (then the unchanged value echoed) and for a gust started or
+//! PARAM_VALUE (`param_count` = [`SIM_PARAMS`]`.len()`, `param_index` = its table index; the reals REAL32,
+//! the whole-numbered SIM_GUST_ON, SIM_TURB and SIM_BEAUFORT INT32 in PX4's bytewise encoding, as the
+//! autopilot's integers, and a set of them takes INT32 or a whole REAL32 alike), STATUSTEXT for a refused
+//! set (then the unchanged value echoed) and for a gust started or
 //! released (INFO, with the plant time `t=`, sent before the echo); and a HEARTBEAT
 //! (MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID) once per wall second to every peer heard in the
 //! last [`PEER_EXPIRY`], so `wait_heartbeat` works on the port.
@@ -25,7 +27,7 @@
 //! The parameter machinery is the autopilot's, not a copy: [`SIM_PARAMS`] is a table of the autopilot's
 //! [`ParamDef`] with no docs group and no config binding ([`SimParamDef`] = `ParamDef<(), ()>`), its values
 //! live in the autopilot's [`ParamStore`] over that table, and the protocol (addressing, lookup by index or
-//! id, range and kind checks, PARAM_VALUE encoding, refusal texts) is the autopilot's [`ParamService`] for
+//! id, type decoding, range and kind checks, PARAM_VALUE encoding, refusal texts) is the autopilot's [`ParamService`] for
 //! component [`crate::link::PLANT_COMPONENT_ID`]. What is the plant's own is `apply`, the hook
 //! [`ParamService::on_message_with`] calls with a set that passed the table's check: it changes the wind,
 //! moves SIM_BEAUFORT and SIM_GUST_SPD together and writes the gust's note, or refuses with the wind's own
@@ -126,7 +128,7 @@ const fn real(
     }
 }
 
-/// A whole-numbered SIM_ parameter (0/1 for a switch).
+/// A whole-numbered SIM_ parameter (0/1 for a switch): INT32 on the wire.
 const fn whole(name: &'static str, default: f32, min: f32, max: f32, description: &'static str) -> SimParamDef {
     SimParamDef {
         name,
@@ -492,7 +494,7 @@ impl PlantHook for SimParamLink {
 mod tests {
     use super::*;
     use crate::plant::{InitialState, PlantConfig, WindConfig};
-    use autopilot::core::mavlink::params::param_name;
+    use autopilot::core::mavlink::params::{decode_value, param_name};
     use autopilot::core::params::ParamError;
     use mavlink::dialects::common::{MavParamType, PARAM_REQUEST_LIST_DATA, PARAM_REQUEST_READ_DATA, PARAM_SET_DATA};
     use mavlink::types::CharArray;
@@ -521,12 +523,28 @@ mod tests {
         })
     }
 
+    fn set_int32(name: &str, value: i32) -> MavMessage {
+        MavMessage::PARAM_SET(PARAM_SET_DATA {
+            param_value: f32::from_bits(value as u32),
+            target_system: SYS,
+            target_component: PLANT_COMPONENT_ID,
+            param_id: CharArray::from(name),
+            param_type: MavParamType::MAV_PARAM_TYPE_INT32,
+        })
+    }
+
+    /// `(name, value, index, count)` of every PARAM_VALUE, the value decoded by its `param_type`, which
+    /// must be the parameter's.
     fn values(replies: &[MavMessage]) -> Vec<(String, f32, u16, u16)> {
         replies
             .iter()
             .filter_map(|m| match m {
                 MavMessage::PARAM_VALUE(v) => {
-                    Some((param_name(&v.param_id), v.param_value, v.param_index, v.param_count))
+                    let name = param_name(&v.param_id);
+                    let d = &SIM_PARAMS[index_of(&name).expect("a SIM_ parameter")];
+                    assert_eq!(v.param_type, d.kind.mav_param_type(), "{name}");
+                    let value = decode_value(v.param_type, v.param_value).expect("decodes");
+                    Some((name, value, v.param_index, v.param_count))
                 }
                 _ => None,
             })
@@ -560,6 +578,10 @@ mod tests {
             assert!(d.name.len() <= 16 && d.name.starts_with("SIM_"), "{}", d.name);
             assert!(d.min <= d.default && d.default <= d.max, "{}", d.name);
             assert!(d.check(d.default).is_ok(), "{}", d.name);
+            if d.kind != ParamKind::Real {
+                // As the autopilot's table: within ±2^23, so a float sent as INT32 is out of range.
+                assert!(-8_388_608.0 <= d.min && d.max < 8_388_608.0, "{}", d.name);
+            }
             assert!(!d.description.is_empty());
             assert_eq!(index_of(d.name), Some(i));
         }
@@ -609,7 +631,7 @@ mod tests {
     }
 
     #[test]
-    fn given_a_list_request_then_every_parameter_is_answered_real32_with_count_and_index() {
+    fn given_a_list_request_then_every_parameter_is_answered_in_its_type_with_count_and_index() {
         let mut plant = calm_plant();
         let mut s = SimParamService::new(SYS, &plant);
         let list = MavMessage::PARAM_REQUEST_LIST(PARAM_REQUEST_LIST_DATA { target_system: 0, target_component: 0 });
@@ -619,8 +641,29 @@ mod tests {
         for (i, (name, _, index, count)) in got.iter().enumerate() {
             assert_eq!((name.as_str(), *index as usize, *count as usize), (SIM_PARAMS[i].name, i, SIM_PARAMS.len()));
         }
-        assert!(replies.iter().all(|m| matches!(m, MavMessage::PARAM_VALUE(v)
-            if v.param_type == MavParamType::MAV_PARAM_TYPE_REAL32)));
+        // The reals are REAL32; the switches and the Beaufort force are INT32 with their bytes as they are.
+        let types: Vec<_> = replies
+            .iter()
+            .filter_map(|m| match m {
+                MavMessage::PARAM_VALUE(v) => Some((v.param_type, v.param_value.to_bits())),
+                _ => None,
+            })
+            .collect();
+        let (real, int) = (MavParamType::MAV_PARAM_TYPE_REAL32, MavParamType::MAV_PARAM_TYPE_INT32);
+        let gust_spd = 6.7_f32.to_bits();
+        assert_eq!(
+            types[idx::GUST_SPD..],
+            [
+                (real, gust_spd),
+                (real, 90.0_f32.to_bits()),
+                (real, 1.0_f32.to_bits()),
+                (int, 0),
+                (int, 0),
+                (int, 4),
+                (real, 0.0_f32.to_bits()),
+                (real, 0.0_f32.to_bits())
+            ]
+        );
         // Another system's request, or one for the autopilot's component, is not ours.
         let theirs = MavMessage::PARAM_REQUEST_LIST(PARAM_REQUEST_LIST_DATA { target_system: 1, target_component: 0 });
         assert!(s.on_message(&theirs, &mut plant).is_empty());
@@ -681,6 +724,17 @@ mod tests {
         // Beaufort sets the gust speed, and the gust speed moves the Beaufort force.
         let replies = s.on_message(&set_msg("SIM_BEAUFORT", 6.0), &mut plant);
         assert_eq!(values(&replies), [("SIM_BEAUFORT".into(), 6.0, 8, 11), ("SIM_GUST_SPD".into(), 12.3, 3, 11)]);
+        // As a PX4 script sets an integer: INT32, bytewise; echoed so.
+        let replies = s.on_message(&set_int32("SIM_BEAUFORT", 5), &mut plant);
+        assert_eq!(values(&replies), [("SIM_BEAUFORT".into(), 5.0, 8, 11), ("SIM_GUST_SPD".into(), 9.35, 3, 11)]);
+        let MavMessage::PARAM_VALUE(echo) = &replies[0] else { panic!("{replies:?}") };
+        assert_eq!((echo.param_type, echo.param_value.to_bits()), (MavParamType::MAV_PARAM_TYPE_INT32, 5));
+        // A float where the int32's bytes belong is out of range, and an int32 for a real is refused.
+        let replies = s.on_message(&set_int32("SIM_BEAUFORT", 6.0_f32.to_bits() as i32), &mut plant);
+        assert_eq!(texts(&replies), ["SIM_BEAUFORT: 1.0863247e9 not in 0..8"]);
+        let replies = s.on_message(&set_int32("SIM_GUST_SPD", 7), &mut plant);
+        assert_eq!(texts(&replies), ["SIM_GUST_SPD: sent as INT32, it is REAL32"]);
+        assert_eq!((s.get("SIM_BEAUFORT"), s.get("SIM_GUST_SPD")), (Some(5.0), Some(9.35)));
         let replies = s.on_message(&set_msg("SIM_GUST_SPD", 6.7), &mut plant);
         assert_eq!(values(&replies), [("SIM_GUST_SPD".into(), 6.7, 3, 11), ("SIM_BEAUFORT".into(), 4.0, 8, 11)]);
     }

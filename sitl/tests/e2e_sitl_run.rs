@@ -15,6 +15,7 @@ use autopilot::core::mavlink::command_long;
 use autopilot::core::mavlink::common::{
     MavCmd, MavLandedState, MavMessage, MavModeFlag, MavResult, MavSysStatusSensor,
 };
+use autopilot::core::mavlink::params::decode_value;
 
 const WALL_LIMIT: Duration = Duration::from_secs(120);
 const GCS: MavHeader = MavHeader { system_id: 255, component_id: 190, sequence: 0 };
@@ -489,14 +490,19 @@ fn parameters_and_the_mission_survive_a_restart_of_the_autopilot() {
             std::thread::sleep(Duration::from_millis(20));
         }
     };
-    let param_set = |name: &str, value: f32| {
+    let param_set_typed = |name: &str, field: f32, param_type: MavParamType| {
         MavMessage::PARAM_SET(PARAM_SET_DATA {
-            param_value: value,
+            param_value: field,
             target_system: sysid,
             target_component: 1,
             param_id: name.into(),
-            param_type: MavParamType::MAV_PARAM_TYPE_REAL32,
+            param_type,
         })
+    };
+    let param_set = |name: &str, value: f32| param_set_typed(name, value, MavParamType::MAV_PARAM_TYPE_REAL32);
+    // An integer as PX4 clients set it: INT32, the int32's bytes as they are in the float field.
+    let param_set_int32 = |name: &str, value: i32| {
+        param_set_typed(name, f32::from_bits(value as u32), MavParamType::MAV_PARAM_TYPE_INT32)
     };
     let param_read = |name: &str| {
         MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
@@ -506,12 +512,16 @@ fn parameters_and_the_mission_survive_a_restart_of_the_autopilot() {
             param_id: name.into(),
         })
     };
+    // `(param_type, value decoded by that type)` of the named parameter's PARAM_VALUE.
     let value_of = |name: &'static str| {
         move |m: &MavMessage| match m {
-            MavMessage::PARAM_VALUE(p) if p.param_id.to_str().is_ok_and(|id| id == name) => Some(p.param_value),
+            MavMessage::PARAM_VALUE(p) if p.param_id.to_str().is_ok_and(|id| id == name) => {
+                Some((p.param_type, decode_value(p.param_type, p.param_value)?))
+            }
             _ => None,
         }
     };
+    let (real32, int32) = (MavParamType::MAV_PARAM_TYPE_REAL32, MavParamType::MAV_PARAM_TYPE_INT32);
     let wall = Duration::from_secs(10);
     // GIVEN a running SITL: set two parameters and upload a three-item mission.
     let sitl = start(n);
@@ -522,11 +532,15 @@ fn parameters_and_the_mission_survive_a_restart_of_the_autopilot() {
     );
     assert_eq!(
         exchange(&socket, n, sysid, Some(&param_set("MPC_XY_CRUISE", 2.5)), wall, value_of("MPC_XY_CRUISE")),
-        Some(2.5)
+        Some((real32, 2.5))
     );
     assert_eq!(
         exchange(&socket, n, sysid, Some(&param_set("RTL_RETURN_ALT", 7.0)), wall, value_of("RTL_RETURN_ALT")),
-        Some(7.0)
+        Some((real32, 7.0))
+    );
+    assert_eq!(
+        exchange(&socket, n, sysid, Some(&param_set_int32("NAV_DLL_ACT", 3)), wall, value_of("NAV_DLL_ACT")),
+        Some((int32, 3.0))
     );
     #[allow(deprecated)]
     let item = |seq: u16, lat: i32| MISSION_ITEM_INT_DATA {
@@ -580,11 +594,15 @@ fn parameters_and_the_mission_survive_a_restart_of_the_autopilot() {
     );
     assert_eq!(
         exchange(&socket, n, sysid, Some(&param_read("MPC_XY_CRUISE")), wall, value_of("MPC_XY_CRUISE")),
-        Some(2.5)
+        Some((real32, 2.5))
     );
     assert_eq!(
         exchange(&socket, n, sysid, Some(&param_read("RTL_RETURN_ALT")), wall, value_of("RTL_RETURN_ALT")),
-        Some(7.0)
+        Some((real32, 7.0))
+    );
+    assert_eq!(
+        exchange(&socket, n, sysid, Some(&param_read("NAV_DLL_ACT")), wall, value_of("NAV_DLL_ACT")),
+        Some((int32, 3.0))
     );
     let list = MavMessage::MISSION_REQUEST_LIST(MISSION_REQUEST_LIST_DATA {
         target_system: sysid,

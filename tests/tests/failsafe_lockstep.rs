@@ -6,8 +6,10 @@
 use autopilot::core::commander::FlightMode;
 use autopilot::core::estimator::EstimatorSource;
 use autopilot::core::mavlink::common::{
-    HEARTBEAT_DATA, MavAutopilot, MavCmd, MavMessage, MavParamType, MavState, MavType, PARAM_SET_DATA,
+    HEARTBEAT_DATA, MavAutopilot, MavCmd, MavMessage, MavState, MavType, PARAM_SET_DATA,
 };
+use autopilot::core::mavlink::params::{decode_value, encode_value};
+use autopilot::core::params::PARAMS;
 use nalgebra::Vector3;
 use tests::rig::{Rig, mission_item};
 
@@ -24,16 +26,20 @@ fn gcs_heartbeat() -> MavMessage {
     })
 }
 
+/// PARAM_SET as a PX4 ground station sends it, in the parameter's own type (NAV_DLL_ACT as an INT32 in
+/// PX4's bytewise encoding, as MAVSDK's `set_param_int`), and the echo, decoded by its type, checked.
 fn set_param(rig: &mut Rig, name: &str, value: f32) {
+    let kind = PARAMS.iter().find(|d| d.name == name).expect("a parameter").kind;
     let replies = rig.send(&MavMessage::PARAM_SET(PARAM_SET_DATA {
-        param_value: value,
+        param_value: encode_value(kind, value),
         target_system: 1,
         target_component: 1,
         param_id: name.into(),
-        param_type: MavParamType::MAV_PARAM_TYPE_REAL32,
+        param_type: kind.mav_param_type(),
     }));
     assert!(
-        replies.iter().any(|m| matches!(m, MavMessage::PARAM_VALUE(p) if p.param_value == value)),
+        replies.iter().any(|m| matches!(m, MavMessage::PARAM_VALUE(p)
+            if p.param_type == kind.mav_param_type() && decode_value(p.param_type, p.param_value) == Some(value))),
         "{name} = {value}: {replies:?}"
     );
 }

@@ -6,7 +6,8 @@
 //!   "file not found" (error 10), so MAVProxy falls back to the parameter protocol in about a second
 //!   instead of waiting ~11 s for FTP to time out.
 //! - AUTOPILOT_VERSION (#148): PX4's identity: capabilities MISSION_INT, COMMAND_INT, MAVLINK2,
-//!   PARAM_ENCODE_BYTEWISE, SET_POSITION_TARGET_LOCAL_NED/GLOBAL_INT, SET_ATTITUDE_TARGET,
+//!   PARAM_ENCODE_BYTEWISE (integer parameters are INT32 in PX4's bytewise encoding, see
+//!   [`super::params`]; not PARAM_ENCODE_C_CAST), SET_POSITION_TARGET_LOCAL_NED/GLOBAL_INT, SET_ATTITUDE_TARGET,
 //!   FLIGHT_TERMINATION, MISSION_FENCE and MISSION_RALLY (no FTP: there is no file system); flight software
 //!   1.15.0 in PX4's encoding `(major << 24) | (minor << 16) | (patch << 8) | 0xFF` (a release).
 //! - MESSAGE_INTERVAL (#244): the answer to GET_MESSAGE_INTERVAL.
@@ -142,13 +143,17 @@ mod tests {
     }
 
     #[test]
-    fn given_the_identity_then_px4_1_15_with_mission_int_command_int_mavlink2_fence_rally_and_no_ftp() {
+    fn given_the_identity_then_px4_1_15_with_mission_int_command_int_mavlink2_bytewise_fence_rally_and_no_ftp() {
         let MavMessage::AUTOPILOT_VERSION(v) = autopilot_version(3) else { panic!("not AUTOPILOT_VERSION") };
         assert_eq!(v.flight_sw_version >> 8, 0x01_0F_00);
         let c = v.capabilities;
         assert!(c.contains(MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_MISSION_INT));
         assert!(c.contains(MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_COMMAND_INT));
         assert!(c.contains(MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_MAVLINK2));
+        // Integer parameters travel as INT32 with their bytes as they are (crate::core::mavlink::params), as
+        // PX4's do; C_CAST would tell clients to convert the value to a float instead.
+        assert!(c.contains(MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE));
+        assert!(!c.contains(MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_C_CAST));
         assert!(!c.contains(MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_FTP));
         assert!(c.contains(MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_MISSION_FENCE));
         assert!(c.contains(MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_MISSION_RALLY));

@@ -4,23 +4,50 @@
 //!
 //! In: PARAM_REQUEST_LIST, PARAM_REQUEST_READ (by `param_index` when >= 0, by `param_id` when negative)
 //! and PARAM_SET, each only when addressed to us (our system or 0, our component or 0), with the store;
-//! and once per vehicle step (2 ms at 500 Hz) a call to [`ParamService::due`]. Out: PARAM_VALUE messages (every
-//! parameter REAL32, `param_count` = the table size, `param_index` = its table index, `param_id` its name,
-//! not NUL-terminated when it has exactly 16 characters), STATUSTEXT (WARNING) for a refused set, and for a
+//! and once per vehicle step (2 ms at 500 Hz) a call to [`ParamService::due`]. Out: PARAM_VALUE messages
+//! (`param_type` the parameter's [`ParamKind::mav_param_type`], its value encoded by [`encode_value`];
+//! `param_count` = the table size, `param_index` = its table index, `param_id` its name, not
+//! NUL-terminated when it has exactly 16 characters), STATUSTEXT (WARNING) for a refused set, and for a
 //! set that changed a value a [`ParamChange`] so the vehicle can apply it to its config and persist the
-//! store.
+//! store. Every PARAM_VALUE, answer or not (the vehicle's repeat of a value it undid), is made by
+//! [`param_value`].
 //!
 //! A read is answered at once; a read of an unknown name or index gets no answer (clients time out, as
 //! with PX4, without a warning on the ground station's screen). A list is streamed, at most
 //! [`PARAMS_PER_STEP`] PARAM_VALUE per [`ParamService::due`] (8 per 2 ms: the whole table in ~20 ms
 //! without a burst that overflows a serial link or a client's socket buffer); a new PARAM_REQUEST_LIST
-//! restarts the stream from index 0. A set is checked by the table's
-//! [`ParamDef::check`](crate::core::params::ParamDef::check) (finite, in range, whole or 0/1 by kind) and
-//! stored by [`ParamStore::set_index`]: on success the new value is echoed in a PARAM_VALUE (also when it
-//! equals the current value); on a refusal nothing changes, a STATUSTEXT gives the reason and, for a known
-//! name, a PARAM_VALUE repeats the current value (clients resend a set until they see a PARAM_VALUE for
-//! it). The `param_type` of a set is not checked: every
-//! parameter is declared REAL32 and its value is read as the f32 it carries.
+//! restarts the stream from index 0. A set is decoded by [`decode_set`], checked by the table's
+//! [`ParamDef::check`] (finite, in range, whole or 0/1 by kind) and stored by [`ParamStore::set_index`]:
+//! on success the new value is echoed in a PARAM_VALUE (also when it equals the current value); on a
+//! refusal nothing changes, a STATUSTEXT gives the reason and, for a known name, a PARAM_VALUE repeats
+//! the current value (clients resend a set until they see a PARAM_VALUE for it).
+//!
+//! Types on the wire, as PX4 has them. A real parameter travels as REAL32, the f32 itself. An integer or a
+//! boolean travels as INT32 in PX4's bytewise encoding: the int32's four bytes stand as they are in the
+//! float field `param_value` (`f32::from_bits(i as u32)`: 2 is the denormal 2.8e-45, not 2.0), and
+//! AUTOPILOT_VERSION declares MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE (not PARAM_ENCODE_C_CAST, the
+//! ArduPilot convention of a float-converted value), so MAVSDK's `get_param_int` / `set_param_int`,
+//! QGroundControl and pymavlink scripts written for PX4 read and write them. PX4's PARAM_SET handler
+//! (`MavlinkParametersManager`, `src/modules/mavlink/mavlink_parameters.cpp`) takes a set only when its
+//! `param_type` is the parameter's own (INT32 for an int32, REAL32 for a float; any type for its few bool
+//! parameters) and drops any other with an error on its own console: the client hears nothing and times
+//! out (older PX4 ignored the type and stored the four bytes, so a REAL32 2.0 became the int 1073741824).
+//! Here a PARAM_SET is taken as:
+//!
+//! - for a REAL32 parameter, REAL32 only;
+//! - for an INT32 parameter, INT32 decoded bytewise; the narrower integer types PX4's bytewise encoding
+//!   has (UINT8, INT8, UINT16, INT16, UINT32) decoded bytewise too, the bytes past the type's width 0;
+//!   and REAL32 carrying the value as a float (2.0), as older scripts send it (pymavlink's
+//!   `param_set_send(..., 2.0, MAV_PARAM_TYPE_REAL32)`); the value must then be whole, as any integer's;
+//! - any other type (an integer type for a REAL32 parameter, a 64-bit type for any) is refused, like an
+//!   out-of-range value, with a STATUSTEXT (`MPC_XY_CRUISE: sent as INT32, it is REAL32`) and the
+//!   unchanged value repeated: where PX4 is silent, the client learns at once why. An integer sent to a
+//!   REAL32 parameter is not converted: a client that has the type wrong may have the value wrong too.
+//!
+//! A mix-up of the two encodings is refused, never misread: every integer parameter's range lies within
+//! ±2^23 (a table test), so a float sent as INT32 (ArduPilot's C cast: 2.0 = 0x4000_0000) reads as an
+//! int32 out of range, and an int32 sent as REAL32 (bytewise 2 = a denormal) is not a whole number. Only 0
+//! reads the same either way.
 //!
 //! A table whose owner acts on its values (the plant applies a SIM_ set to its wind) passes that action to
 //! [`ParamService::on_message_with`]: it runs after the range check and before the value is stored, may
@@ -33,7 +60,7 @@ use ::mavlink::dialects::common::{MavMessage, MavParamType, MavSeverity, PARAM_S
 use ::mavlink::types::CharArray;
 
 use super::{AUTOPILOT_COMPONENT_ID, statustext};
-use crate::core::params::{ParamError, ParamStore};
+use crate::core::params::{ParamDef, ParamError, ParamKind, ParamStore};
 
 /// PARAM_VALUE messages a list stream emits per [`ParamService::due`] call.
 pub const PARAMS_PER_STEP: usize = 8;
@@ -173,13 +200,14 @@ impl ParamService {
             return ParamReply { messages: vec![warning(&refusal)], changed: None };
         };
         let before = store.get_index(index);
-        let value = m.param_value;
-        let outcome = d
-            .check(value)
-            .and_then(|()| apply(store, index, value).map_err(|reason| ParamError::Refused { name: d.name, reason }))
-            .and_then(|applied| store.set_index(index, value).map(|()| applied));
+        let outcome = decode_set(d, m.param_type, m.param_value).and_then(|value| {
+            d.check(value)?;
+            let applied = apply(store, index, value).map_err(|reason| ParamError::Refused { name: d.name, reason })?;
+            store.set_index(index, value)?;
+            Ok((value, applied))
+        });
         match outcome {
-            Ok(applied) => {
+            Ok((value, applied)) => {
                 let changed = match before {
                     Some(old) if old.to_bits() != value.to_bits() => {
                         Some(ParamChange { index, name: d.name, value, restart_required: d.restart })
@@ -207,12 +235,68 @@ pub fn param_value<G, B>(store: &ParamStore<G, B>, index: usize) -> Option<MavMe
     let d = store.def(index)?;
     let value = store.get_index(index)?;
     Some(MavMessage::PARAM_VALUE(PARAM_VALUE_DATA {
-        param_value: value,
+        param_value: encode_value(d.kind, value),
         param_count: u16::try_from(store.len()).unwrap_or(u16::MAX),
         param_index: u16::try_from(index).unwrap_or(u16::MAX),
         param_id: CharArray::from(d.name),
-        param_type: MavParamType::MAV_PARAM_TYPE_REAL32,
+        param_type: d.kind.mav_param_type(),
     }))
+}
+
+/// The `param_value` field that carries `value` of a parameter of `kind` (type
+/// [`ParamKind::mav_param_type`]): a real's f32 as it is; an integer's or a boolean's whole value as an
+/// int32 whose four bytes stand in the field as they are (PX4's bytewise encoding: a reinterpretation, not
+/// a conversion). A value past the int32 range saturates (none is in range).
+#[must_use]
+pub fn encode_value(kind: ParamKind, value: f32) -> f32 {
+    match kind {
+        ParamKind::Real => value,
+        ParamKind::Integer | ParamKind::Boolean => f32::from_le_bytes((value as i32).to_le_bytes()),
+    }
+}
+
+/// The value in a `param_value` field of type `param_type` (a PARAM_VALUE's or a PARAM_SET's), decoded
+/// bytewise, the inverse of [`encode_value`]: REAL32 is the f32 itself; an integer type of 1, 2 or 4 bytes
+/// is read from the field's first bytes (little-endian, as on the wire), and the bytes past its width
+/// must be 0. None for a 64-bit type (it does not fit in the field) or bytes that are not a value of the
+/// type. An integer is exact up to 2^24 in magnitude, rounded to the nearest f32 beyond.
+#[must_use]
+pub fn decode_value(param_type: MavParamType, field: f32) -> Option<f32> {
+    use MavParamType as T;
+    let bytes = field.to_le_bytes();
+    let [b0, b1, b2, b3] = bytes;
+    let fits_1_byte = [b1, b2, b3] == [0; 3];
+    let fits_2_bytes = [b2, b3] == [0; 2];
+    match param_type {
+        T::MAV_PARAM_TYPE_REAL32 => Some(field),
+        T::MAV_PARAM_TYPE_UINT8 => fits_1_byte.then(|| f32::from(b0)),
+        T::MAV_PARAM_TYPE_INT8 => fits_1_byte.then(|| f32::from(i8::from_le_bytes([b0]))),
+        T::MAV_PARAM_TYPE_UINT16 => fits_2_bytes.then(|| f32::from(u16::from_le_bytes([b0, b1]))),
+        T::MAV_PARAM_TYPE_INT16 => fits_2_bytes.then(|| f32::from(i16::from_le_bytes([b0, b1]))),
+        T::MAV_PARAM_TYPE_UINT32 => Some(u32::from_le_bytes(bytes) as f32),
+        T::MAV_PARAM_TYPE_INT32 => Some(i32::from_le_bytes(bytes) as f32),
+        T::MAV_PARAM_TYPE_UINT64 | T::MAV_PARAM_TYPE_INT64 | T::MAV_PARAM_TYPE_REAL64 => None,
+    }
+}
+
+/// The value a PARAM_SET of `param_type` and field `field` carries for parameter `d`, not yet checked
+/// against its range (see the module docs for which types each parameter takes).
+///
+/// # Errors
+/// [`ParamError::WrongType`] for a type the parameter does not take, [`ParamError::NotBytewise`] for an
+/// integer type whose bytes past its width are not 0.
+pub fn decode_set<G, B>(d: &ParamDef<G, B>, param_type: MavParamType, field: f32) -> Result<f32, ParamError> {
+    use MavParamType as T;
+    let expected = d.kind.mav_param_type();
+    let wrong = ParamError::WrongType { name: d.name, sent: param_type, expected };
+    match (d.kind, param_type) {
+        (ParamKind::Real, T::MAV_PARAM_TYPE_REAL32) => Ok(field),
+        (ParamKind::Real, _) | (_, T::MAV_PARAM_TYPE_UINT64 | T::MAV_PARAM_TYPE_INT64 | T::MAV_PARAM_TYPE_REAL64) => {
+            Err(wrong)
+        }
+        (ParamKind::Integer | ParamKind::Boolean, _) => decode_value(param_type, field)
+            .ok_or(ParamError::NotBytewise { name: d.name, sent: param_type, bits: field.to_bits() }),
+    }
 }
 
 /// The name in a `param_id`: up to the first NUL, or all 16 bytes (not NUL-terminated when exactly 16
@@ -270,11 +354,39 @@ mod tests {
         })
     }
 
-    /// `(name, value, index, count)` of a PARAM_VALUE, checking its type is REAL32.
+    fn set_typed(name: &str, field: f32, param_type: MavParamType) -> MavMessage {
+        MavMessage::PARAM_SET(PARAM_SET_DATA {
+            param_value: field,
+            target_system: US,
+            target_component: 1,
+            param_id: CharArray::from(name),
+            param_type,
+        })
+    }
+
+    /// The `param_value` field of `i` in PX4's bytewise INT32 encoding, written out independently of
+    /// [`encode_value`].
+    fn int32_field(i: i32) -> f32 {
+        f32::from_bits(i as u32)
+    }
+
+    /// `(name, value, index, count)` of a PARAM_VALUE, checking its type is the parameter's (REAL32 for a
+    /// real, INT32 for an integer or a boolean) and decoding its value by that type.
     fn value_of(msg: &MavMessage) -> (String, f32, u16, u16) {
         let MavMessage::PARAM_VALUE(v) = msg else { panic!("not a PARAM_VALUE: {msg:?}") };
-        assert_eq!(v.param_type, MavParamType::MAV_PARAM_TYPE_REAL32);
-        (param_name(&v.param_id), v.param_value, v.param_index, v.param_count)
+        let name = param_name(&v.param_id);
+        let def = PARAMS.iter().find(|d| d.name == name).unwrap_or_else(|| panic!("{name} is not a parameter"));
+        let value = match def.kind {
+            ParamKind::Real => {
+                assert_eq!(v.param_type, MavParamType::MAV_PARAM_TYPE_REAL32, "{name}");
+                v.param_value
+            }
+            ParamKind::Integer | ParamKind::Boolean => {
+                assert_eq!(v.param_type, MavParamType::MAV_PARAM_TYPE_INT32, "{name}");
+                v.param_value.to_bits() as i32 as f32
+            }
+        };
+        (name, value, v.param_index, v.param_count)
     }
 
     fn text_of(msg: &MavMessage) -> (MavSeverity, String) {
@@ -418,5 +530,226 @@ mod tests {
             assert_eq!(value_of(&decoded).0, name);
         }
         assert_eq!(store.get("COM_DISARM_PRFLT"), Some(1.5));
+    }
+
+    const INT32: MavParamType = MavParamType::MAV_PARAM_TYPE_INT32;
+    const REAL32: MavParamType = MavParamType::MAV_PARAM_TYPE_REAL32;
+
+    /// The PARAM_VALUE of a reply at `i` as it is on the wire: `(type, field bits)`.
+    fn raw(reply: &ParamReply, i: usize) -> (MavParamType, u32) {
+        let Some(MavMessage::PARAM_VALUE(v)) = reply.messages.get(i) else {
+            panic!("no PARAM_VALUE at {i}: {reply:?}")
+        };
+        (v.param_type, v.param_value.to_bits())
+    }
+
+    #[test]
+    fn given_each_kind_when_listed_then_reals_travel_real32_and_integers_and_booleans_int32_bytewise() {
+        let (mut svc, mut store) = (ParamService::new(), ParamStore::defaults());
+        svc.on_message(US, &GCS, &list(US), &mut store);
+        let mut kinds = Vec::new();
+        while svc.list_in_progress() {
+            for msg in svc.due(&store) {
+                let MavMessage::PARAM_VALUE(v) = &msg else { panic!("{msg:?}") };
+                let d = &PARAMS[usize::from(v.param_index)];
+                let expected = match d.kind {
+                    ParamKind::Real => (REAL32, d.default.to_bits()),
+                    ParamKind::Integer | ParamKind::Boolean => (INT32, d.default as i32 as u32),
+                };
+                assert_eq!((v.param_type, v.param_value.to_bits()), expected, "{}", d.name);
+                kinds.push(d.kind);
+            }
+        }
+        for kind in [ParamKind::Real, ParamKind::Integer, ParamKind::Boolean] {
+            assert!(kinds.contains(&kind), "{kind:?} is exercised");
+        }
+        // LOOP_INNER_HZ = 500 is the int32 500 in the field (a denormal as a float), not 500.0.
+        let reply = svc.on_message(US, &GCS, &read_name("LOOP_INNER_HZ"), &mut store);
+        assert_eq!(raw(&reply, 0), (INT32, 500));
+        assert_ne!(raw(&reply, 0).1, 500.0_f32.to_bits());
+    }
+
+    #[test]
+    fn given_an_int32_parameter_when_set_as_an_integer_type_or_a_whole_real32_then_taken_and_echoed_int32() {
+        use MavParamType as T;
+        let two = f32::from_bits(2);
+        for (field, param_type) in [
+            (int32_field(2), INT32),
+            (2.0, REAL32),
+            (two, T::MAV_PARAM_TYPE_UINT8),
+            (two, T::MAV_PARAM_TYPE_INT8),
+            (two, T::MAV_PARAM_TYPE_UINT16),
+            (two, T::MAV_PARAM_TYPE_INT16),
+            (two, T::MAV_PARAM_TYPE_UINT32),
+        ] {
+            let (mut svc, mut store) = (ParamService::new(), ParamStore::defaults());
+            let reply = svc.on_message(US, &GCS, &set_typed("NAV_DLL_ACT", field, param_type), &mut store);
+            assert_eq!(store.get("NAV_DLL_ACT"), Some(2.0), "{param_type:?}");
+            assert_eq!(reply.messages.len(), 1, "{param_type:?}: {reply:?}");
+            assert_eq!(raw(&reply, 0), (INT32, 2), "{param_type:?}: echoed as the int32 2");
+            let index = store.index_of("NAV_DLL_ACT").expect("declared");
+            assert_eq!(
+                reply.changed,
+                Some(ParamChange { index, name: "NAV_DLL_ACT", value: 2.0, restart_required: false })
+            );
+        }
+        // A boolean is INT32 too: 0 switches the adaptation off.
+        let (mut svc, mut store) = (ParamService::new(), ParamStore::defaults());
+        let reply = svc.on_message(US, &GCS, &set_typed("ACO_ADAPT_EN", int32_field(0), INT32), &mut store);
+        assert_eq!((store.get("ACO_ADAPT_EN"), raw(&reply, 0)), (Some(0.0), (INT32, 0)));
+    }
+
+    #[test]
+    fn given_an_int32_parameter_when_set_with_a_bad_value_or_type_then_refused_and_the_int32_repeated() {
+        use MavParamType as T;
+        let cases: [(&str, f32, MavParamType, &str); 12] = [
+            ("NAV_DLL_ACT", 2.5, REAL32, "NAV_DLL_ACT: 2.5 is not a whole number"),
+            ("NAV_DLL_ACT", f32::NAN, REAL32, "NAV_DLL_ACT: NaN is not finite"),
+            // An int32 sent as REAL32 is a denormal, not a whole number.
+            ("NAV_DLL_ACT", int32_field(2), REAL32, "NAV_DLL_ACT: 3e-45 is not a whole number"),
+            // A float sent as INT32 (ArduPilot's C cast) is an int32 far out of range.
+            ("NAV_DLL_ACT", 2.0, INT32, "NAV_DLL_ACT: 1.0737418e9 not in 0..5"),
+            ("NAV_DLL_ACT", int32_field(7), INT32, "NAV_DLL_ACT: 7 not in 0..5"),
+            ("NAV_DLL_ACT", int32_field(-1), INT32, "NAV_DLL_ACT: -1 not in 0..5"),
+            (
+                "NAV_DLL_ACT",
+                f32::from_bits(0x0100_0002),
+                T::MAV_PARAM_TYPE_UINT8,
+                "NAV_DLL_ACT: 0x01000002 not a bytewise UINT8",
+            ),
+            (
+                "NAV_DLL_ACT",
+                f32::from_bits(0x0001_0002),
+                T::MAV_PARAM_TYPE_INT16,
+                "NAV_DLL_ACT: 0x00010002 not a bytewise INT16",
+            ),
+            ("NAV_DLL_ACT", 2.0, T::MAV_PARAM_TYPE_REAL64, "NAV_DLL_ACT: sent as REAL64, it is INT32"),
+            ("NAV_DLL_ACT", int32_field(2), T::MAV_PARAM_TYPE_INT64, "NAV_DLL_ACT: sent as INT64, it is INT32"),
+            ("ACO_ADAPT_EN", int32_field(2), INT32, "ACO_ADAPT_EN: 2 must be 0 or 1"),
+            ("LOOP_INNER_HZ", int32_field(99), INT32, "LOOP_INNER_HZ: 99 not in 100..2000"),
+        ];
+        for (name, field, param_type, text) in cases {
+            let (mut svc, mut store) = (ParamService::new(), ParamStore::defaults());
+            let reply = svc.on_message(US, &GCS, &set_typed(name, field, param_type), &mut store);
+            assert_eq!(store, ParamStore::defaults(), "{text}: nothing changes");
+            assert_eq!(reply.changed, None);
+            assert_eq!(reply.messages.len(), 2, "{reply:?}");
+            assert_eq!(text_of(&reply.messages[0]), (MavSeverity::MAV_SEVERITY_WARNING, text.to_owned()));
+            let default = store.get(name).expect("declared");
+            assert_eq!(raw(&reply, 1), (INT32, default as i32 as u32), "{text}: the unchanged value");
+        }
+    }
+
+    #[test]
+    fn given_a_real32_parameter_when_set_with_any_other_type_then_refused_not_converted() {
+        use MavParamType as T;
+        for param_type in [
+            INT32,
+            T::MAV_PARAM_TYPE_UINT8,
+            T::MAV_PARAM_TYPE_INT8,
+            T::MAV_PARAM_TYPE_UINT16,
+            T::MAV_PARAM_TYPE_INT16,
+            T::MAV_PARAM_TYPE_UINT32,
+            T::MAV_PARAM_TYPE_UINT64,
+            T::MAV_PARAM_TYPE_INT64,
+            T::MAV_PARAM_TYPE_REAL64,
+        ] {
+            let (mut svc, mut store) = (ParamService::new(), ParamStore::defaults());
+            let reply = svc.on_message(US, &GCS, &set_typed("MPC_XY_CRUISE", int32_field(2), param_type), &mut store);
+            assert_eq!((store.get("MPC_XY_CRUISE"), reply.changed), (Some(1.0), None), "{param_type:?}");
+            let sent = crate::core::params::param_type_name(param_type);
+            let text = format!("MPC_XY_CRUISE: sent as {sent}, it is REAL32");
+            assert_eq!(text_of(&reply.messages[0]), (MavSeverity::MAV_SEVERITY_WARNING, text));
+            assert_eq!(raw(&reply, 1), (REAL32, 1.0_f32.to_bits()), "the unchanged value");
+        }
+    }
+
+    /// A table with a signed integer (the vehicle's integers are all >= 0).
+    static SIGNED: [ParamDef<(), ()>; 1] = [ParamDef {
+        name: "TEST_OFFSET",
+        group: (),
+        kind: ParamKind::Integer,
+        default: -3.0,
+        min: -100.0,
+        max: 100.0,
+        unit: "",
+        restart: false,
+        description: "A signed integer.",
+        binding: (),
+    }];
+
+    #[test]
+    fn given_a_negative_integer_when_read_and_set_then_its_twos_complement_bytes_travel_as_they_are() {
+        use MavParamType as T;
+        let (mut svc, mut store) = (ParamService::new(), ParamStore::with_defaults(&SIGNED));
+        let reply = svc.on_message(US, &GCS, &read_index(0), &mut store);
+        assert_eq!(raw(&reply, 0), (INT32, 0xFFFF_FFFD), "-3");
+        for (field, param_type, value) in [
+            (int32_field(-42), INT32, -42.0),
+            (f32::from_bits(0xD6), T::MAV_PARAM_TYPE_INT8, -42.0),
+            (f32::from_bits(0xFFD6), T::MAV_PARAM_TYPE_INT16, -42.0),
+            (-7.0, REAL32, -7.0),
+            (int32_field(100), INT32, 100.0),
+        ] {
+            let reply = svc.on_message(US, &GCS, &set_typed("TEST_OFFSET", field, param_type), &mut store);
+            assert_eq!(store.get("TEST_OFFSET"), Some(value), "{param_type:?}");
+            assert_eq!(raw(&reply, 0), (INT32, value as i32 as u32), "{param_type:?}");
+        }
+        // Sign-extended past the type's width, or out of range: refused.
+        for (field, param_type, text) in [
+            (f32::from_bits(0xFFFF_FFD6), T::MAV_PARAM_TYPE_INT8, "TEST_OFFSET: 0xffffffd6 not a bytewise INT8"),
+            (int32_field(-101), INT32, "TEST_OFFSET: -101 not in -100..100"),
+            (f32::from_bits(0xFFD6), T::MAV_PARAM_TYPE_UINT16, "TEST_OFFSET: 65494 not in -100..100"),
+        ] {
+            let reply = svc.on_message(US, &GCS, &set_typed("TEST_OFFSET", field, param_type), &mut store);
+            assert_eq!(text_of(&reply.messages[0]).1, text);
+            assert_eq!((store.get("TEST_OFFSET"), raw(&reply, 1)), (Some(100.0), (INT32, 100)));
+        }
+    }
+
+    #[test]
+    fn given_the_widest_values_of_each_integer_type_when_decoded_then_exact_or_refused() {
+        use MavParamType as T;
+        let cases: [(MavParamType, u32, Option<f32>); 12] = [
+            (T::MAV_PARAM_TYPE_UINT8, 0xFF, Some(255.0)),
+            (T::MAV_PARAM_TYPE_UINT8, 0x100, None),
+            (T::MAV_PARAM_TYPE_INT8, 0x80, Some(-128.0)),
+            (T::MAV_PARAM_TYPE_UINT16, 0xFFFF, Some(65_535.0)),
+            (T::MAV_PARAM_TYPE_INT16, 0x8000, Some(-32_768.0)),
+            (T::MAV_PARAM_TYPE_INT16, 0x1_0000, None),
+            (T::MAV_PARAM_TYPE_UINT32, 0xFFFF_FFFF, Some(4_294_967_296.0)),
+            (T::MAV_PARAM_TYPE_INT32, 0x8000_0000, Some(-2_147_483_648.0)),
+            (T::MAV_PARAM_TYPE_INT32, 0x7FFF_FFFF, Some(2_147_483_648.0)),
+            (T::MAV_PARAM_TYPE_UINT64, 2, None),
+            (T::MAV_PARAM_TYPE_INT64, 2, None),
+            (T::MAV_PARAM_TYPE_REAL64, 2, None),
+        ];
+        for (param_type, bits, value) in cases {
+            assert_eq!(decode_value(param_type, f32::from_bits(bits)), value, "{param_type:?} {bits:#x}");
+        }
+        assert_eq!(decode_value(REAL32, 2.5), Some(2.5));
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn given_any_integer_within_2_pow_24_when_encoded_then_its_int32_bytes_and_decoded_back_exactly(
+            i in -(1_i32 << 24)..=(1 << 24),
+        ) {
+            let value = i as f32;
+            for kind in [ParamKind::Integer, ParamKind::Boolean] {
+                let field = encode_value(kind, value);
+                proptest::prop_assert_eq!(field.to_le_bytes(), i.to_le_bytes());
+                proptest::prop_assert_eq!(decode_value(kind.mav_param_type(), field), Some(value));
+            }
+        }
+
+        #[test]
+        fn given_any_real_when_encoded_then_the_f32_itself_and_decoded_bit_exactly(bits in proptest::prelude::any::<u32>()) {
+            let x = f32::from_bits(bits);
+            let field = encode_value(ParamKind::Real, x);
+            proptest::prop_assert_eq!(field.to_bits(), bits);
+            let back = decode_value(ParamKind::Real.mav_param_type(), field).map(f32::to_bits);
+            proptest::prop_assert_eq!(back, Some(bits));
+        }
     }
 }

@@ -7,8 +7,11 @@
 //! ([`ParamStore::apply`]), the text to save ([`ParamStore::to_text`]) and the docs. Units are each
 //! parameter's `unit` (SI; gains in 1/s, rates in Hz). Pure: the runtime reads and writes the files.
 //!
-//! Every value is an f32, as MAVLink's REAL32 carries it: a boolean is 0 or 1 (min 0, max 1), an integer
-//! a whole value. A parameter's index is its position in the table (PARAM_VALUE's `param_index`). The
+//! Every value is held as an f32: a boolean is 0 or 1 (min 0, max 1), an integer a whole value. On MAVLink
+//! a value travels as its kind's [`ParamKind::mav_param_type`], as PX4 sends it: a real as REAL32, an
+//! integer or a boolean as INT32 in PX4's bytewise encoding (the encoding is
+//! `crate::core::mavlink::params`'). A parameter's index is its position in the table (PARAM_VALUE's
+//! `param_index`). The
 //! config holds f64: `from_config` rounds to f32, and `apply` writes a field only when the parameter
 //! differs from that rounding, so `apply(from_config(c))` leaves any config `c` as it is (5.2 stays the
 //! f64 5.2) while a value that was set arrives exactly (`from_config(apply(s)) == s`).
@@ -22,6 +25,7 @@
 
 use std::fmt;
 
+use ::mavlink::dialects::common::MavParamType;
 use thiserror::Error;
 
 use crate::core::config::VehicleConfig;
@@ -108,6 +112,35 @@ pub enum ParamKind {
     Integer,
     /// 0 or 1.
     Boolean,
+}
+
+impl ParamKind {
+    /// The MAVLink `param_type` a value of this kind travels as (PARAM_VALUE; what a PARAM_SET should
+    /// send): REAL32 for a real, INT32 for an integer or a boolean, as PX4 declares them.
+    #[must_use]
+    pub const fn mav_param_type(self) -> MavParamType {
+        match self {
+            Self::Real => MavParamType::MAV_PARAM_TYPE_REAL32,
+            Self::Integer | Self::Boolean => MavParamType::MAV_PARAM_TYPE_INT32,
+        }
+    }
+}
+
+/// A MAVLink parameter type's short name, as ground stations write it (`INT32`, `REAL32`).
+#[must_use]
+pub const fn param_type_name(param_type: MavParamType) -> &'static str {
+    match param_type {
+        MavParamType::MAV_PARAM_TYPE_UINT8 => "UINT8",
+        MavParamType::MAV_PARAM_TYPE_INT8 => "INT8",
+        MavParamType::MAV_PARAM_TYPE_UINT16 => "UINT16",
+        MavParamType::MAV_PARAM_TYPE_INT16 => "INT16",
+        MavParamType::MAV_PARAM_TYPE_UINT32 => "UINT32",
+        MavParamType::MAV_PARAM_TYPE_INT32 => "INT32",
+        MavParamType::MAV_PARAM_TYPE_UINT64 => "UINT64",
+        MavParamType::MAV_PARAM_TYPE_INT64 => "INT64",
+        MavParamType::MAV_PARAM_TYPE_REAL32 => "REAL32",
+        MavParamType::MAV_PARAM_TYPE_REAL64 => "REAL64",
+    }
 }
 
 /// Where a parameter of the vehicle's table lives in the [`VehicleConfig`].
@@ -204,6 +237,14 @@ pub enum ParamError {
     NotWhole { name: &'static str, value: f32 },
     #[error("{name}: {} must be 0 or 1", Value(*.value))]
     NotBoolean { name: &'static str, value: f32 },
+    /// A PARAM_SET whose `param_type` cannot carry a value of the parameter's type (an integer type for a
+    /// REAL32 parameter, a 64-bit type for any).
+    #[error("{name}: sent as {}, it is {}", param_type_name(*.sent), param_type_name(*.expected))]
+    WrongType { name: &'static str, sent: MavParamType, expected: MavParamType },
+    /// A PARAM_SET of an integer type whose four bytes are not a value of that type (a byte past the
+    /// type's width is not 0).
+    #[error("{name}: {bits:#010x} not a bytewise {}", param_type_name(*.sent))]
+    NotBytewise { name: &'static str, sent: MavParamType, bits: u32 },
     /// The table's owner could not apply a value the check allows (a plant that refused it).
     #[error("{name}: {reason}")]
     Refused { name: &'static str, reason: String },
@@ -478,8 +519,8 @@ impl<G, B> ParamStore<G, B> {
     }
 }
 
-/// `docs/params.md`: a title, how it is made, then one table per [`ParamGroup`] (name, default, min,
-/// max, unit, restart, description).
+/// `docs/params.md`: a title, how it is made, then one table per [`ParamGroup`] (name, MAVLink type,
+/// default, min, max, unit, restart, description).
 #[must_use]
 pub fn markdown() -> String {
     let mut out = String::from("# Parameters\n\n");
@@ -489,19 +530,23 @@ pub fn markdown() -> String {
          while this\nfile is stale).\n\n",
     );
     out.push_str(&format!(
-        "{} parameters. Every value travels as a MAVLink REAL32 (f32): integers are whole values, booleans \
-         0 or 1.\nA parameter marked *yes* under Restart takes effect at the next start; the others apply \
-         while running.\n",
+        "{} parameters. Type is the MAVLink `param_type` a value travels as, as PX4 sends it: REAL32 (f32) \
+         for a real,\nINT32 for an integer or a boolean (0 or 1) in PX4's bytewise encoding: the int32's four \
+         bytes stand as they are\nin the float field `param_value` (AUTOPILOT_VERSION declares \
+         PARAM_ENCODE_BYTEWISE). A PARAM_SET of an INT32\nparameter may also send REAL32 with a whole value. \
+         A parameter marked *yes* under Restart takes effect at the\nnext start; the others apply while \
+         running.\n",
         PARAMS.len()
     ));
     for group in ParamGroup::ALL {
         out.push_str(&format!("\n## {}\n\n{}\n\n", group.title(), group.summary()));
-        out.push_str("| Name | Default | Min | Max | Unit | Restart | Description |\n");
-        out.push_str("|---|---:|---:|---:|---|---|---|\n");
+        out.push_str("| Name | Type | Default | Min | Max | Unit | Restart | Description |\n");
+        out.push_str("|---|---|---:|---:|---:|---|---|---|\n");
         for d in PARAMS.iter().filter(|d| d.group == group) {
             out.push_str(&format!(
-                "| `{}` | {} | {} | {} | {} | {} | {} |\n",
+                "| `{}` | {} | {} | {} | {} | {} | {} | {} |\n",
                 d.name,
+                param_type_name(d.kind.mav_param_type()),
                 Value(d.default),
                 Value(d.min),
                 Value(d.max),
@@ -551,7 +596,22 @@ mod tests {
             }
             if d.kind != ParamKind::Real {
                 assert!(d.min.fract() == 0.0 && d.max.fract() == 0.0, "{}: whole bounds", d.name);
+                // Inside ±2^23: every value in range is exact as an f32 and as an i32, and a float sent
+                // where a bytewise int32 belongs reads as an int32 outside the range (a positive normal f32
+                // is 2^23 or more, a negative one below -2^23), so a mix-up is refused, never misread.
+                assert!((-8_388_608.0..8_388_608.0).contains(&d.min), "{}: min within ±2^23", d.name);
+                assert!((-8_388_608.0..8_388_608.0).contains(&d.max), "{}: max within ±2^23", d.name);
             }
+            assert_eq!(
+                d.kind.mav_param_type(),
+                if d.kind == ParamKind::Real {
+                    MavParamType::MAV_PARAM_TYPE_REAL32
+                } else {
+                    MavParamType::MAV_PARAM_TYPE_INT32
+                },
+                "{}",
+                d.name
+            );
             for text in [d.description, d.unit] {
                 assert!(!text.contains('|') && !text.contains('\n'), "{}: `{text}` breaks the docs table", d.name);
             }
@@ -648,11 +708,30 @@ mod tests {
             assert_eq!(store, ParamStore::defaults(), "{name}: nothing changes");
         }
         assert_eq!(store.set_index(store.len(), 1.0), Err(ParamError::UnknownIndex { index: store.len() }));
-        // Every range error of the table fits a STATUSTEXT, even for awkward values.
+        // Every range error of the table fits a STATUSTEXT, even for awkward values, and so do the type
+        // refusals with the longest type names.
         for d in PARAMS {
             let e = d.check(-(d.max.abs() + 1.0) * 1.000_001_2).expect_err(d.name).to_string();
             assert!(e.len() <= 50, "{e}");
+            let (long, wide) = (MavParamType::MAV_PARAM_TYPE_UINT64, MavParamType::MAV_PARAM_TYPE_UINT16);
+            let wrong = ParamError::WrongType { name: d.name, sent: long, expected: d.kind.mav_param_type() };
+            let bytes = ParamError::NotBytewise { name: d.name, sent: wide, bits: u32::MAX };
+            for e in [wrong.to_string(), bytes.to_string()] {
+                assert!(e.len() <= 50, "{e}");
+            }
         }
+        let wrong = ParamError::WrongType {
+            name: "MPC_XY_CRUISE",
+            sent: MavParamType::MAV_PARAM_TYPE_INT32,
+            expected: MavParamType::MAV_PARAM_TYPE_REAL32,
+        };
+        assert_eq!(wrong.to_string(), "MPC_XY_CRUISE: sent as INT32, it is REAL32");
+        let bytes = ParamError::NotBytewise {
+            name: "NAV_DLL_ACT",
+            sent: MavParamType::MAV_PARAM_TYPE_UINT8,
+            bits: 0x4000_0000,
+        };
+        assert_eq!(bytes.to_string(), "NAV_DLL_ACT: 0x40000000 not a bytewise UINT8");
         assert_eq!(store.set("MPC_XY_CRUISE", 5.0), Ok(()), "the bound itself is in range");
         assert_eq!(store.set("MPC_XY_CRUISE", 5.0), Ok(()), "setting the current value is fine");
         assert_eq!(store.get("MPC_XY_CRUISE"), Some(5.0));
@@ -729,7 +808,10 @@ mod tests {
         for d in PARAMS {
             assert_eq!(md.matches(&format!("| `{}` |", d.name)).count(), 1, "{}", d.name);
         }
-        assert!(md.contains("| `LOOP_INNER_HZ` | 500 | 100 | 2000 | Hz | yes |"));
+        assert!(md.contains("| `LOOP_INNER_HZ` | INT32 | 500 | 100 | 2000 | Hz | yes |"));
+        assert!(md.contains("| `NAV_DLL_ACT` | INT32 | 0 | 0 | 5 |"));
+        assert!(md.contains("| `ACO_ADAPT_EN` | INT32 | 1 | 0 | 1 | 0/1 |"));
+        assert!(md.contains("| `COM_DL_LOSS_T` | REAL32 | 10 | 5 | 300 | s |"));
     }
 
     proptest! {
