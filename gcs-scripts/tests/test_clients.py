@@ -184,6 +184,14 @@ async def mavsdk_params(instance):
     assert await param.get_param_float("COM_DL_LOSS_T") == 10.0
     await param.set_param_float("COM_DL_LOSS_T", 7.5)
     assert await param.get_param_float("COM_DL_LOSS_T") == 7.5
+    # The failsafe actions as a PX4 script sets them (PX4's numbers), and their refusals.
+    assert (await param.get_param_int("GF_ACTION"), await param.get_param_int("COM_LOW_BAT_ACT")) == (2, 3)
+    await param.set_param_int("GF_ACTION", 3)
+    await param.set_param_int("COM_LOW_BAT_ACT", 2)
+    assert (await param.get_param_int("GF_ACTION"), await param.get_param_int("COM_LOW_BAT_ACT")) == (3, 2)
+    with pytest.raises(ParamError):
+        await param.set_param_int("COM_LOW_BAT_ACT", 1)  # not one of PX4's values (0, 2, 3)
+    assert await param.get_param_int("COM_LOW_BAT_ACT") == 2
     # The vehicle's types are PX4's: an integer is not a float, nor a float an integer.
     with pytest.raises(ParamError) as wrong:
         await param.get_param_float("NAV_DLL_ACT")
@@ -402,7 +410,7 @@ def test_the_qgroundcontrol_connection_sequence_completes(sitl):
     v.send(v.conn.mav.command_long_encode(sysid, 1, mavlink.MAV_CMD_REQUEST_MESSAGE, 0, 148, 0, 0, 0, 0, 0, 0))
     version = v.next_message(10, lambda m: m.get_type() == "AUTOPILOT_VERSION")
     assert version is not None, "AUTOPILOT_VERSION"
-    for bit in ("MISSION_INT", "COMMAND_INT", "MAVLINK2", "PARAM_ENCODE_BYTEWISE"):
+    for bit in ("MISSION_INT", "COMMAND_INT", "MAVLINK2", "PARAM_ENCODE_BYTEWISE", "MISSION_FENCE", "MISSION_RALLY"):
         assert version.capabilities & getattr(mavlink, f"MAV_PROTOCOL_CAPABILITY_{bit}"), bit
     assert not version.capabilities & mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_C_CAST
     assert version.flight_sw_version >> 8 >= 0x010F00, hex(version.flight_sw_version)
@@ -433,6 +441,34 @@ def test_the_qgroundcontrol_connection_sequence_completes(sitl):
         msg = v.next_message(10, lambda m: m.get_type() == "MISSION_COUNT" and m.mission_type == mission_type)
         assert msg is not None, f"MISSION_COUNT of type {mission_type}"
         assert msg.count == 0, f"type {mission_type}: nothing uploaded yet"
+        v.send(v.conn.mav.mission_ack_encode(sysid, 1, mavlink.MAV_MISSION_ACCEPTED, mission_type))
+    # The plan view's upload of a geofence (an inclusion polygon and an exclusion circle) and a rally point,
+    # each with its mission_type on every message, then read back identical.
+    lat0, lon0 = 473977420, 85455940  # around the SITL's home (degE7)
+    fence = [
+        (mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION, 4, lat0 + dn, lon0 + de)
+        for dn, de in [(-3000, -4000), (3000, -4000), (3000, 4000), (-3000, 4000)]
+    ] + [(mavlink.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION, 5, lat0 + 1500, lon0 + 1500)]
+    rally = [(mavlink.MAV_CMD_NAV_RALLY_POINT, 0, lat0 + 1000, lon0)]
+    for mission_type, items in ((mavlink.MAV_MISSION_TYPE_FENCE, fence), (mavlink.MAV_MISSION_TYPE_RALLY, rally)):
+        v.send(v.conn.mav.mission_count_encode(sysid, 1, len(items), mission_type))
+        while True:
+            kinds = ("MISSION_REQUEST_INT", "MISSION_ACK")
+            msg = v.next_message(10, lambda m: m.get_type() in kinds and m.mission_type == mission_type)
+            assert msg is not None, f"type {mission_type}: upload stalled"
+            if msg.get_type() == "MISSION_ACK":
+                assert msg.type == mavlink.MAV_MISSION_ACCEPTED, msg
+                break
+            command, p1, x, y = items[msg.seq]
+            frame = mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT
+            v.send(v.conn.mav.mission_item_int_encode(sysid, 1, msg.seq, frame, command, 0, 1, p1, 0, 0, 0, x, y, 10.0, mission_type))
+        v.send(v.conn.mav.mission_request_list_encode(sysid, 1, mission_type))
+        msg = v.next_message(10, lambda m: m.get_type() == "MISSION_COUNT" and m.mission_type == mission_type)
+        assert msg is not None and msg.count == len(items)
+        for seq, (command, p1, x, y) in enumerate(items):
+            v.send(v.conn.mav.mission_request_int_encode(sysid, 1, seq, mission_type))
+            got = v.next_message(10, lambda m, s=seq: m.get_type() == "MISSION_ITEM_INT" and m.seq == s)
+            assert got is not None and (got.command, got.param1, got.x, got.y, got.mission_type) == (command, p1, x, y, mission_type)
         v.send(v.conn.mav.mission_ack_encode(sysid, 1, mavlink.MAV_MISSION_ACCEPTED, mission_type))
     # A mode change with the SET_MODE message (PX4 POSCTL), then back to Hold.
     for custom_mode in (3 << 16, (4 << 16) | (3 << 24)):
