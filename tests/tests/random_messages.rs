@@ -1,0 +1,213 @@
+//! A flying vehicle driven by random ground-station message sequences (commands with any parameters,
+//! mode changes, offboard setpoints with any numbers, parameter sets, mission, fence and rally transfers),
+//! in lockstep with the real plant, built with overflow checks on (the test profile keeps them). The
+//! invariants a pilot relies on, checked every tick: nothing panics; the motor commands stay finite and in
+//! 1000-2000 µs (the rig asserts it); the vehicle never arms without an ARM command; and with
+//! GF_MAX_HOR_DIST set it never gets farther from home than the limit plus a margin, on the plant's truth.
+
+use autopilot::core::estimator::EstimatorSource;
+use autopilot::core::mavlink::command_long;
+use autopilot::core::mavlink::common::{
+    COMMAND_INT_DATA, HEARTBEAT_DATA, MISSION_COUNT_DATA, MavAutopilot, MavCmd, MavFrame, MavMessage, MavMissionType,
+    MavParamType, MavState, MavType, PARAM_SET_DATA, PositionTargetTypemask, SET_POSITION_TARGET_LOCAL_NED_DATA,
+};
+use autopilot::core::params::PARAMS;
+use nalgebra::Vector3;
+use proptest::prelude::*;
+use tests::rig::{Rig, mission_item};
+
+/// The fence every case flies in (m from home), and how far past it the vehicle may be seen: the
+/// controller's tracking error on a stop predicted from the estimate.
+const FENCE_M: f64 = 15.0;
+const MARGIN_M: f64 = 1.0;
+
+/// Numbers a fuzzer would try: ordinary ones, and the edges of f32.
+fn any_f32() -> impl Strategy<Value = f32> {
+    prop_oneof![
+        4 => -30.0_f32..30.0,
+        1 => Just(f32::NAN),
+        1 => Just(f32::INFINITY),
+        1 => Just(-1e30_f32),
+        1 => Just(1e30_f32),
+        1 => Just(21196.0_f32),
+        1 => any::<f32>(),
+    ]
+}
+
+fn any_i32() -> impl Strategy<Value = i32> {
+    prop_oneof![3 => 473_970_000_i32..473_985_000, 1 => any::<i32>(), 1 => Just(i32::MAX)]
+}
+
+const COMMANDS: [MavCmd; 11] = [
+    MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+    MavCmd::MAV_CMD_DO_SET_MODE,
+    MavCmd::MAV_CMD_NAV_TAKEOFF,
+    MavCmd::MAV_CMD_NAV_LAND,
+    MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH,
+    MavCmd::MAV_CMD_DO_REPOSITION,
+    MavCmd::MAV_CMD_MISSION_START,
+    MavCmd::MAV_CMD_DO_CHANGE_SPEED,
+    MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
+    MavCmd::MAV_CMD_NAV_LOITER_UNLIM,
+    MavCmd::MAV_CMD_DO_SET_HOME,
+];
+
+/// Parameters the sequences may set: all but the ones that define the invariant (the fence and its
+/// action, home) and the restart-only loop rates.
+fn settable() -> Vec<&'static str> {
+    PARAMS.iter().map(|d| d.name).filter(|n| !n.starts_with("GF_") && !n.starts_with("LOOP_")).collect()
+}
+
+fn any_message() -> impl Strategy<Value = MavMessage> {
+    let names = settable();
+    prop_oneof![
+        4 => (0..COMMANDS.len(), proptest::array::uniform7(any_f32())).prop_filter_map("not home", |(i, p)| {
+            let command = COMMANDS[i];
+            (command != MavCmd::MAV_CMD_DO_SET_HOME).then(|| command_long(1, 1, command, p))
+        }),
+        // PX4 modes as ground stations ask for them (main 1..6, sub 0..6): offboard, mission, RTL, hold, ...
+        3 => (1_u8..7, 0_u8..7).prop_map(|(main, sub)| {
+            command_long(1, 1, MavCmd::MAV_CMD_DO_SET_MODE, [1.0, f32::from(main), f32::from(sub), 0.0, 0.0, 0.0, 0.0])
+        }),
+        // Offboard velocities that push anywhere, up to 5 m/s.
+        4 => (-5.0_f32..5.0, -5.0_f32..5.0, -1.0_f32..1.0).prop_map(|(vn, ve, vd)| {
+            MavMessage::SET_POSITION_TARGET_LOCAL_NED(SET_POSITION_TARGET_LOCAL_NED_DATA {
+                vx: vn,
+                vy: ve,
+                vz: vd,
+                type_mask: PositionTargetTypemask::from_bits_truncate(7 | 448 | 1024 | 2048),
+                target_system: 1,
+                target_component: 1,
+                coordinate_frame: MavFrame::MAV_FRAME_LOCAL_NED,
+                ..Default::default()
+            })
+        }),
+        2 => (any_i32(), any_i32(), any_f32(), any_f32()).prop_map(|(x, y, z, p4)| {
+            MavMessage::COMMAND_INT(COMMAND_INT_DATA {
+                param1: -1.0,
+                param4: p4,
+                x,
+                y,
+                z,
+                command: MavCmd::MAV_CMD_DO_REPOSITION,
+                target_system: 1,
+                target_component: 1,
+                frame: MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT,
+                ..Default::default()
+            })
+        }),
+        4 => (any::<u16>(), proptest::array::uniform3(any_f32()), proptest::array::uniform3(any_f32())).prop_map(
+            |(mask, p, v)| {
+                MavMessage::SET_POSITION_TARGET_LOCAL_NED(SET_POSITION_TARGET_LOCAL_NED_DATA {
+                    x: p[0],
+                    y: p[1],
+                    z: p[2],
+                    vx: v[0],
+                    vy: v[1],
+                    vz: v[2],
+                    type_mask: PositionTargetTypemask::from_bits_truncate(mask),
+                    target_system: 1,
+                    target_component: 1,
+                    coordinate_frame: MavFrame::MAV_FRAME_LOCAL_NED,
+                    ..Default::default()
+                })
+            }
+        ),
+        2 => (0..names.len(), any_f32(), any::<bool>()).prop_map(move |(i, value, int32)| {
+            MavMessage::PARAM_SET(PARAM_SET_DATA {
+                param_value: value,
+                target_system: 1,
+                target_component: 1,
+                param_id: names[i].into(),
+                param_type: if int32 { MavParamType::MAV_PARAM_TYPE_INT32 } else { MavParamType::MAV_PARAM_TYPE_REAL32 },
+            })
+        }),
+        2 => (0_u16..5, 0_u8..3).prop_map(|(count, t)| {
+            let mission_type = [
+                MavMissionType::MAV_MISSION_TYPE_MISSION,
+                MavMissionType::MAV_MISSION_TYPE_FENCE,
+                MavMissionType::MAV_MISSION_TYPE_RALLY,
+            ][usize::from(t)];
+            MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
+                count,
+                target_system: 1,
+                target_component: 1,
+                mission_type,
+                ..Default::default()
+            })
+        }),
+        2 => (0_u16..5, 0..COMMANDS.len(), any_i32(), any_i32(), any_f32(), 0_u8..3).prop_map(|(seq, c, x, y, z, t)| {
+            let command = [MavCmd::MAV_CMD_NAV_WAYPOINT, MavCmd::MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION, MavCmd::MAV_CMD_NAV_RALLY_POINT]
+                [c % 3];
+            let mut item = mission_item(seq, command, [5.0, 0.0, 0.0, 0.0], f64::from(x) * 1e-7, f64::from(y) * 1e-7, z);
+            item.mission_type = [
+                MavMissionType::MAV_MISSION_TYPE_MISSION,
+                MavMissionType::MAV_MISSION_TYPE_FENCE,
+                MavMissionType::MAV_MISSION_TYPE_RALLY,
+            ][usize::from(t)];
+            MavMessage::MISSION_ITEM_INT(item)
+        }),
+        1 => Just(MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+            custom_mode: 0,
+            mavtype: MavType::MAV_TYPE_GCS,
+            autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+            base_mode: Default::default(),
+            system_status: MavState::MAV_STATE_ACTIVE,
+            mavlink_version: 3,
+        })),
+    ]
+}
+
+/// A rig hovering 3 m over home with GF_MAX_HOR_DIST = [`FENCE_M`] (GF_ACTION 2, hold).
+fn flying() -> Rig {
+    let mut rig = Rig::new(EstimatorSource::Truth);
+    rig.wait_until(10.0, "estimator", |r| r.vehicle.estimate().flags.converged && r.vehicle.home().is_some());
+    let set = MavMessage::PARAM_SET(PARAM_SET_DATA {
+        param_value: FENCE_M as f32,
+        target_system: 1,
+        target_component: 1,
+        param_id: "GF_MAX_HOR_DIST".into(),
+        param_type: MavParamType::MAV_PARAM_TYPE_REAL32,
+    });
+    rig.send(&set);
+    let nan = f32::NAN;
+    rig.command(MavCmd::MAV_CMD_NAV_TAKEOFF, [0.0, 0.0, 0.0, nan, nan, nan, 3.0]);
+    rig.command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+    rig.run_s(8.0, |_| {});
+    assert!(rig.armed());
+    rig
+}
+
+fn is_arm_command(msg: &MavMessage) -> bool {
+    matches!(msg, MavMessage::COMMAND_LONG(c) if c.command == MavCmd::MAV_CMD_COMPONENT_ARM_DISARM && c.param1 == 1.0)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
+
+    #[test]
+    fn given_random_message_sequences_then_no_panic_no_arming_without_a_command_and_the_fence_holds(
+        sequence in proptest::collection::vec((0_u32..1500, any_message()), 1..60),
+    ) {
+        let mut rig = flying();
+        let mut arm_allowed = false;
+        let mut farthest_m: f64 = 0.0;
+        for (ticks, msg) in sequence.iter().chain(std::iter::once(&(5000, MavMessage::HEARTBEAT(HEARTBEAT_DATA::default())))) {
+            arm_allowed |= is_arm_command(msg);
+            rig.send(msg);
+            for _ in 0..*ticks {
+                let was_armed = rig.vehicle.commander().armed();
+                rig.tick();
+                let armed = rig.vehicle.commander().armed();
+                prop_assert!(was_armed || !armed || arm_allowed, "armed without an ARM command");
+                if !armed {
+                    arm_allowed = false;
+                }
+                let home = rig.vehicle.home().map_or(Vector3::zeros(), |h| h.pos_ned_m);
+                let d = (rig.plant.truth().pos_ned_m - home).xy().norm();
+                farthest_m = farthest_m.max(d);
+                prop_assert!(d <= FENCE_M + MARGIN_M, "{d:.2} m from home with GF_MAX_HOR_DIST {FENCE_M}");
+            }
+        }
+    }
+}
