@@ -521,7 +521,7 @@ mod tests {
     struct Harness {
         plant: UdpSocket,
         out_rx: mpsc::Receiver<Outgoing>,
-        _in_tx: mpsc::Sender<Incoming>,
+        in_tx: mpsc::Sender<Incoming>,
         stop: Arc<AtomicBool>,
         thread: std::thread::JoinHandle<Result<PlantLinkStats, PlantLinkError>>,
     }
@@ -540,7 +540,7 @@ mod tests {
             let out = GcsOutputs { links: vec![out_tx], ..GcsOutputs::default() };
             run(&mut transport, config, Persisted::default(), in_rx, out, &thread_stop)
         });
-        Harness { plant, out_rx, _in_tx: in_tx, stop, thread }
+        Harness { plant, out_rx, in_tx, stop, thread }
     }
 
     #[test]
@@ -695,7 +695,7 @@ mod tests {
 
     #[test]
     fn a_silent_plant_is_reported_motors_stopped_and_the_heartbeat_kept_on_the_wall_clock_until_it_resumes() {
-        use mavlink::dialects::common::MavSysStatusSensor as S;
+        use mavlink::dialects::common::{MavCmd, MavResult, MavSysStatusSensor as S};
         let mut h = start(1);
         let mut buf = vec![0u8; 2048];
         let (_, autopilot) = h.plant.recv_from(&mut buf).expect("announce");
@@ -736,6 +736,24 @@ mod tests {
         let imu = S::MAV_SYS_STATUS_SENSOR_3D_GYRO | S::MAV_SYS_STATUS_SENSOR_3D_ACCEL;
         assert!(sys_status.iter().all(|s| s.onboard_control_sensors_present.contains(imu)
             && !s.onboard_control_sensors_health.intersects(imu | S::MAV_SYS_STATUS_PREARM_CHECK)));
+        // THEN a ground-station command is still answered meanwhile (at the last vehicle time).
+        let request = crate::core::mavlink::command_long(
+            1,
+            1,
+            MavCmd::MAV_CMD_REQUEST_MESSAGE,
+            [148.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        );
+        let header = MavHeader { system_id: 255, component_id: 190, sequence: 0 };
+        let peer = "127.0.0.1:14550".parse().expect("addr");
+        let incoming = Incoming { link: 0, peer, header, message: request, version: mavlink::MavlinkVersion::V2 };
+        h.in_tx.try_send(incoming).expect("queued");
+        let answered = collect_until(&mut h, Duration::from_secs(10), |m| {
+            m.iter().any(|m| matches!(m, MavMessage::AUTOPILOT_VERSION(_)))
+        });
+        let answered = answered.expect("the command is answered while the plant is lost");
+        let accepted =
+            |m: &MavMessage| matches!(m, MavMessage::COMMAND_ACK(a) if a.result == MavResult::MAV_RESULT_ACCEPTED);
+        assert!(answered.iter().any(accepted), "{answered:?}");
         // WHEN the plant resumes on its clock (it had paused) for a second of vehicle time THEN regained,
         // no restart, and the vehicle's own HEARTBEAT (STANDBY) again.
         for k in 1..=500_u64 {
