@@ -2,7 +2,9 @@
 //! flown by this test as a ground station over UDP exactly as QGroundControl would be: listen on
 //! 14550+N, command the autopilot at 18570+N. Waits on vehicle time (`time_boot_ms` of the telemetry),
 //! never on wall sleeps; a wall-clock deadline fails the test instead of hanging, and a guard kills the
-//! whole process group (sitl and its autopilot child) however the test ends.
+//! whole process group (sitl and its autopilot child) however the test ends. The plant-loss test runs the
+//! two apart (`sitl serve` and `autopilot`) so that it can kill and restart the plant alone; while the
+//! plant is dead no vehicle time passes, so that phase waits on messages under a wall-clock deadline.
 
 use std::net::UdpSocket;
 use std::os::unix::process::CommandExt;
@@ -627,4 +629,102 @@ fn parameters_and_the_mission_survive_a_restart_of_the_autopilot() {
         assert_eq!((got.seq, got.x, got.y, got.z, got.command), (want.seq, want.x, want.y, want.z, want.command));
     }
     let _ = std::fs::remove_dir_all(&state);
+}
+
+/// What a ground station hears from system `sysid` on `socket`, in order, while `more` says so (called
+/// after each read with all of it); a wall-clock limit fails the test instead of hanging.
+fn listen(
+    socket: &UdpSocket,
+    sysid: u8,
+    heard: &mut Vec<MavMessage>,
+    wall: Duration,
+    what: &str,
+    more: impl Fn(&[MavMessage]) -> bool,
+) {
+    let deadline = Instant::now() + wall;
+    let mut decoder = FrameDecoder::new();
+    let mut buf = [0u8; 65_536];
+    while more(heard) {
+        assert!(Instant::now() < deadline, "no {what} within {wall:?} of wall time");
+        let Ok(len) = socket.recv(&mut buf) else { continue };
+        heard.extend(
+            decoder
+                .decode_datagram(&buf[..len])
+                .into_iter()
+                .filter(|f| f.header.system_id == u32::from(sysid))
+                .map(|f| f.message),
+        );
+    }
+}
+
+#[test]
+fn a_plant_killed_and_restarted_keeps_the_heartbeat_meanwhile_and_its_new_clock_gets_one_within_1_s() {
+    use autopilot::core::mavlink::common::MavState;
+    use autopilot::runtime::plant_link::{PLANT_LOST_TEXT, PLANT_RESTARTED_TEXT};
+    let (n, socket, _api) = free_instance();
+    let sysid = u8::try_from(n + 1).expect("sysid");
+    let spawn = |program: &std::path::Path, args: &[&str]| {
+        Guard(
+            Command::new(program)
+                .args(args)
+                .stderr(std::process::Stdio::null())
+                .process_group(0)
+                .spawn()
+                .expect("spawn"),
+        )
+    };
+    let sitl = std::path::Path::new(sitl_binary());
+    let instance = n.to_string();
+    // Paced (4x) so that the ground station's socket keeps up with every datagram.
+    let plant = || spawn(sitl, &["serve", "-i", &instance, "--speed", "4"]);
+    let _autopilot = spawn(&sitl.with_file_name("autopilot"), &["-i", &instance, "--state-dir", "off"]);
+    let attitude_ms = |m: &MavMessage| match m {
+        MavMessage::ATTITUDE(a) => Some(a.time_boot_ms),
+        _ => None,
+    };
+    let said = |heard: &[MavMessage], text: &str| {
+        heard.iter().position(|m| matches!(m, MavMessage::STATUSTEXT(s) if s.text.to_str() == Ok(text)))
+    };
+    let system_statuses = |heard: &[MavMessage]| -> Vec<MavState> {
+        heard
+            .iter()
+            .filter_map(|m| match m {
+                MavMessage::HEARTBEAT(h) => Some(h.system_status),
+                _ => None,
+            })
+            .collect()
+    };
+    // GIVEN a vehicle 2 s into the plant's simulation.
+    let first = plant();
+    let mut heard = Vec::new();
+    listen(&socket, sysid, &mut heard, Duration::from_secs(60), "2 s of vehicle time", |h| {
+        h.iter().filter_map(attitude_ms).max().is_none_or(|t| t < 2_000)
+    });
+    // WHEN the plant is killed THEN the loss is said and the HEARTBEAT goes on, CRITICAL (disarmed).
+    drop(first);
+    let mut lost = Vec::new();
+    listen(&socket, sysid, &mut lost, Duration::from_secs(20), "two fallback HEARTBEATs", |h| {
+        said(h, PLANT_LOST_TEXT).is_none_or(|at| system_statuses(&h[at..]).len() < 2)
+    });
+    let at = said(&lost, PLANT_LOST_TEXT).expect("said");
+    assert!(system_statuses(&lost[at..]).iter().all(|s| *s == MavState::MAV_STATE_CRITICAL), "{lost:?}");
+    // WHEN a new plant starts (its clock from 0) and runs past 1 s.
+    let _second = plant();
+    let mut restarted = Vec::new();
+    listen(&socket, sysid, &mut restarted, Duration::from_secs(60), "1 s of the new clock", |h| {
+        said(h, PLANT_RESTARTED_TEXT).is_none_or(|at| h[at..].iter().filter_map(attitude_ms).all(|t| t < 1_000))
+    });
+    // THEN the restart is said and the first HEARTBEAT after it comes before 1 s of the new clock:
+    // disarmed, STANDBY.
+    let after = &restarted[said(&restarted, PLANT_RESTARTED_TEXT).expect("said")..];
+    let heartbeat = after.iter().position(|m| matches!(m, MavMessage::HEARTBEAT(_))).expect("a HEARTBEAT");
+    let by_ms = after[heartbeat..].iter().find_map(attitude_ms).expect("an ATTITUDE after it");
+    assert!(by_ms < 1_000, "first HEARTBEAT by {by_ms} ms of the new clock");
+    let MavMessage::HEARTBEAT(hb) = &after[heartbeat] else { unreachable!() };
+    assert!(!hb.base_mode.contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED));
+    assert_eq!(hb.system_status, MavState::MAV_STATE_STANDBY);
+    println!(
+        "plant killed and restarted: {} fallback HEARTBEATs; the new clock's first HEARTBEAT by {by_ms} ms",
+        system_statuses(&lost[at..]).len()
+    );
 }

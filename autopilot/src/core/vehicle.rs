@@ -3,7 +3,9 @@
 //! (IMU at the control rate, 500 Hz by default; mag, baro with it; GPS when a fix arrives; truth for the
 //! truth-fed runs). In, whenever a ground station speaks: a MAVLink message with its header. Out, per step:
 //! [`VehicleOutputs`] (four PWM commands in µs, 1000-2000, the paper's rotor order; the armed flag; the
-//! telemetry due this step); per message: the replies to its sender (COMMAND_ACK, STATUSTEXT).
+//! telemetry due this step); per message: the replies to its sender (COMMAND_ACK, STATUSTEXT). When no
+//! step comes (the plant link lost), [`Vehicle::plant_lost_telemetry`]: the HEARTBEAT and SYS_STATUS
+//! that say so, for the shell to send on its wall-clock fallback.
 //!
 //! The step: estimator update -> commander step on the estimate (the mode and its task) -> the
 //! navigator turns the task into the one [`Reference`] the controller tracks (position with velocity and
@@ -35,7 +37,7 @@ use crate::core::mavlink::router::{
 };
 use crate::core::mavlink::{
     CommandContext, CommandEffect, CommandPoint, Home, MavlinkService, Stream, TelemetrySnapshot, VehicleCommand,
-    command_replies, housekeeping, statustext, statustext_chunks,
+    command_replies, housekeeping, plant_lost_heartbeat, statustext, statustext_chunks, sys_status_plant_lost,
 };
 use crate::core::mission::{Mission, MissionError, XY_UNSET, items_to_wpl};
 use crate::core::navigator::{AutoMode, MAX_SETPOINT_FROM_HOME_M, NavEvent, NavInput, Navigator, Task, nav_items};
@@ -664,6 +666,17 @@ impl Vehicle {
     #[must_use]
     pub fn navigator(&self) -> &Navigator {
         &self.navigator
+    }
+
+    /// What the vehicle reports when no step is coming because the plant link is lost (no sensor sample
+    /// for a while): a HEARTBEAT with its last mode and armed flag and `system_status` EMERGENCY if armed
+    /// (it may be in the air with no sensors and its motors stopped), else CRITICAL; and a SYS_STATUS with
+    /// every sensor unhealthy and the battery unknown. Pure: no clock, no state changes (the vehicle's own
+    /// cadences stay on vehicle time and resume with the plant). The shell calls it on a wall-clock
+    /// cadence, once a second, while the plant is lost.
+    #[must_use]
+    pub fn plant_lost_telemetry(&self) -> Vec<MavMessage> {
+        vec![plant_lost_heartbeat(&self.output), sys_status_plant_lost(self.comm_errors)]
     }
 
     /// One step at `now_us`. See the module docs.
@@ -1322,5 +1335,70 @@ mod tests {
         let (ack, _) = ack_and_rest(&v.handle_message(t, &GCS, &reboot));
         assert_eq!(ack, Some(MavResult::MAV_RESULT_DENIED));
         assert!(v.take_effects().is_empty());
+    }
+
+    fn sys_status_of(messages: &[MavMessage]) -> Option<&::mavlink::dialects::common::SYS_STATUS_DATA> {
+        messages.iter().rev().find_map(|m| match m {
+            MavMessage::SYS_STATUS(s) => Some(s),
+            _ => None,
+        })
+    }
+
+    #[test]
+    fn given_a_lost_plant_then_the_fallback_says_critical_disarmed_emergency_armed_and_every_sensor_unhealthy() {
+        use ::mavlink::dialects::common::{MavAutopilot, MavState, MavSysStatusSensor as S, MavType};
+        let sensors = S::MAV_SYS_STATUS_SENSOR_3D_GYRO
+            | S::MAV_SYS_STATUS_SENSOR_3D_ACCEL
+            | S::MAV_SYS_STATUS_SENSOR_3D_MAG
+            | S::MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+            | S::MAV_SYS_STATUS_SENSOR_GPS
+            | S::MAV_SYS_STATUS_PREARM_CHECK;
+        // GIVEN a converged vehicle with a pack reading, whose own SYS_STATUS says the IMU, GPS and
+        // pre-arm checks are healthy and reports the pack.
+        let (mut v, mut t) = (truth_vehicle(), 0);
+        let battery = BatterySample { voltage_v: 16.2, remaining: Some(0.9), ..BatterySample::default() };
+        let mut stepped = Vec::new();
+        while t < 2_000_000 {
+            let inputs = VehicleInputs { battery: Some(battery), ..at_rest(t) };
+            stepped.extend(v.step(t, &inputs).messages);
+            t += DT_US;
+        }
+        let healthy = sys_status_of(&stepped).expect("SYS_STATUS at 1 Hz").clone();
+        let checked = S::MAV_SYS_STATUS_SENSOR_3D_GYRO | S::MAV_SYS_STATUS_SENSOR_GPS | S::MAV_SYS_STATUS_PREARM_CHECK;
+        assert!(healthy.onboard_control_sensors_health.contains(checked), "{healthy:?}");
+        assert_eq!(healthy.voltage_battery, 16_200);
+        v.set_comm_errors(3);
+        // WHEN the plant is lost (no step comes) and the shell asks for the fallback.
+        let lost = v.plant_lost_telemetry();
+        // THEN a HEARTBEAT as usual but CRITICAL (disarmed), and a SYS_STATUS with every sensor present
+        // and enabled but none healthy, the pack unknown.
+        assert_eq!(lost.len(), 2, "{lost:?}");
+        let MavMessage::HEARTBEAT(hb) = &lost[0] else { panic!("{lost:?}") };
+        assert_eq!(
+            (hb.mavtype, hb.autopilot, hb.mavlink_version),
+            (MavType::MAV_TYPE_QUADROTOR, MavAutopilot::MAV_AUTOPILOT_PX4, 3)
+        );
+        assert_eq!(hb.custom_mode, HOLD);
+        assert!(!hb.base_mode.contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED));
+        assert_eq!(hb.system_status, MavState::MAV_STATE_CRITICAL);
+        let status = sys_status_of(&lost).expect("SYS_STATUS");
+        assert!(status.onboard_control_sensors_present.contains(sensors));
+        assert!(status.onboard_control_sensors_enabled.contains(sensors));
+        assert!((status.onboard_control_sensors_health & sensors).is_empty(), "{status:?}");
+        assert!(!status.onboard_control_sensors_present.contains(S::MAV_SYS_STATUS_SENSOR_BATTERY));
+        assert_eq!((status.voltage_battery, status.current_battery, status.battery_remaining), (u16::MAX, -1, -1));
+        assert_eq!(status.errors_comm, 3);
+        // Asked again (the next wall second): the same.
+        assert_eq!(v.plant_lost_telemetry(), lost);
+        // WHEN armed and taking off, then the plant lost THEN EMERGENCY, armed, in TAKEOFF.
+        v.handle_message(t, &GCS, &long(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, ARM, 1));
+        v.handle_message(t, &GCS, &long(MavCmd::MAV_CMD_NAV_TAKEOFF, [f32::NAN; 7], 1));
+        run(&mut v, &mut t, 0.5);
+        assert!(v.commander_output().armed);
+        let lost = v.plant_lost_telemetry();
+        let MavMessage::HEARTBEAT(hb) = &lost[0] else { panic!("{lost:?}") };
+        assert_eq!(hb.system_status, MavState::MAV_STATE_EMERGENCY);
+        assert!(hb.base_mode.contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED));
+        assert_eq!(hb.custom_mode, TAKEOFF);
     }
 }

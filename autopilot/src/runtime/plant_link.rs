@@ -12,11 +12,19 @@
 //! telemetry, which is 60-odd messages per simulated second.
 //!
 //! No locks: the vehicle lives in this thread only. Plant silence for [`PLANT_SILENCE`] of wall time is a
-//! lost link: it is reported once (log and a critical STATUSTEXT to every ground station) and the motors
-//! are commanded to their minimum (1000 µs, disarmed) on the link, so a board that still listens stops
-//! them; the vehicle clock stops with the plant's and resumes when the plant does. Until the plant first
-//! speaks, and after each silence, the autopilot announces itself with a HEARTBEAT every second, as the
-//! plant only answers peers that spoke (`docs/design.md`, the plant protocol).
+//! lost link: it is reported once (log and the critical STATUSTEXT [`PLANT_LOST_TEXT`] to every ground
+//! station) and the motors are commanded to their minimum (1000 µs, disarmed) on the link, so a board that
+//! still listens stops them; the vehicle clock stops with the plant's. As no step makes telemetry then,
+//! the vehicle's fallback (`Vehicle::plant_lost_telemetry`: HEARTBEAT with `system_status` CRITICAL, or
+//! EMERGENCY when armed, and SYS_STATUS with the sensors unhealthy) goes to every ground station at once
+//! and every [`PLANT_LOST_TELEMETRY_INTERVAL`] of wall time while the loss lasts, so a ground station
+//! keeps its link and sees why the vehicle is unusable; its messages are still handled at the last
+//! vehicle time. When the plant speaks again on the same clock (it had paused) the vehicle carries on
+//! where it was ([`PLANT_REGAINED_TEXT`]); when its clock went back (a new simulation) the vehicle is
+//! rebuilt disarmed, its telemetry on the new timeline from the first step ([`PLANT_RESTARTED_TEXT`]).
+//! Until the plant first speaks, and after each silence, the autopilot announces itself to the plant with
+//! a HEARTBEAT every second, as the plant only answers peers that spoke (`docs/design.md`, the plant
+//! protocol).
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -46,6 +54,17 @@ use crate::runtime::transport::Transport;
 
 /// Wall time without a sensor sample after which the plant link counts as lost.
 pub const PLANT_SILENCE: Duration = Duration::from_secs(1);
+
+/// Wall-clock interval of the fallback HEARTBEAT and SYS_STATUS while the plant link is lost (the 1 Hz
+/// that the vehicle keeps on vehicle time when the plant steps it).
+pub const PLANT_LOST_TELEMETRY_INTERVAL: Duration = Duration::from_secs(1);
+
+/// Said once (severity CRITICAL) to every ground station when the plant link is lost.
+pub const PLANT_LOST_TEXT: &str = "Plant link lost: motors stopped";
+/// Said (severity NOTICE) when the plant speaks again on the same clock (it had paused).
+pub const PLANT_REGAINED_TEXT: &str = "Plant link regained";
+/// Said (severity CRITICAL) when the plant's clock goes back (a new simulation).
+pub const PLANT_RESTARTED_TEXT: &str = "Plant restarted: vehicle restarted, disarmed";
 
 /// Wall time the step's telemetry may wait before it is handed to the ground-station links. Handing each
 /// message over on its own wakes the tokio thread every time, which in lockstep (about 5000 messages per
@@ -91,6 +110,8 @@ pub struct PlantLinkStats {
     pub tlog_dropped: u64,
     /// Times the plant went silent for [`PLANT_SILENCE`].
     pub plant_losses: u64,
+    /// Times the plant's clock went back (a new simulation): the vehicle was rebuilt.
+    pub plant_restarts: u64,
     /// The plant link's frame decoder: malformed frames and garbage bytes dropped.
     pub plant_decoder: DecoderStats,
     /// First and last vehicle time seen (µs).
@@ -309,16 +330,16 @@ impl Driver {
                     // (disarmed, its telemetry on the new timeline from this step on) from its stored
                     // parameters and mission, and says so.
                     tracing::warn!(now_us, "the plant restarted (its clock went back): the vehicle restarts, disarmed");
-                    let text = "Plant restarted: vehicle restarted, disarmed";
-                    self.send_gcs(None, Destination::All, statustext(MavSeverity::MAV_SEVERITY_CRITICAL, text));
+                    let text = statustext(MavSeverity::MAV_SEVERITY_CRITICAL, PLANT_RESTARTED_TEXT);
+                    self.send_gcs(None, Destination::All, text);
+                    self.stats.plant_restarts += 1;
                     self.vehicle = None;
                 }
                 self.now_us = now_us;
                 self.stats.first_time_us.get_or_insert(now_us);
                 self.stats.last_time_us = Some(now_us);
                 let inputs = std::mem::take(&mut self.inputs);
-                let comm_errors =
-                    plant_malformed + self.out.counters.iter().map(|c| c.snapshot().malformed).sum::<u64>();
+                let comm_errors = self.comm_errors(plant_malformed);
                 let Some(vehicle) = self.vehicle()? else {
                     return Ok(Some(ActuatorCommand { time_us: now_us, pwm_us: [PWM_MIN_US; 4], armed: false }));
                 };
@@ -334,6 +355,25 @@ impl Driver {
             _ => {}
         }
         Ok(None)
+    }
+
+    /// Malformed frames dropped so far on every link: the plant link's (`plant_malformed`) and the
+    /// ground-station links'.
+    fn comm_errors(&self, plant_malformed: u64) -> u64 {
+        plant_malformed + self.out.counters.iter().map(|c| c.snapshot().malformed).sum::<u64>()
+    }
+
+    /// The vehicle's fallback telemetry while the plant is lost (HEARTBEAT CRITICAL or EMERGENCY,
+    /// SYS_STATUS with the sensors unhealthy), queued to every ground-station link. Nothing when no
+    /// vehicle can be built yet (the `Truth` source before any truth sample): it has not spoken either.
+    fn plant_lost_telemetry(&mut self, plant_malformed: u64) -> Result<(), VehicleError> {
+        let comm_errors = self.comm_errors(plant_malformed);
+        let Some(vehicle) = self.vehicle()? else { return Ok(()) };
+        vehicle.set_comm_errors(comm_errors);
+        for message in vehicle.plant_lost_telemetry() {
+            self.send_gcs(None, Destination::All, message);
+        }
+        Ok(())
     }
 
     fn on_gcs(&mut self, incoming: Incoming) -> Result<(), VehicleError> {
@@ -401,6 +441,7 @@ pub fn run(
     let datagrams = transport.is_datagram();
     let mut last_sensor: Option<Instant> = None;
     let mut last_announce: Option<Instant> = None;
+    let mut last_fallback: Option<Instant> = None;
     let mut lost = false;
     let mut gcs_open = true;
     let started = Instant::now();
@@ -411,15 +452,23 @@ pub fn run(
             lost = true;
             if last_sensor.is_some() {
                 driver.stats.plant_losses += 1;
-                tracing::warn!(plant = %link, "plant link lost: no sensor data for 1 s; motors to minimum");
-                let text = "Plant link lost: motors stopped";
-                driver.send_gcs(None, Destination::All, statustext(MavSeverity::MAV_SEVERITY_CRITICAL, text));
+                tracing::warn!(
+                    plant = %link,
+                    "plant link lost: no sensor data for 1 s; motors to minimum, HEARTBEAT on the wall clock"
+                );
+                let text = statustext(MavSeverity::MAV_SEVERITY_CRITICAL, PLANT_LOST_TEXT);
+                driver.send_gcs(None, Destination::All, text);
                 let stopped = ActuatorCommand { time_us: driver.now_us, pwm_us: [PWM_MIN_US; 4], armed: false };
                 let frame = driver.plant_frame(&MavMessage::HIL_ACTUATOR_CONTROLS(encode_actuator_controls(&stopped)));
                 transport.send(&frame).map_err(io)?;
             } else {
                 tracing::warn!(plant = %link, "no sensor data from the plant yet; waiting");
             }
+        }
+        // While the plant is lost no step makes telemetry: the vehicle's fallback, on the wall clock.
+        if lost && last_sensor.is_some() && last_fallback.is_none_or(|t| now - t >= PLANT_LOST_TELEMETRY_INTERVAL) {
+            driver.plant_lost_telemetry(decoder.stats().malformed())?;
+            last_fallback = Some(now);
         }
         if last_sensor.is_none_or(|_| lost) && last_announce.is_none_or(|t| now - t >= PLANT_SILENCE) {
             let frame = driver.plant_frame(&announcement());
@@ -430,6 +479,7 @@ pub fn run(
             let frames = if datagrams { decoder.decode_datagram(bytes) } else { decoder.push(bytes) };
             let mut reply = None;
             let malformed = decoder.stats().malformed();
+            let restarts = driver.stats.plant_restarts;
             for decoded in frames {
                 if let Some(cmd) = driver.on_plant_frame(&decoded.message, malformed)? {
                     reply = Some(cmd);
@@ -441,10 +491,12 @@ pub fn run(
                 last_sensor = Some(Instant::now());
                 if lost {
                     lost = false;
+                    last_fallback = None;
                     tracing::info!(plant = %link, "plant data again");
-                    if driver.stats.plant_losses > 0 {
-                        let text = "Plant link regained";
-                        driver.send_gcs(None, Destination::All, statustext(MavSeverity::MAV_SEVERITY_NOTICE, text));
+                    // A plant that restarted has been announced as such; one that paused is regained.
+                    if driver.stats.plant_losses > 0 && driver.stats.plant_restarts == restarts {
+                        let text = statustext(MavSeverity::MAV_SEVERITY_NOTICE, PLANT_REGAINED_TEXT);
+                        driver.send_gcs(None, Destination::All, text);
                     }
                 }
             }
@@ -494,7 +546,7 @@ mod tests {
     struct Harness {
         plant: UdpSocket,
         out_rx: mpsc::Receiver<Outgoing>,
-        _in_tx: mpsc::Sender<Incoming>,
+        in_tx: mpsc::Sender<Incoming>,
         stop: Arc<AtomicBool>,
         thread: std::thread::JoinHandle<Result<PlantLinkStats, PlantLinkError>>,
     }
@@ -513,7 +565,7 @@ mod tests {
             let out = GcsOutputs { links: vec![out_tx], ..GcsOutputs::default() };
             run(&mut transport, config, Persisted::default(), in_rx, out, &thread_stop)
         });
-        Harness { plant, out_rx, _in_tx: in_tx, stop, thread }
+        Harness { plant, out_rx, in_tx, stop, thread }
     }
 
     #[test]
@@ -586,7 +638,7 @@ mod tests {
         let messages: Vec<MavMessage> = std::iter::from_fn(|| h.out_rx.try_recv().ok()).map(|o| o.message).collect();
         let restart = messages.iter().position(|m| {
             matches!(m, MavMessage::STATUSTEXT(s)
-                if s.text.to_str().is_ok_and(|t| t == "Plant restarted: vehicle restarted, disarmed"))
+                if s.text.to_str().is_ok_and(|t| t == PLANT_RESTARTED_TEXT))
         });
         let restart = restart.expect("the restart is announced");
         let heartbeat = messages[restart..]
@@ -595,37 +647,193 @@ mod tests {
         assert!(heartbeat, "a HEARTBEAT on the new timeline's first step");
     }
 
-    #[test]
-    fn a_silent_plant_is_reported_and_the_motors_commanded_to_minimum() {
-        let mut h = start(1);
+    /// Sends the plant's HIL_SENSOR at `time_us` and returns the autopilot's answer to it, skipping what
+    /// else the plant hears (announcements, a stop command).
+    fn step(h: &Harness, autopilot: std::net::SocketAddr, decoder: &mut FrameDecoder, time_us: u64) -> ActuatorCommand {
+        h.plant.send_to(&sensor_frame(time_us), autopilot).expect("send");
         let mut buf = vec![0u8; 2048];
-        let (_, autopilot) = h.plant.recv_from(&mut buf).expect("announce");
-        h.plant.send_to(&sensor_frame(0), autopilot).expect("send");
-        let mut decoder = FrameDecoder::new();
-        let mut commands = Vec::new();
-        let started = Instant::now();
-        // The reply to t = 0, then (after a second of silence) the stop command.
-        while commands.len() < 2 && started.elapsed() < Duration::from_secs(4) {
-            let Ok(len) = h.plant.recv(&mut buf) else { break };
+        loop {
+            let len = h.plant.recv(&mut buf).expect("reply");
             for f in decoder.decode_datagram(&buf[..len]) {
                 if let MavMessage::HIL_ACTUATOR_CONTROLS(m) = f.message {
-                    commands.push((started.elapsed(), decode_actuator_controls(&m)));
+                    let cmd = decode_actuator_controls(&m);
+                    if cmd.time_us == time_us {
+                        return cmd;
+                    }
                 }
             }
         }
-        assert_eq!(commands.len(), 2, "{commands:?}");
-        let (after, stop_cmd) = commands[1];
+    }
+
+    /// The ground-station messages handed over so far.
+    fn drain(out_rx: &mut mpsc::Receiver<Outgoing>) -> Vec<MavMessage> {
+        std::iter::from_fn(|| out_rx.try_recv().ok()).map(|o| o.message).collect()
+    }
+
+    /// The ground-station messages until `done` holds of them; `None` after `wall_limit` (a hung test
+    /// fails, no speed is asserted).
+    fn collect_until(
+        h: &mut Harness,
+        wall_limit: Duration,
+        done: impl Fn(&[MavMessage]) -> bool,
+    ) -> Option<Vec<MavMessage>> {
+        let deadline = Instant::now() + wall_limit;
+        let mut seen = Vec::new();
+        while Instant::now() < deadline {
+            seen.extend(drain(&mut h.out_rx));
+            if done(&seen) {
+                return Some(seen);
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        None
+    }
+
+    fn texts(messages: &[MavMessage]) -> Vec<(MavSeverity, String)> {
+        messages
+            .iter()
+            .filter_map(|m| match m {
+                MavMessage::STATUSTEXT(s) => Some((s.severity, s.text.to_str().unwrap_or("").to_owned())),
+                _ => None,
+            })
+            .collect()
+    }
+
+    fn position_of_text(messages: &[MavMessage], text: &str) -> Option<usize> {
+        messages.iter().position(|m| matches!(m, MavMessage::STATUSTEXT(s) if s.text.to_str() == Ok(text)))
+    }
+
+    fn system_statuses(messages: &[MavMessage]) -> Vec<MavState> {
+        messages
+            .iter()
+            .filter_map(|m| match m {
+                MavMessage::HEARTBEAT(hb) => Some(hb.system_status),
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// The fallback HEARTBEATs (CRITICAL: the vehicle is disarmed) among `messages`.
+    fn fallback_heartbeats(messages: &[MavMessage]) -> usize {
+        system_statuses(messages).into_iter().filter(|s| *s == MavState::MAV_STATE_CRITICAL).count()
+    }
+
+    #[test]
+    fn a_silent_plant_is_reported_motors_stopped_and_the_heartbeat_kept_on_the_wall_clock_until_it_resumes() {
+        use mavlink::dialects::common::{MavCmd, MavResult, MavSysStatusSensor as S};
+        let mut h = start(1);
+        let mut buf = vec![0u8; 2048];
+        let (_, autopilot) = h.plant.recv_from(&mut buf).expect("announce");
+        let mut decoder = FrameDecoder::new();
+        assert_eq!(step(&h, autopilot, &mut decoder, 0).time_us, 0);
+        let started = Instant::now();
+        // WHEN the plant falls silent THEN (after a second of it) the motors are commanded to minimum.
+        let stop_cmd = loop {
+            let len = h.plant.recv(&mut buf).expect("the stop command");
+            let stop = decoder.decode_datagram(&buf[..len]).into_iter().find_map(|f| match f.message {
+                MavMessage::HIL_ACTUATOR_CONTROLS(m) => Some(decode_actuator_controls(&m)),
+                _ => None,
+            });
+            if let Some(stop) = stop {
+                break stop;
+            }
+        };
+        let after = started.elapsed();
         assert!(after >= PLANT_SILENCE, "reported after {after:?}");
         assert!(!stop_cmd.armed && stop_cmd.pwm_us == [PWM_MIN_US; 4], "{stop_cmd:?}");
+        // THEN the ground stations are told once, and keep getting the vehicle's HEARTBEAT, CRITICAL, with
+        // a SYS_STATUS whose sensors are unhealthy, every second of wall time.
+        let lost = collect_until(&mut h, Duration::from_secs(10), |m| fallback_heartbeats(m) >= 3)
+            .expect("three fallback HEARTBEATs");
+        let from = position_of_text(&lost, PLANT_LOST_TEXT).expect("the loss is said");
+        let said: Vec<_> = texts(&lost).into_iter().filter(|(_, t)| t.starts_with("Plant")).collect();
+        assert_eq!(said, [(MavSeverity::MAV_SEVERITY_CRITICAL, PLANT_LOST_TEXT.to_owned())]);
+        let statuses = system_statuses(&lost[from..]);
+        assert!(statuses.len() >= 3 && statuses.iter().all(|s| *s == MavState::MAV_STATE_CRITICAL), "{statuses:?}");
+        let sys_status: Vec<_> = lost[from..]
+            .iter()
+            .filter_map(|m| match m {
+                MavMessage::SYS_STATUS(s) => Some(s),
+                _ => None,
+            })
+            .collect();
+        assert!(sys_status.len() >= 2, "{sys_status:?}");
+        let imu = S::MAV_SYS_STATUS_SENSOR_3D_GYRO | S::MAV_SYS_STATUS_SENSOR_3D_ACCEL;
+        assert!(sys_status.iter().all(|s| s.onboard_control_sensors_present.contains(imu)
+            && !s.onboard_control_sensors_health.intersects(imu | S::MAV_SYS_STATUS_PREARM_CHECK)));
+        // THEN a ground-station command is still answered meanwhile (at the last vehicle time).
+        let request = crate::core::mavlink::command_long(
+            1,
+            1,
+            MavCmd::MAV_CMD_REQUEST_MESSAGE,
+            [148.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        );
+        let header = MavHeader { system_id: 255, component_id: 190, sequence: 0 };
+        let peer = "127.0.0.1:14550".parse().expect("addr");
+        let incoming = Incoming { link: 0, peer, header, message: request, version: mavlink::MavlinkVersion::V2 };
+        h.in_tx.try_send(incoming).expect("queued");
+        let answered = collect_until(&mut h, Duration::from_secs(10), |m| {
+            m.iter().any(|m| matches!(m, MavMessage::AUTOPILOT_VERSION(_)))
+        });
+        let answered = answered.expect("the command is answered while the plant is lost");
+        let accepted =
+            |m: &MavMessage| matches!(m, MavMessage::COMMAND_ACK(a) if a.result == MavResult::MAV_RESULT_ACCEPTED);
+        assert!(answered.iter().any(accepted), "{answered:?}");
+        // WHEN the plant resumes on its clock (it had paused) for a second of vehicle time THEN regained,
+        // no restart, and the vehicle's own HEARTBEAT (STANDBY) again.
+        for k in 1..=500_u64 {
+            step(&h, autopilot, &mut decoder, k * 2_000);
+        }
         h.stop.store(true, Ordering::Relaxed);
         let stats = h.thread.join().expect("join").expect("clean stop");
-        let text = std::iter::from_fn(|| h.out_rx.try_recv().ok()).find_map(|o| match o.message {
-            MavMessage::STATUSTEXT(s) => Some((s.severity, s.text.to_str().unwrap_or("").to_owned())),
+        let resumed = drain(&mut h.out_rx);
+        let regained = position_of_text(&resumed, PLANT_REGAINED_TEXT).expect("regained");
+        assert_eq!(position_of_text(&resumed, PLANT_RESTARTED_TEXT), None);
+        assert_eq!(system_statuses(&resumed[regained..]).first(), Some(&MavState::MAV_STATE_STANDBY));
+        assert_eq!((stats.plant_losses, stats.plant_restarts), (1, 0));
+        assert_eq!(stats.last_time_us, Some(1_000_000));
+    }
+
+    #[test]
+    fn a_plant_killed_and_restarted_gets_the_fallback_meanwhile_and_a_heartbeat_within_1_s_of_its_new_clock() {
+        let mut h = start(4);
+        let mut buf = vec![0u8; 2048];
+        let (_, autopilot) = h.plant.recv_from(&mut buf).expect("announce");
+        let mut decoder = FrameDecoder::new();
+        // GIVEN a simulation 3 s in.
+        for k in 0..1500_u64 {
+            step(&h, autopilot, &mut decoder, k * 2_000);
+        }
+        // WHEN the plant is killed THEN the fallback HEARTBEAT (CRITICAL) keeps coming.
+        let lost = collect_until(&mut h, Duration::from_secs(10), |m| fallback_heartbeats(m) >= 2)
+            .expect("two fallback HEARTBEATs");
+        assert!(position_of_text(&lost, PLANT_LOST_TEXT).is_some());
+        // WHEN a new simulation starts (its clock at 0) and runs 1.2 s.
+        for k in 0..600_u64 {
+            let cmd = step(&h, autopilot, &mut decoder, k * 2_000);
+            assert!(!cmd.armed);
+        }
+        h.stop.store(true, Ordering::Relaxed);
+        let stats = h.thread.join().expect("join").expect("clean stop");
+        let messages = drain(&mut h.out_rx);
+        // THEN the restart is said (not "regained"), the telemetry is on the new clock from its first step,
+        // and the first HEARTBEAT comes within 1 s of it: disarmed, STANDBY, no more fallback.
+        let restart = position_of_text(&messages, PLANT_RESTARTED_TEXT).expect("the restart is said");
+        assert_eq!(position_of_text(&messages, PLANT_REGAINED_TEXT), None);
+        let after = &messages[restart..];
+        let attitude_ms = |m: &MavMessage| match m {
+            MavMessage::ATTITUDE(a) => Some(a.time_boot_ms),
             _ => None,
-        });
-        let (severity, text) = text.expect("a STATUSTEXT");
-        assert_eq!(severity, MavSeverity::MAV_SEVERITY_CRITICAL);
-        assert!(text.starts_with("Plant link lost"), "{text}");
-        assert_eq!(stats.plant_losses, 1);
+        };
+        assert_eq!(after.iter().find_map(attitude_ms), Some(0), "telemetry on the new clock from its first step");
+        let heartbeat = after.iter().position(|m| matches!(m, MavMessage::HEARTBEAT(_))).expect("a HEARTBEAT");
+        // Sent no later than the next time-stamped message.
+        let heartbeat_by_ms = after[heartbeat..].iter().find_map(attitude_ms).expect("ATTITUDE after it");
+        assert!(heartbeat_by_ms < 1_000, "first HEARTBEAT by {heartbeat_by_ms} ms of the new clock");
+        let MavMessage::HEARTBEAT(hb) = &after[heartbeat] else { unreachable!() };
+        assert!(!hb.base_mode.contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED));
+        assert_eq!(hb.system_status, MavState::MAV_STATE_STANDBY);
+        assert!(system_statuses(after).iter().all(|s| *s == MavState::MAV_STATE_STANDBY), "no fallback after it");
+        assert_eq!((stats.plant_losses, stats.plant_restarts), (1, 1));
     }
 }

@@ -3,7 +3,9 @@
 //! `custom_mode = (main << 16) | (sub << 24)` and `base_mode` flags, MAV_STATE), EXTENDED_SYS_STATE's
 //! landed state, and the decoding of the PX4 (main, sub) a ground station asks for. These encodings live
 //! here only; the commander knows modes, not numbers. The cadence (1 Hz of vehicle time, at once on a
-//! change) is kept by `MavlinkService`.
+//! change) is kept by `MavlinkService`. While the plant link is lost the shell sends
+//! [`plant_lost_heartbeat`] on its own wall-clock cadence instead (`system_status` CRITICAL, EMERGENCY
+//! when armed).
 
 use ::mavlink::dialects::common::{
     HEARTBEAT_DATA, MavAutopilot, MavLandedState, MavMessage, MavModeFlag, MavState, MavType,
@@ -146,14 +148,37 @@ pub const fn mav_landed_state(landed: LandedState) -> MavLandedState {
 /// The HEARTBEAT for the commander's current output.
 #[must_use]
 pub fn heartbeat(commander: &CommanderOutput) -> MavMessage {
+    MavMessage::HEARTBEAT(heartbeat_data(commander))
+}
+
+/// MAV_STATE while the plant link is lost (no sensor sample, no step, the motors commanded to their
+/// minimum by the shell): EMERGENCY when armed, as the vehicle may be in the air with no sensors and no
+/// motors; CRITICAL when disarmed, as it can neither sense nor fly until the plant returns. Never STANDBY
+/// or ACTIVE: a ground station must see that the vehicle is not usable.
+#[must_use]
+pub const fn plant_lost_state(armed: bool) -> MavState {
+    if armed { MavState::MAV_STATE_EMERGENCY } else { MavState::MAV_STATE_CRITICAL }
+}
+
+/// The HEARTBEAT while the plant link is lost: the commander's last mode and armed flag as
+/// [`heartbeat`] sends them, with `system_status` from [`plant_lost_state`].
+#[must_use]
+pub fn plant_lost_heartbeat(commander: &CommanderOutput) -> MavMessage {
     MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        system_status: plant_lost_state(commander.armed),
+        ..heartbeat_data(commander)
+    })
+}
+
+fn heartbeat_data(commander: &CommanderOutput) -> HEARTBEAT_DATA {
+    HEARTBEAT_DATA {
         custom_mode: custom_mode(commander.mode),
         mavtype: MavType::MAV_TYPE_QUADROTOR,
         autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
         base_mode: base_mode(commander.mode, commander.armed),
         system_status: mav_state(commander.status),
         mavlink_version: 3,
-    })
+    }
 }
 
 #[cfg(test)]

@@ -11,6 +11,8 @@
 //! - `telemetry`: the default streams (SYS_STATUS, ATTITUDE(+_QUATERNION), LOCAL_POSITION_NED,
 //!   GLOBAL_POSITION_INT, GPS_RAW_INT, EXTENDED_SYS_STATE, HOME_POSITION, VFR_HUD, BATTERY_STATUS) on
 //!   vehicle time, and STATUSTEXT on events.
+//! - While the plant link is lost no step comes: [`plant_lost_heartbeat`] and [`sys_status_plant_lost`]
+//!   are what the vehicle reports instead, on the shell's wall-clock cadence (`Vehicle::plant_lost_telemetry`).
 
 use ::mavlink::dialects::common::MavMessage;
 
@@ -33,8 +35,10 @@ pub use command::{
     CommandContext, CommandEffect, CommandPoint, InboundCommand, VehicleCommand, command_long, command_replies,
     decode_command,
 };
-pub use identity::heartbeat;
-pub use telemetry::{Home, Stream, StreamScheduler, TelemetrySnapshot, statustext, statustext_chunks};
+pub use identity::{heartbeat, plant_lost_heartbeat};
+pub use telemetry::{
+    Home, Stream, StreamScheduler, TelemetrySnapshot, statustext, statustext_chunks, sys_status_plant_lost,
+};
 
 /// The autopilot's component id (MAV_COMP_ID_AUTOPILOT1).
 pub const AUTOPILOT_COMPONENT_ID: u8 = 1;

@@ -27,7 +27,7 @@ use super::{identity, next_due_us};
 use crate::core::battery::{BatteryStatus, BatteryWarning};
 use crate::core::commander::{CommanderOutput, Event, LandedState};
 use crate::core::control::Controller;
-use crate::core::estimator::{EstimatorState, GpsSample};
+use crate::core::estimator::{EstimatorFlags, EstimatorState, GpsSample};
 use crate::core::hil::encode_battery_status;
 
 /// Home: where the vehicle armed (m, NED about the estimator's origin) and, with an origin, geodetic.
@@ -150,7 +150,7 @@ impl Stream {
     #[must_use]
     pub fn message(self, snap: &TelemetrySnapshot<'_>) -> Option<MavMessage> {
         match self {
-            Self::SysStatus => Some(sys_status(snap.estimate, &snap.commander.battery, snap.comm_errors)),
+            Self::SysStatus => Some(sys_status(&snap.estimate.flags, &snap.commander.battery, snap.comm_errors)),
             Self::Attitude => Some(attitude(snap)),
             Self::AttitudeQuaternion => Some(attitude_quaternion(snap)),
             Self::LocalPositionNed => Some(local_position_ned(snap)),
@@ -294,7 +294,7 @@ fn sensors(bits: &[(bool, MavSysStatusSensor)]) -> MavSysStatusSensor {
 /// reports, healthy above its critical level; its voltage, current and remaining. `errors_comm`: the
 /// malformed frames dropped on every link (saturating at 65535).
 #[must_use]
-pub fn sys_status(est: &EstimatorState, battery: &BatteryStatus, comm_errors: u64) -> MavMessage {
+pub fn sys_status(flags: &EstimatorFlags, battery: &BatteryStatus, comm_errors: u64) -> MavMessage {
     use MavSysStatusSensor as S;
     let all = S::MAV_SYS_STATUS_SENSOR_3D_GYRO
         | S::MAV_SYS_STATUS_SENSOR_3D_ACCEL
@@ -303,17 +303,16 @@ pub fn sys_status(est: &EstimatorState, battery: &BatteryStatus, comm_errors: u6
         | S::MAV_SYS_STATUS_SENSOR_GPS
         | S::MAV_SYS_STATUS_PREARM_CHECK
         | if battery.sample.is_some() { S::MAV_SYS_STATUS_SENSOR_BATTERY } else { S::empty() };
-    let f = &est.flags;
     let health = sensors(&[
         // No geofence exists, so none is breached: healthy, neither present nor enabled (MAVProxy reads
         // a clear health bit as a breach).
         (true, S::MAV_SYS_STATUS_GEOFENCE),
-        (f.attitude_valid, S::MAV_SYS_STATUS_SENSOR_3D_GYRO),
-        (f.attitude_valid, S::MAV_SYS_STATUS_SENSOR_3D_ACCEL),
-        (f.mag_ok, S::MAV_SYS_STATUS_SENSOR_3D_MAG),
-        (f.baro_ok, S::MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE),
-        (f.gps_ok, S::MAV_SYS_STATUS_SENSOR_GPS),
-        (f.converged, S::MAV_SYS_STATUS_PREARM_CHECK),
+        (flags.attitude_valid, S::MAV_SYS_STATUS_SENSOR_3D_GYRO),
+        (flags.attitude_valid, S::MAV_SYS_STATUS_SENSOR_3D_ACCEL),
+        (flags.mag_ok, S::MAV_SYS_STATUS_SENSOR_3D_MAG),
+        (flags.baro_ok, S::MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE),
+        (flags.gps_ok, S::MAV_SYS_STATUS_SENSOR_GPS),
+        (flags.converged, S::MAV_SYS_STATUS_PREARM_CHECK),
         (battery.level < BatteryWarning::Critical, S::MAV_SYS_STATUS_SENSOR_BATTERY),
     ]);
     let sample = battery.sample;
@@ -330,6 +329,15 @@ pub fn sys_status(est: &EstimatorState, battery: &BatteryStatus, comm_errors: u6
         errors_comm: u16::try_from(comm_errors).unwrap_or(u16::MAX),
         ..SYS_STATUS_DATA::default()
     })
+}
+
+/// SYS_STATUS while the plant link is lost (no sensor sample arrives): the sensors stay present and
+/// enabled but none is healthy (gyro, accel, mag, baro, GPS, and PREARM_CHECK: nothing could be checked),
+/// and the battery, read over the same link, is not reported (MAVLink's unknown values), as with no
+/// reading. `errors_comm` as in [`sys_status`].
+#[must_use]
+pub fn sys_status_plant_lost(comm_errors: u64) -> MavMessage {
+    sys_status(&EstimatorFlags::default(), &BatteryStatus::default(), comm_errors)
 }
 
 fn attitude(snap: &TelemetrySnapshot<'_>) -> MavMessage {
