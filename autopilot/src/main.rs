@@ -44,6 +44,10 @@ struct Cli {
     /// ~/.local/state/aco-autopilot/iN).
     #[arg(long)]
     state_dir: Option<String>,
+    /// MAVLink 2 signing on from the start, with the key in this file (64 hex digits): every frame to
+    /// ground stations signed, unsigned and wrongly signed ones dropped.
+    #[arg(long)]
+    signing_key_file: Option<PathBuf>,
     /// Stop when standard input closes (how `sitl run` keeps its autopilot from outliving it).
     #[arg(long, hide = true)]
     stop_on_stdin_eof: bool,
@@ -67,6 +71,7 @@ fn main() -> Result<()> {
         log_dir: cli.log_dir,
         stop_on_stdin_eof: cli.stop_on_stdin_eof,
         state_dir: cli.state_dir,
+        signing_key_file: cli.signing_key_file,
     };
     let mut config = RuntimeConfig::resolve(file, cli.instance, overrides)?;
     if let Some(e) = cli.estimator {

@@ -38,7 +38,8 @@
 //! [`FrameDecoder`] finds MAVLink v2 (0xFD) and v1 (0xFE) frames in a byte stream, checks the CRC (with the
 //! message's CRC_EXTRA), drops and counts bad frames ([`DecoderStats`]) and resynchronises on the next
 //! start byte after a bad one, so a corrupted frame never costs the good frame after it. Signed v2 frames
-//! are accepted with the signature skipped, not verified.
+//! are decoded with their bytes kept (`DecodedFrame::signed_raw`); verifying them is the ground-station
+//! links' job (`core::mavlink::signing`), the plant link does not sign.
 
 use mavlink::dialects::common::{
     BATTERY_STATUS_DATA, HIL_ACTUATOR_CONTROLS_DATA, HIL_GPS_DATA, HIL_SENSOR_DATA, HIL_STATE_QUATERNION_DATA,
@@ -627,6 +628,9 @@ pub struct DecodedFrame {
     pub version: MavlinkVersion,
     pub header: MavHeader,
     pub message: MavMessage,
+    /// A signed frame's bytes, start byte through signature, for the link to verify
+    /// (`core::mavlink::signing`); None for an unsigned frame.
+    pub signed_raw: Option<Vec<u8>>,
 }
 
 /// What [`FrameDecoder`] found and dropped; every field only grows.
@@ -812,7 +816,8 @@ impl FrameDecoder {
         match MavMessage::parse(version, msg_id, &frame[header_len..crc_at]) {
             Ok(message) => {
                 self.stats.frames_ok += 1;
-                out.push(DecodedFrame { version, header, message });
+                let signed_raw = (trailer_len > 0).then(|| frame.to_vec());
+                out.push(DecodedFrame { version, header, message, signed_raw });
                 Ok(frame_len)
             }
             Err(_) => {

@@ -73,6 +73,8 @@ pub struct GcsSection {
     pub tcp_bind: Option<String>,
     /// `DEVICE:BAUD`.
     pub serial: Option<String>,
+    /// The MAVLink signing key (a file of 64 hex digits; see `runtime::signing`).
+    pub signing_key_file: Option<PathBuf>,
 }
 
 /// `[log]`.
@@ -179,6 +181,8 @@ pub struct RuntimeConfig {
     pub stop_on_stdin_eof: bool,
     /// Where parameters and the mission persist across restarts; `None`: nowhere.
     pub state_dir: Option<PathBuf>,
+    /// The MAVLink signing key file, if signing is to start on (see `runtime::signing`).
+    pub signing_key_file: Option<PathBuf>,
 }
 
 /// What the command line adds to (and overrides in) the file.
@@ -189,6 +193,7 @@ pub struct Overrides {
     pub stop_on_stdin_eof: bool,
     /// A state directory, or `off`.
     pub state_dir: Option<String>,
+    pub signing_key_file: Option<PathBuf>,
 }
 
 /// The default state directory of instance `instance`: `$XDG_STATE_HOME/aco-autopilot/iN`, else
@@ -272,6 +277,7 @@ impl RuntimeConfig {
             log_dir: overrides.log_dir.or(file.log.dir),
             stop_on_stdin_eof: overrides.stop_on_stdin_eof,
             state_dir,
+            signing_key_file: overrides.signing_key_file.or(file.gcs.signing_key_file),
         })
     }
 }

@@ -3,8 +3,9 @@
 //! [`LinkStats`] instead of failing.
 //!
 //! The parsing itself is the core's [`FrameDecoder`] (`core::hil`, written for the plant link): it reads
-//! v2 and v1, accepts signed v2 frames (incompat flag 0x01) with the 13-byte signature skipped (not
-//! verified), checks CRC_EXTRA, never panics on garbage and resynchronises on the next start byte. This
+//! v2 and v1, decodes signed v2 frames (incompat flag 0x01) keeping their bytes for the links' signing
+//! check (`runtime::signing`), checks CRC_EXTRA, never panics on garbage and resynchronises on the next
+//! start byte. This
 //! module reuses it rather than keeping a second decoder; it adds per-link counters shared between a
 //! link's tasks.
 
@@ -55,6 +56,9 @@ pub struct LinkStats {
     pub dropped_in: u64,
     /// Sends that failed (a ground station not listening, a full socket buffer); the link keeps going.
     pub send_errors: u64,
+    /// Valid frames dropped by MAVLink signing: unsigned, wrongly signed, replayed or stale
+    /// (`runtime::signing`).
+    pub signature_rejected: u64,
 }
 
 /// The live counters of one link, shared by its tasks; [`LinkCounters::snapshot`] reads them.
@@ -68,6 +72,7 @@ pub struct LinkCounters {
     bytes_out: AtomicU64,
     dropped_in: AtomicU64,
     send_errors: AtomicU64,
+    signature_rejected: AtomicU64,
 }
 
 impl LinkCounters {
@@ -89,6 +94,7 @@ impl LinkCounters {
             bytes_out: self.bytes_out.load(Ordering::Relaxed),
             dropped_in: self.dropped_in.load(Ordering::Relaxed),
             send_errors: self.send_errors.load(Ordering::Relaxed),
+            signature_rejected: self.signature_rejected.load(Ordering::Relaxed),
         }
     }
 
@@ -103,6 +109,10 @@ impl LinkCounters {
 
     pub(crate) fn add_dropped_in(&self) {
         self.dropped_in.fetch_add(1, Ordering::Relaxed);
+    }
+
+    pub(crate) fn add_signature_rejected(&self) {
+        self.signature_rejected.fetch_add(1, Ordering::Relaxed);
     }
 
     pub(crate) fn add_send_error(&self) {
@@ -194,7 +204,7 @@ pub(crate) mod tests {
         let (h, m) = heartbeat(255, 9);
         let bytes = encode_v2(h, &m);
         let frames = dec.decode_datagram(&bytes);
-        assert_eq!(frames, vec![DecodedFrame { version: MavlinkVersion::V2, header: h, message: m }]);
+        assert_eq!(frames, vec![DecodedFrame { version: MavlinkVersion::V2, header: h, message: m, signed_raw: None }]);
         let s = counters.snapshot();
         assert_eq!((s.bytes_in, s.malformed, s.garbage_bytes), (bytes.len() as u64, 0, 0));
     }

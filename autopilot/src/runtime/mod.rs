@@ -14,6 +14,7 @@ pub mod persist;
 pub mod plant_link;
 pub mod serial;
 pub mod shutdown;
+pub mod signing;
 pub mod tcp;
 pub mod tlog;
 pub mod transport;
@@ -70,6 +71,8 @@ pub enum RuntimeError {
     Signal(#[source] std::io::Error),
     #[error("a runtime task panicked or was cancelled: {0}")]
     Join(#[from] tokio::task::JoinError),
+    #[error("MAVLink signing key file {0}")]
+    Signing(String),
 }
 
 fn wall_us() -> u64 {
@@ -197,6 +200,38 @@ fn load_state(dir: &std::path::Path, vehicle: &crate::core::config::VehicleConfi
     Ok(Persisted { params, mission, fence, rally, persister: Some(persister) })
 }
 
+/// The signing state at start: on with the key of `--signing-key-file` (an unreadable or malformed file
+/// stops the start: the user asked for signing), else with the key kept in the state directory (a
+/// malformed one is moved aside), else off.
+fn start_signing(config: &RuntimeConfig) -> Result<signing::LinkSigning, RuntimeError> {
+    let link_signing = signing::LinkSigning::new(config.state_dir.clone());
+    if let Some(path) = &config.signing_key_file {
+        let text =
+            std::fs::read_to_string(path).map_err(|e| RuntimeError::Signing(format!("{}: {e}", path.display())))?;
+        let (key, ts) =
+            signing::parse_key_file(&text).map_err(|e| RuntimeError::Signing(format!("{}: {e}", path.display())))?;
+        link_signing.enable(key, ts);
+        tracing::info!(file = %path.display(), "MAVLink signing on (key file)");
+        return Ok(link_signing);
+    }
+    let Some(dir) = &config.state_dir else { return Ok(link_signing) };
+    match persist::load(dir, signing::KEY_FILE) {
+        Ok(Some(text)) => match signing::parse_key_file(&text) {
+            Ok((key, ts)) => {
+                link_signing.enable(key, ts);
+                tracing::info!(file = %dir.join(signing::KEY_FILE).display(), "MAVLink signing on (kept key)");
+            }
+            Err(e) => {
+                let _ = persist::move_aside(dir, signing::KEY_FILE);
+                tracing::warn!(file = %dir.join(signing::KEY_FILE).display(), "{e}: moved aside, signing off");
+            }
+        },
+        Ok(None) => {}
+        Err(e) => tracing::warn!("{e}: signing off"),
+    }
+    Ok(link_signing)
+}
+
 /// Resolves when standard input reaches its end (a detached thread reads it, so a pending read never
 /// holds up the process exit).
 async fn stdin_closed() {
@@ -225,21 +260,27 @@ pub async fn run(config: RuntimeConfig) -> Result<PlantLinkStats, RuntimeError> 
     let mut out_links = Vec::new();
     let mut counters = Vec::new();
 
-    let udp = UdpLink::bind(config.udp.clone()).await?;
+    let signing = Arc::new(start_signing(&config)?);
+    // Which links may carry SETUP_SIGNING: TCP and serial (a cable or a connection the user made), not UDP.
+    let mut secure = vec![false];
+    let udp = UdpLink::bind(config.udp.clone()).await?.with_signing(signing.clone());
     counters.push(udp.counters());
     let (tx, rx) = mpsc::channel(CHANNEL_CAPACITY);
     out_links.push(tx);
     tracing::info!(local = %udp.local_addr(), sysid = config.vehicle.sysid, "autopilot up");
     links.spawn(udp.run(in_tx.clone(), rx, shutdown.clone()));
     if let Some(tcp) = &config.tcp {
-        let tcp = TcpLink::bind(tcp.clone()).await?;
+        let tcp = TcpLink::bind(tcp.clone()).await?.with_signing(signing.clone());
+        secure.push(true);
         counters.push(tcp.counters());
         let (tx, rx) = mpsc::channel(CHANNEL_CAPACITY);
         out_links.push(tx);
         links.spawn(tcp.run(in_tx.clone(), rx, shutdown.clone()));
     }
     if let Some((path, baud)) = &config.serial {
-        let serial = SerialLink::open(&SerialConfig { link: out_links.len(), path: path.clone(), baud: *baud })?;
+        let serial = SerialLink::open(&SerialConfig { link: out_links.len(), path: path.clone(), baud: *baud })?
+            .with_signing(signing.clone());
+        secure.push(true);
         counters.push(serial.counters());
         let (tx, rx) = mpsc::channel(CHANNEL_CAPACITY);
         out_links.push(tx);
@@ -268,7 +309,7 @@ pub async fn run(config: RuntimeConfig) -> Result<PlantLinkStats, RuntimeError> 
     let stop = Arc::new(AtomicBool::new(false));
     let plant_stop = stop.clone();
     let vehicle = config.vehicle.clone();
-    let outputs = GcsOutputs { links: out_links, tlog: tlog_tx, counters };
+    let outputs = GcsOutputs { links: out_links, tlog: tlog_tx, counters, signing: signing.clone(), secure };
     let mut plant_task = tokio::task::spawn_blocking(move || {
         plant_link::run(plant.as_mut(), vehicle, persisted, in_rx, outputs, &plant_stop)
     });
@@ -295,6 +336,8 @@ pub async fn run(config: RuntimeConfig) -> Result<PlantLinkStats, RuntimeError> 
     }
     trigger.fire();
     stop.store(true, Ordering::Relaxed);
+    // The next start's signing timestamps continue from the last one used.
+    signing.save_timestamp();
     let plant_result = match plant_done {
         Some(r) => r,
         None => plant_task.await,

@@ -50,6 +50,7 @@ use crate::core::vehicle::{PWM_MIN_US, ShellEffect, Vehicle, VehicleConfig, Vehi
 use crate::runtime::frame::{self, LinkCounters};
 use crate::runtime::link::{Destination, Incoming, LinkId, Outgoing};
 use crate::runtime::persist::Persister;
+use crate::runtime::signing::LinkSigning;
 use crate::runtime::transport::Transport;
 
 /// Wall time without a sensor sample after which the plant link counts as lost.
@@ -147,6 +148,10 @@ pub struct GcsOutputs {
     pub links: Vec<mpsc::Sender<Outgoing>>,
     pub tlog: Option<mpsc::Sender<TlogFrame>>,
     pub counters: Vec<Arc<LinkCounters>>,
+    /// The links' shared MAVLink signing (SETUP_SIGNING is applied here).
+    pub signing: Arc<LinkSigning>,
+    /// Per link (index = [`LinkId`]): whether it may carry SETUP_SIGNING (TCP, serial).
+    pub secure: Vec<bool>,
 }
 
 /// The plant link and the vehicle it drives.
@@ -380,6 +385,20 @@ impl Driver {
         self.stats.gcs_messages += 1;
         if self.out.tlog.is_some() {
             self.log(frame::encode(incoming.header, &incoming.message, incoming.version));
+        }
+        if let MavMessage::SETUP_SIGNING(m) = &incoming.message {
+            let ours = m.target_system == 0 || m.target_system == self.config.sysid;
+            if ours {
+                let secure = self.out.secure.get(incoming.link).copied().unwrap_or(false);
+                let said = self.out.signing.setup(m.secret_key, m.initial_timestamp, secure);
+                let severity = if said.starts_with("Signing:") {
+                    MavSeverity::MAV_SEVERITY_WARNING
+                } else {
+                    MavSeverity::MAV_SEVERITY_NOTICE
+                };
+                self.send_gcs(Some(incoming.link), Destination::Peer(incoming.peer), statustext(severity, &said));
+            }
+            return Ok(());
         }
         let now_us = self.now_us;
         let Some(vehicle) = self.vehicle()? else { return Ok(()) };

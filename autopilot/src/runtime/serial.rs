@@ -15,9 +15,10 @@ use std::time::Duration;
 use tokio::sync::mpsc;
 use tokio::sync::mpsc::error::TryRecvError;
 
-use super::frame::{CountingDecoder, LinkCounters, encode_v2};
+use super::frame::{CountingDecoder, LinkCounters};
 use super::link::{Incoming, LinkError, LinkId, Outgoing, deliver};
 use super::shutdown::Shutdown;
+use super::signing::LinkSigning;
 use super::transport::{SerialTransport, Transport};
 
 /// How long a read waits before the queued output is written: the output latency of the link.
@@ -39,6 +40,7 @@ pub struct SerialLink {
     link: LinkId,
     port: SerialTransport,
     counters: Arc<LinkCounters>,
+    signing: Arc<LinkSigning>,
 }
 
 /// The peer address a serial link reports its frames with.
@@ -53,7 +55,14 @@ impl SerialLink {
         let port = SerialTransport::open(&config.path, config.baud, POLL_INTERVAL)
             .map_err(|source| LinkError::Open { what: format!("serial {}", config.path), source })?;
         tracing::info!(path = %config.path, baud = config.baud, "serial ground-station link open");
-        Ok(Self { link: config.link, port, counters: LinkCounters::new_shared() })
+        Ok(Self { link: config.link, port, counters: LinkCounters::new_shared(), signing: Arc::default() })
+    }
+
+    /// Signs and verifies with the process's shared signing state (default: its own, off).
+    #[must_use]
+    pub fn with_signing(mut self, signing: Arc<LinkSigning>) -> Self {
+        self.signing = signing;
+        self
     }
 
     /// The link's counters.
@@ -88,7 +97,7 @@ impl SerialLink {
         let path = self.port.describe();
         while !shutdown.is_shutdown() {
             if let Some(bytes) = self.port.recv()? {
-                let frames = decoder.push(bytes);
+                let frames = self.signing.verify(decoder.push(bytes), &self.counters);
                 if !deliver(incoming, &self.counters, self.link, SERIAL_PEER, frames) {
                     break;
                 }
@@ -96,7 +105,7 @@ impl SerialLink {
             loop {
                 match outgoing.try_recv() {
                     Ok(out) => {
-                        let bytes = encode_v2(out.header, &out.message);
+                        let bytes = self.signing.encode(out.header, &out.message);
                         match self.port.send(&bytes) {
                             Ok(()) => self.counters.add_sent(bytes.len()),
                             Err(e) => {

@@ -20,9 +20,10 @@ use tokio::sync::mpsc;
 use tokio::sync::mpsc::error::TrySendError;
 use tokio::task::JoinSet;
 
-use super::frame::{CountingDecoder, LinkCounters, encode_v2};
+use super::frame::{CountingDecoder, LinkCounters};
 use super::link::{Destination, Incoming, LinkError, LinkId, Outgoing, deliver};
 use super::shutdown::Shutdown;
+use super::signing::LinkSigning;
 
 /// SITL's TCP port for instance 0; instance N listens on `TCP_PORT + N`.
 pub const TCP_PORT: u16 = 5760;
@@ -64,6 +65,7 @@ pub struct TcpLink {
     listener: TcpListener,
     local: SocketAddr,
     counters: Arc<LinkCounters>,
+    signing: Arc<LinkSigning>,
 }
 
 type Frame = Arc<[u8]>;
@@ -79,7 +81,14 @@ impl TcpLink {
             TcpListener::bind(config.bind).await.map_err(|source| LinkError::Bind { addr: config.bind, source })?;
         let local = listener.local_addr()?;
         tracing::info!(%local, "TCP ground-station link listening");
-        Ok(Self { link: config.link, listener, local, counters: LinkCounters::new_shared() })
+        Ok(Self { link: config.link, listener, local, counters: LinkCounters::new_shared(), signing: Arc::default() })
+    }
+
+    /// Signs and verifies with the process's shared signing state (default: its own, off).
+    #[must_use]
+    pub fn with_signing(mut self, signing: Arc<LinkSigning>) -> Self {
+        self.signing = signing;
+        self
     }
 
     /// The listening address (with the real port when bound to port 0).
@@ -135,6 +144,7 @@ impl TcpLink {
                             outgoing: rx,
                             shutdown: shutdown.clone(),
                             counters: self.counters.clone(),
+                            signing: self.signing.clone(),
                         };
                         tasks.spawn(client.run(stream));
                     }
@@ -158,7 +168,7 @@ impl TcpLink {
     }
 
     fn route(&self, clients: &mut BTreeMap<SocketAddr, mpsc::Sender<Frame>>, out: &Outgoing) {
-        let frame: Frame = encode_v2(out.header, &out.message).into();
+        let frame: Frame = self.signing.encode(out.header, &out.message).into();
         let mut gone = Vec::new();
         for (peer, tx) in clients.iter() {
             if let Destination::Peer(to) = out.to
@@ -200,6 +210,7 @@ struct Client {
     outgoing: mpsc::Receiver<Frame>,
     shutdown: Shutdown,
     counters: Arc<LinkCounters>,
+    signing: Arc<LinkSigning>,
 }
 
 impl Client {
@@ -230,7 +241,8 @@ impl Client {
                         break;
                     }
                     Ok(n) => {
-                        if !deliver(&self.incoming, &self.counters, self.link, peer, decoder.push(&buf[..n])) {
+                        let frames = self.signing.verify(decoder.push(&buf[..n]), &self.counters);
+                        if !deliver(&self.incoming, &self.counters, self.link, peer, frames) {
                             return peer;
                         }
                     }
@@ -248,6 +260,7 @@ impl Client {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::runtime::frame::encode_v2;
     use crate::runtime::frame::tests::heartbeat;
     use crate::runtime::frame::{DecodedFrame, FrameDecoder};
     use crate::runtime::link::CHANNEL_CAPACITY;

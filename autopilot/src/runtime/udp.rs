@@ -23,9 +23,10 @@ use tokio::net::UdpSocket;
 use tokio::sync::mpsc;
 use tokio::time::Instant;
 
-use super::frame::{CountingDecoder, LinkCounters, encode_v2};
+use super::frame::{CountingDecoder, LinkCounters};
 use super::link::{Destination, Incoming, LinkError, LinkId, Outgoing, deliver};
 use super::shutdown::Shutdown;
+use super::signing::LinkSigning;
 
 /// PX4 SITL's local GCS port for instance 0; instance N binds `LOCAL_PORT + N`.
 pub const LOCAL_PORT: u16 = 18570;
@@ -128,6 +129,7 @@ pub struct UdpLink {
     local: SocketAddr,
     peers: PeerTable,
     counters: Arc<LinkCounters>,
+    signing: Arc<LinkSigning>,
 }
 
 impl UdpLink {
@@ -147,7 +149,15 @@ impl UdpLink {
             local,
             peers: PeerTable::new(config.targets, config.peer_expiry),
             counters: LinkCounters::new_shared(),
+            signing: Arc::default(),
         })
+    }
+
+    /// Signs and verifies with the process's shared signing state (default: its own, off).
+    #[must_use]
+    pub fn with_signing(mut self, signing: Arc<LinkSigning>) -> Self {
+        self.signing = signing;
+        self
     }
 
     /// The bound address (with the real port when bound to port 0).
@@ -210,6 +220,7 @@ impl UdpLink {
                     if self.peers.heard(peer, Instant::now()) {
                         tracing::info!(%peer, "UDP ground-station peer joined");
                     }
+                    let frames = self.signing.verify(frames, &self.counters);
                     if !deliver(&incoming, &self.counters, self.link, peer, frames) {
                         return Ok(());
                     }
@@ -226,7 +237,7 @@ impl UdpLink {
     /// time.)
     async fn send(&mut self, batch: &[Outgoing]) {
         for out in batch {
-            let bytes = encode_v2(out.header, &out.message);
+            let bytes = self.signing.encode(out.header, &out.message);
             match out.to {
                 Destination::All => self.broadcast(&bytes).await,
                 Destination::Peer(peer) => self.send_to(&bytes, peer).await,
@@ -260,6 +271,7 @@ mod tests {
     use super::*;
     use crate::runtime::frame::DecodedFrame;
     use crate::runtime::frame::FrameDecoder;
+    use crate::runtime::frame::encode_v2;
     use crate::runtime::frame::tests::{heartbeat, signed};
     use crate::runtime::link::CHANNEL_CAPACITY;
     use crate::runtime::shutdown::{self, ShutdownTrigger};

@@ -25,6 +25,7 @@ pub mod mission;
 pub mod offboard;
 pub mod params;
 pub mod router;
+pub mod signing;
 pub mod telemetry;
 
 /// The wire types of this API (so users need no direct dependency on the same `mavlink` version).
