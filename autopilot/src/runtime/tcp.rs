@@ -1,5 +1,6 @@
 //! The TCP ground-station link: a server on `0.0.0.0:5760 + N` for instance N (ArduPilot's and PX4's
-//! SITL TCP port; configurable) accepting any number of clients. In: each client's byte stream through
+//! SITL TCP port; configurable) accepting up to [`MAX_TCP_CLIENTS`] clients at once (one more is closed at
+//! once). In: each client's byte stream through
 //! its own stream decoder; each valid frame goes to the core as an [`Incoming`] tagged with the client's
 //! address. Out: each [`Outgoing`] is encoded once and queued to every connected client
 //! ([`Destination::All`]) or to one ([`Destination::Peer`]).
@@ -29,6 +30,9 @@ use super::signing::LinkSigning;
 pub const TCP_PORT: u16 = 5760;
 /// Frames queued to one client before it counts as stalled and its frames are dropped.
 pub const CLIENT_QUEUE_FRAMES: usize = 256;
+/// The most clients served at once; a connection beyond it is closed at once (and logged), so idle
+/// connections cannot exhaust the process.
+pub const MAX_TCP_CLIENTS: usize = 16;
 /// Read size per client, in bytes.
 const READ_CHUNK_BYTES: usize = 4096;
 
@@ -133,6 +137,10 @@ impl TcpLink {
                     self.route(&mut clients, &out);
                 }
                 accepted = self.listener.accept() => match accepted {
+                    Ok((stream, peer)) if clients.len() >= MAX_TCP_CLIENTS => {
+                        tracing::warn!(%peer, max = MAX_TCP_CLIENTS, "TCP client refused: too many clients");
+                        drop(stream);
+                    }
                     Ok((stream, peer)) => {
                         tracing::info!(%peer, "TCP ground-station client connected");
                         let (tx, rx) = mpsc::channel(CLIENT_QUEUE_FRAMES);
@@ -387,5 +395,25 @@ mod tests {
     #[test]
     fn instance_shifts_the_port() {
         assert_eq!(TcpConfig::for_instance(3).bind, "0.0.0.0:5763".parse().expect("addr"));
+    }
+
+    #[tokio::test]
+    async fn a_connection_beyond_the_client_cap_is_closed_and_the_others_are_served() {
+        let mut h = start().await;
+        let mut clients = Vec::new();
+        for _ in 0..MAX_TCP_CLIENTS {
+            clients.push(connect(&mut h).await);
+        }
+        // One more: closed at once (its read sees the end of the stream).
+        let mut extra = TcpStream::connect(h.addr).await.expect("connect");
+        let mut buf = [0u8; 16];
+        let n = tokio::time::timeout(WAIT, extra.read(&mut buf)).await.expect("closed in time").unwrap_or(0);
+        assert_eq!(n, 0, "the extra connection is closed");
+        // The others still get broadcasts.
+        broadcast(&h, 5).await;
+        let mut dec = FrameDecoder::new();
+        assert!(next_frame(&mut clients[0], &mut dec, WAIT).await.is_some());
+        h.trigger.fire();
+        h.task.await.expect("join").expect("ok");
     }
 }

@@ -6,7 +6,8 @@
 //!
 //! Peers expire after [`PEER_EXPIRY`] (10 s) without a valid frame from them: GCS heartbeats come at 1 Hz
 //! and clients give up on a silent vehicle after 3-3.5 s, so 10 s keeps a client through a few lost
-//! heartbeats and a one-shot script for a while after its last message. Fixed targets never expire.
+//! heartbeats and a one-shot script for a while after its last message. Fixed targets never expire. At
+//! most [`MAX_UDP_PEERS`] peers are live at once; a new sender beyond that is answered but not broadcast to.
 //! rust-mavlink's `udpin` answers only the last sender, which is why this shell keeps its own socket.
 //!
 //! Malformed datagrams are counted in the link's `LinkStats` and dropped; a send that fails (nobody
@@ -75,23 +76,41 @@ impl Default for UdpConfig {
     }
 }
 
-/// Fixed targets plus every address that sent a valid frame within the expiry time.
+/// The most live UDP peers a link broadcasts to: a flood of senders from new addresses cannot grow the
+/// table (and every broadcast) without bound. A sender beyond it still gets its replies.
+pub const MAX_UDP_PEERS: usize = 32;
+
+/// Fixed targets plus every address that sent a valid frame within the expiry time (at most
+/// [`MAX_UDP_PEERS`] of them).
 #[derive(Debug, Clone)]
 pub struct PeerTable {
     fixed: Vec<SocketAddr>,
     last_heard: BTreeMap<SocketAddr, Instant>,
     expiry: Duration,
+    /// New peers not taken because the table was full.
+    refused: u64,
 }
 
 impl PeerTable {
     #[must_use]
     pub fn new(fixed: Vec<SocketAddr>, expiry: Duration) -> Self {
-        Self { fixed, last_heard: BTreeMap::new(), expiry }
+        Self { fixed, last_heard: BTreeMap::new(), expiry, refused: 0 }
     }
 
-    /// `peer` sent a valid frame at `now`; true if it was not live before.
+    /// `peer` sent a valid frame at `now`; true if it was not live before. A new peer while
+    /// [`MAX_UDP_PEERS`] are live is not taken (and counted in [`PeerTable::refused`]).
     pub fn heard(&mut self, peer: SocketAddr, now: Instant) -> bool {
+        if !self.last_heard.contains_key(&peer) && self.last_heard.len() >= MAX_UDP_PEERS {
+            self.refused += 1;
+            return false;
+        }
         self.last_heard.insert(peer, now).is_none_or(|last| now.duration_since(last) >= self.expiry)
+    }
+
+    /// New peers refused because the table was full, so far.
+    #[must_use]
+    pub fn refused(&self) -> u64 {
+        self.refused
     }
 
     /// Drop peers silent for the expiry time or longer; returns them.
@@ -488,5 +507,20 @@ mod tests {
         let config = UdpConfig { bind: taken.local_addr().expect("addr"), ..UdpConfig::default() };
         let err = UdpLink::bind(config).await.expect_err("port taken");
         assert!(matches!(err, LinkError::Bind { .. }), "{err}");
+    }
+
+    #[test]
+    fn a_flood_of_new_senders_cannot_grow_the_peer_table_past_its_cap() {
+        let mut table = PeerTable::new(vec![], Duration::from_secs(10));
+        let now = Instant::now();
+        for port in 0..(MAX_UDP_PEERS as u16 + 10) {
+            table.heard(SocketAddr::from(([127, 0, 0, 1], 20_000 + port)), now);
+        }
+        assert_eq!(table.peers().count(), MAX_UDP_PEERS);
+        assert_eq!(table.refused(), 10);
+        // A live peer is still heard; once the others expire, a new one is taken again.
+        assert!(!table.heard(SocketAddr::from(([127, 0, 0, 1], 20_000)), now));
+        table.expire(now + Duration::from_secs(11));
+        assert!(table.heard(SocketAddr::from(([127, 0, 0, 1], 30_000)), now + Duration::from_secs(11)));
     }
 }
