@@ -1,6 +1,6 @@
-//! End to end: `sitl run -i N` (plant server + the `autopilot` binary, lockstep, as fast as possible),
-//! flown by this test as a ground station over UDP exactly as QGroundControl would be: listen on
-//! 14550+N, command the autopilot at 18570+N. Waits on vehicle time (`time_boot_ms` of the telemetry),
+//! End to end: `sitl run -i N --speed max` (plant server + the `autopilot` binary, lockstep, as fast as
+//! possible), flown by this test as a ground station over UDP exactly as QGroundControl would be: listen
+//! on 14550+N, command the autopilot at 18570+N. Waits on vehicle time (`time_boot_ms` of the telemetry),
 //! never on wall sleeps; a wall-clock deadline fails the test instead of hanging, and a guard kills the
 //! whole process group (sitl and its autopilot child) however the test ends. The plant-loss test runs the
 //! two apart (`sitl serve` and `autopilot`) so that it can kill and restart the plant alone; while the
@@ -183,7 +183,8 @@ fn sitl_binary() -> &'static str {
     sitl
 }
 
-/// `sitl run -i n` with `extra_args`, its standard error piped, in a process group of its own.
+/// `sitl run -i n` with `extra_args` (which say the pacing: real time without `--speed`), its standard
+/// error piped, in a process group of its own.
 fn start_sitl_run(n: u16, extra_args: &[&str]) -> Guard {
     let child = Command::new(sitl_binary())
         .args(["run", "-i", &n.to_string(), "--state-dir", "off"])
@@ -195,9 +196,10 @@ fn start_sitl_run(n: u16, extra_args: &[&str]) -> Guard {
     Guard(child)
 }
 
+/// The flight, as fast as possible (`--speed max`): waits are on vehicle time.
 fn fly(extra_args: &[&str]) {
     let (n, socket, _api) = free_instance();
-    let mut guard = start_sitl_run(n, extra_args);
+    let mut guard = start_sitl_run(n, &[&["--speed", "max"][..], extra_args].concat());
     let wall_start = Instant::now();
     let mut gcs = Gcs {
         socket,
@@ -315,7 +317,7 @@ fn two_ground_station_peers_both_receive_every_heartbeat() {
     // GIVEN `sitl run`, a script that only listens on the MAVSDK port 14540+N (a fixed target, never
     // speaking), and a ground station that speaks from a port of its own with 1 Hz heartbeats (a peer).
     let (n, qgc, silent) = free_instance();
-    let _guard = start_sitl_run(n, &[]);
+    let _guard = start_sitl_run(n, &["--speed", "max"]);
     let sysid = u8::try_from(n + 1).expect("sysid");
     let peer = UdpSocket::bind("127.0.0.1:0").expect("bind peer");
     peer.set_read_timeout(Some(Duration::from_millis(100))).expect("timeout");
@@ -477,7 +479,7 @@ fn parameters_and_the_mission_survive_a_restart_of_the_autopilot() {
     let start = |n: u16| {
         Guard(
             Command::new(sitl_binary())
-                .args(["run", "-i", &n.to_string(), "--state-dir", state.to_str().expect("utf-8")])
+                .args(["run", "-i", &n.to_string(), "--speed", "max", "--state-dir", state.to_str().expect("utf-8")])
                 .stderr(std::process::Stdio::null())
                 .process_group(0)
                 .spawn()
