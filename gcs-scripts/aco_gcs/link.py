@@ -3,9 +3,9 @@ its clock (the largest `time_boot_ms` seen) and its state from telemetry, waits 
 COMMAND_LONG with its ACK, the parameter protocol, the plant's SIM_ parameter link, and the exit codes.
 
 Time: every wait in a flight is measured on the vehicle's clock, so a script behaves the same whether the
-SITL runs in lockstep at 30x real time or at `--speed 1`. Protocol timeouts (an ACK, a PARAM_VALUE) are a
-few seconds of vehicle time rather than PX4 clients' fraction of a second: at lockstep speed a Python
-client reads the telemetry a little behind the vehicle, and its clock is the telemetry it has read. Wall time is only a hang guard (`--wall-limit`),
+SITL runs at real time (`sitl run`'s default) or at `--speed 30`. Protocol timeouts (an ACK, a
+PARAM_VALUE) are a few seconds of vehicle time rather than PX4 clients' fraction of a second: sped up, a
+Python client reads the telemetry a little behind the vehicle, and its clock is the telemetry it has read. Wall time is only a hang guard (`--wall-limit`),
 the first HEARTBEAT's timeout (`--heartbeat-timeout`: there is no vehicle clock before it) and the plant's
 SIM_ parameter link (the plant sends no clock on that port).
 

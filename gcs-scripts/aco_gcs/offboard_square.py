@@ -3,9 +3,9 @@ armable), arm, take off to --alt, start offboard with PositionNedYaw setpoints a
 metres (north, then east, then back), stop offboard (the vehicle holds), land and wait for the disarm.
 Exit 1 if a step fails, 2 if no vehicle connects.
 
-Needs the SITL at real time: `sitl run --speed 1`. MAVSDK re-sends the offboard setpoint at 20 Hz of wall
-time, while the vehicle's offboard timeout (0.5 s) runs on vehicle time; in lockstep the vehicle runs
-20-30x faster than the wall clock, sees 0.5 s without a setpoint between two of MAVSDK's, and leaves
+Needs the SITL at real time: `sitl run` (its default; not `--speed 20` or `--speed max`). MAVSDK re-sends
+the offboard setpoint at 20 Hz of wall time, while the vehicle's offboard timeout (0.5 s) runs on vehicle
+time; sped up 20-30x the vehicle sees 0.5 s without a setpoint between two of MAVSDK's, and leaves
 offboard. Every wait here is still measured on the vehicle's clock (ATTITUDE time_boot_ms, as MAVSDK's
 attitude timestamp)."""
 
@@ -91,7 +91,7 @@ async def fly(args, drone, state):
         rate = (state.now_s() - t_vehicle) / wall
         print(
             f"warning: the vehicle runs at {rate:.0f}x real time; MAVSDK's offboard setpoints come on the wall "
-            "clock and will time out: run `sitl run --speed 1`",
+            "clock and will time out: run `sitl run` at real time (without --speed, or --speed 1)",
             file=sys.stderr,
             flush=True,
         )
@@ -166,7 +166,7 @@ async def run_async(args):
         except asyncio.TimeoutError:
             raise NoVehicle(
                 f"no vehicle HEARTBEAT on {connect} within {args.heartbeat_timeout:g} s "
-                f"(is `sitl run -i {args.instance} --speed 1` running?)"
+                f"(is `sitl run -i {args.instance}` running, at real time?)"
             ) from None
         print(f"vehicle connected on {connect}", flush=True)
         state = State(args.wall_limit)

@@ -74,16 +74,29 @@ class Sitl:
         return self.log_path.read_text()[-chars:]
 
 
-def start_sitl(tmp_path, *extra, instance=None):
-    """`sitl run` on a free instance with its own state directory (what a test sets must not outlive it)
-    and `.tlog` directory under `tmp_path`, its standard error in `tmp_path/sitl-run.log`."""
+def start_sitl(tmp_path, *extra, speed, instance=None):
+    """`sitl run --speed SPEED` on a free instance with its own state directory (what a test sets must not
+    outlive it) and `.tlog` directory under `tmp_path`, its standard error in `tmp_path/sitl-run.log`.
+    Every test says its speed: `sitl run` alone paces at real time, "max" is lockstep as fast as possible."""
     n = instance if instance is not None else free_instance()
     log_dir = tmp_path / "logs"
     log_dir.mkdir(exist_ok=True)
     log_path = tmp_path / "sitl-run.log"
     stderr = open(log_path, "w")
     proc = subprocess.Popen(
-        [str(binary("sitl")), "run", "-i", str(n), "--log-dir", str(log_dir), "--state-dir", str(tmp_path / "state"), *extra],
+        [
+            str(binary("sitl")),
+            "run",
+            "-i",
+            str(n),
+            "--speed",
+            str(speed),
+            "--log-dir",
+            str(log_dir),
+            "--state-dir",
+            str(tmp_path / "state"),
+            *extra,
+        ],
         stdout=subprocess.DEVNULL,
         stderr=stderr,
         start_new_session=True,

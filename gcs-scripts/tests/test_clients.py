@@ -1,9 +1,10 @@
-"""The ground stations the field flies PX4 with, against the real SITL (`sitl run`, lockstep): MAVSDK-Python
-(classic API) through a whole session (telemetry and health, arm, takeoff, the paper's figure-8 uploaded
-and flown to its end, goto, return and land) and its param plugin on integer and float parameters;
-pymavlink's PX4 mode handling and PX4's bytewise INT32 parameters; MAVProxy (lean install) downloading
-every parameter and the mission; pymavlink over the TCP server; and the connection sequence of
-QGroundControl. Waits are on the vehicle's telemetry; wall-clock limits only stop a hung run."""
+"""The ground stations the field flies PX4 with, against the real SITL (`sitl run --speed max`: lockstep, as
+fast as possible, so the suite stays short): MAVSDK-Python (classic API) through a whole session (telemetry
+and health, arm, takeoff, the paper's figure-8 uploaded and flown to its end, goto, return and land) and its
+param plugin on integer and float parameters; pymavlink's PX4 mode handling and PX4's bytewise INT32
+parameters; MAVProxy (lean install) downloading every parameter and the mission; pymavlink over the TCP
+server; and the connection sequence of QGroundControl. Waits are on the vehicle's telemetry; wall-clock
+limits only stop a hung run."""
 
 import asyncio
 import math
@@ -53,7 +54,7 @@ def bytewise_int32(field):
 
 @pytest.fixture
 def sitl(tmp_path):
-    s = start_sitl(tmp_path)
+    s = start_sitl(tmp_path, speed="max")
     try:
         yield s
     finally:

@@ -24,7 +24,7 @@ def run_sitl(tmp_path):
     running = []
 
     def start(speed=SPEED):
-        s = start_sitl(tmp_path, "--speed", speed, "--estimator", "truth", instance=running[0].instance if running else None)
+        s = start_sitl(tmp_path, "--estimator", "truth", speed=speed, instance=running[0].instance if running else None)
         running.append(s)
         return s
 

@@ -1,6 +1,6 @@
 """Every ground-station script run as a user runs it: a subprocess against the real binaries (`sitl run
--i N` on a random free instance, in lockstep paced at 20x so that a Python reader keeps up, except the MAVSDK
-offboard flight which needs `--speed 1`),
+-i N` on a random free instance, paced at 20x (`--speed 20`) so that a Python reader keeps up, except the
+MAVSDK offboard flight which needs real time, `--speed 1`),
 checking exit codes and outputs; plus `--help`, the exit code 2 with a clear message when no vehicle is
 there, and the package's console entry points."""
 
@@ -56,11 +56,12 @@ def run_script(name, *args, timeout=FLIGHT_WALL_S, cwd=None):
 
 @pytest.fixture
 def sitl(tmp_path):
-    """Lockstep paced at 20x. Unpaced, the vehicle sends about 11 000 messages per wall second on a fast
-    machine, more than a pymavlink script sharing two cores with the two polling SITL processes parses:
-    it then misses events (MISSION_ITEM_REACHED) or reads an ACK more than its 5 s of vehicle time late.
-    The client tests (test_clients.py) run unpaced."""
-    s = start_sitl(tmp_path, "--speed", "20")
+    """Paced at 20x (`--speed 20`). Unpaced (`--speed max`), the vehicle sends about 11 000 messages per wall
+    second on a fast machine, more than a pymavlink script sharing two cores with the two polling SITL
+    processes parses: it then misses events (MISSION_ITEM_REACHED) or reads an ACK more than its 5 s of
+    vehicle time late.
+    The client tests (test_clients.py) run unpaced (`--speed max`)."""
+    s = start_sitl(tmp_path, speed="20")
     try:
         yield s
     finally:
@@ -70,7 +71,7 @@ def sitl(tmp_path):
 
 @pytest.fixture
 def sitl_realtime(tmp_path):
-    s = start_sitl(tmp_path, "--speed", "1")
+    s = start_sitl(tmp_path, speed="1")
     try:
         yield s
     finally:

@@ -59,7 +59,7 @@ def answered(conn, sitl, frame):
 
 
 def test_signing_set_up_over_tcp_drops_unsigned_and_replayed_udp_commands_and_survives_a_restart(tmp_path):
-    sitl = start_sitl(tmp_path, "--speed", "1")
+    sitl = start_sitl(tmp_path, speed="1")
     try:
         unsigned = udp(sitl, signed=False)
         assert answered(unsigned, sitl, request_version(unsigned, sitl)), "signing off: anyone is answered"
@@ -86,7 +86,7 @@ def test_signing_set_up_over_tcp_drops_unsigned_and_replayed_udp_commands_and_su
         assert key_file.stat().st_mode & 0o777 == 0o600
         assert KEY.hex() not in sitl.log_path.read_text(), "the key is never logged"
         sitl.stop()
-        sitl = start_sitl(tmp_path, "--speed", "1", instance=sitl.instance)
+        sitl = start_sitl(tmp_path, speed="1", instance=sitl.instance)
         unsigned = udp(sitl, signed=False)
         assert not answered(unsigned, sitl, request_version(unsigned, sitl)), "still on after the restart"
         # Off again: a signed SETUP_SIGNING with the zero key, over TCP.

@@ -169,7 +169,8 @@ impl Transport for UdpTransport {
 /// How plant time relates to wall time.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Pacing {
-    /// As fast as the autopilot answers (the default; what tests use).
+    /// As fast as the autopilot answers ([`LinkConfig`]'s default, for tests and scenarios; `sitl run` and
+    /// `sitl serve` run at real time unless given `--speed max`).
     Lockstep,
     /// Lockstep, and plant time never ahead of `speed` times wall time (1.0 = real time).
     RealTime { speed: f64 },

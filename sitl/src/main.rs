@@ -3,9 +3,12 @@
 //! `sitl serve` serves the plant to an autopilot over the MAVLink HIL plant protocol (UDP or serial);
 //! `sitl run` is the one-command SITL: the plant server plus the `autopilot` binary as a child process
 //! (optionally flying a hover scenario through both, with its metrics). Both `serve` and `run` answer the
-//! plant's SIM_ parameters (wind and gusts at run time, `sitl::sim_params`) on UDP 19550+N. `sitl bench`
-//! measures the two-process real-time factor in lockstep and the CPU cost of the SITL and its telemetry in
-//! real time.
+//! plant's SIM_ parameters (wind and gusts at run time, `sitl::sim_params`) on UDP 19550+N, and pace the
+//! plant at real time unless told otherwise (`--speed X` for X times real time, `--speed max` or
+//! `--lockstep` for as fast as the autopilot answers), as a ground station and the person watching it
+//! expect; scenarios (`sitl scenario`, `sitl run --scenario`) are batch runs, always as fast as possible.
+//! `sitl bench` measures the two-process real-time factor in lockstep and the CPU cost of the SITL and its
+//! telemetry in real time.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -41,9 +44,11 @@ struct Cli {
 enum Command {
     /// Run scenarios in-process (plant + controller in lockstep on simulated time) and report metrics.
     Scenario(ScenarioArgs),
-    /// Serve the plant to an autopilot over the HIL plant protocol (lockstep by default).
+    /// Serve the plant to an autopilot over the HIL plant protocol, at real time unless `--speed` says
+    /// otherwise.
     Serve(ServeArgs),
-    /// One-command SITL: serve the plant on UDP 4560+N and run the `autopilot` binary against it.
+    /// One-command SITL: serve the plant on UDP 4560+N and run the `autopilot` binary against it, at real
+    /// time unless `--speed` says otherwise (`--speed 4`, `--speed max`).
     Run(RunArgs),
     /// Measure the two-process SITL: lockstep real-time factor, and CPU and telemetry at real time.
     Bench(BenchArgs),
@@ -78,7 +83,8 @@ struct RunArgs {
     duration: Option<f64>,
     /// Fly a scenario through both processes and report its metrics at the end: a hover (gust-hover,
     /// turbulence-hover) starting in the air as the in-process runner does, truth-fed; a track (figure8)
-    /// as a mission from the ground, on the fused estimator.
+    /// as a mission from the ground, on the fused estimator. A scenario is a batch run: always as fast as
+    /// possible (lockstep), whatever the default pacing.
     #[arg(long)]
     scenario: Option<String>,
     /// With --scenario: print the metrics as one JSON object.
@@ -109,10 +115,14 @@ struct PlantArgs {
     /// Airframe preset (nominal, mismatch), applied over the configuration's.
     #[arg(long = "plant")]
     preset: Option<String>,
-    /// Pace the plant at this multiple of real time (lockstep with the autopilot either way); omit it to
-    /// run as fast as the autopilot answers.
-    #[arg(long)]
-    speed: Option<f64>,
+    /// Pace the plant at X times real time (default 1: real time, as a ground station expects; 4 runs four
+    /// times faster, 0.5 half as fast), or `max`: as fast as the autopilot answers (lockstep, about
+    /// 100-150x on two cores). The plant and the autopilot step in lockstep either way.
+    #[arg(long, value_name = "X|max", value_parser = parse_speed, allow_negative_numbers = true)]
+    speed: Option<Pacing>,
+    /// As fast as possible: the same as `--speed max`.
+    #[arg(long, conflicts_with = "speed")]
+    lockstep: bool,
     /// Seed of every noise and turbulence stream.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -131,12 +141,44 @@ impl PlantArgs {
         if let Some(preset) = &self.preset {
             config.airframe = Airframe::preset(preset)?;
         }
-        let pacing = match self.speed {
-            Some(speed) if speed.is_finite() && speed > 0.0 => Pacing::RealTime { speed },
-            Some(speed) => bail!("--speed must be a positive number, got {speed}"),
-            None => Pacing::Lockstep,
-        };
-        Ok((Plant::new(config, &InitialState::default(), self.seed)?, pacing))
+        Ok((Plant::new(config, &InitialState::default(), self.seed)?, self.pacing()))
+    }
+
+    /// `--speed` or `--lockstep`; without either, real time.
+    fn pacing(&self) -> Pacing {
+        if self.lockstep { Pacing::Lockstep } else { self.speed.unwrap_or(REAL_TIME) }
+    }
+
+    /// Whether the command line chose the pacing (`--speed` or `--lockstep`).
+    fn pacing_given(&self) -> bool {
+        self.lockstep || self.speed.is_some()
+    }
+}
+
+/// The pacing of `sitl run` and `sitl serve` without `--speed`: what a ground station (and a person
+/// watching it) expects, as PX4's and ArduPilot's SITLs do.
+const REAL_TIME: Pacing = Pacing::RealTime { speed: 1.0 };
+
+/// `--speed`: `max` (lockstep, as fast as possible) or a positive, finite multiple of real time.
+fn parse_speed(text: &str) -> Result<Pacing, String> {
+    if text.trim().eq_ignore_ascii_case("max") {
+        return Ok(Pacing::Lockstep);
+    }
+    match text.trim().parse::<f64>() {
+        Ok(speed) if speed.is_finite() && speed > 0.0 => Ok(Pacing::RealTime { speed }),
+        _ => Err("expected a positive multiple of real time (1 = real time, 4, 0.5) or `max` (as fast as \
+                  possible, lockstep)"
+            .to_owned()),
+    }
+}
+
+/// How a pacing reads after "running" in the startup lines: "at real time (1x)", "at 4x real time", "as
+/// fast as possible (lockstep)".
+fn describe_pacing(pacing: Pacing) -> String {
+    match pacing {
+        Pacing::Lockstep => "as fast as possible (lockstep)".to_owned(),
+        Pacing::RealTime { speed: 1.0 } => "at real time (1x)".to_owned(),
+        Pacing::RealTime { speed } => format!("at {speed}x real time"),
     }
 }
 
@@ -437,7 +479,11 @@ fn serve(args: &ServeArgs) -> Result<()> {
         let (device, baud) = parse_serial_spec(spec).map_err(anyhow::Error::msg).context("--serial")?;
         let transport =
             SerialTransport::open(&device, baud, POLL_INTERVAL).with_context(|| format!("opening {device}"))?;
-        eprintln!("sitl: plant on serial {device} at {baud} baud; SIM_ parameters on udp 127.0.0.1:{sim_port}");
+        eprintln!(
+            "sitl: plant on serial {device} at {baud} baud, running {}; SIM_ parameters on udp \
+             127.0.0.1:{sim_port}",
+            describe_pacing(pacing)
+        );
         let mut server = PlantServer::new(plant, transport, link);
         server.set_hook(Box::new(sim_params));
         server.run(None, &stop)?
@@ -448,8 +494,9 @@ fn serve(args: &ServeArgs) -> Result<()> {
             PlantServer::bind_udp(plant, listen.as_str(), link).with_context(|| format!("binding {listen}"))?;
         server.set_hook(Box::new(sim_params));
         eprintln!(
-            "sitl: plant listening on udp {listen}; SIM_ parameters on udp 127.0.0.1:{sim_port}; waiting for an \
-             autopilot"
+            "sitl: plant listening on udp {listen}, running {}; SIM_ parameters on udp 127.0.0.1:{sim_port}; \
+             waiting for an autopilot",
+            describe_pacing(pacing)
         );
         server.run(None, &stop)?
     };
@@ -508,6 +555,13 @@ fn print_two_process(m: &two_process::TwoProcessMetrics, json: bool) -> Result<(
 }
 
 fn run(args: &RunArgs) -> Result<()> {
+    if args.scenario.is_some() && (args.plant.config.is_some() || args.plant.pacing_given() || args.duration.is_some())
+    {
+        bail!(
+            "--scenario sets the plant, pacing (as fast as possible) and duration itself; drop --config, --speed, \
+             --lockstep and --duration"
+        );
+    }
     let n = args.instance;
     let (plant_port, ap_port, qgc_port, api_port) = instance_ports(n)?;
     let autopilot = launch::autopilot_binary()?;
@@ -529,9 +583,6 @@ fn run(args: &RunArgs) -> Result<()> {
             Some("fused") => Some(EstimatorSource::Fused),
             Some(other) => bail!("--estimator must be fused or truth, got `{other}`"),
         };
-        if args.plant.config.is_some() || args.plant.speed.is_some() || args.duration.is_some() {
-            bail!("--scenario sets the plant, pacing and duration itself; drop --config, --speed and --duration");
-        }
         let opts = TwoProcessOptions {
             controller,
             plant: args.plant.preset.clone(),
@@ -540,7 +591,11 @@ fn run(args: &RunArgs) -> Result<()> {
             estimator,
             autopilot_args: ap_args,
         };
-        eprintln!("sitl: instance {n}: flying scenario {} through plant and autopilot ({controller})", scenario.name);
+        eprintln!(
+            "sitl: instance {n}: flying scenario {} through plant and autopilot ({controller}), as fast as possible \
+             (lockstep)",
+            scenario.name
+        );
         let m = two_process::run(&scenario, &opts, &autopilot, &stop)?;
         return print_two_process(&m, args.json);
     }
@@ -575,14 +630,12 @@ fn run(args: &RunArgs) -> Result<()> {
     ap_args.extend(["--plant".into(), format!("udp://{listen}").into(), "-i".into(), n.to_string().into()]);
     let child = AutopilotChild::spawn(&autopilot, &ap_args)?;
     eprintln!(
-        "sitl: instance {n}: plant on udp {listen} ({}), SIM_ parameters on udp 127.0.0.1:{sim_port} (system {}, \
-         component {}), autopilot pid {} (system id {}) listening on udp {ap_port} and tcp {}; ground stations: \
-         listen on udp {qgc_port} (QGroundControl) or {api_port} (MAVSDK/API), or send to 127.0.0.1:{ap_port}. \
-         Ctrl-C stops both.",
-        match pacing {
-            Pacing::Lockstep => "lockstep, as fast as possible".to_owned(),
-            Pacing::RealTime { speed } => format!("lockstep at {speed}x real time"),
-        },
+        "sitl: instance {n} running {}{}; plant on udp {listen}, SIM_ parameters on udp 127.0.0.1:{sim_port} \
+         (system {}, component {}), autopilot pid {} (system id {}) listening on udp {ap_port} and tcp {}; ground \
+         stations: listen on udp {qgc_port} (QGroundControl) or {api_port} (MAVSDK/API), or send to \
+         127.0.0.1:{ap_port}. Ctrl-C stops both.",
+        describe_pacing(pacing),
+        if args.plant.pacing_given() { "" } else { " (`--speed 4` or `--speed max` to run faster)" },
         u32::from(n) + 1,
         sitl::link::PLANT_COMPONENT_ID,
         child.id(),
@@ -723,4 +776,62 @@ fn bench(args: &BenchArgs) -> Result<()> {
         bytes as f64 / r.wall_s / 1000.0,
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::error::ErrorKind;
+
+    /// The pacing `sitl <command> <args>` would run at, or clap's refusal.
+    fn pacing_of(command: &str, args: &[&str]) -> Result<Pacing, clap::Error> {
+        let cli = Cli::try_parse_from(["sitl", command].iter().chain(args))?;
+        match cli.command {
+            Command::Run(run) => Ok(run.plant.pacing()),
+            Command::Serve(serve) => Ok(serve.plant.pacing()),
+            _ => panic!("{command} has no pacing"),
+        }
+    }
+
+    #[test]
+    fn run_and_serve_pace_at_real_time_unless_told_otherwise() {
+        for command in ["run", "serve"] {
+            assert_eq!(pacing_of(command, &[]).unwrap(), Pacing::RealTime { speed: 1.0 }, "{command}");
+            assert_eq!(pacing_of(command, &["-i", "3"]).unwrap(), Pacing::RealTime { speed: 1.0 }, "{command}");
+            assert_eq!(pacing_of(command, &["--speed", "4"]).unwrap(), Pacing::RealTime { speed: 4.0 }, "{command}");
+            assert_eq!(pacing_of(command, &["--speed=0.5"]).unwrap(), Pacing::RealTime { speed: 0.5 }, "{command}");
+            assert_eq!(pacing_of(command, &["--speed", "max"]).unwrap(), Pacing::Lockstep, "{command}");
+            assert_eq!(pacing_of(command, &["--speed", "MAX"]).unwrap(), Pacing::Lockstep, "{command}");
+            assert_eq!(pacing_of(command, &["--lockstep"]).unwrap(), Pacing::Lockstep, "{command}");
+        }
+    }
+
+    #[test]
+    fn a_bad_speed_is_refused_naming_the_flag_and_the_value() {
+        for bad in ["0", "-1", "-0.5", "nan", "NaN", "inf", "fast", "", "4x"] {
+            let err = pacing_of("run", &["--speed", bad]).expect_err(bad);
+            assert_eq!(err.kind(), ErrorKind::ValueValidation, "{bad}: {err}");
+            let text = err.to_string();
+            assert!(text.contains("--speed") && text.contains(&format!("'{bad}'")), "{bad}: {text}");
+            assert!(text.contains("max"), "the message says what is allowed: {text}");
+        }
+        let err = pacing_of("serve", &["--speed", "0"]).expect_err("0");
+        assert_eq!(err.kind(), ErrorKind::ValueValidation, "{err}");
+    }
+
+    #[test]
+    fn lockstep_and_speed_conflict() {
+        let err = pacing_of("run", &["--lockstep", "--speed", "4"]).expect_err("conflict");
+        assert_eq!(err.kind(), ErrorKind::ArgumentConflict, "{err}");
+        let text = err.to_string();
+        assert!(text.contains("--lockstep") && text.contains("--speed"), "{text}");
+    }
+
+    #[test]
+    fn the_startup_line_says_the_pacing() {
+        assert_eq!(describe_pacing(Pacing::RealTime { speed: 1.0 }), "at real time (1x)");
+        assert_eq!(describe_pacing(Pacing::RealTime { speed: 4.0 }), "at 4x real time");
+        assert_eq!(describe_pacing(Pacing::RealTime { speed: 0.5 }), "at 0.5x real time");
+        assert_eq!(describe_pacing(Pacing::Lockstep), "as fast as possible (lockstep)");
+    }
 }

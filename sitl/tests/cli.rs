@@ -70,3 +70,37 @@ fn unknown_scenario_and_bad_options_fail_with_a_clear_message() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("mass_kg"), "{}", String::from_utf8_lossy(&o.stderr));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn run_and_serve_say_in_their_help_that_they_run_at_real_time_unless_told() {
+    for command in ["run", "serve"] {
+        let o = sitl(&[command, "--help"]);
+        assert!(o.status.success());
+        let help = String::from_utf8_lossy(&o.stdout);
+        assert!(help.contains("--speed <X|max>") && help.contains("--lockstep"), "{help}");
+        assert!(help.contains("default 1: real time"), "{help}");
+    }
+}
+
+#[test]
+fn a_bad_speed_is_refused_before_anything_starts() {
+    for (command, bad) in [("run", "0"), ("run", "-1"), ("run", "nan"), ("run", "fast"), ("serve", "inf")] {
+        let o = sitl(&[command, "-i", "97", "--speed", bad]);
+        assert_eq!(o.status.code(), Some(2), "{command} --speed {bad}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains("--speed") && err.contains(&format!("'{bad}'")), "{command} --speed {bad}: {err}");
+        assert!(!err.contains("sitl:"), "{command} --speed {bad} started something: {err}");
+    }
+    let o = sitl(&["run", "--lockstep", "--speed", "4"]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("--lockstep") && err.contains("--speed"), "{err}");
+    // A scenario runs as fast as possible by itself: a pacing is refused, not silently ignored.
+    for pacing in [&["--speed", "1"][..], &["--lockstep"][..]] {
+        let o = sitl(&[&["run", "--scenario", "gust-hover"][..], pacing].concat());
+        assert!(!o.status.success());
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains("--scenario") && err.contains(pacing[0]), "{err}");
+        assert!(!err.contains("flying scenario"), "{err}");
+    }
+}

@@ -1,8 +1,9 @@
-//! End to end: `sitl run -i N` (plant server + the `autopilot` binary, lockstep, as fast as possible),
-//! flown by this test as a ground station over UDP exactly as QGroundControl would be: listen on
-//! 14550+N, command the autopilot at 18570+N. Waits on vehicle time (`time_boot_ms` of the telemetry),
+//! End to end: `sitl run -i N --speed max` (plant server + the `autopilot` binary, lockstep, as fast as
+//! possible), flown by this test as a ground station over UDP exactly as QGroundControl would be: listen
+//! on 14550+N, command the autopilot at 18570+N. Waits on vehicle time (`time_boot_ms` of the telemetry),
 //! never on wall sleeps; a wall-clock deadline fails the test instead of hanging, and a guard kills the
-//! whole process group (sitl and its autopilot child) however the test ends. The plant-loss test runs the
+//! whole process group (sitl and its autopilot child) however the test ends. One test runs `sitl run`
+//! without `--speed`, as a user first does, and checks that it paces at real time and says so. The plant-loss test runs the
 //! two apart (`sitl serve` and `autopilot`) so that it can kill and restart the plant alone; while the
 //! plant is dead no vehicle time passes, so that phase waits on messages under a wall-clock deadline.
 
@@ -183,7 +184,8 @@ fn sitl_binary() -> &'static str {
     sitl
 }
 
-/// `sitl run -i n` with `extra_args`, its standard error piped, in a process group of its own.
+/// `sitl run -i n` with `extra_args` (which say the pacing: real time without `--speed`), its standard
+/// error piped, in a process group of its own.
 fn start_sitl_run(n: u16, extra_args: &[&str]) -> Guard {
     let child = Command::new(sitl_binary())
         .args(["run", "-i", &n.to_string(), "--state-dir", "off"])
@@ -195,9 +197,28 @@ fn start_sitl_run(n: u16, extra_args: &[&str]) -> Guard {
     Guard(child)
 }
 
+/// Ctrl-C to the process group (as a terminal sends it); waits at most 10 s for `sitl run` to stop and
+/// returns its exit status and standard error.
+fn interrupt(guard: &mut Guard) -> (std::process::ExitStatus, String) {
+    let pgid = guard.0.id();
+    Command::new("kill").args(["-s", "INT", "--", &format!("-{pgid}")]).status().expect("kill");
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let status = loop {
+        if let Some(status) = guard.0.try_wait().expect("wait") {
+            break status;
+        }
+        assert!(Instant::now() < deadline, "sitl run did not stop within 10 s of Ctrl-C");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let mut stderr = String::new();
+    std::io::Read::read_to_string(&mut guard.0.stderr.take().expect("piped"), &mut stderr).expect("stderr");
+    (status, stderr)
+}
+
+/// The flight, as fast as possible (`--speed max`): waits are on vehicle time.
 fn fly(extra_args: &[&str]) {
     let (n, socket, _api) = free_instance();
-    let mut guard = start_sitl_run(n, extra_args);
+    let mut guard = start_sitl_run(n, &[&["--speed", "max"][..], extra_args].concat());
     let wall_start = Instant::now();
     let mut gcs = Gcs {
         socket,
@@ -267,19 +288,9 @@ fn fly(extra_args: &[&str]) {
 
     // WHEN stopped with Ctrl-C (SIGINT to the group, as a terminal sends it), THEN both stop and the plant
     // reports the malformed frames it dropped.
-    let pgid = guard.0.id();
-    Command::new("kill").args(["-s", "INT", "--", &format!("-{pgid}")]).status().expect("kill");
-    let deadline = Instant::now() + Duration::from_secs(10);
-    let status = loop {
-        if let Some(status) = guard.0.try_wait().expect("wait") {
-            break status;
-        }
-        assert!(Instant::now() < deadline, "sitl run did not stop within 10 s of Ctrl-C");
-        std::thread::sleep(Duration::from_millis(20));
-    };
-    let mut stderr = String::new();
-    std::io::Read::read_to_string(&mut guard.0.stderr.take().expect("piped"), &mut stderr).expect("stderr");
+    let (status, stderr) = interrupt(&mut guard);
     assert!(status.success(), "sitl run exit {status}: {stderr}");
+    assert!(stderr.contains("running as fast as possible (lockstep)"), "the banner says the pacing: {stderr}");
     let summary = stderr.lines().find(|l| l.contains("plant link:")).unwrap_or_else(|| panic!("no summary: {stderr}"));
     let junk: u64 = summary
         .split(", ")
@@ -300,6 +311,52 @@ fn fly(extra_args: &[&str]) {
     assert!(hover_err_m <= limit_m, "hover error {hover_err_m:.3} m > {limit_m} m from home + 1.5 m");
 }
 
+#[test]
+fn sitl_run_without_speed_paces_at_real_time_and_says_so() {
+    // GIVEN `sitl run` as a user first starts it: no --speed (lockstep alone runs 20-150x real time).
+    let (n, socket, _api) = free_instance();
+    let mut guard = start_sitl_run(n, &[]);
+    let sysid = u8::try_from(n + 1).expect("sysid");
+    // WHEN a ground station reads the vehicle's clock (time_boot_ms) for 2.5 s of wall time from the
+    // first message that carries it.
+    let wall_start = Instant::now();
+    let window = Duration::from_millis(2500);
+    let mut decoder = FrameDecoder::new();
+    let mut buf = [0u8; 65_536];
+    let mut first: Option<(Instant, u32)> = None;
+    let mut last_ms = 0_u32;
+    while first.is_none_or(|(at, _)| at.elapsed() < window) {
+        assert!(wall_start.elapsed() < WALL_LIMIT, "no vehicle clock within {WALL_LIMIT:?}");
+        let Ok(len) = socket.recv(&mut buf) else { continue };
+        for f in decoder.decode_datagram(&buf[..len]) {
+            if f.header.system_id != u32::from(sysid) {
+                continue;
+            }
+            let t = match f.message {
+                MavMessage::ATTITUDE(a) => a.time_boot_ms,
+                MavMessage::LOCAL_POSITION_NED(p) => p.time_boot_ms,
+                MavMessage::SYSTEM_TIME(st) => st.time_boot_ms,
+                _ => continue,
+            };
+            first.get_or_insert((Instant::now(), t));
+            last_ms = last_ms.max(t);
+        }
+    }
+    let (at, first_ms) = first.expect("read");
+    let wall_s = at.elapsed().as_secs_f64();
+    let vehicle_s = f64::from(last_ms - first_ms) * 1e-3;
+    // THEN the vehicle's clock advanced with the wall clock: at most 1.5x it (a generous bound on a shared
+    // machine; this is a behaviour check, not a benchmark), and it did advance.
+    println!("default pacing: {vehicle_s:.2} vehicle s in {wall_s:.2} wall s ({:.2}x)", vehicle_s / wall_s);
+    assert!(vehicle_s <= 1.5 * wall_s, "{vehicle_s:.2} s of vehicle time in {wall_s:.2} s of wall time");
+    assert!(vehicle_s >= 0.5, "the vehicle's clock barely moved: {vehicle_s:.2} s in {wall_s:.2} s of wall time");
+    // AND its startup line says so, with how to run faster.
+    let (status, stderr) = interrupt(&mut guard);
+    assert!(status.success(), "sitl run exit {status}: {stderr}");
+    let banner = stderr.lines().find(|l| l.starts_with("sitl: instance")).unwrap_or_else(|| panic!("{stderr}"));
+    assert!(banner.contains("running at real time (1x)") && banner.contains("--speed max"), "{banner}");
+}
+
 /// Heartbeat sequence numbers from system `sysid` in one datagram.
 fn heartbeat_seqs(decoder: &mut FrameDecoder, datagram: &[u8], sysid: u8) -> Vec<u8> {
     decoder
@@ -315,7 +372,7 @@ fn two_ground_station_peers_both_receive_every_heartbeat() {
     // GIVEN `sitl run`, a script that only listens on the MAVSDK port 14540+N (a fixed target, never
     // speaking), and a ground station that speaks from a port of its own with 1 Hz heartbeats (a peer).
     let (n, qgc, silent) = free_instance();
-    let _guard = start_sitl_run(n, &[]);
+    let _guard = start_sitl_run(n, &["--speed", "max"]);
     let sysid = u8::try_from(n + 1).expect("sysid");
     let peer = UdpSocket::bind("127.0.0.1:0").expect("bind peer");
     peer.set_read_timeout(Some(Duration::from_millis(100))).expect("timeout");
@@ -477,7 +534,7 @@ fn parameters_and_the_mission_survive_a_restart_of_the_autopilot() {
     let start = |n: u16| {
         Guard(
             Command::new(sitl_binary())
-                .args(["run", "-i", &n.to_string(), "--state-dir", state.to_str().expect("utf-8")])
+                .args(["run", "-i", &n.to_string(), "--speed", "max", "--state-dir", state.to_str().expect("utf-8")])
                 .stderr(std::process::Stdio::null())
                 .process_group(0)
                 .spawn()

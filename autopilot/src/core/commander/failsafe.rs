@@ -3,7 +3,7 @@
 //! when a ground station last sent a HEARTBEAT. Out: which failsafes are active, and for a newly active
 //! one the action to take; the commander applies it through its transition table and announces it
 //! (STATUSTEXT, HEARTBEAT mode). Every timer runs on vehicle time, so a failsafe fires identically at
-//! `--speed 1` and in lockstep.
+//! real time (`sitl run`'s default) and at `--speed max` (lockstep, as fast as possible).
 //!
 //! | trigger | parameters | default | action |
 //! |---|---|---|---|
