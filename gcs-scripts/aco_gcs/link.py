@@ -526,6 +526,13 @@ class Params:
         for _ in range(attempts):
             link.conn.mav.param_set_send(link.system_id, self.component, name.encode(), field, param_type)
             got = link.next_message(seconds, lambda m: m.get_type() == "PARAM_VALUE" and m.param_id == name)
+            # A PARAM_VALUE with another value and no word of refusal may be a late answer to the read
+            # above (a backlog on a fast vehicle): the echo is still to come.
+            while got is not None and not link.texts_since(since) and not same_float32(decode_param(got.param_value, got.param_type), value):
+                late = link.next_message(seconds, lambda m: m.get_type() == "PARAM_VALUE" and m.param_id == name)
+                if late is None:
+                    break
+                got = late
             if got is not None:
                 return decode_param(got.param_value, got.param_type), link.texts_since(since)
             if link.texts_since(since):

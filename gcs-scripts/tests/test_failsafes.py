@@ -98,11 +98,11 @@ def test_pack_drained_by_sim_bat_drain_warns_returns_and_lands_before_empty(run_
     # Drained linearly in 300 s of motor time (1 % every 3 s): low (15 %) after 255 s, critical (7 %)
     # after 279 s, then the return (from 3 m over home: RTL_RETURN_ALT 3 m, so straight down at 0.7 m/s)
     # has 12 s before BAT_EMERGEN_THR 3 %.
+    Params(vehicle, 1).require_set("BAT_EMERGEN_THR", 0.03)
+    Params(vehicle, 1).require_set("RTL_RETURN_ALT", 3)
     plant = Plant(sitl.instance, 60.0)
     plant.hello()
     Params(plant, plant.component).require_set("SIM_BAT_DRAIN", 300)
-    Params(vehicle, 1).require_set("BAT_EMERGEN_THR", 0.03)
-    Params(vehicle, 1).require_set("RTL_RETURN_ALT", 3)
     hover, _ = takeoff(vehicle, 3.0, ground)
     vehicle.wait_until(300.0, "RTL", lambda: vehicle.px4_mode() == (PX4_MAIN_AUTO, PX4_AUTO_RTL))
     vehicle.wait_until(60.0, "landed and disarmed", lambda: not vehicle.armed)

@@ -238,6 +238,26 @@ fn velocity_target(vn_mps: f32, ve_mps: f32) -> MavMessage {
     })
 }
 
+/// DO_REPOSITION (COMMAND_INT, as QGroundControl sends it) to `north_m` north of home at 3 m; the replies.
+fn reposition_north(rig: &mut Rig, north_m: f64) -> Vec<MavMessage> {
+    use autopilot::core::mavlink::common::{COMMAND_INT_DATA, MavFrame};
+    let origin = rig.vehicle.estimate().origin.expect("origin");
+    let home = rig.vehicle.home().expect("home").pos_ned_m;
+    let (lat, lon, _) = origin.geodetic_from_ned(&(home + Vector3::new(north_m, 0.0, 0.0)));
+    rig.send(&MavMessage::COMMAND_INT(COMMAND_INT_DATA {
+        param1: -1.0,
+        param4: f32::NAN,
+        x: (lat * 1e7).round() as i32,
+        y: (lon * 1e7).round() as i32,
+        z: 3.0,
+        command: MavCmd::MAV_CMD_DO_REPOSITION,
+        target_system: 1,
+        target_component: 1,
+        frame: MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT,
+        ..Default::default()
+    }))
+}
+
 /// A converged rig that took off to 3 m and holds there.
 fn airborne_rig() -> Rig {
     let mut rig = converged_rig();
@@ -250,27 +270,10 @@ fn airborne_rig() -> Rig {
 
 #[test]
 fn given_gf_max_hor_dist_10_when_a_goto_20_m_away_is_asked_then_it_is_refused_with_the_reason() {
-    use autopilot::core::mavlink::common::{COMMAND_INT_DATA, MavFrame, MavResult};
+    use autopilot::core::mavlink::common::MavResult;
     let mut rig = airborne_rig();
     set_param(&mut rig, "GF_MAX_HOR_DIST", 10.0);
-    let origin = rig.vehicle.estimate().origin.expect("origin");
-    let home = rig.vehicle.home().expect("home").pos_ned_m;
-    let goto = |rig: &mut Rig, n: f64| {
-        let (lat, lon, _) = origin.geodetic_from_ned(&(home + Vector3::new(n, 0.0, 0.0)));
-        rig.send(&MavMessage::COMMAND_INT(COMMAND_INT_DATA {
-            param1: -1.0,
-            param4: f32::NAN,
-            x: (lat * 1e7).round() as i32,
-            y: (lon * 1e7).round() as i32,
-            z: 3.0,
-            command: MavCmd::MAV_CMD_DO_REPOSITION,
-            target_system: 1,
-            target_component: 1,
-            frame: MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT,
-            ..Default::default()
-        }))
-    };
-    let replies = goto(&mut rig, 20.0);
+    let replies = reposition_north(&mut rig, 20.0);
     assert!(
         matches!(&replies[0], MavMessage::COMMAND_ACK(a) if a.result == MavResult::MAV_RESULT_DENIED),
         "{replies:?}"
@@ -285,7 +288,7 @@ fn given_gf_max_hor_dist_10_when_a_goto_20_m_away_is_asked_then_it_is_refused_wi
     let truth = rig.plant.truth().pos_ned_m;
     assert!((truth - before).xy().norm() < 0.3, "not flown: {before:?} -> {truth:?}");
     // Within the limit it is flown.
-    let replies = goto(&mut rig, 8.0);
+    let replies = reposition_north(&mut rig, 8.0);
     assert!(matches!(&replies[0], MavMessage::COMMAND_ACK(a) if a.result == MavResult::MAV_RESULT_ACCEPTED));
 }
 
@@ -348,19 +351,7 @@ fn given_a_rally_point_closer_than_home_when_returning_then_it_lands_at_the_rall
         "{replies:?}"
     );
     // WHEN the vehicle, 9 m north, is told to return.
-    let (lat9, lon9, _) = origin.geodetic_from_ned(&(home + Vector3::new(9.0, 0.0, 0.0)));
-    rig.send(&MavMessage::COMMAND_INT(autopilot::core::mavlink::common::COMMAND_INT_DATA {
-        param1: -1.0,
-        param4: f32::NAN,
-        x: (lat9 * 1e7).round() as i32,
-        y: (lon9 * 1e7).round() as i32,
-        z: 3.0,
-        command: MavCmd::MAV_CMD_DO_REPOSITION,
-        target_system: 1,
-        target_component: 1,
-        frame: MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT,
-        ..Default::default()
-    }));
+    reposition_north(&mut rig, 9.0);
     fly(&mut rig, 20.0, true);
     rig.command(MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH, [0.0; 7]);
     let start = rig.now_us;

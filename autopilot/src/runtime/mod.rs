@@ -155,40 +155,22 @@ fn load_state(dir: &std::path::Path, vehicle: &crate::core::config::VehicleConfi
             None
         }
     };
-    let mission = match persist::load(dir, MISSION_FILE) {
-        Ok(Some(text)) => match crate::core::mission::Mission::from_wpl(&text) {
-            Ok(mission) => Some(mission),
-            Err(e) => {
-                aside(MISSION_FILE, &e);
-                None
-            }
-        },
-        Ok(None) => None,
-        Err(e) => {
-            aside(MISSION_FILE, &e);
-            None
-        }
+    let items = |text: &str, command_of: fn(u32) -> Option<MavCmd>| {
+        crate::core::mission::items_from_wpl(text, command_of).map_err(|e| e.to_string())
     };
-    // The fence and the rally points: their own commands, validated as an upload is.
-    let plan = |file: &str, command_of: fn(u32) -> Option<MavCmd>| match persist::load(dir, file) {
-        Ok(Some(text)) => match crate::core::mission::items_from_wpl(&text, command_of) {
-            Ok(items) => Some(items),
-            Err(e) => {
-                aside(file, &e);
-                None
-            }
-        },
-        Ok(None) => None,
-        Err(e) => {
-            aside(file, &e);
-            None
-        }
-    };
-    let fence = plan(FENCE_FILE, |n| FENCE_COMMANDS.into_iter().find(|c| *c as u32 == n))
-        .and_then(|items| Fence::new(items).map_err(|e| aside(FENCE_FILE, &e)).ok());
-    let rally =
-        plan(RALLY_FILE, |n| (n == MavCmd::MAV_CMD_NAV_RALLY_POINT as u32).then_some(MavCmd::MAV_CMD_NAV_RALLY_POINT))
-            .and_then(|items| Rally::new(items).map_err(|e| aside(RALLY_FILE, &e)).ok());
+    let mission = load_plan(dir, MISSION_FILE, &aside, |text| {
+        crate::core::mission::Mission::from_wpl(text).map_err(|e| e.to_string())
+    });
+    let fence = load_plan(dir, FENCE_FILE, &aside, |text| {
+        Fence::new(items(text, |n| FENCE_COMMANDS.into_iter().find(|c| *c as u32 == n))?).map_err(|e| e.to_string())
+    });
+    let rally = load_plan(dir, RALLY_FILE, &aside, |text| {
+        let rally_point = |n| {
+            let point = MavCmd::MAV_CMD_NAV_RALLY_POINT;
+            (n == point as u32).then_some(point)
+        };
+        Rally::new(items(text, rally_point)?).map_err(|e| e.to_string())
+    });
     tracing::info!(
         dir = %dir.display(),
         params = params.is_some(),
@@ -198,6 +180,24 @@ fn load_state(dir: &std::path::Path, vehicle: &crate::core::config::VehicleConfi
         "state directory"
     );
     Ok(Persisted { params, mission, fence, rally, persister: Some(persister) })
+}
+
+/// A plan file (mission, fence, rally) of the state directory parsed by `parse`: None when absent; when
+/// unreadable or unparsable, moved aside by `aside` (and None).
+fn load_plan<T>(
+    dir: &std::path::Path,
+    file: &str,
+    aside: &dyn Fn(&str, &dyn std::fmt::Display),
+    parse: impl Fn(&str) -> Result<T, String>,
+) -> Option<T> {
+    match persist::load(dir, file) {
+        Ok(Some(text)) => parse(&text).map_err(|e| aside(file, &e)).ok(),
+        Ok(None) => None,
+        Err(e) => {
+            aside(file, &e);
+            None
+        }
+    }
 }
 
 /// The signing state at start: on with the key of `--signing-key-file` (an unreadable or malformed file
