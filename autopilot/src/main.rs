@@ -94,6 +94,7 @@ fn main() -> Result<()> {
             plant_losses = stats.plant_losses,
             plant_malformed = stats.plant_decoder.malformed(),
             gcs_dropped = stats.gcs_dropped,
+            statustext_suppressed = stats.statustext_suppressed,
             "autopilot stopped"
         );
     }

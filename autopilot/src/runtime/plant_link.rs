@@ -115,6 +115,8 @@ pub struct PlantLinkStats {
     pub plant_restarts: u64,
     /// The plant link's frame decoder: malformed frames and garbage bytes dropped.
     pub plant_decoder: DecoderStats,
+    /// Broadcast STATUSTEXTs not sent: over [`STATUSTEXT_PER_S`] (see [`TextLimiter`]).
+    pub statustext_suppressed: u64,
     /// First and last vehicle time seen (µs).
     pub first_time_us: Option<u64>,
     pub last_time_us: Option<u64>,
@@ -171,6 +173,50 @@ struct Driver {
     last_flush: Instant,
     persisted: Persisted,
     stats: PlantLinkStats,
+    texts: TextLimiter,
+}
+
+/// Broadcast STATUSTEXTs allowed per second of vehicle time, on average.
+pub const STATUSTEXT_PER_S: f64 = 10.0;
+/// How many may come at once above that rate.
+pub const STATUSTEXT_BURST: f64 = 20.0;
+
+/// A token bucket on vehicle time for the STATUSTEXTs the vehicle broadcasts, so that something that
+/// repeats itself (a bad stream, a flapping condition) cannot flood the ground stations. Replies to one
+/// peer (a refusal's reason) are not limited; the chunks of a long text follow their first.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TextLimiter {
+    tokens: f64,
+    last_us: Option<u64>,
+    last_allowed: bool,
+}
+
+impl Default for TextLimiter {
+    fn default() -> Self {
+        Self { tokens: STATUSTEXT_BURST, last_us: None, last_allowed: true }
+    }
+}
+
+impl TextLimiter {
+    /// Whether a STATUSTEXT at `now_us` may go out (`continuation`: a later chunk of a chunked text).
+    pub fn allow(&mut self, now_us: u64, continuation: bool) -> bool {
+        let elapsed_s = match self.last_us {
+            Some(t) if now_us >= t => (now_us - t) as f64 * 1e-6,
+            // A new timeline (the plant restarted): start full.
+            Some(_) => STATUSTEXT_BURST,
+            None => 0.0,
+        };
+        self.last_us = Some(now_us);
+        self.tokens = (self.tokens + elapsed_s * STATUSTEXT_PER_S).min(STATUSTEXT_BURST);
+        if continuation {
+            return self.last_allowed;
+        }
+        self.last_allowed = self.tokens >= 1.0;
+        if self.last_allowed {
+            self.tokens -= 1.0;
+        }
+        self.last_allowed
+    }
 }
 
 impl Driver {
@@ -202,6 +248,12 @@ impl Driver {
     /// Queues a message to every link (`to == All`) or to one peer of link `link`; it goes out at the next
     /// [`Driver::flush`] that is due (at once for a reply to one peer).
     fn send_gcs(&mut self, link: Option<LinkId>, to: Destination, message: MavMessage) {
+        if let (Destination::All, MavMessage::STATUSTEXT(text)) = (to, &message)
+            && !self.texts.allow(self.now_us, text.id != 0 && text.chunk_seq > 0)
+        {
+            self.stats.statustext_suppressed += 1;
+            return;
+        }
         let header = self.header();
         if self.out.tlog.is_some() {
             self.log(frame::encode_v2(header, &message));
@@ -455,6 +507,7 @@ pub fn run(
         last_flush: Instant::now(),
         persisted,
         stats: PlantLinkStats::default(),
+        texts: TextLimiter::default(),
     };
     let mut decoder = FrameDecoder::new();
     let datagrams = transport.is_datagram();
@@ -854,5 +907,21 @@ mod tests {
         assert_eq!(hb.system_status, MavState::MAV_STATE_STANDBY);
         assert!(system_statuses(after).iter().all(|s| *s == MavState::MAV_STATE_STANDBY), "no fallback after it");
         assert_eq!((stats.plant_losses, stats.plant_restarts), (1, 1));
+    }
+
+    #[test]
+    fn a_repeating_statustext_is_held_to_10_per_vehicle_second_after_a_burst_of_20() {
+        let mut limiter = TextLimiter::default();
+        // 60 texts a second for 3 s of vehicle time (a bad stream refused at 60 Hz).
+        let allowed = (0..180_u64).filter(|k| limiter.allow(k * 16_667, false)).count();
+        assert_eq!(allowed, 20 + 30 - 1, "the burst, then 10 a second");
+        // A chunked text's continuation follows its first chunk.
+        let mut limiter = TextLimiter { tokens: 1.0, ..TextLimiter::default() };
+        assert!(limiter.allow(0, false) && limiter.allow(0, true));
+        assert!(!limiter.allow(0, false) && !limiter.allow(0, true));
+        // A plant restart (time goes back) starts full again.
+        let mut limiter = TextLimiter { tokens: 0.0, last_us: Some(5_000_000), last_allowed: false };
+        assert!(!limiter.allow(5_000_000, false));
+        assert!(limiter.allow(0, false), "a new timeline");
     }
 }
