@@ -5,26 +5,13 @@
 
 use autopilot::core::commander::FlightMode;
 use autopilot::core::estimator::EstimatorSource;
-use autopilot::core::mavlink::common::{
-    HEARTBEAT_DATA, MavAutopilot, MavCmd, MavMessage, MavState, MavType, PARAM_SET_DATA,
-};
+use autopilot::core::mavlink::common::{MavCmd, MavMessage, PARAM_SET_DATA};
 use autopilot::core::mavlink::params::{decode_value, encode_value};
 use autopilot::core::params::PARAMS;
 use nalgebra::Vector3;
-use tests::rig::{Rig, mission_item};
+use tests::rig::{Rig, gcs_heartbeat, mission_item};
 
 const NAN: f32 = f32::NAN;
-
-fn gcs_heartbeat() -> MavMessage {
-    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-        custom_mode: 0,
-        mavtype: MavType::MAV_TYPE_GCS,
-        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
-        base_mode: Default::default(),
-        system_status: MavState::MAV_STATE_ACTIVE,
-        mavlink_version: 3,
-    })
-}
 
 /// PARAM_SET as a PX4 ground station sends it, in the parameter's own type (NAV_DLL_ACT as an INT32 in
 /// PX4's bytewise encoding, as MAVSDK's `set_param_int`), and the echo, decoded by its type, checked.

@@ -8,13 +8,13 @@
 use autopilot::core::estimator::EstimatorSource;
 use autopilot::core::mavlink::command_long;
 use autopilot::core::mavlink::common::{
-    COMMAND_INT_DATA, HEARTBEAT_DATA, MISSION_COUNT_DATA, MavAutopilot, MavCmd, MavFrame, MavMessage, MavMissionType,
-    MavParamType, MavState, MavType, PARAM_SET_DATA, PositionTargetTypemask, SET_POSITION_TARGET_LOCAL_NED_DATA,
+    COMMAND_INT_DATA, HEARTBEAT_DATA, MISSION_COUNT_DATA, MavCmd, MavFrame, MavMessage, MavMissionType, MavParamType,
+    PARAM_SET_DATA, PositionTargetTypemask, SET_POSITION_TARGET_LOCAL_NED_DATA,
 };
 use autopilot::core::params::PARAMS;
 use nalgebra::Vector3;
 use proptest::prelude::*;
-use tests::rig::{Rig, mission_item};
+use tests::rig::{Rig, gcs_heartbeat, mission_item};
 
 /// The fence every case flies in (m from home), and how far past it the vehicle may be seen: the
 /// controller's tracking error on a stop predicted from the estimate.
@@ -147,14 +147,7 @@ fn any_message() -> impl Strategy<Value = MavMessage> {
             ][usize::from(t)];
             MavMessage::MISSION_ITEM_INT(item)
         }),
-        1 => Just(MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-            custom_mode: 0,
-            mavtype: MavType::MAV_TYPE_GCS,
-            autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
-            base_mode: Default::default(),
-            system_status: MavState::MAV_STATE_ACTIVE,
-            mavlink_version: 3,
-        })),
+        1 => Just(gcs_heartbeat()),
     ]
 }
 
