@@ -377,15 +377,7 @@ fn two_ground_station_peers_both_receive_every_heartbeat() {
     let peer = UdpSocket::bind("127.0.0.1:0").expect("bind peer");
     peer.set_read_timeout(Some(Duration::from_millis(100))).expect("timeout");
     let autopilot = format!("127.0.0.1:{}", 18570 + n);
-    let gcs_heartbeat = MavMessage::HEARTBEAT(autopilot::core::mavlink::common::HEARTBEAT_DATA {
-        custom_mode: 0,
-        mavtype: autopilot::core::mavlink::common::MavType::MAV_TYPE_GCS,
-        autopilot: autopilot::core::mavlink::common::MavAutopilot::MAV_AUTOPILOT_INVALID,
-        base_mode: MavModeFlag::empty(),
-        system_status: autopilot::core::mavlink::common::MavState::MAV_STATE_ACTIVE,
-        mavlink_version: 3,
-    });
-    let hello = encode_frame_v2(GCS, &gcs_heartbeat);
+    let hello = encode_frame_v2(GCS, &autopilot::core::mavlink::gcs_heartbeat());
 
     // WHEN the vehicle has run 30 s of its time after the peer joined (the QGroundControl port tells time).
     let wall_start = Instant::now();

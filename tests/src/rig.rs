@@ -157,21 +157,6 @@ impl Rig {
     }
 }
 
-/// The HEARTBEAT a ground station sends once a second (MAV_TYPE_GCS): what keeps the datalink failsafe
-/// quiet.
-#[must_use]
-pub fn gcs_heartbeat() -> MavMessage {
-    use autopilot::core::mavlink::common::{HEARTBEAT_DATA, MavAutopilot, MavState, MavType};
-    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-        custom_mode: 0,
-        mavtype: MavType::MAV_TYPE_GCS,
-        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
-        base_mode: MavModeFlag::empty(),
-        system_status: MavState::MAV_STATE_ACTIVE,
-        mavlink_version: 3,
-    })
-}
-
 /// A mission item as a ground station builds it: `command` at `lat_deg`/`lon_deg` (NaN: unset) and
 /// `alt_m` above home (MAV_FRAME_GLOBAL_RELATIVE_ALT_INT), params 1-4.
 #[must_use]

@@ -6,10 +6,11 @@
 use autopilot::core::commander::FlightMode;
 use autopilot::core::estimator::EstimatorSource;
 use autopilot::core::mavlink::common::{MavCmd, MavMessage, PARAM_SET_DATA};
+use autopilot::core::mavlink::gcs_heartbeat;
 use autopilot::core::mavlink::params::{decode_value, encode_value};
 use autopilot::core::params::PARAMS;
 use nalgebra::Vector3;
-use tests::rig::{Rig, gcs_heartbeat, mission_item};
+use tests::rig::{Rig, mission_item};
 
 const NAN: f32 = f32::NAN;
 

@@ -11,10 +11,11 @@ use autopilot::core::mavlink::common::{
     COMMAND_INT_DATA, HEARTBEAT_DATA, MISSION_COUNT_DATA, MavCmd, MavFrame, MavMessage, MavMissionType, MavParamType,
     PARAM_SET_DATA, PositionTargetTypemask, SET_POSITION_TARGET_LOCAL_NED_DATA,
 };
+use autopilot::core::mavlink::gcs_heartbeat;
 use autopilot::core::params::PARAMS;
 use nalgebra::Vector3;
 use proptest::prelude::*;
-use tests::rig::{Rig, gcs_heartbeat, mission_item};
+use tests::rig::{Rig, mission_item};
 
 /// The fence every case flies in (m from home), and how far past it the vehicle may be seen: the
 /// controller's tracking error on a stop predicted from the estimate.

@@ -171,19 +171,11 @@ impl CountingDecoder {
 pub(crate) mod tests {
     use super::*;
     use mavlink::Message as _;
-    use mavlink::dialects::common::{HEARTBEAT_DATA, MavAutopilot, MavModeFlag, MavState, MavType, SYSTEM_TIME_DATA};
+    use mavlink::dialects::common::SYSTEM_TIME_DATA;
 
     pub(crate) fn heartbeat(system_id: u32, sequence: u8) -> (MavHeader, MavMessage) {
         let header = MavHeader { system_id, component_id: 1, sequence };
-        let message = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-            custom_mode: 0,
-            mavtype: MavType::MAV_TYPE_GCS,
-            autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
-            base_mode: MavModeFlag::empty(),
-            system_status: MavState::MAV_STATE_ACTIVE,
-            mavlink_version: 3,
-        });
-        (header, message)
+        (header, crate::core::mavlink::gcs_heartbeat())
     }
 
     /// `frame` (v2, unsigned) re-made as a signed frame with a dummy 13-byte signature.

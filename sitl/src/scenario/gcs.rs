@@ -8,11 +8,11 @@ use std::time::{Duration, Instant};
 
 use autopilot::core::hil::{FrameDecoder, encode_frame_v2};
 use autopilot::core::mavlink::MavHeader;
-use autopilot::core::mavlink::command_long;
 use autopilot::core::mavlink::common::{
     MISSION_COUNT_DATA, MISSION_ITEM_INT_DATA, MavCmd, MavMessage, MavMissionResult, MavModeFlag, MavResult,
     MavSysStatusSensor,
 };
+use autopilot::core::mavlink::{command_long, gcs_heartbeat};
 
 /// The ground station's identity (QGroundControl's).
 const GCS: MavHeader = MavHeader { system_id: 255, component_id: 190, sequence: 0 };
@@ -91,7 +91,7 @@ impl Gcs {
                     return Err(GcsError::Silent(SILENCE));
                 }
                 // Say hello again: the vehicle answers peers that speak.
-                self.send(&heartbeat())?;
+                self.send(&gcs_heartbeat())?;
                 return Ok(());
             }
             Err(e) => return Err(e.into()),
@@ -193,17 +193,4 @@ impl Gcs {
             self.pump()?;
         }
     }
-}
-
-/// A ground station's HEARTBEAT.
-fn heartbeat() -> MavMessage {
-    use autopilot::core::mavlink::common::{HEARTBEAT_DATA, MavAutopilot, MavState, MavType};
-    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-        custom_mode: 0,
-        mavtype: MavType::MAV_TYPE_GCS,
-        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
-        base_mode: MavModeFlag::empty(),
-        system_status: MavState::MAV_STATE_ACTIVE,
-        mavlink_version: 3,
-    })
 }

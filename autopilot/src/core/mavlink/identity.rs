@@ -160,6 +160,20 @@ pub const fn plant_lost_state(armed: bool) -> MavState {
     if armed { MavState::MAV_STATE_EMERGENCY } else { MavState::MAV_STATE_CRITICAL }
 }
 
+/// The HEARTBEAT a ground station sends once a second (MAV_TYPE_GCS, autopilot INVALID): what the vehicle
+/// counts as a ground station for the datalink failsafe (`router::GcsHeartbeats`).
+#[must_use]
+pub fn gcs_heartbeat() -> MavMessage {
+    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        custom_mode: 0,
+        mavtype: MavType::MAV_TYPE_GCS,
+        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+        base_mode: MavModeFlag::empty(),
+        system_status: MavState::MAV_STATE_ACTIVE,
+        mavlink_version: 3,
+    })
+}
+
 /// The HEARTBEAT while the plant link is lost: the commander's last mode and armed flag as
 /// [`heartbeat`] sends them, with `system_status` from [`plant_lost_state`].
 #[must_use]

@@ -36,7 +36,7 @@ pub use command::{
     CommandContext, CommandEffect, CommandPoint, InboundCommand, VehicleCommand, command_long, command_replies,
     decode_command,
 };
-pub use identity::{heartbeat, plant_lost_heartbeat};
+pub use identity::{gcs_heartbeat, heartbeat, plant_lost_heartbeat};
 pub use telemetry::{
     Home, Stream, StreamScheduler, TelemetrySnapshot, statustext, statustext_chunks, sys_status_plant_lost,
 };
