@@ -294,12 +294,7 @@ impl Vehicle {
             sysid: self.config.sysid,
             header,
             command: CommandContext { home_alt_amsl_m },
-            offboard: OffboardContext {
-                origin: est.origin,
-                home_alt_amsl_m,
-                yaw_rad: est.euler_rad.z,
-                home_ned_m: self.home.map(|h| h.pos_ned_m),
-            },
+            offboard: OffboardContext { origin: est.origin, home_alt_amsl_m, yaw_rad: est.euler_rad.z },
         };
         match service {
             Service::Housekeeping => Housekeeping.handle(&ctx, msg, &mut ()).messages,
@@ -310,7 +305,10 @@ impl Vehicle {
                         Some(Err(why)) => {
                             reply.messages.extend(self.offboard.refuse(format!("Offboard: setpoint {why}")))
                         }
-                        _ => self.navigator.set_offboard(now_us, sp),
+                        _ => {
+                            self.offboard.taken();
+                            self.navigator.set_offboard(now_us, sp);
+                        }
                     }
                 }
                 reply.messages

@@ -19,7 +19,7 @@ use nalgebra::{Quaternion, Rotation3, UnitQuaternion, Vector3};
 use super::addressed_to_us;
 use crate::core::estimator::GeoOrigin;
 use crate::core::hil::dege7_to_deg;
-use crate::core::navigator::{MAX_SETPOINT_FROM_HOME_M, OffboardSetpoint};
+use crate::core::navigator::OffboardSetpoint;
 
 /// What the decoder needs to know of the vehicle.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -28,8 +28,6 @@ pub struct OffboardContext {
     pub home_alt_amsl_m: Option<f64>,
     /// Current yaw (rad), for body frames.
     pub yaw_rad: f64,
-    /// Home (NED m): position setpoints farther than [`MAX_SETPOINT_FROM_HOME_M`] from it are refused.
-    pub home_ned_m: Option<Vector3<f64>>,
 }
 
 // The *_INT frames and BODY_NED are deprecated in the dialect, but MAVSDK and QGroundControl send them.
@@ -168,11 +166,6 @@ fn position_target(
     let position = if all(pos_bits) { pos.filter(|p| p.iter().all(|x| x.is_finite())) } else { None };
     if all(pos_bits) && position.is_none() {
         return Err("Offboard: position not finite".into());
-    }
-    if let (Some(p), Some(home)) = (position, ctx.home_ned_m)
-        && (p - home).norm() > MAX_SETPOINT_FROM_HOME_M
-    {
-        return Err(format!("Offboard: setpoint over {:.0} km from home", MAX_SETPOINT_FROM_HOME_M / 1000.0));
     }
     let finite3 = |v: Vector3<f64>| v.iter().all(|x| x.is_finite());
     let velocity = all(vel_bits).then(|| to_ned(vec3(vel))).filter(|v| finite3(*v));

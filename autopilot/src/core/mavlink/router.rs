@@ -117,14 +117,20 @@ impl Microservice for Housekeeping {
 }
 
 /// Offboard setpoints: decoded into local NED; a refused stream says why once, not 20 times a second.
+/// A setpoint that decodes is the vehicle's to take ([`OffboardReceiver::taken`]) or refuse
+/// ([`OffboardReceiver::refuse`]: outside the geofence, too far from home).
 #[derive(Debug, Clone, Default)]
 pub struct OffboardReceiver {
     last_refusal: Option<String>,
 }
 
 impl OffboardReceiver {
-    /// Refuses a setpoint the decoder took but the vehicle will not fly (outside the geofence): the
-    /// STATUSTEXT, once per run of the same refusal.
+    /// The vehicle flies the setpoint: the next refusal is said again.
+    pub fn taken(&mut self) {
+        self.last_refusal = None;
+    }
+
+    /// A refused setpoint's STATUSTEXT, once per run of the same refusal.
     pub fn refuse(&mut self, text: String) -> Vec<MavMessage> {
         if self.last_refusal.as_deref() == Some(text.as_str()) {
             return Vec::new();
@@ -141,16 +147,9 @@ impl Microservice for OffboardReceiver {
 
     fn handle(&mut self, ctx: &MessageContext<'_>, msg: &MavMessage, (): &mut ()) -> ServiceReply<OffboardSetpoint> {
         match offboard::decode(ctx.sysid, msg, &ctx.offboard) {
-            Some(Ok(sp)) => {
-                self.last_refusal = None;
-                ServiceReply::of(Vec::new(), Some(sp))
-            }
-            Some(Err(text)) if self.last_refusal.as_deref() != Some(text.as_str()) => {
-                let reply = statustext(MavSeverity::MAV_SEVERITY_WARNING, &text);
-                self.last_refusal = Some(text);
-                ServiceReply::of(vec![reply], None)
-            }
-            Some(Err(_)) | None => ServiceReply::of(Vec::new(), None),
+            Some(Ok(sp)) => ServiceReply::of(Vec::new(), Some(sp)),
+            Some(Err(text)) => ServiceReply::of(self.refuse(text), None),
+            None => ServiceReply::of(Vec::new(), None),
         }
     }
 }
