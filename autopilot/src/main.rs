@@ -4,8 +4,9 @@
 //! TOML file (`--config`, see `runtime::config`), overridden by the options below; logs with `RUST_LOG`.
 
 use std::path::PathBuf;
+use std::process::ExitCode;
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use autopilot::core::control::ControllerKind;
 use autopilot::core::estimator::EstimatorSource;
 use autopilot::runtime::{self, ConfigFile, Overrides, RuntimeConfig};
@@ -48,20 +49,33 @@ struct Cli {
     /// ground stations signed, unsigned and wrongly signed ones dropped.
     #[arg(long)]
     signing_key_file: Option<PathBuf>,
+    /// Start clean: remove the instance's kept parameters, mission, fence and rally points from the state
+    /// directory first (ArduPilot's `-w`). A signing key is kept.
+    #[arg(long)]
+    wipe: bool,
     /// Stop when standard input closes (how `sitl run` keeps its autopilot from outliving it).
     #[arg(long, hide = true)]
     stop_on_stdin_eof: bool,
 }
 
-fn main() -> Result<()> {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
-        )
-        .with_writer(std::io::stderr)
-        .init();
+fn main() -> ExitCode {
+    autopilot::cli::init_logging();
     let cli = Cli::parse();
+    let instance = cli.instance;
+    let result = run(cli).map_err(|err| {
+        if autopilot::cli::address_in_use(err.as_ref()) {
+            let next = instance.saturating_add(1);
+            err.context(format!(
+                "instance {instance} is in use (another autopilot or SITL holds its port); try -i {next}"
+            ))
+        } else {
+            err
+        }
+    });
+    autopilot::cli::exit("autopilot", result)
+}
+
+fn run(cli: Cli) -> Result<()> {
     let file = match &cli.config {
         Some(path) => ConfigFile::load(path)?,
         None => ConfigFile::default(),
@@ -82,6 +96,19 @@ fn main() -> Result<()> {
     }
     if let Some(c) = cli.controller {
         config.vehicle.controller = c;
+    }
+    if cli.wipe {
+        let Some(dir) = &config.state_dir else {
+            bail!("--wipe clears the state directory, and this start has none (--state-dir off)");
+        };
+        let removed = runtime::wipe_state(dir).with_context(|| format!("wiping {}", dir.display()))?;
+        let names: Vec<String> =
+            removed.iter().filter_map(|p| p.file_name()).map(|n| n.to_string_lossy().into_owned()).collect();
+        tracing::info!(
+            "wiped {}: {} (a signing key, if any, is kept)",
+            dir.display(),
+            if names.is_empty() { "nothing was kept".to_owned() } else { format!("removed {}", names.join(", ")) }
+        );
     }
     // One thread for the tokio links: the vehicle runs on the plant link's own thread, and the links only
     // carry telemetry.

@@ -41,6 +41,67 @@ pub enum LaunchError {
     Link(#[from] LinkError),
     #[error("the plant server thread panicked")]
     Panicked,
+    #[error("instance {instance} is in use: {port} is held by another process; {hint}")]
+    InstanceInUse { instance: u16, port: InstancePort, hint: String },
+    #[error("instance {0} is too large: a port would exceed 65535")]
+    InstanceTooLarge(u16),
+}
+
+/// A port an instance binds on this machine, and what it is for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct InstancePort {
+    pub what: &'static str,
+    pub tcp: bool,
+    pub addr: std::net::SocketAddr,
+}
+
+impl std::fmt::Display for InstancePort {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} {} ({})", if self.tcp { "tcp" } else { "udp" }, self.addr, self.what)
+    }
+}
+
+/// The ports instance `n` binds: the plant's (UDP 4560+N) and its SIM_ parameters' (UDP 19550+N), and with
+/// `autopilot` the autopilot's own UDP (18570+N) and TCP (5760+N) ports, as `sitl run` starts it. The
+/// ports it sends to (14550, 14540+N) are the ground stations' and not among them.
+///
+/// # Errors
+/// [`LaunchError::InstanceTooLarge`] when a port would exceed 65535.
+pub fn instance_ports(n: u16, autopilot: bool) -> Result<Vec<InstancePort>, LaunchError> {
+    let port = |base: u16| base.checked_add(n).ok_or(LaunchError::InstanceTooLarge(n));
+    let at = |ip: [u8; 4], port: u16| std::net::SocketAddr::from((ip, port));
+    let mut ports = vec![
+        InstancePort { what: "the plant", tcp: false, addr: at([127, 0, 0, 1], port(4560)?) },
+        InstancePort { what: "the plant's SIM_ parameters", tcp: false, addr: at([127, 0, 0, 1], port(19550)?) },
+    ];
+    if autopilot {
+        ports.push(InstancePort { what: "the autopilot", tcp: false, addr: at([0, 0, 0, 0], port(18570)?) });
+        ports.push(InstancePort { what: "the autopilot's TCP server", tcp: true, addr: at([0, 0, 0, 0], port(5760)?) });
+    }
+    Ok(ports)
+}
+
+/// The first of `ports` that cannot be bound here now (another process holds it).
+#[must_use]
+pub fn first_taken(ports: &[InstancePort]) -> Option<InstancePort> {
+    ports.iter().copied().find(|p| {
+        if p.tcp { std::net::TcpListener::bind(p.addr).is_err() } else { std::net::UdpSocket::bind(p.addr).is_err() }
+    })
+}
+
+/// Checks that every port of instance `n` ([`instance_ports`]) is free before anything starts, so a busy
+/// instance is one clear error that names the port and the next free instance, not a bind failure halfway
+/// through a start.
+///
+/// # Errors
+/// [`LaunchError::InstanceInUse`], or [`LaunchError::InstanceTooLarge`].
+pub fn check_instance_free(n: u16, autopilot: bool) -> Result<(), LaunchError> {
+    let Some(port) = first_taken(&instance_ports(n, autopilot)?) else { return Ok(()) };
+    let next = (n.saturating_add(1)..=n.saturating_add(64))
+        .find(|&m| m > n && instance_ports(m, autopilot).is_ok_and(|ports| first_taken(&ports).is_none()));
+    let hint = next
+        .map_or_else(|| "stop the other SITL or choose another instance with -i".to_owned(), |m| format!("try -i {m}"));
+    Err(LaunchError::InstanceInUse { instance: n, port, hint })
 }
 
 /// The `autopilot` binary next to the running `sitl`.
@@ -300,6 +361,22 @@ struct Measured {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_busy_instance_names_the_port_and_the_next_free_instance() {
+        // GIVEN instance 47's SIM_ parameter port held by another socket (its plant port left free).
+        let held = std::net::UdpSocket::bind(("127.0.0.1", 19550 + 47)).expect("the port is free to hold");
+        // WHEN instance 47 is checked THEN the error names the instance, the port and its role, and a free -i.
+        let err = check_instance_free(47, false).expect_err("in use");
+        let text = err.to_string();
+        assert!(
+            text.starts_with("instance 47 is in use: udp 127.0.0.1:19597 (the plant's SIM_ parameters) is held by another process; try -i 4"),
+            "{text}"
+        );
+        drop(held);
+        assert!(check_instance_free(47, false).is_ok(), "free again once released");
+        assert!(matches!(check_instance_free(u16::MAX - 100, false), Err(LaunchError::InstanceTooLarge(_))));
+    }
 
     #[test]
     fn cpu_seconds_reads_utime_and_stime_after_a_name_with_spaces() {

@@ -12,15 +12,19 @@
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use autopilot::core::control::{ControllerKind, LoopRates};
 use autopilot::core::estimator::EstimatorSource;
+use autopilot::core::vehicle::Vehicle;
 use autopilot::runtime::transport::{POLL_INTERVAL, SerialTransport, parse_serial_spec};
+use autopilot::runtime::{ConfigFile, Overrides, RuntimeConfig};
 use clap::{Args, Parser, Subcommand};
 use sitl::launch::{self, AutopilotChild, TempConfig};
 use sitl::link::{LinkConfig, Pacing, PlantServer};
 use sitl::plant::{Airframe, InitialState, Plant, PlantConfig, SensorConfig};
+use sitl::progress::Progress;
 use sitl::scenario::metrics::{GustMetrics, TrackMetrics};
 use sitl::scenario::plot::{self, Panel, Run};
 use sitl::scenario::reference::{ReferenceMode, ReferenceSpec, SplinePath};
@@ -63,11 +67,11 @@ struct RunArgs {
     #[arg(short = 'i', long, default_value_t = 0)]
     instance: u16,
     /// Autopilot estimator (fused, truth).
-    #[arg(long)]
+    #[arg(long, value_parser = ["fused", "truth"])]
     estimator: Option<String>,
     /// Autopilot controller (aco, ca, pid).
     #[arg(long)]
-    controller: Option<String>,
+    controller: Option<ControllerKind>,
     /// Autopilot `.tlog` directory.
     #[arg(long)]
     log_dir: Option<PathBuf>,
@@ -90,6 +94,10 @@ struct RunArgs {
     /// With --scenario: print the metrics as one JSON object.
     #[arg(long, requires = "scenario")]
     json: bool,
+    /// Start clean: the autopilot removes the instance's kept parameters, mission, fence and rally points
+    /// before it starts (ArduPilot's `-w`; a signing key is kept).
+    #[arg(long, conflicts_with = "scenario")]
+    wipe: bool,
 }
 
 #[derive(Args)]
@@ -253,17 +261,15 @@ fn parse_seeds(text: &str) -> Result<Vec<u64>> {
     Ok(seeds)
 }
 
-fn main() -> Result<()> {
-    tracing_subscriber::fmt()
-        .with_env_filter(tracing_subscriber::EnvFilter::from_default_env())
-        .with_writer(std::io::stderr)
-        .init();
-    match Cli::parse().command {
+fn main() -> ExitCode {
+    autopilot::cli::init_logging();
+    let result = match Cli::parse().command {
         Command::Scenario(args) => scenario(&args),
         Command::Serve(args) => serve(&args),
         Command::Run(args) => run(&args),
         Command::Bench(args) => bench(&args),
-    }
+    };
+    autopilot::cli::exit("sitl", result)
 }
 
 fn scenario(args: &ScenarioArgs) -> Result<()> {
@@ -283,11 +289,18 @@ fn scenario(args: &ScenarioArgs) -> Result<()> {
     let position_hz = args.position_hz.unwrap_or(args.rate_hz / 5);
     let rates = LoopRates { inner_hz: args.rate_hz, position_hz };
     rates.validate().context("loop rates")?;
+    // Every scenario loads before the first run starts: a bad name fails at once.
+    let scenarios = names.iter().map(|name| Scenario::load(name)).collect::<Result<Vec<_>, _>>()?;
+    let controllers_of = |scenario: &Scenario| {
+        if args.controller.is_empty() { scenario.controllers.clone() } else { args.controller.clone() }
+    };
+    let total: usize =
+        scenarios.iter().map(|s| seeds.len() * s.reference_modes().len() * controllers_of(s).len()).sum();
+    let mut progress = Progress::new("sitl scenario", total as u64, "runs");
+    let mut done = 0;
     let stdout = std::io::stdout();
-    for name in &names {
-        let scenario = Scenario::load(name)?;
-        let controllers =
-            if args.controller.is_empty() { scenario.controllers.clone() } else { args.controller.clone() };
+    for scenario in &scenarios {
+        let controllers = controllers_of(scenario);
         let dir = args.out.join(&scenario.name);
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
         for &seed in &seeds {
@@ -302,23 +315,36 @@ fn scenario(args: &ScenarioArgs) -> Result<()> {
                         mode,
                         trace_hz: args.trace_hz,
                     };
-                    let out = runner::run(&scenario, &opts)?;
-                    let stem = run_stem(&out, mode, &scenario);
-                    write_atomically(&dir.join(format!("{stem}.csv")), out.trace.to_csv().as_bytes())?;
+                    let out = runner::run(scenario, &opts)?;
+                    let stem = run_stem(&out, mode, scenario);
+                    let csv = dir.join(format!("{stem}.csv"));
+                    write_atomically(&csv, out.trace.to_csv().as_bytes())?;
                     let line = if args.json { serde_json::to_string(&out.metrics)? } else { summary(&out) };
-                    match writeln!(stdout.lock(), "{line}") {
+                    let written = progress.suspend(|| {
+                        eprintln!("sitl: wrote {}", csv.display());
+                        writeln!(stdout.lock(), "{line}")
+                    });
+                    match written {
                         // A reader that has seen enough (`| head`) is not an error.
                         Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => return Ok(()),
                         result => result?,
                     }
                     outputs.push(out);
+                    done += 1;
+                    progress.set(done);
                 }
                 if !args.no_plots {
-                    plots(&scenario, &dir, &outputs, mode)?;
+                    let written = plots(scenario, &dir, &outputs, mode)?;
+                    progress.suspend(|| {
+                        for path in &written {
+                            eprintln!("sitl: wrote {}", path.display());
+                        }
+                    });
                 }
             }
         }
     }
+    progress.finish();
     Ok(())
 }
 
@@ -393,12 +419,19 @@ fn summary(out: &RunOutput) -> String {
     s
 }
 
-fn plots(scenario: &Scenario, dir: &Path, outputs: &[RunOutput], mode: ReferenceMode) -> Result<()> {
-    let Some(first) = outputs.first() else { return Ok(()) };
+/// The figures of one scenario's runs; returns the files written.
+fn plots(scenario: &Scenario, dir: &Path, outputs: &[RunOutput], mode: ReferenceMode) -> Result<Vec<PathBuf>> {
+    let Some(first) = outputs.first() else { return Ok(Vec::new()) };
     let labels: Vec<String> = outputs.iter().map(|o| o.metrics.controller.to_uppercase()).collect();
     let m = &first.metrics;
     let suffix = if scenario.reference_modes().len() > 1 { format!("_{mode}") } else { String::new() };
     let file = |kind: &str| dir.join(format!("{kind}_{}{suffix}_seed{}_{}hz.png", m.plant, m.seed, m.rate_hz));
+    let mut written = Vec::new();
+    let mut written_file = |kind: &str| {
+        let path = file(kind);
+        written.push(path.clone());
+        path
+    };
     let title = |what: &str| format!("{what}: {} plant, {}", m.plant, labels.join(" vs "));
     match &scenario.reference {
         ReferenceSpec::Attitude { .. } => {
@@ -409,7 +442,7 @@ fn plots(scenario: &Scenario, dir: &Path, outputs: &[RunOutput], mode: Reference
                 Panel::new("pitch (rad)", "pitch", Some("ref_pitch"), 1.0),
                 Panel::new("yaw (rad)", "yaw", Some("ref_yaw"), 1.0),
             ];
-            plot::time_panels(&file("attitude"), &title("Attitude (paper Fig. 5)"), &panels, &runs)?;
+            plot::time_panels(&written_file("attitude"), &title("Attitude (paper Fig. 5)"), &panels, &runs)?;
         }
         ReferenceSpec::Position { .. } if scenario.metrics.contains(&MetricKind::Gust) => {
             let traces: Vec<_> = outputs.iter().map(|o| with_horizontal_error(&o.trace)).collect();
@@ -419,7 +452,7 @@ fn plots(scenario: &Scenario, dir: &Path, outputs: &[RunOutput], mode: Reference
                 Panel::new("altitude error (m)", "err_alt", None, 1.0),
                 Panel::new("wind east (m/s)", "windE", None, 1.0),
             ];
-            plot::time_panels(&file("gust"), &title("Hover under a Beaufort-4 gust"), &panels, &runs)?;
+            plot::time_panels(&written_file("gust"), &title("Hover under a Beaufort-4 gust"), &panels, &runs)?;
         }
         ReferenceSpec::Position { .. } => {
             let runs: Vec<Run<'_>> =
@@ -429,7 +462,7 @@ fn plots(scenario: &Scenario, dir: &Path, outputs: &[RunOutput], mode: Reference
                 Panel::new("east (m)", "pE", Some("refE"), 1.0),
                 Panel::new("altitude (m)", "pD", Some("refD"), -1.0),
             ];
-            plot::time_panels(&file("translation"), &title("Translation (paper Fig. 6)"), &panels, &runs)?;
+            plot::time_panels(&written_file("translation"), &title("Translation (paper Fig. 6)"), &panels, &runs)?;
         }
         ReferenceSpec::Track(track) => {
             let path = SplinePath::new(&track.waypoints_ne_m);
@@ -441,14 +474,14 @@ fn plots(scenario: &Scenario, dir: &Path, outputs: &[RunOutput], mode: Reference
             let runs: Vec<Run<'_>> =
                 outputs.iter().zip(&labels).map(|(o, l)| Run { label: l, trace: &o.trace }).collect();
             plot::track(
-                &file("figure8"),
+                &written_file("figure8"),
                 &title(&format!("Figure-8 at {} m/s, {mode}", track.speed_mps)),
                 &pts,
                 &runs,
             )?;
         }
     }
-    Ok(())
+    Ok(written)
 }
 
 /// The trace with `err_xy` (horizontal distance to the reference) and `err_alt` (altitude error) added.
@@ -468,6 +501,9 @@ fn with_horizontal_error(trace: &runner::Trace) -> runner::Trace {
 }
 
 fn serve(args: &ServeArgs) -> Result<()> {
+    if args.listen.is_none() && args.serial.is_none() {
+        launch::check_instance_free(args.instance, false)?;
+    }
     let (plant, pacing) = args.plant.build(realistic_plant_config())?;
     if args.dt_us == 0 || args.dt_us > 20_000 {
         bail!("--dt-us must be in 1..=20000, got {}", args.dt_us);
@@ -565,6 +601,15 @@ fn run(args: &RunArgs) -> Result<()> {
     let n = args.instance;
     let (plant_port, ap_port, qgc_port, api_port) = instance_ports(n)?;
     let autopilot = launch::autopilot_binary()?;
+    // Everything the command line names is checked before anything starts: a busy instance, an autopilot
+    // configuration the autopilot would refuse, a scenario that does not load.
+    launch::check_instance_free(n, true)?;
+    if let Some(path) = &args.autopilot_config {
+        let file = ConfigFile::load(path)?;
+        let config = RuntimeConfig::resolve(file, n, Overrides::default())
+            .with_context(|| format!("autopilot configuration {}", path.display()))?;
+        Vehicle::new(config.vehicle).with_context(|| format!("autopilot configuration {}", path.display()))?;
+    }
     let mut ap_args: Vec<OsString> = Vec::new();
     if let Some(dir) = &args.log_dir {
         ap_args.push("--log-dir".into());
@@ -573,10 +618,8 @@ fn run(args: &RunArgs) -> Result<()> {
     let stop = launch::ctrl_c_flag();
     if let Some(name) = &args.scenario {
         let scenario = Scenario::load(name)?;
-        let controller = match &args.controller {
-            Some(c) => c.parse()?,
-            None => scenario.controllers.first().copied().unwrap_or(ControllerKind::Aco),
-        };
+        let controller =
+            args.controller.unwrap_or_else(|| scenario.controllers.first().copied().unwrap_or(ControllerKind::Aco));
         let estimator = match args.estimator.as_deref() {
             None => None,
             Some("truth") => Some(EstimatorSource::Truth),
@@ -602,11 +645,14 @@ fn run(args: &RunArgs) -> Result<()> {
 
     let (plant, pacing) = args.plant.build(realistic_plant_config())?;
     let duration = duration_us(args.duration)?;
-    for (flag, value) in [("--estimator", &args.estimator), ("--controller", &args.controller)] {
-        if let Some(v) = value {
-            ap_args.push(flag.into());
-            ap_args.push(v.into());
-        }
+    if let Some(estimator) = &args.estimator {
+        ap_args.extend(["--estimator".into(), estimator.into()]);
+    }
+    if let Some(controller) = args.controller {
+        ap_args.extend(["--controller".into(), controller.to_string().into()]);
+    }
+    if args.wipe {
+        ap_args.push("--wipe".into());
     }
     if let Some(path) = &args.autopilot_config {
         ap_args.push("--config".into());
@@ -642,7 +688,15 @@ fn run(args: &RunArgs) -> Result<()> {
         u32::from(n) + 1,
         5760 + u32::from(n),
     );
-    let report = launch::run_with_child(&mut server, child, duration, &stop, |_, _| {})?;
+    let mut progress = match duration {
+        Some(us) => Progress::new(&format!("sitl: instance {n}"), us.div_ceil(1_000_000), "sim s"),
+        None => Progress::hidden(0),
+    };
+    let report = launch::run_with_child(&mut server, child, duration, &stop, |plant, _| {
+        progress.set(plant.time_us() / 1_000_000);
+    });
+    progress.finish();
+    let report = report?;
     let l = &report.link;
     eprintln!(
         "sitl: {} steps, {:.1} sim s in {:.1} s wall ({:.1}x real time, {:.0} steps/s); plant link: {} resends, {} \

@@ -36,6 +36,11 @@ fn scenario_prints_one_metrics_object_per_run_and_writes_trace_and_plot() {
     assert_eq!(csv.lines().count(), 1 + 800, "16 s at 50 Hz plus the header");
     let png = std::fs::read(dir.join("attitude_nominal_seed1_500hz.png")).expect("plot written");
     assert_eq!(&png[1..4], b"PNG");
+    // Every file written is named on standard error.
+    let err = String::from_utf8_lossy(&o.stderr);
+    for file in ["aco_nominal_seed1_500hz.csv", "pid_nominal_seed1_500hz.csv", "attitude_nominal_seed1_500hz.png"] {
+        assert!(err.contains(&format!("sitl: wrote {}", dir.join(file).display())), "{file}: {err}");
+    }
     let _ = std::fs::remove_dir_all(&out);
 }
 
@@ -103,4 +108,118 @@ fn a_bad_speed_is_refused_before_anything_starts() {
         assert!(err.contains("--scenario") && err.contains(pacing[0]), "{err}");
         assert!(!err.contains("flying scenario"), "{err}");
     }
+}
+
+/// `sitl` with the environment a developer might have (`RUST_BACKTRACE=1`): user errors still print one
+/// line, with no backtrace.
+fn sitl_with_backtrace(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_sitl")).args(args).env("RUST_BACKTRACE", "1").output().expect("sitl runs")
+}
+
+/// The `autopilot` binary next to `sitl`, as `sitl run` finds it.
+fn autopilot_binary() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_BIN_EXE_sitl")).with_file_name("autopilot")
+}
+
+/// Standard error's lines, and that they hold no ANSI escape (standard error is a pipe here).
+fn stderr_lines(o: &std::process::Output) -> Vec<String> {
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!err.contains('\u{1b}'), "colour codes in redirected output: {err:?}");
+    err.lines().map(str::to_owned).collect()
+}
+
+#[test]
+fn a_busy_instance_is_one_line_naming_the_instance_the_port_and_the_next_free_one() {
+    // GIVEN instance 61's plant port held by another process's socket.
+    let held = std::net::UdpSocket::bind(("127.0.0.1", 4560 + 61)).expect("port free to hold");
+    // WHEN `sitl run -i 61` starts THEN it stops at once with one line, and starts nothing.
+    let o = sitl_with_backtrace(&["run", "-i", "61", "--speed", "max", "--duration", "1", "--state-dir", "off"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(
+        stderr_lines(&o),
+        ["sitl: error: instance 61 is in use: udp 127.0.0.1:4621 (the plant) is held by another process; try -i 62"]
+    );
+    // The autopilot alone says the same about its own port.
+    let ap = std::net::UdpSocket::bind(("0.0.0.0", 18570 + 63)).expect("port free to hold");
+    let o = Command::new(autopilot_binary())
+        .args(["-i", "63", "--state-dir", "off"])
+        .env("RUST_BACKTRACE", "1")
+        .output()
+        .expect("autopilot runs");
+    assert_eq!(o.status.code(), Some(1));
+    let lines = stderr_lines(&o);
+    let last = lines.last().expect("a line");
+    assert!(
+        last.starts_with(
+            "autopilot: error: instance 63 is in use (another autopilot or SITL holds its port); try -i 64:"
+        ) && last.contains("18633"),
+        "{lines:?}"
+    );
+    assert!(!lines.iter().any(|l| l.contains("backtrace") || l.contains("Stack")), "{lines:?}");
+    drop((held, ap));
+}
+
+#[test]
+fn every_run_argument_is_checked_before_anything_starts() {
+    // A controller that does not exist: refused by the argument parser, naming the flag and the choices.
+    let o = sitl(&["run", "-i", "64", "--controller", "nope"]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("--controller") && err.contains("nope"), "{err}");
+    assert!(!err.contains("sitl: instance"), "nothing started: {err}");
+    let o = sitl(&["run", "-i", "64", "--estimator", "magic"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("[possible values: fused, truth]"));
+
+    // An autopilot configuration with an unknown key: one line naming the file and the key, before the
+    // plant or the autopilot start.
+    let dir = temp_dir("apconfig");
+    let bad = dir.join("ap.toml");
+    std::fs::write(&bad, "[vehicle]\nbogus_field = 3\n").unwrap();
+    let o = sitl_with_backtrace(&["run", "-i", "64", "--autopilot-config", bad.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1));
+    let lines = stderr_lines(&o);
+    assert_eq!(lines.len(), 1, "{lines:?}");
+    assert!(lines[0].starts_with("sitl: error: ") && lines[0].contains("ap.toml"), "{lines:?}");
+    assert!(lines[0].contains("bogus_field"), "{lines:?}");
+
+    // A TOML syntax error in a plant configuration: said once, on one line.
+    let broken = dir.join("plant.toml");
+    std::fs::write(&broken, "[airframe\nmass_kg = 1.0\n").unwrap();
+    let o = sitl_with_backtrace(&["serve", "-i", "64", "--config", broken.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1));
+    let lines = stderr_lines(&o);
+    assert_eq!(lines.len(), 1, "{lines:?}");
+    let line = &lines[0];
+    assert!(line.starts_with("sitl: error: ") && line.contains("plant.toml"), "{line}");
+    assert_eq!(line.matches("TOML parse error at line 1, column 10").count(), 1, "said once: {line}");
+    assert!(line.contains("unclosed table") && !line.contains('|'), "{line}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_run_says_what_it_restored_and_wipe_starts_clean() {
+    // GIVEN a state directory with a changed parameter, as an earlier run leaves it.
+    let dir = temp_dir("wipe");
+    std::fs::write(dir.join("params.txt"), "MPC_XY_CRUISE\t2\n").unwrap();
+    let state = dir.to_str().unwrap();
+    // WHEN a run starts on it THEN the start-up says what was restored.
+    let o = sitl(&["run", "-i", "65", "--speed", "max", "--duration", "0.5", "--state-dir", state]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let err = stderr_lines(&o).join("\n");
+    assert!(
+        err.contains(&format!("state restored from {state}: 1 parameter differs from default (MPC_XY_CRUISE)")),
+        "{err}"
+    );
+    // WHEN the next run has --wipe THEN the parameter is gone and the start says it is fresh.
+    let o = sitl(&["run", "-i", "65", "--speed", "max", "--duration", "0.5", "--state-dir", state, "--wipe"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let err = stderr_lines(&o).join("\n");
+    assert!(err.contains(&format!("wiped {state}: removed params.txt")), "{err}");
+    assert!(err.contains(&format!("no state to restore in {state}")), "{err}");
+    assert!(
+        !dir.join("params.txt").exists()
+            || !std::fs::read_to_string(dir.join("params.txt")).unwrap().contains("MPC_XY_CRUISE\t2\n")
+    );
+    let _ = std::fs::remove_dir_all(&dir);
 }
