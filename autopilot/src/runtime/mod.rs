@@ -171,15 +171,87 @@ fn load_state(dir: &std::path::Path, vehicle: &crate::core::config::VehicleConfi
         };
         Rally::new(items(text, rally_point)?).map_err(|e| e.to_string())
     });
-    tracing::info!(
-        dir = %dir.display(),
-        params = params.is_some(),
-        mission_items = mission.as_ref().map_or(0, crate::core::mission::Mission::len),
-        fence_items = fence.as_ref().map_or(0, |f| f.items().len()),
-        rally_points = rally.as_ref().map_or(0, |r| r.items().len()),
-        "state directory"
-    );
-    Ok(Persisted { params, mission, fence, rally, persister: Some(persister) })
+    let persisted = Persisted { params, mission, fence, rally, persister: Some(persister) };
+    tracing::info!("{}", RestoredState::of(&persisted, vehicle).describe(dir));
+    Ok(persisted)
+}
+
+/// The files of the state directory that `--wipe` removes: everything the vehicle restores at start but
+/// the signing key (a wipe must not quietly turn signing off; delete `signing.key` for that).
+pub const STATE_FILES: [&str; 4] = [PARAMS_FILE, MISSION_FILE, FENCE_FILE, RALLY_FILE];
+
+/// Removes the state files of `dir` ([`STATE_FILES`]) so the vehicle starts on defaults, as ArduPilot's
+/// `-w` does; returns the files that were there.
+///
+/// # Errors
+/// [`PersistError::Write`] naming a file that could not be removed.
+pub fn wipe_state(dir: &std::path::Path) -> Result<Vec<std::path::PathBuf>, PersistError> {
+    persist::wipe(dir, &STATE_FILES)
+}
+
+/// What a start restored from the state directory, for the start-up line that says so.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+struct RestoredState {
+    /// Parameters whose restored value differs from the configuration's default.
+    changed_params: Vec<&'static str>,
+    mission_items: usize,
+    fence_items: usize,
+    rally_points: usize,
+}
+
+impl RestoredState {
+    /// What `persisted` holds, parameters compared with `vehicle`'s defaults.
+    fn of(persisted: &Persisted, vehicle: &crate::core::config::VehicleConfig) -> Self {
+        let defaults = crate::core::params::ParamStore::from_config(vehicle);
+        let changed_params = persisted.params.as_ref().map_or_else(Vec::new, |store| {
+            store
+                .iter()
+                .zip(defaults.iter())
+                .filter(|((_, value), (_, default))| value.to_bits() != default.to_bits())
+                .map(|((def, _), _)| def.name)
+                .collect()
+        });
+        Self {
+            changed_params,
+            mission_items: persisted.mission.as_ref().map_or(0, crate::core::mission::Mission::len),
+            fence_items: persisted.fence.as_ref().map_or(0, |f| f.items().len()),
+            rally_points: persisted.rally.as_ref().map_or(0, |r| r.items().len()),
+        }
+    }
+
+    /// "state restored from DIR: 2 parameters differ from default (A, B), mission of 5 items, ... (`--wipe`
+    /// starts clean)", or "no state to restore in DIR (a fresh start)".
+    fn describe(&self, dir: &std::path::Path) -> String {
+        let mut parts = Vec::new();
+        match self.changed_params.as_slice() {
+            [] => {}
+            names => {
+                let shown: Vec<&str> = names.iter().take(8).copied().collect();
+                let more = if names.len() > shown.len() {
+                    format!(", and {} more", names.len() - shown.len())
+                } else {
+                    String::new()
+                };
+                let noun = if names.len() == 1 { "parameter differs" } else { "parameters differ" };
+                parts.push(format!("{} {noun} from default ({}{more})", names.len(), shown.join(", ")));
+            }
+        }
+        let plural = |n: usize, one: &str, many: &str| if n == 1 { one.to_owned() } else { format!("{n} {many}") };
+        if self.mission_items > 0 {
+            parts.push(format!("a mission of {}", plural(self.mission_items, "1 item", "items")));
+        }
+        if self.fence_items > 0 {
+            parts.push(format!("a fence of {}", plural(self.fence_items, "1 item", "items")));
+        }
+        if self.rally_points > 0 {
+            parts.push(plural(self.rally_points, "1 rally point", "rally points"));
+        }
+        if parts.is_empty() {
+            format!("no state to restore in {} (a fresh start: defaults, no mission)", dir.display())
+        } else {
+            format!("state restored from {}: {} (`--wipe` starts clean)", dir.display(), parts.join(", "))
+        }
+    }
 }
 
 /// A plan file (mission, fence, rally) of the state directory parsed by `parse`: None when absent; when
@@ -409,6 +481,43 @@ mod tests {
         assert_eq!(store.get("LOOP_POS_HZ"), Some(100.0), "the default: 300 does not divide 500");
         assert_eq!(store.get("MPC_TKO_SPEED"), Some(1.0), "the default: 99 is out of range");
         Vehicle::with_params(vehicle, store).expect("the vehicle starts");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn the_start_says_what_was_restored_and_wipe_starts_clean() {
+        // GIVEN a state directory with two changed parameters, a mission and a signing key.
+        let dir = temp_dir("restored");
+        let vehicle = VehicleConfig::default();
+        let mut store = crate::core::params::ParamStore::from_config(&vehicle);
+        store.set("MPC_XY_CRUISE", 2.0).expect("in range");
+        store.set("NAV_DLL_ACT", 2.0).expect("in range");
+        std::fs::write(dir.join(PARAMS_FILE), store.to_text()).expect("write");
+        let wpl = "QGC WPL 110\n0\t1\t0\t16\t0\t0\t0\t0\t47.397742\t8.545594\t488.0\t1\n\
+                   1\t0\t3\t22\t0\t0\t0\t0\t0\t0\t5\t1\n2\t0\t3\t21\t0\t0\t0\t0\t0\t0\t0\t1\n";
+        std::fs::write(dir.join(MISSION_FILE), wpl).expect("write");
+        std::fs::write(dir.join(signing::KEY_FILE), "00").expect("write");
+        // WHEN it is loaded THEN the start-up line names the changed parameters and counts the mission.
+        let persisted = load_state(&dir, &vehicle).expect("starts");
+        let restored = RestoredState::of(&persisted, &vehicle);
+        let mut changed = restored.changed_params.clone();
+        changed.sort_unstable();
+        assert_eq!(changed, ["MPC_XY_CRUISE", "NAV_DLL_ACT"]);
+        let line = restored.describe(&dir);
+        assert!(
+            line.starts_with(&format!("state restored from {}: 2 parameters differ from default (", dir.display())),
+            "{line}"
+        );
+        assert!(line.contains("MPC_XY_CRUISE, NAV_DLL_ACT), a mission of 3 items ("), "{line}");
+        assert!(line.ends_with("(`--wipe` starts clean)"), "{line}");
+        drop(persisted);
+        // WHEN the state is wiped THEN the next start restores nothing, and the signing key is kept.
+        let removed = wipe_state(&dir).expect("wipe");
+        assert_eq!(removed.len(), 2, "{removed:?}");
+        let persisted = load_state(&dir, &vehicle).expect("starts");
+        let line = RestoredState::of(&persisted, &vehicle).describe(&dir);
+        assert_eq!(line, format!("no state to restore in {} (a fresh start: defaults, no mission)", dir.display()));
+        assert!(dir.join(signing::KEY_FILE).exists());
         let _ = std::fs::remove_dir_all(&dir);
     }
 

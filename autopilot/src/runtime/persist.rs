@@ -80,6 +80,25 @@ pub fn move_aside(dir: &Path, name: &str) -> Result<PathBuf, PersistError> {
     Ok(to)
 }
 
+/// Removes the files named in `names` from `dir` (ArduPilot's `-w`: the next start is on defaults, with
+/// no mission, fence or rally points). Returns the files that were there; files that were not are not
+/// an error, nor is a missing directory.
+///
+/// # Errors
+/// [`PersistError::Write`] naming the first file that could not be removed; the ones before it are gone.
+pub fn wipe(dir: &Path, names: &[&str]) -> Result<Vec<PathBuf>, PersistError> {
+    let mut removed = Vec::new();
+    for name in names {
+        let path = dir.join(name);
+        match std::fs::remove_file(&path) {
+            Ok(()) => removed.push(path),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(source) => return Err(PersistError::Write { path, source }),
+        }
+    }
+    Ok(removed)
+}
+
 /// The saving thread; see the module docs.
 #[derive(Debug)]
 pub struct Persister {
@@ -168,6 +187,24 @@ mod tests {
         assert_eq!(load(&dir, "mission.waypoints").expect("read"), Some("QGC WPL 110\n".into()));
         assert!(!dir.join("params.txt.tmp").exists(), "no temporary file left behind");
         assert_eq!(load(&dir, "nothing.txt").expect("absent is not an error"), None);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn wipe_removes_the_named_files_and_only_those() {
+        let dir = temp_dir("wipe");
+        std::fs::create_dir_all(&dir).expect("dir");
+        for name in ["params.txt", "mission.waypoints", "signing.key"] {
+            save_atomically(&dir, name, "x\n").expect("save");
+        }
+        let removed = wipe(&dir, &["params.txt", "mission.waypoints", "fence.waypoints"]).expect("wipe");
+        assert_eq!(removed, vec![dir.join("params.txt"), dir.join("mission.waypoints")]);
+        assert!(!dir.join("params.txt").exists() && !dir.join("mission.waypoints").exists());
+        assert!(dir.join("signing.key").exists(), "a file not named is kept");
+        assert_eq!(
+            wipe(&dir.join("absent"), &["params.txt"]).expect("no directory is not an error"),
+            Vec::<PathBuf>::new()
+        );
         let _ = std::fs::remove_dir_all(&dir);
     }
 
