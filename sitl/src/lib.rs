@@ -4,5 +4,6 @@
 pub mod launch;
 pub mod link;
 pub mod plant;
+pub mod progress;
 pub mod scenario;
 pub mod sim_params;
