@@ -99,9 +99,9 @@ def run(args):
             print(f"{len(values)} parameters written to {args.file}")
         return 0
     if args.action == "get":
-        value = params.get(args.name)
+        value, reason = params.read(args.name)
         if value is None:
-            raise CheckFailed(f"{args.name}: no answer (unknown parameter?)")
+            raise CheckFailed(f"{args.name}: {reason or 'no answer'} ({link.name()} system {link.system_id})")
         print(f"{args.name} {format_value(value)}")
         return 0
     if args.action == "set":

@@ -675,7 +675,7 @@ mod tests {
     }
 
     #[test]
-    fn given_read_requests_then_they_are_answered_by_name_and_by_index_and_unknowns_get_nothing() {
+    fn given_read_requests_then_they_are_answered_by_name_and_by_index_and_unknown_names_get_the_reason() {
         let mut plant = calm_plant();
         let mut s = SimParamService::new(SYS, &plant);
         let read = |index: i16, name: &str| {
@@ -692,7 +692,9 @@ mod tests {
         );
         assert_eq!(values(&s.on_message(&read(8, ""), &mut plant)), [("SIM_BEAUFORT".into(), 4.0, 8, 11)]);
         assert!(s.on_message(&read(11, ""), &mut plant).is_empty());
-        assert!(s.on_message(&read(-1, "SIM_NOPE"), &mut plant).is_empty());
+        let unknown = s.on_message(&read(-1, "SIM_NOPE"), &mut plant);
+        assert!(values(&unknown).is_empty());
+        assert_eq!(texts(&unknown), ["unknown parameter SIM_NOPE"], "the reason, not silence");
     }
 
     #[test]

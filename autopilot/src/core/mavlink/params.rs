@@ -12,8 +12,9 @@
 //! store. Every PARAM_VALUE, answer or not (the vehicle's repeat of a value it undid), is made by
 //! [`param_value`].
 //!
-//! A read is answered at once; a read of an unknown name or index gets no answer (clients time out, as
-//! with PX4, without a warning on the ground station's screen). A list is streamed, at most
+//! A read is answered at once; a read of an unknown index gets no answer (clients time out, as with PX4),
+//! and a read of an unknown name gets an INFO STATUSTEXT `unknown parameter NAME` to the asker only and no
+//! PARAM_VALUE, so a script can say why instead of timing out in silence. A list is streamed, at most
 //! [`PARAMS_PER_STEP`] PARAM_VALUE per [`ParamService::due`] (8 per 2 ms: the whole table in ~20 ms
 //! without a burst that overflows a serial link or a client's socket buffer); a new PARAM_REQUEST_LIST
 //! restarts the stream from index 0. A set is decoded by [`decode_set`], checked by the table's
@@ -165,11 +166,23 @@ impl ParamService {
                 ParamReply::default()
             }
             MavMessage::PARAM_REQUEST_READ(m) if self.addressed_to_us(sysid, m.target_system, m.target_component) => {
-                let index = match usize::try_from(m.param_index) {
-                    Ok(index) => Some(index),
-                    Err(_) => store.index_of(&param_name(&m.param_id)),
+                let (index, name) = match usize::try_from(m.param_index) {
+                    Ok(index) => (Some(index), None),
+                    Err(_) => {
+                        let name = param_name(&m.param_id);
+                        (store.index_of(&name), Some(name))
+                    }
                 };
-                ParamReply { messages: index.and_then(|i| param_value(store, i)).into_iter().collect(), changed: None }
+                let messages = match (index.and_then(|i| param_value(store, i)), name) {
+                    (Some(value), _) => vec![value],
+                    // A read by a name the vehicle does not have: its reason, to the asker only (an INFO, so
+                    // a ground station probing for optional names shows no warning).
+                    (None, Some(name)) => {
+                        vec![statustext(MavSeverity::MAV_SEVERITY_INFO, &format!("unknown parameter {name}"))]
+                    }
+                    (None, None) => Vec::new(),
+                };
+                ParamReply { messages, changed: None }
             }
             MavMessage::PARAM_SET(m) if self.addressed_to_us(sysid, m.target_system, m.target_component) => {
                 Self::on_set(m, store, apply)
@@ -443,8 +456,13 @@ mod tests {
         let reply = svc.on_message(US, &GCS, &read_index(3), &mut store);
         assert_eq!(value_of(&reply.messages[0]).0, PARAMS[3].name);
         assert_eq!(reply.changed, None);
-        // Unknown name or index: no answer.
-        assert!(svc.on_message(US, &GCS, &read_name("SYS_AUTOSTART"), &mut store).messages.is_empty());
+        // Unknown name: no value, and the reason as an INFO to the asker; unknown index: no answer.
+        let unknown = svc.on_message(US, &GCS, &read_name("SYS_AUTOSTART"), &mut store);
+        assert_eq!(unknown.messages.len(), 1);
+        assert_eq!(
+            text_of(&unknown.messages[0]),
+            (MavSeverity::MAV_SEVERITY_INFO, "unknown parameter SYS_AUTOSTART".to_owned())
+        );
         assert!(svc.on_message(US, &GCS, &read_index(PARAMS.len() as i16), &mut store).messages.is_empty());
         assert!(!svc.list_in_progress());
     }
