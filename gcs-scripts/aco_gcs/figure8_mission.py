@@ -7,6 +7,7 @@ waypoints as PNG and CSV. Exit 1 if the mission does not go through (or a waypoi
 no vehicle answers."""
 
 import argparse
+import itertools
 import math
 import sys
 
@@ -44,7 +45,7 @@ class Item:
         return (
             self.key() == other.key()
             and abs(self.z - other.z) < 1e-3
-            and all(same_float32(a, b) for a, b in zip(self.params, other.params))
+            and all(same_float32(a, b) for a, b in zip(self.params, other.params, strict=True))
         )
 
     def __repr__(self):
@@ -96,7 +97,7 @@ def upload(vehicle, items):
     """MISSION_COUNT -> (MISSION_REQUEST_INT -> MISSION_ITEM_INT)* -> MISSION_ACK, resending on vehicle-time
     time-outs."""
     vehicle.conn.mav.mission_count_send(vehicle.system_id, 1, len(items))
-    requested = set()
+    requested: set[int] = set()
     last_sent = None
     retries = 0
     kinds = ("MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK")
@@ -164,8 +165,8 @@ def parser():
     add_link_args(p)
     p.add_argument("--alt", type=positive_float, default=1.5, help="mission height above home, m (default 1.5)")
     p.add_argument("--speed", type=positive_float, default=0.3, help="DO_CHANGE_SPEED ground speed, m/s (default 0.3)")
-    p.add_argument("--png", default="figure8_mission.png", help="track plot (default figure8_mission.png)")
-    p.add_argument("--csv", default="figure8_mission.csv", help="track samples (default figure8_mission.csv)")
+    p.add_argument("--png", help="write the track plot to this PNG (default: no plot)")
+    p.add_argument("--csv", help="write the track samples to this CSV (default: none)")
     p.add_argument(
         "--mission-s", type=positive_float, default=240.0, help="vehicle seconds the mission may take (default 240)"
     )
@@ -175,7 +176,7 @@ def parser():
 def cross_track_m(point, polyline):
     """Distance (m) from `point` (n, e) to the nearest segment of `polyline`."""
     best = math.inf
-    for (n0, e0), (n1, e1) in zip(polyline, polyline[1:]):
+    for (n0, e0), (n1, e1) in itertools.pairwise(polyline):
         dn, de = n1 - n0, e1 - e0
         length2 = dn * dn + de * de
         u = 0.0 if length2 == 0 else max(0.0, min(1.0, ((point[0] - n0) * dn + (point[1] - e0) * de) / length2))
@@ -207,7 +208,7 @@ def run(args):
     back = download(vehicle)
     if len(back) != len(items):
         raise CheckFailed(f"downloaded {len(back)} items, uploaded {len(items)}")
-    for seq, (sent, got) in enumerate(zip(items, back)):
+    for seq, (sent, got) in enumerate(zip(items, back, strict=True)):
         if not sent.matches(got):
             raise CheckFailed(f"item {seq} came back different: sent {sent}, got {got}")
     flight.say(f"downloaded {len(back)} items: identical")
@@ -221,14 +222,12 @@ def run(args):
         kind = msg.get_type()
         if kind == "LOCAL_POSITION_NED":
             track.append((vehicle.now_s(), msg.x - origin[0], msg.y - origin[1], msg.z, current[0]))
-        elif kind == "MISSION_CURRENT":
-            if msg.seq != current[0]:
-                current[0] = msg.seq
-                flight.say(f"  t={vehicle.now_s():7.2f} s  current item {msg.seq}")
-        elif kind == "MISSION_ITEM_REACHED":
-            if msg.seq not in reached:
-                reached.append(msg.seq)
-                flight.say(f"  t={vehicle.now_s():7.2f} s  reached item {msg.seq}")
+        elif kind == "MISSION_CURRENT" and msg.seq != current[0]:
+            current[0] = msg.seq
+            flight.say(f"  t={vehicle.now_s():7.2f} s  current item {msg.seq}")
+        elif kind == "MISSION_ITEM_REACHED" and msg.seq not in reached:
+            reached.append(msg.seq)
+            flight.say(f"  t={vehicle.now_s():7.2f} s  reached item {msg.seq}")
 
     vehicle.listeners.append(record)
     vehicle.require("arm", mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1)
@@ -250,27 +249,32 @@ def run(args):
     xt = [cross_track_m((r[1], r[2]), pts) for r in airborne]
     from .plot import figure, save, write_csv
 
-    write_csv(args.csv, ["t_s", "north_m", "east_m", "down_m", "mission_seq"], track)
-    fig, ax = figure(size=(7, 6))
-    ax.plot([r[2] for r in track], [r[1] for r in track], lw=1.2, label="flown (LOCAL_POSITION_NED)")
-    ax.plot([p[1] for p in pts], [p[0] for p in pts], "o--", color="tab:red", lw=0.8, label="waypoints")
-    labels = {}
-    for k, point in enumerate(pts):
-        labels.setdefault(point, []).append(str(waypoint_seqs[k]))
-    for (n, e), seqs in labels.items():
-        ax.annotate(",".join(seqs), (e, n), textcoords="offset points", xytext=(6, 4), fontsize=8)
-    ax.set_xlabel("east (m)")
-    ax.set_ylabel("north (m)")
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.grid(True, alpha=0.3)
-    ax.legend(loc="best", fontsize=8)
-    ax.set_title(f"Figure-8 mission at {args.speed:g} m/s, {args.alt:g} m: {len(reached)} items reached")
-    save(fig, args.png)
+    if args.csv:
+        write_csv(args.csv, ["t_s", "north_m", "east_m", "down_m", "mission_seq"], track)
+    if args.png:
+        fig, ax = figure(size=(7, 6))
+        ax.plot([r[2] for r in track], [r[1] for r in track], lw=1.2, label="flown (LOCAL_POSITION_NED)")
+        ax.plot([p[1] for p in pts], [p[0] for p in pts], "o--", color="tab:red", lw=0.8, label="waypoints")
+        labels: dict[tuple[float, float], list[str]] = {}
+        for k, point in enumerate(pts):
+            labels.setdefault(point, []).append(str(waypoint_seqs[k]))
+        for (n, e), seqs in labels.items():
+            ax.annotate(",".join(seqs), (e, n), textcoords="offset points", xytext=(6, 4), fontsize=8)
+        ax.set_xlabel("east (m)")
+        ax.set_ylabel("north (m)")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="best", fontsize=8)
+        ax.set_title(f"Figure-8 mission at {args.speed:g} m/s, {args.alt:g} m: {len(reached)} items reached")
+        save(fig, args.png)
 
     flight.say(f"items reached: {len(reached)} of {len(items)} ({sorted(reached)})")
     if xt:
         flight.say(f"cross-track to the waypoint polyline: max {max(xt):.3f} m, rms {math.sqrt(sum(v * v for v in xt) / len(xt)):.3f} m")
-    flight.say(f"mission flown in {duration:.1f} s of vehicle time; plot {args.png}, track {args.csv}")
+    flight.say(f"mission flown in {duration:.1f} s of vehicle time")
+    for what, path in (("plot", args.png), ("track samples", args.csv)):
+        if path:
+            flight.say(f"wrote the {what} to {path}")
     lost = vehicle.lost()
     flight.say(f"messages lost on the link: {lost}")
     missing = [s for s in waypoint_seqs if s not in reached]

@@ -27,8 +27,8 @@ def parser():
     p.add_argument("--gust-dir", type=float, default=90.0, help="direction the gust blows toward, deg (default 90: east)")
     p.add_argument("--gust-rise", type=positive_float, default=1.0, help="1-cos rise and fall time, s (default 1)")
     p.add_argument("--threshold", type=positive_float, default=0.10, help="recovery threshold, m (default 0.10)")
-    p.add_argument("--png", default="gust_hover.png", help="error plot (default gust_hover.png)")
-    p.add_argument("--csv", default="gust_hover.csv", help="error samples (default gust_hover.csv)")
+    p.add_argument("--png", help="write the error plot to this PNG (default: no plot)")
+    p.add_argument("--csv", help="write the error samples to this CSV (default: none)")
     return p
 
 
@@ -107,28 +107,34 @@ def run(args):
 
     from .plot import figure, save, write_csv
 
-    write_csv(
-        args.csv,
-        ["t_s", "err_xy_m", "north_m", "east_m", "down_m", "gust"],
-        [(t, e, n, ea, d, int(onset <= t < release + args.gust_rise)) for (t, e, n, ea, d) in samples],
-    )
-    fig, ax = figure(size=(9, 4.5))
-    ax.plot([s[0] for s in samples], [s[1] for s in samples], lw=1.0, label="horizontal error")
-    ax.axvspan(onset, release + args.gust_rise, color="tab:orange", alpha=0.2, label="gust (onset to end of fall)")
-    ax.axhline(args.threshold, color="gray", ls="--", lw=0.8, label=f"{args.threshold:g} m")
-    ax.set_xlabel("vehicle time (s)")
-    ax.set_ylabel("horizontal error (m)")
-    ax.grid(True, alpha=0.3)
-    ax.legend(loc="upper right", fontsize=8)
-    ax.set_title(f"Hover under a {args.gust_speed:g} m/s gust toward {args.gust_dir:g} deg (SIM_ parameters)")
-    save(fig, args.png)
+    if args.csv:
+        write_csv(
+            args.csv,
+            ["t_s", "err_xy_m", "north_m", "east_m", "down_m", "gust"],
+            [(t, e, n, ea, d, int(onset <= t < release + args.gust_rise)) for (t, e, n, ea, d) in samples],
+        )
+    if args.png:
+        fig, ax = figure(size=(9, 4.5))
+        ax.plot([s[0] for s in samples], [s[1] for s in samples], lw=1.0, label="horizontal error")
+        ax.axvspan(onset, release + args.gust_rise, color="tab:orange", alpha=0.2, label="gust (onset to end of fall)")
+        ax.axhline(args.threshold, color="gray", ls="--", lw=0.8, label=f"{args.threshold:g} m")
+        ax.set_xlabel("vehicle time (s)")
+        ax.set_ylabel("horizontal error (m)")
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="upper right", fontsize=8)
+        ax.set_title(f"Hover under a {args.gust_speed:g} m/s gust toward {args.gust_dir:g} deg (SIM_ parameters)")
+        save(fig, args.png)
 
-    fmt = lambda v: "never" if v is None else f"{v:.2f} s"  # noqa: E731
+    def fmt(v):
+        return "never" if v is None else f"{v:.2f} s"
+
     flight.say(f"peak horizontal error {peak:.3f} m")
     if steady:
         flight.say(f"steady error before release {sum(steady) / len(steady):.3f} m")
     flight.say(f"recovery below {args.threshold:g} m: from onset {fmt(rec_onset)}, from release {fmt(rec_release)}")
-    flight.say(f"plot {args.png}, samples {args.csv}")
+    for what, path in (("plot", args.png), ("error samples", args.csv)):
+        if path:
+            flight.say(f"wrote the {what} to {path}")
     if rec_release is None:
         print(f"no recovery below {args.threshold:g} m within {args.after:g} s of the release", file=sys.stderr)
         return 1

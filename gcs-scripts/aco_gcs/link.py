@@ -17,6 +17,7 @@ Exit codes: 0 success, 1 a failed flight check (or the hang guard), 2 no vehicle
 """
 
 import argparse
+import contextlib
 import math
 import os
 import struct
@@ -24,7 +25,7 @@ import sys
 import time
 
 os.environ.setdefault("MAVLINK20", "1")  # pymavlink speaks MAVLink 1 unless told otherwise
-from pymavlink import mavutil  # noqa: E402
+from pymavlink import mavutil
 
 mavlink = mavutil.mavlink
 
@@ -213,7 +214,7 @@ class Link:
 
     component = AUTOPILOT_COMPONENT
     # Wall seconds of silence after which the component is taken as gone (None: never).
-    silence_limit_s = SILENCE_LIMIT_S
+    silence_limit_s: float | None = SILENCE_LIMIT_S
 
     def __init__(self, connect, target=None, wall_limit_s=600.0):
         self.connect = connect
@@ -309,10 +310,9 @@ class Link:
 
 
 def _sendto(sock, buf, address):
-    try:
+    # Nobody listening yet is not an error: the waits time out and say so.
+    with contextlib.suppress(OSError):
         sock.sendto(buf, address)
-    except OSError:
-        pass  # nobody listening yet: the waits time out and say so
 
 
 class Vehicle(Link):
@@ -415,10 +415,10 @@ class Vehicle(Link):
     def command(self, command, *params, ack_s=5.0, attempts=3):
         """Send COMMAND_LONG (resending with a higher confirmation when no ACK comes within `ack_s` of
         vehicle time) and return the ACK's result."""
-        params = list(params) + [0.0] * (7 - len(params))
+        values = [*params, *[0.0] * (7 - len(params))]
         for confirmation in range(attempts):
             self.acks.pop(command, None)
-            self.conn.mav.command_long_send(self.system_id, AUTOPILOT_COMPONENT, command, confirmation, *params)
+            self.conn.mav.command_long_send(self.system_id, AUTOPILOT_COMPONENT, command, confirmation, *values)
             start = self.now_s()
             while command not in self.acks and self.now_s() - start <= ack_s:
                 self.pump()
@@ -499,15 +499,28 @@ class Params:
         return {self.by_index[i]: self.values[self.by_index[i]] for i in sorted(self.by_index)}
 
     def get(self, name, seconds=5.0, attempts=3):
-        """One parameter by name, or None if it is never answered."""
+        """One parameter by name, or None if it is not answered (`read` also says why)."""
+        return self.read(name, seconds, attempts)[0]
+
+    def read(self, name, seconds=5.0, attempts=3):
+        """(value, reason): the value of `name`, or None and the reason the component gave (the vehicle
+        answers a name it does not have with `unknown parameter NAME`), or None and None on silence."""
         link = self.link
+        reason = f"unknown parameter {name}"
         for _ in range(attempts):
             self.values.pop(name, None)
+            since = link.now_s()
             link.conn.mav.param_request_read_send(link.system_id, self.component, name.encode(), -1)
-            got = link.next_message(seconds, lambda m: m.get_type() == "PARAM_VALUE" and m.param_id == name)
-            if got is not None:
-                return decode_param(got.param_value, got.param_type)
-        return None
+            got = link.next_message(
+                seconds,
+                lambda m: (m.get_type() == "PARAM_VALUE" and m.param_id == name)
+                or (m.get_type() == "STATUSTEXT" and m.text == reason),
+            )
+            if got is not None and got.get_type() == "PARAM_VALUE":
+                return decode_param(got.param_value, got.param_type), None
+            if got is not None or reason in link.texts_since(since):
+                return None, reason
+        return None, None
 
     def set(self, name, value, seconds=5.0, attempts=3):
         """PARAM_SET and wait for the echo. Returns (echoed value or None, texts the component sent

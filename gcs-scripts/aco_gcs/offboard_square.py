@@ -73,7 +73,9 @@ async def fly(args, drone, state):
     from mavsdk.action import ActionError
     from mavsdk.offboard import OffboardError, PositionNedYaw
 
-    say = lambda text: print(text, flush=True)  # noqa: E731
+    def say(text):
+        print(text, flush=True)
+
     await state.wait_until(5.0, "the vehicle clock (ATTITUDE)", lambda: state.now_us > 0)
     t_wall, t_vehicle = time.monotonic(), state.now_s()
     flags = ("is_global_position_ok", "is_home_position_ok", "is_armable")
@@ -118,17 +120,17 @@ async def fly(args, drone, state):
     try:
         await drone.offboard.set_position_ned(PositionNedYaw(n0, e0, target_down, yaw))
         await drone.offboard.start()
-        for k, (n, e) in enumerate(corners, 1):
-            await drone.offboard.set_position_ned(PositionNedYaw(n, e, target_down, yaw))
+        for k, (north, east) in enumerate(corners, 1):
+            await drone.offboard.set_position_ned(PositionNedYaw(north, east, target_down, yaw))
 
-            def near(n=n, e=e):
+            def near(n=north, e=east):
                 q = state.pos.position
                 return math.hypot(q.north_m - n, q.east_m - e) < args.tolerance and abs(q.down_m - target_down) < 0.15
 
             took = await state.wait_until(20.0, f"corner {k} of the square", near)
             if state.mode is not None and state.mode.name != "OFFBOARD":
                 raise CheckFailed(f"the vehicle left offboard (now {state.mode.name}) on the way to corner {k}")
-            say(f"corner {k} (N {n - n0:+.2f}, E {e - e0:+.2f}) m reached in {took:.1f} s")
+            say(f"corner {k} (N {north - n0:+.2f}, E {east - e0:+.2f}) m reached in {took:.1f} s")
         await drone.offboard.stop()
     except OffboardError as e:
         raise CheckFailed(f"offboard: {e}") from e
@@ -163,7 +165,7 @@ async def run_async(args):
 
         try:
             await asyncio.wait_for(connected(), args.heartbeat_timeout)
-        except asyncio.TimeoutError:
+        except TimeoutError:
             raise NoVehicle(
                 f"no vehicle HEARTBEAT on {connect} within {args.heartbeat_timeout:g} s "
                 f"(is `sitl run -i {args.instance}` running, at real time?)"
@@ -176,7 +178,7 @@ async def run_async(args):
             state.now_us = max(state.now_us, a.timestamp_us)
             state.yaw_deg = a.yaw_deg
 
-        last_text = [None, 0]
+        last_text: list = [None, 0]
 
         def on_text(s):
             # MAVSDK re-requests what the vehicle lacks, and the vehicle answers each time: print repeats once.

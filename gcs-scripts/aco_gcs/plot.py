@@ -6,7 +6,7 @@ import os
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.pyplot as plt
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 

@@ -9,7 +9,15 @@ import os
 import sys
 from collections import Counter
 
-from .link import AUTOPILOT_COMPONENT, CheckFailed, GcsError, NoVehicle, mavlink, mavutil, run_main
+from .link import (
+    AUTOPILOT_COMPONENT,
+    CheckFailed,
+    GcsError,
+    NoVehicle,
+    mavlink,
+    mavutil,
+    run_main,
+)
 
 
 def parser():

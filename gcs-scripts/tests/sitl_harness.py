@@ -82,23 +82,24 @@ def start_sitl(tmp_path, *extra, speed, instance=None):
     log_dir = tmp_path / "logs"
     log_dir.mkdir(exist_ok=True)
     log_path = tmp_path / "sitl-run.log"
-    stderr = open(log_path, "w")
-    proc = subprocess.Popen(
-        [
-            str(binary("sitl")),
-            "run",
-            "-i",
-            str(n),
-            "--speed",
-            str(speed),
-            "--log-dir",
-            str(log_dir),
-            "--state-dir",
-            str(tmp_path / "state"),
-            *extra,
-        ],
-        stdout=subprocess.DEVNULL,
-        stderr=stderr,
-        start_new_session=True,
-    )
+    # The child keeps its own copy of the file descriptor; this process closes its one at once.
+    with open(log_path, "w") as stderr:
+        proc = subprocess.Popen(
+            [
+                str(binary("sitl")),
+                "run",
+                "-i",
+                str(n),
+                "--speed",
+                str(speed),
+                "--log-dir",
+                str(log_dir),
+                "--state-dir",
+                str(tmp_path / "state"),
+                *extra,
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=stderr,
+            start_new_session=True,
+        )
     return Sitl(n, log_dir, proc, log_path)

@@ -21,10 +21,10 @@ import pytest
 from sitl_harness import ROOT, start_sitl
 
 os.environ["MAVLINK20"] = "1"
-sys.path.insert(0, str(ROOT / "gcs-scripts"))
-from aco_gcs import link  # noqa: E402
-from aco_gcs.figure8_mission import FIGURE8_NE_M  # noqa: E402
-from pymavlink import mavparm, mavutil  # noqa: E402
+from pymavlink import mavparm, mavutil
+
+from aco_gcs import link
+from aco_gcs.figure8_mission import FIGURE8_NE_M
 
 mavlink = mavutil.mavlink
 EARTH_RADIUS_M = 6_378_137.0
@@ -89,7 +89,7 @@ async def first(stream, cond=lambda _: True, what="telemetry", timeout_s=120):
 
     try:
         return await asyncio.wait_for(scan(), timeout_s)
-    except asyncio.TimeoutError:
+    except TimeoutError:
         pytest.fail(f"MAVSDK: {what} not within {timeout_s} s of wall time")
 
 
@@ -263,7 +263,8 @@ def test_pymavlink_reads_int32_parameters_bytewise_and_sets_them_as_int32_or_rea
 
     # Every parameter, missing indices re-requested (a burst may overflow the socket at lockstep speed).
     conn.param_fetch_all()
-    got, quiet_since = {}, time.monotonic()
+    got: dict = {}
+    quiet_since = time.monotonic()
     while len(got) < PARAM_COUNT:
         assert time.monotonic() - quiet_since < 20, f"{len(got)} of {PARAM_COUNT} parameters"
         msg = conn.recv_match(type="PARAM_VALUE", blocking=True, timeout=1)
@@ -306,7 +307,7 @@ def test_pymavlink_over_tcp_reads_a_parameter_and_the_adaptive_weights(sitl):
     conn.mav.param_request_read_send(conn.target_system, 1, b"ACO_WEIGHTS_HZ", -1)
     value = conn.recv_match(type="PARAM_VALUE", blocking=True, timeout=30)
     assert value is not None and value.param_id == "ACO_WEIGHTS_HZ" and value.param_value == 2.0
-    names = set()
+    names: set[str] = set()
     deadline = time.monotonic() + 30
     while len(names) < 5:
         assert time.monotonic() < deadline, f"only {sorted(names)}"
@@ -366,8 +367,10 @@ def test_mavproxy_lean_install_downloads_every_parameter_and_the_mission(sitl, t
         text=True,
         cwd=tmp_path,
     )
-    lines = []
-    reader = threading.Thread(target=lambda: lines.extend(iter(proc.stdout.readline, "")), daemon=True)
+    assert proc.stdin is not None and proc.stdout is not None
+    stdin, stdout = proc.stdin, proc.stdout
+    lines: list[str] = []
+    reader = threading.Thread(target=lambda: lines.extend(iter(stdout.readline, "")), daemon=True)
     reader.start()
     try:
         deadline = time.monotonic() + 60
@@ -375,8 +378,8 @@ def test_mavproxy_lean_install_downloads_every_parameter_and_the_mission(sitl, t
         while time.monotonic() < deadline:
             output = "".join(lines)
             if not sent and f"Received {PARAM_COUNT} parameters" in output:
-                proc.stdin.write(script)
-                proc.stdin.flush()
+                stdin.write(script)
+                stdin.flush()
                 sent = True
             after = output.split(f"Received {PARAM_COUNT} parameters")[-1]
             if sent and "RTL_RETURN_ALT" in after and "LOOP_INNER_HZ" in after and "Requesting 4 waypoints" in after:
@@ -439,7 +442,7 @@ def test_the_qgroundcontrol_connection_sequence_completes(sitl):
     # The plan: mission (type 0), geofence (1), rally points (2).
     for mission_type in (mavlink.MAV_MISSION_TYPE_MISSION, mavlink.MAV_MISSION_TYPE_FENCE, mavlink.MAV_MISSION_TYPE_RALLY):
         v.send(v.conn.mav.mission_request_list_encode(sysid, 1, mission_type))
-        msg = v.next_message(10, lambda m: m.get_type() == "MISSION_COUNT" and m.mission_type == mission_type)
+        msg = v.next_message(10, lambda m, t=mission_type: m.get_type() == "MISSION_COUNT" and m.mission_type == t)
         assert msg is not None, f"MISSION_COUNT of type {mission_type}"
         assert msg.count == 0, f"type {mission_type}: nothing uploaded yet"
         v.send(v.conn.mav.mission_ack_encode(sysid, 1, mavlink.MAV_MISSION_ACCEPTED, mission_type))
@@ -455,7 +458,7 @@ def test_the_qgroundcontrol_connection_sequence_completes(sitl):
         v.send(v.conn.mav.mission_count_encode(sysid, 1, len(items), mission_type))
         while True:
             kinds = ("MISSION_REQUEST_INT", "MISSION_ACK")
-            msg = v.next_message(10, lambda m: m.get_type() in kinds and m.mission_type == mission_type)
+            msg = v.next_message(10, lambda m, k=kinds, t=mission_type: m.get_type() in k and m.mission_type == t)
             assert msg is not None, f"type {mission_type}: upload stalled"
             if msg.get_type() == "MISSION_ACK":
                 assert msg.type == mavlink.MAV_MISSION_ACCEPTED, msg
@@ -464,7 +467,7 @@ def test_the_qgroundcontrol_connection_sequence_completes(sitl):
             frame = mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT
             v.send(v.conn.mav.mission_item_int_encode(sysid, 1, msg.seq, frame, command, 0, 1, p1, 0, 0, 0, x, y, 10.0, mission_type))
         v.send(v.conn.mav.mission_request_list_encode(sysid, 1, mission_type))
-        msg = v.next_message(10, lambda m: m.get_type() == "MISSION_COUNT" and m.mission_type == mission_type)
+        msg = v.next_message(10, lambda m, t=mission_type: m.get_type() == "MISSION_COUNT" and m.mission_type == t)
         assert msg is not None and msg.count == len(items)
         for seq, (command, p1, x, y) in enumerate(items):
             v.send(v.conn.mav.mission_request_int_encode(sysid, 1, seq, mission_type))
@@ -474,7 +477,7 @@ def test_the_qgroundcontrol_connection_sequence_completes(sitl):
     # A mode change with the SET_MODE message (PX4 POSCTL), then back to Hold.
     for custom_mode in (3 << 16, (4 << 16) | (3 << 24)):
         v.send(v.conn.mav.set_mode_encode(sysid, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, custom_mode))
-        v.wait_until(10, f"custom mode {custom_mode:#x}", lambda: v.custom_mode == custom_mode)
+        v.wait_until(10, f"custom mode {custom_mode:#x}", lambda c=custom_mode: v.custom_mode == c)
     # Takeoff before arming (AMSL altitude, NaN position), then arm: it climbs.
     v.wait_until(30, "estimator", lambda: v.prearm_ok and v.global_pos is not None)
     home_amsl_m = v.global_pos.alt * 1e-3 - v.global_pos.relative_alt * 1e-3

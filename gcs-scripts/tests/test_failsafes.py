@@ -8,10 +8,20 @@ under 0.1 s of vehicle time. Every wait is on the vehicle's clock; a wall-clock 
 import math
 
 import pytest
+from sitl_harness import start_sitl
+
 from aco_gcs.figure8_mission import Item, offset_deg, upload
 from aco_gcs.flight import takeoff, wait_ready
-from aco_gcs.link import AUTOPILOT_PORT, PX4_AUTO_LOITER, PX4_MAIN_AUTO, QGC_PORT, Params, Plant, Vehicle, mavlink
-from sitl_harness import start_sitl
+from aco_gcs.link import (
+    AUTOPILOT_PORT,
+    PX4_AUTO_LOITER,
+    PX4_MAIN_AUTO,
+    QGC_PORT,
+    Params,
+    Plant,
+    Vehicle,
+    mavlink,
+)
 
 SPEED = "4"
 PX4_AUTO_RTL = 5
@@ -21,7 +31,7 @@ FENCE = mavlink.MAV_MISSION_TYPE_FENCE
 @pytest.fixture
 def run_sitl(tmp_path):
     """Starts `sitl run` (restartable on the same state directory); stops whatever is running at the end."""
-    running = []
+    running: list = []
 
     def start(speed=SPEED):
         s = start_sitl(tmp_path, "--estimator", "truth", speed=speed, instance=running[0].instance if running else None)
@@ -61,7 +71,7 @@ def test_gcs_silent_in_a_mission_with_nav_dll_act_2_returns_after_com_dl_loss_t_
     rel = mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
     nan = float("nan")
 
-    def at(n, e):
+    def at(n: float, e: float) -> tuple[int, int]:
         lat, lon = offset_deg(lat0, lon0, n, e)
         return round(lat * 1e7), round(lon * 1e7)
 
@@ -103,7 +113,7 @@ def test_pack_drained_by_sim_bat_drain_warns_returns_and_lands_before_empty(run_
     plant = Plant(sitl.instance, 60.0)
     plant.hello()
     Params(plant, plant.component).require_set("SIM_BAT_DRAIN", 300)
-    hover, _ = takeoff(vehicle, 3.0, ground)
+    takeoff(vehicle, 3.0, ground)
     vehicle.wait_until(300.0, "RTL", lambda: vehicle.px4_mode() == (PX4_MAIN_AUTO, PX4_AUTO_RTL))
     vehicle.wait_until(60.0, "landed and disarmed", lambda: not vehicle.armed)
     texts = [t for (_, _, t) in vehicle.statustexts]
@@ -168,7 +178,7 @@ def test_geofence_refuses_a_goto_beyond_it_holds_an_offboard_push_and_keeps_a_po
     square = fence_items(lat0, lon0)
     assert upload_fence(vehicle, square) == mavlink.MAV_MISSION_ACCEPTED
     assert download_fence(vehicle) == square
-    hover, _ = takeoff(vehicle, 3.0, ground)
+    takeoff(vehicle, 3.0, ground)
     # A goto 20 m away: refused with the reason, not flown.
     lat, lon = offset_deg(lat0, lon0, 20, 0)
     since = vehicle.now_s()

@@ -4,14 +4,11 @@ encoding, the figure-8 mission's geometry, the gust metrics and the instance's p
 import argparse
 import math
 import struct
-import sys
 from pathlib import Path
 
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from aco_gcs import figure8_mission, gust_hover, link, params  # noqa: E402
+from aco_gcs import figure8_mission, gust_hover, link, params
 
 
 def test_instance_n_shifts_every_port():
@@ -33,7 +30,9 @@ def test_parameter_values_round_trip_as_real32_text():
 
 def test_integer_parameters_travel_bytewise_as_px4_encodes_them():
     mav = link.mavlink
-    bits = lambda field: struct.unpack("<I", struct.pack("<f", field))[0]  # noqa: E731
+    def bits(field):
+        return struct.unpack("<I", struct.pack("<f", field))[0]
+
     # The int32's bytes as they are in the float field: 2 is the denormal 2.8e-45, -3 is 0xFFFFFFFD.
     for value, expected_bits in [(2, 0x2), (500, 0x1F4), (0, 0x0), (-3, 0xFFFF_FFFD)]:
         field = link.encode_param(value, mav.MAV_PARAM_TYPE_INT32)
@@ -76,7 +75,7 @@ def test_figure8_mission_items_sit_on_the_grid_around_home():
     assert items[1].params[1] == 0.3
     wps = [it for it in items if it.command == mav.MAV_CMD_NAV_SPLINE_WAYPOINT]
     assert all(it.frame == mav.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT and it.z == 1.5 for it in wps)
-    for it, (n, e) in zip(wps, figure8_mission.FIGURE8_NE_M):
+    for it, (n, e) in zip(wps, figure8_mission.FIGURE8_NE_M, strict=True):
         dn = math.radians(it.x / 1e7 - lat0) * figure8_mission.EARTH_RADIUS_M
         de = math.radians(it.y / 1e7 - lon0) * figure8_mission.EARTH_RADIUS_M * math.cos(math.radians(lat0))
         assert abs(dn - n) < 0.01 and abs(de - e) < 0.01, (it, n, e)
@@ -96,3 +95,18 @@ def test_recovery_is_the_time_until_the_error_stays_below_the_threshold():
     assert gust_hover.recovery_s([(0.0, 0.2), (1.0, 0.3)], 0.0, 1.0, 0.10) is None
     assert gust_hover.plant_time(["gust 6.7 m/s to 90 deg, rise 1.0 s, t=18.80"], 3.0) == 18.8
     assert gust_hover.plant_time(["no time here"], 3.0) == 3.0
+
+
+def test_scripts_write_files_only_when_asked():
+    # No --png / --csv: no plot or samples file appears in the working directory.
+    for module in (figure8_mission, gust_hover):
+        args = module.parser().parse_args([])
+        assert (args.png, args.csv) == (None, None), module.__name__
+
+
+def test_the_tests_import_the_installed_package():
+    # scripts/test installs gcs-scripts (editable); the tests import that, not a sys.path edit.
+    import importlib.metadata
+
+    assert importlib.metadata.distribution("aco-gcs-scripts").metadata["Name"] == "aco-gcs-scripts"
+    assert Path(link.__file__).resolve().parent == Path(__file__).resolve().parents[1] / "aco_gcs"

@@ -9,7 +9,7 @@ import time
 from sitl_harness import start_sitl
 
 os.environ["MAVLINK20"] = "1"
-from pymavlink import mavutil  # noqa: E402
+from pymavlink import mavutil
 
 mavlink = mavutil.mavlink
 KEY = bytes(range(1, 33))

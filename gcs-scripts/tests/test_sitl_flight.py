@@ -10,16 +10,15 @@ import math
 import os
 import random
 import shutil
-import signal
 import subprocess
 import time
-from pathlib import Path
+from typing import Any
 
 import pytest
 from sitl_harness import binary, stop_group
 
 os.environ["MAVLINK20"] = "1"  # pymavlink speaks MAVLink 1 unless told otherwise
-from pymavlink import mavutil  # noqa: E402
+from pymavlink import mavutil
 
 WALL_LIMIT_S = 120.0
 MAV_SYS_STATUS_PREARM_CHECK = 0x10000000
@@ -34,13 +33,15 @@ class Gcs:
         self.autopilot = ("127.0.0.1", 18570 + instance)
         self.deadline = time.monotonic() + WALL_LIMIT_S
         self.now_ms = 0
-        self.pos = None
-        self.vel = None
+        self.target_system = instance + 1
+        # (n, e, d) m once a LOCAL_POSITION_NED came; None before.
+        self.pos: Any = None
+        self.vel: Any = None
         self.converged = False
         self.armed = False
         self.landed_state = None
         self.acks = {}
-        self.home = None  # HOME_POSITION local (x, y, z), and the vehicle time it came at
+        self.home: Any = None  # HOME_POSITION local (x, y, z), and the vehicle time it came at
         self.home_ms = None
 
     def pump(self):
@@ -76,11 +77,11 @@ class Gcs:
         return (self.now_ms - start) / 1000.0
 
     def command(self, command, *params):
-        params = list(params) + [0.0] * (7 - len(params))
+        values = [*params, *[0.0] * (7 - len(params))]
         self.acks.pop(command, None)
         # pymavlink answers the last sender; the autopilot listens on 18570+N, so address it explicitly.
         self.conn.port.sendto(
-            self.conn.mav.command_long_encode(self.target_system, 1, command, 0, *params).pack(self.conn.mav),
+            self.conn.mav.command_long_encode(self.target_system, 1, command, 0, *values).pack(self.conn.mav),
             self.autopilot,
         )
         self.wait_until(5.0, f"ACK of command {command}", lambda: command in self.acks)
