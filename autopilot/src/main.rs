@@ -29,8 +29,8 @@ struct Cli {
     /// Plant link: `udp://HOST:PORT` (default udp://127.0.0.1:4560+N) or `serial:DEVICE:BAUD`.
     #[arg(long)]
     plant: Option<String>,
-    /// Instance N: shifts the default ports (plant 4560, UDP 18570, targets 14550 and 14540, TCP 5760) by
-    /// N; system id N+1.
+    /// Instance N (0..=254): plant udp 4560+N, own UDP 18570+N and TCP 5760+N, telemetry to UDP 14550
+    /// (shared by every instance, as PX4's) and the API port 14540+N (14541+N from N = 10); system id N+1.
     #[arg(short = 'i', long, default_value_t = 0)]
     instance: u16,
     #[arg(long, value_enum)]

@@ -9,9 +9,12 @@ Python client reads the telemetry a little behind the vehicle, and its clock is 
 the first HEARTBEAT's timeout (`--heartbeat-timeout`: there is no vehicle clock before it) and the plant's
 SIM_ parameter link (the plant sends no clock on that port).
 
-Addressing (as `sitl run` sets it up for instance N): the autopilot sends to UDP 127.0.0.1:14550+N and
-listens on 18570+N; a script listens on 14550+N (`udpin:`) and sends to 18570+N explicitly. The plant
-answers its SIM_ parameters on 127.0.0.1:19550+N as system N+1, component 51.
+Addressing (as `sitl run` sets it up for instance N, PX4's multi-vehicle convention): every autopilot
+sends to UDP 127.0.0.1:14550 (QGroundControl's, shared; system id N+1 tells them apart) and to its own
+API port (`api_port(N)`: 14540+N, 14541+N from N = 10 so as to skip 14550), and listens on 18570+N. A
+script listens on the API port (`udpin:`), takes only system N+1's messages (`--sysid` for another) and
+sends to 18570+N explicitly. The plant answers its SIM_ parameters on 127.0.0.1:19550+N as system N+1,
+component 51.
 
 Exit codes: 0 success, 1 a failed flight check (or the hang guard), 2 no vehicle (no HEARTBEAT in time).
 """
@@ -31,6 +34,7 @@ mavlink = mavutil.mavlink
 
 QGC_PORT = 14550
 API_PORT = 14540
+MAX_INSTANCE = 254  # system id N+1 is a byte
 AUTOPILOT_PORT = 18570
 PLANT_PARAM_PORT = 19550
 PLANT_COMPONENT = 51
@@ -132,6 +136,13 @@ def result_name(result):
     return entry.name if entry is not None else str(result)
 
 
+def api_port(instance):
+    """Instance N's API / offboard port: 14540+N, skipping QGroundControl's 14550 (14541+N from N = 10)."""
+    if not 0 <= instance <= MAX_INSTANCE:
+        raise GcsError(f"instance {instance} is out of range: instances are 0..={MAX_INSTANCE}")
+    return API_PORT + instance + (1 if API_PORT + instance >= QGC_PORT else 0)
+
+
 def add_link_args(parser, mavsdk=False):
     """The connection options every script has."""
     parser.add_argument(
@@ -140,19 +151,27 @@ def add_link_args(parser, mavsdk=False):
         type=int,
         default=0,
         metavar="N",
-        help="SITL instance N (`sitl run -i N`): every port + N, vehicle system id N+1 (default 0)",
+        help="SITL instance N (`sitl run -i N`): its API port 14540+N and autopilot port 18570+N, vehicle "
+        "system id N+1 (default 0)",
+    )
+    parser.add_argument(
+        "--sysid",
+        type=int,
+        metavar="S",
+        help="the vehicle's system id, for a link several vehicles send on such as udpin:0.0.0.0:14550 "
+        "(default N+1)",
     )
     if mavsdk:
         parser.add_argument(
             "--connect",
             metavar="URL",
-            help="MAVSDK connection (default udpin://0.0.0.0:14540+N, where the autopilot sends for APIs)",
+            help="MAVSDK connection (default udpin://0.0.0.0:14540+N, the instance's API port)",
         )
     else:
         parser.add_argument(
             "--connect",
             metavar="DEVICE",
-            help="pymavlink connection (default udpin:127.0.0.1:14550+N, where the autopilot sends)",
+            help="pymavlink connection (default udpin:127.0.0.1:14540+N, the instance's API port)",
         )
         parser.add_argument(
             "--target",
@@ -181,7 +200,7 @@ def resolve_link(args):
     """(connect, target) from the parsed options: the defaults of instance N unless given."""
     n = args.instance
     if args.connect is None:
-        connect = f"udpin:127.0.0.1:{QGC_PORT + n}"
+        connect = f"udpin:127.0.0.1:{api_port(n)}"
         target = args.target or f"127.0.0.1:{AUTOPILOT_PORT + n}"
     else:
         connect, target = args.connect, args.target
@@ -337,7 +356,8 @@ class Vehicle(Link):
     def from_args(cls, args):
         connect, target = resolve_link(args)
         vehicle = cls(connect, target, args.wall_limit)
-        vehicle.wait_heartbeat(args.heartbeat_timeout, args.instance)
+        sysid = args.sysid if getattr(args, "sysid", None) is not None else args.instance + 1
+        vehicle.wait_heartbeat(args.heartbeat_timeout, args.instance, sysid)
         return vehicle
 
     def now_s(self):
@@ -346,9 +366,9 @@ class Vehicle(Link):
     def name(self):
         return "vehicle"
 
-    def wait_heartbeat(self, timeout_s, instance=None):
-        """Wait (wall time: there is no vehicle clock yet) for an autopilot's HEARTBEAT; lock onto its
-        system id."""
+    def wait_heartbeat(self, timeout_s, instance=None, sysid=None):
+        """Wait (wall time: there is no vehicle clock yet) for an autopilot's HEARTBEAT (from system `sysid`
+        when given: several vehicles may send on one port); lock onto its system id."""
         end = time.monotonic() + timeout_s
         while time.monotonic() < end:
             self.before_pump()
@@ -356,6 +376,8 @@ class Vehicle(Link):
             if msg is None or msg.get_srcComponent() != AUTOPILOT_COMPONENT:
                 continue
             if msg.autopilot == mavlink.MAV_AUTOPILOT_INVALID or msg.type == mavlink.MAV_TYPE_GCS:
+                continue
+            if sysid is not None and msg.get_srcSystem() != sysid:
                 continue
             self.system_id = msg.get_srcSystem()
             self.conn.target_system, self.conn.target_component = self.system_id, AUTOPILOT_COMPONENT

@@ -16,7 +16,7 @@ import sys
 import time
 import warnings
 
-from .link import API_PORT, CheckFailed, NoVehicle, positive_float, run_main
+from .link import CheckFailed, NoVehicle, api_port, positive_float, run_main
 
 
 def parser():
@@ -149,7 +149,7 @@ async def run_async(args):
         warnings.filterwarnings("ignore", message="The 'mavsdk' package has been renamed", category=FutureWarning)
         from mavsdk import System
 
-    connect = args.connect or f"udpin://0.0.0.0:{API_PORT + args.instance}"
+    connect = args.connect or f"udpin://0.0.0.0:{api_port(args.instance)}"
     grpc_port = args.grpc_port or 50051 + args.instance
     drone = System(port=grpc_port)
     tasks = []

@@ -10,6 +10,8 @@ from pathlib import Path
 
 import pytest
 
+from aco_gcs.link import api_port
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -24,8 +26,8 @@ def binary(name):
 
 
 def ports_free(n):
-    """Whether every port of instance n is free on 127.0.0.1 (UDP plant, autopilot, GCS, API, SIM_; TCP)."""
-    for kind, port in [(socket.SOCK_DGRAM, p) for p in (4560 + n, 18570 + n, 14550 + n, 14540 + n, 19550 + n)] + [
+    """Whether every port of instance n is free on 127.0.0.1 (UDP plant, autopilot, API, SIM_; TCP)."""
+    for kind, port in [(socket.SOCK_DGRAM, p) for p in (4560 + n, 18570 + n, api_port(n), 19550 + n)] + [
         (socket.SOCK_STREAM, 5760 + n)
     ]:
         s = socket.socket(socket.AF_INET, kind)

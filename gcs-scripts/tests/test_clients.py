@@ -70,8 +70,10 @@ def offset(lat_deg, lon_deg, north_m, east_m):
 
 
 def vehicle(s):
-    """A pymavlink link to the vehicle of `s`, as QGroundControl listens (14550+N, sending to 18570+N)."""
-    v = link.Vehicle(f"udpin:127.0.0.1:{14550 + s.instance}", target=f"127.0.0.1:{18570 + s.instance}", wall_limit_s=300)
+    """A pymavlink link to the vehicle of `s`, as a script listens (its API port, sending to 18570+N)."""
+    v = link.Vehicle(
+        f"udpin:127.0.0.1:{link.api_port(s.instance)}", target=f"127.0.0.1:{18570 + s.instance}", wall_limit_s=300
+    )
     v.wait_heartbeat(30, s.instance)
     return v
 
@@ -98,7 +100,7 @@ async def mavsdk_session(instance):
     from mavsdk.mission import MissionItem, MissionPlan
 
     drone = System(port=random.randint(50100, 50900))
-    await drone.connect(system_address=f"udpin://0.0.0.0:{14540 + instance}")
+    await drone.connect(system_address=f"udpin://0.0.0.0:{link.api_port(instance)}")
     await first(drone.core.connection_state(), lambda s: s.is_connected, "connection")
     health = await first(
         drone.telemetry.health(),
@@ -174,7 +176,7 @@ async def mavsdk_params(instance):
     from mavsdk.param import ParamError
 
     drone = System(port=random.randint(50100, 50900))
-    await drone.connect(system_address=f"udpin://0.0.0.0:{14540 + instance}")
+    await drone.connect(system_address=f"udpin://0.0.0.0:{link.api_port(instance)}")
     await first(drone.core.connection_state(), lambda s: s.is_connected, "connection")
     param = drone.param
     assert await param.get_param_int("NAV_DLL_ACT") == 0
@@ -219,7 +221,7 @@ def test_mavsdk_param_plugin_gets_and_sets_integers_as_int32_and_reals_as_float(
 
 
 def test_pymavlink_knows_the_px4_modes_and_set_mode_loiter_switches(sitl):
-    conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{14550 + sitl.instance}", source_system=255)
+    conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{link.api_port(sitl.instance)}", source_system=255)
     hb = conn.wait_heartbeat(timeout=30)
     assert hb is not None and hb.autopilot == mavlink.MAV_AUTOPILOT_PX4
     mapping = conn.mode_mapping()
@@ -238,7 +240,7 @@ def test_pymavlink_knows_the_px4_modes_and_set_mode_loiter_switches(sitl):
 def test_pymavlink_reads_int32_parameters_bytewise_and_sets_them_as_int32_or_real32(sitl):
     """A pymavlink script written for PX4: every parameter read, an INT32 one decoded from its bytes (as
     MAVProxy does for a PX4), set by an older script's REAL32 and by pymavlink's own bytewise encoder."""
-    conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{14550 + sitl.instance}", source_system=255)
+    conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{link.api_port(sitl.instance)}", source_system=255)
     assert conn.wait_heartbeat(timeout=30) is not None
     int32, real32 = mavlink.MAV_PARAM_TYPE_INT32, mavlink.MAV_PARAM_TYPE_REAL32
 
@@ -360,7 +362,7 @@ def test_mavproxy_lean_install_downloads_every_parameter_and_the_mission(sitl, t
     # MAVProxy reads commands from standard input once it runs; give it the connection first.
     script = "wp list\nparam show RTL_RETURN_ALT\nparam show LOOP_INNER_HZ\n"
     proc = subprocess.Popen(
-        [sys.executable, str(mavproxy), f"--master=udpin:127.0.0.1:{14550 + sitl.instance}", "--source-system=250"],
+        [sys.executable, str(mavproxy), f"--master=udpin:127.0.0.1:{link.api_port(sitl.instance)}", "--source-system=250"],
         stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,

@@ -16,6 +16,8 @@ import pytest
 import tomllib
 from sitl_harness import free_instance, start_sitl
 
+from aco_gcs import link
+
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGE = ROOT / "gcs-scripts"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -115,20 +117,20 @@ def test_every_console_entry_point_names_a_main_function():
     ],
 )
 def test_pymavlink_scripts_exit_2_without_a_vehicle(name, args, tmp_path):
-    n = free_instance(200, 260)
+    n = free_instance(200, 254)
     started = time.monotonic()
     code, _, err = run_script(name, "--instance", n, "--heartbeat-timeout", 2, *args, timeout=60, cwd=tmp_path)
     assert code == 2, err
     assert "no vehicle HEARTBEAT" in err or "no plant HEARTBEAT" in err, err
-    assert str(14550 + n) in err or str(19550 + n) in err, "the message names the port it listened on"
+    assert str(link.api_port(n)) in err or str(19550 + n) in err, "the message names the port it listened on"
     assert time.monotonic() - started < 30
 
 
 def test_offboard_square_exits_2_without_a_vehicle(tmp_path):
-    n = free_instance(200, 260)
+    n = free_instance(200, 254)
     code, _, err = run_script("offboard_square", "--instance", n, "--heartbeat-timeout", 5, timeout=90, cwd=tmp_path)
     assert code == 2, err
-    assert f"no vehicle HEARTBEAT on udpin://0.0.0.0:{14540 + n}" in err, err
+    assert f"no vehicle HEARTBEAT on udpin://0.0.0.0:{link.api_port(n)}" in err, err
 
 
 def test_tlog_plot_exits_2_on_a_log_without_a_vehicle(tmp_path):
@@ -147,7 +149,7 @@ def wait_vehicle_time(instance, seconds, wall_s=60):
     """Listen on the API port (14540 + N) until the vehicle's time_boot_ms passes `seconds`."""
     from pymavlink import mavutil
 
-    conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{14540 + instance}")
+    conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{link.api_port(instance)}")
     try:
         end = time.monotonic() + wall_s
         while time.monotonic() < end:

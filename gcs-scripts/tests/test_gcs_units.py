@@ -11,11 +11,15 @@ import pytest
 from aco_gcs import figure8_mission, gust_hover, link, params
 
 
-def test_instance_n_shifts_every_port():
+def test_a_script_of_instance_n_listens_on_its_api_port_and_talks_to_its_autopilot():
     p = argparse.ArgumentParser()
     link.add_link_args(p)
-    assert link.resolve_link(p.parse_args([])) == ("udpin:127.0.0.1:14550", "127.0.0.1:18570")
-    assert link.resolve_link(p.parse_args(["-i", "3"])) == ("udpin:127.0.0.1:14553", "127.0.0.1:18573")
+    assert link.resolve_link(p.parse_args([])) == ("udpin:127.0.0.1:14540", "127.0.0.1:18570")
+    assert link.resolve_link(p.parse_args(["-i", "3"])) == ("udpin:127.0.0.1:14543", "127.0.0.1:18573")
+    # The API ports skip QGroundControl's 14550, which every instance sends to.
+    assert [link.api_port(n) for n in (9, 10, 254)] == [14549, 14551, 14795]
+    with pytest.raises(link.GcsError):
+        link.api_port(255)
     # An explicit connection keeps pymavlink's own addressing unless a target is given too.
     assert link.resolve_link(p.parse_args(["--connect", "tcp:127.0.0.1:5760"])) == ("tcp:127.0.0.1:5760", None)
 

@@ -11,6 +11,8 @@ from sitl_harness import start_sitl
 os.environ["MAVLINK20"] = "1"
 from pymavlink import mavutil
 
+from aco_gcs import link
+
 mavlink = mavutil.mavlink
 KEY = bytes(range(1, 33))
 AUTOPILOT_VERSION = 148
@@ -37,7 +39,7 @@ def tcp(sitl):
 
 
 def udp(sitl, signed):
-    conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{14550 + sitl.instance}", source_system=254, source_component=190)
+    conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{link.api_port(sitl.instance)}", source_system=254, source_component=190)
     assert conn.wait_heartbeat(timeout=30) is not None
     if signed:
         conn.mav.signing.secret_key = KEY

@@ -26,10 +26,11 @@ MAV_LANDED_STATE_ON_GROUND = 1
 
 
 class Gcs:
-    """A pymavlink ground station on the autopilot's fixed QGroundControl target (UDP 14550+N)."""
+    """A pymavlink ground station where QGroundControl listens: UDP 14550, which every instance sends to
+    (PX4's multi-vehicle convention); it takes only instance N's system id, N+1."""
 
     def __init__(self, instance):
-        self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{14550 + instance}", source_system=255)
+        self.conn = mavutil.mavlink_connection("udpin:127.0.0.1:14550", source_system=255)
         self.autopilot = ("127.0.0.1", 18570 + instance)
         self.deadline = time.monotonic() + WALL_LIMIT_S
         self.now_ms = 0
@@ -47,7 +48,7 @@ class Gcs:
     def pump(self):
         assert time.monotonic() < self.deadline, "wall-clock limit reached: the SITL hung"
         msg = self.conn.recv_match(blocking=True, timeout=0.5)
-        if msg is None:
+        if msg is None or msg.get_srcSystem() != self.target_system:
             return
         kind = msg.get_type()
         if hasattr(msg, "time_boot_ms"):
@@ -173,8 +174,14 @@ def sitl(request, tmp_path):
 
 def test_pymavlink_takes_off_holds_and_lands(sitl):
     gcs = Gcs(sitl)
-    hb = gcs.conn.wait_heartbeat(timeout=30)
-    assert hb is not None, "no HEARTBEAT from the autopilot"
+    hb = None
+    end = time.monotonic() + 30
+    while hb is None and time.monotonic() < end:
+        msg = gcs.conn.recv_match(type="HEARTBEAT", blocking=True, timeout=1)
+        if msg is not None and msg.get_srcSystem() == sitl + 1 and msg.get_srcComponent() == 1:
+            hb = msg
+            gcs.conn.target_system = sitl + 1
+    assert hb is not None, "no HEARTBEAT from the autopilot on 14550"
     assert hb.autopilot == mavutil.mavlink.MAV_AUTOPILOT_PX4 and hb.type == mavutil.mavlink.MAV_TYPE_QUADROTOR
     gcs.target_system = gcs.conn.target_system
     assert gcs.target_system == sitl + 1, "instance N is system N+1"

@@ -17,6 +17,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use autopilot::core::hil::ActuatorCommand;
+use autopilot::runtime::ports::{InstanceOutOfRange, InstancePorts};
 
 use crate::link::{LinkError, LinkStats, PlantServer, UdpTransport};
 use crate::plant::Plant;
@@ -43,8 +44,8 @@ pub enum LaunchError {
     Panicked,
     #[error("instance {instance} is in use: {port} is held by another process; {hint}")]
     InstanceInUse { instance: u16, port: InstancePort, hint: String },
-    #[error("instance {0} is too large: a port would exceed 65535")]
-    InstanceTooLarge(u16),
+    #[error(transparent)]
+    InstanceOutOfRange(#[from] InstanceOutOfRange),
 }
 
 /// A port an instance binds on this machine, and what it is for.
@@ -61,22 +62,23 @@ impl std::fmt::Display for InstancePort {
     }
 }
 
-/// The ports instance `n` binds: the plant's (UDP 4560+N) and its SIM_ parameters' (UDP 19550+N), and with
-/// `autopilot` the autopilot's own UDP (18570+N) and TCP (5760+N) ports, as `sitl run` starts it. The
-/// ports it sends to (14550, 14540+N) are the ground stations' and not among them.
+/// The ports instance `n` binds ([`InstancePorts`]): the plant's (UDP 4560+N) and its SIM_ parameters'
+/// (UDP 19550+N), and with `autopilot` the autopilot's own UDP (18570+N) and TCP (5760+N) ports, as `sitl
+/// run` starts it. The ports it sends to (14550, the API port 14540+N) are the ground stations' and not
+/// among them.
 ///
 /// # Errors
-/// [`LaunchError::InstanceTooLarge`] when a port would exceed 65535.
+/// [`LaunchError::InstanceOutOfRange`] above the largest instance.
 pub fn instance_ports(n: u16, autopilot: bool) -> Result<Vec<InstancePort>, LaunchError> {
-    let port = |base: u16| base.checked_add(n).ok_or(LaunchError::InstanceTooLarge(n));
+    let p = InstancePorts::of(n)?;
     let at = |ip: [u8; 4], port: u16| std::net::SocketAddr::from((ip, port));
     let mut ports = vec![
-        InstancePort { what: "the plant", tcp: false, addr: at([127, 0, 0, 1], port(4560)?) },
-        InstancePort { what: "the plant's SIM_ parameters", tcp: false, addr: at([127, 0, 0, 1], port(19550)?) },
+        InstancePort { what: "the plant", tcp: false, addr: at([127, 0, 0, 1], p.plant_udp) },
+        InstancePort { what: "the plant's SIM_ parameters", tcp: false, addr: at([127, 0, 0, 1], p.sim_params_udp) },
     ];
     if autopilot {
-        ports.push(InstancePort { what: "the autopilot", tcp: false, addr: at([0, 0, 0, 0], port(18570)?) });
-        ports.push(InstancePort { what: "the autopilot's TCP server", tcp: true, addr: at([0, 0, 0, 0], port(5760)?) });
+        ports.push(InstancePort { what: "the autopilot", tcp: false, addr: at([0, 0, 0, 0], p.autopilot_udp) });
+        ports.push(InstancePort { what: "the autopilot's TCP server", tcp: true, addr: at([0, 0, 0, 0], p.tcp) });
     }
     Ok(ports)
 }
@@ -94,7 +96,7 @@ pub fn first_taken(ports: &[InstancePort]) -> Option<InstancePort> {
 /// through a start.
 ///
 /// # Errors
-/// [`LaunchError::InstanceInUse`], or [`LaunchError::InstanceTooLarge`].
+/// [`LaunchError::InstanceInUse`], or [`LaunchError::InstanceOutOfRange`].
 pub fn check_instance_free(n: u16, autopilot: bool) -> Result<(), LaunchError> {
     let Some(port) = first_taken(&instance_ports(n, autopilot)?) else { return Ok(()) };
     let next = (n.saturating_add(1)..=n.saturating_add(64))
@@ -375,7 +377,7 @@ mod tests {
         );
         drop(held);
         assert!(check_instance_free(47, false).is_ok(), "free again once released");
-        assert!(matches!(check_instance_free(u16::MAX - 100, false), Err(LaunchError::InstanceTooLarge(_))));
+        assert!(matches!(check_instance_free(255, false), Err(LaunchError::InstanceOutOfRange(_))));
     }
 
     #[test]

@@ -18,6 +18,7 @@ use anyhow::{Context, Result, bail};
 use autopilot::core::control::{ControllerKind, LoopRates};
 use autopilot::core::estimator::EstimatorSource;
 use autopilot::core::vehicle::Vehicle;
+use autopilot::runtime::ports::InstancePorts;
 use autopilot::runtime::transport::{POLL_INTERVAL, SerialTransport, parse_serial_spec};
 use autopilot::runtime::{ConfigFile, Overrides, RuntimeConfig};
 use clap::{Args, Parser, Subcommand};
@@ -31,7 +32,7 @@ use sitl::scenario::reference::{ReferenceMode, ReferenceSpec, SplinePath};
 use sitl::scenario::runner::{self, RunOptions, RunOutput};
 use sitl::scenario::two_process::{self, TwoProcessOptions};
 use sitl::scenario::{BUILT_INS, MetricKind, Scenario};
-use sitl::sim_params::{SimParamLink, sim_param_port};
+use sitl::sim_params::SimParamLink;
 use std::ffi::OsString;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -62,8 +63,9 @@ enum Command {
 struct RunArgs {
     #[command(flatten)]
     plant: PlantArgs,
-    /// Instance N: plant on UDP 4560+N, autopilot on 18570+N, ground stations on 14550+N / 14540+N,
-    /// system id N+1; the plant's SIM_ parameters (wind, gusts) on UDP 19550+N.
+    /// Instance N (0..=254): plant on UDP 4560+N, autopilot on 18570+N and TCP 5760+N, telemetry to UDP
+    /// 14550 (QGroundControl, every instance) and the API port 14540+N (14541+N from N = 10), system id
+    /// N+1; the plant's SIM_ parameters (wind, gusts) on UDP 19550+N.
     #[arg(short = 'i', long, default_value_t = 0)]
     instance: u16,
     /// Autopilot estimator (fused, truth).
@@ -548,17 +550,17 @@ fn realistic_plant_config() -> PlantConfig {
 
 /// The plant's SIM_ parameter service for instance `n` (system n+1) on 127.0.0.1:19550+n, and its port.
 fn bind_sim_params(n: u16, plant: &Plant) -> Result<(SimParamLink, u16)> {
-    let port = sim_param_port(n).context("instance too large: the SIM_ parameter port would exceed 65535")?;
-    let system_id = u8::try_from(u32::from(n) + 1).context("instance too large: system id above 255")?;
+    let ports = InstancePorts::of(n)?;
+    let (port, system_id) = (ports.sim_params_udp, ports.system_id);
     let link = SimParamLink::bind(("127.0.0.1", port), system_id, plant)
         .with_context(|| format!("binding the SIM_ parameter port udp 127.0.0.1:{port}"))?;
     Ok((link, port))
 }
 
-/// The instance's ports: plant, autopilot, QGroundControl, MAVSDK.
+/// The instance's ports: plant, autopilot, QGroundControl (14550, shared by every instance), API.
 fn instance_ports(n: u16) -> Result<(u16, u16, u16, u16)> {
-    let port = |base: u16| base.checked_add(n).context("instance too large: a port would exceed 65535");
-    Ok((port(4560)?, port(18570)?, port(14550)?, port(14540)?))
+    let p = InstancePorts::of(n)?;
+    Ok((p.plant_udp, p.autopilot_udp, p.qgc_udp, p.api_udp))
 }
 
 fn duration_us(seconds: Option<f64>) -> Result<Option<u64>> {
@@ -799,7 +801,7 @@ fn bench(args: &BenchArgs) -> Result<()> {
     println!(
         "sitl bench: the default `sitl run` plant (nominal, modest sensor noise) and autopilot (fused estimator, \
          ACO, on the ground), telemetry to a ground station on udp {}",
-        14550 + u32::from(n)
+        InstancePorts::of(n)?.qgc_udp
     );
     for gcs in [true, false] {
         let (r, messages, _) = bench_once(n, Pacing::Lockstep, args.sim_s, gcs, &stop)?;

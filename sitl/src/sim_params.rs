@@ -68,8 +68,9 @@ use crate::link::{PLANT_COMPONENT_ID, PlantHook};
 use crate::plant::wind::{BEAUFORT, GaussMarkovConfig, beaufort};
 use crate::plant::{GustConfig, Plant, TurbulenceConfig, Wind};
 
-/// Instance N's SIM_ parameter port is this + N (on 127.0.0.1).
-pub const SIM_PARAM_PORT_BASE: u16 = 19550;
+/// Instance N's SIM_ parameter port is this + N (on 127.0.0.1; the instance port scheme is
+/// `autopilot::runtime::ports`).
+pub use autopilot::runtime::ports::SIM_PARAM_PORT_BASE;
 /// A peer that has not spoken for this long gets no more heartbeats.
 pub const PEER_EXPIRY: Duration = Duration::from_secs(10);
 /// Wall time between two heartbeats to the peers.
@@ -79,12 +80,6 @@ pub const HEARTBEAT_PERIOD: Duration = Duration::from_secs(1);
 const DORMANT_ONSET_S: f64 = 1e9;
 /// Release time of a gust that holds until SIM_GUST_ON = 0 (s of plant time).
 const HOLD_UNTIL_S: f64 = 2e9;
-
-/// Instance N's SIM_ parameter port, or `None` past 65535.
-#[must_use]
-pub fn sim_param_port(instance: u16) -> Option<u16> {
-    SIM_PARAM_PORT_BASE.checked_add(instance)
-}
 
 /// Index of each parameter in [`SIM_PARAMS`] (its `param_index`; never reused).
 mod idx {

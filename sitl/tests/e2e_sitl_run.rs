@@ -1,6 +1,6 @@
 //! End to end: `sitl run -i N --speed max` (plant server + the `autopilot` binary, lockstep, as fast as
-//! possible), flown by this test as a ground station over UDP exactly as QGroundControl would be: listen
-//! on 14550+N, command the autopilot at 18570+N. Waits on vehicle time (`time_boot_ms` of the telemetry),
+//! possible), flown by this test as a ground station over UDP as a script is: listen on the instance's API
+//! port 14540+N (QGroundControl's 14550 is shared by every instance), command the autopilot at 18570+N. Waits on vehicle time (`time_boot_ms` of the telemetry),
 //! never on wall sleeps; a wall-clock deadline fails the test instead of hanging, and a guard kills the
 //! whole process group (sitl and its autopilot child) however the test ends. One test runs `sitl run`
 //! without `--speed`, as a user first does, and checks that it paces at real time and says so. The plant-loss test runs the
@@ -19,6 +19,7 @@ use autopilot::core::mavlink::common::{
     MavCmd, MavLandedState, MavMessage, MavModeFlag, MavResult, MavSysStatusSensor,
 };
 use autopilot::core::mavlink::params::decode_value;
+use autopilot::runtime::ports::InstancePorts;
 
 const WALL_LIMIT: Duration = Duration::from_secs(120);
 const GCS: MavHeader = MavHeader { system_id: 255, component_id: 190, sequence: 0 };
@@ -147,21 +148,20 @@ fn sitl_run_with_the_truth_fed_estimator_flies_the_same_flight() {
     fly(&["--estimator", "truth"]);
 }
 
-/// A free instance N in 20..=60 with the ground-station sockets bound: 14550+N (QGroundControl's) and
-/// 14540+N (MAVSDK's), retried while another test or run holds them.
-fn free_instance() -> (u16, UdpSocket, UdpSocket) {
+/// A free instance N in 20..=60 with its API port bound (14541+N from N = 10: the port a script listens
+/// on; QGroundControl's 14550 is shared by every instance, so concurrent tests cannot each hold it),
+/// retried while another test or run holds it.
+fn free_instance() -> (u16, UdpSocket) {
     let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).expect("clock").subsec_nanos();
     for attempt in 0..40u32 {
         let n = 20 + u16::try_from((nanos.wrapping_add(attempt * 7919) ^ std::process::id()) % 41).expect("small");
-        if let (Ok(qgc), Ok(api)) =
-            (UdpSocket::bind(("127.0.0.1", 14550 + n)), UdpSocket::bind(("127.0.0.1", 14540 + n)))
-        {
-            qgc.set_read_timeout(Some(Duration::from_millis(100))).expect("timeout");
+        let port = InstancePorts::of(n).expect("in range").api_udp;
+        if let Ok(api) = UdpSocket::bind(("127.0.0.1", port)) {
             api.set_read_timeout(Some(Duration::from_millis(100))).expect("timeout");
-            return (n, qgc, api);
+            return (n, api);
         }
     }
-    panic!("no free ground-station ports 14550+N / 14540+N");
+    panic!("no free API port for instances 20..=60");
 }
 
 /// The `sitl` binary, with an up-to-date `autopilot` binary built next to it.
@@ -217,7 +217,7 @@ fn interrupt(guard: &mut Guard) -> (std::process::ExitStatus, String) {
 
 /// The flight, as fast as possible (`--speed max`): waits are on vehicle time.
 fn fly(extra_args: &[&str]) {
-    let (n, socket, _api) = free_instance();
+    let (n, socket) = free_instance();
     let mut guard = start_sitl_run(n, &[&["--speed", "max"][..], extra_args].concat());
     let wall_start = Instant::now();
     let mut gcs = Gcs {
@@ -314,7 +314,7 @@ fn fly(extra_args: &[&str]) {
 #[test]
 fn sitl_run_without_speed_paces_at_real_time_and_says_so() {
     // GIVEN `sitl run` as a user first starts it: no --speed (lockstep alone runs 20-150x real time).
-    let (n, socket, _api) = free_instance();
+    let (n, socket) = free_instance();
     let mut guard = start_sitl_run(n, &[]);
     let sysid = u8::try_from(n + 1).expect("sysid");
     // WHEN a ground station reads the vehicle's clock (time_boot_ms) for 2.5 s of wall time from the
@@ -357,6 +357,21 @@ fn sitl_run_without_speed_paces_at_real_time_and_says_so() {
     assert!(banner.contains("running at real time (1x)") && banner.contains("--speed max"), "{banner}");
 }
 
+/// The largest vehicle time (`time_boot_ms` of ATTITUDE or LOCAL_POSITION_NED) in one datagram, 0 if none
+/// (a fresh decoder: the autopilot sends whole frames per datagram).
+fn latest_time_ms(datagram: &[u8]) -> u32 {
+    FrameDecoder::new()
+        .decode_datagram(datagram)
+        .into_iter()
+        .filter_map(|f| match f.message {
+            MavMessage::ATTITUDE(a) => Some(a.time_boot_ms),
+            MavMessage::LOCAL_POSITION_NED(p) => Some(p.time_boot_ms),
+            _ => None,
+        })
+        .max()
+        .unwrap_or(0)
+}
+
 /// Heartbeat sequence numbers from system `sysid` in one datagram.
 fn heartbeat_seqs(decoder: &mut FrameDecoder, datagram: &[u8], sysid: u8) -> Vec<u8> {
     decoder
@@ -369,9 +384,9 @@ fn heartbeat_seqs(decoder: &mut FrameDecoder, datagram: &[u8], sysid: u8) -> Vec
 
 #[test]
 fn two_ground_station_peers_both_receive_every_heartbeat() {
-    // GIVEN `sitl run`, a script that only listens on the MAVSDK port 14540+N (a fixed target, never
+    // GIVEN `sitl run`, a script that only listens on the API port 14540+N (a fixed target, never
     // speaking), and a ground station that speaks from a port of its own with 1 Hz heartbeats (a peer).
-    let (n, qgc, silent) = free_instance();
+    let (n, silent) = free_instance();
     let _guard = start_sitl_run(n, &["--speed", "max"]);
     let sysid = u8::try_from(n + 1).expect("sysid");
     let peer = UdpSocket::bind("127.0.0.1:0").expect("bind peer");
@@ -379,9 +394,9 @@ fn two_ground_station_peers_both_receive_every_heartbeat() {
     let autopilot = format!("127.0.0.1:{}", 18570 + n);
     let hello = encode_frame_v2(GCS, &autopilot::core::mavlink::gcs_heartbeat());
 
-    // WHEN the vehicle has run 30 s of its time after the peer joined (the QGroundControl port tells time).
+    // WHEN the vehicle has run 30 s of its time after the peer joined (the script's telemetry tells time).
     let wall_start = Instant::now();
-    let mut decoders = [FrameDecoder::new(), FrameDecoder::new(), FrameDecoder::new()];
+    let mut decoders = [FrameDecoder::new(), FrameDecoder::new()];
     let mut seen: [Vec<u8>; 2] = [Vec::new(), Vec::new()];
     let mut last_hello: Option<Instant> = None;
     let mut joined_ms: Option<u32> = None;
@@ -393,19 +408,12 @@ fn two_ground_station_peers_both_receive_every_heartbeat() {
             peer.send_to(&hello, &autopilot).expect("peer heartbeat");
             last_hello = Some(Instant::now());
         }
-        if let Ok(len) = qgc.recv(&mut buf) {
-            for f in decoders[2].decode_datagram(&buf[..len]) {
-                let t = match f.message {
-                    MavMessage::ATTITUDE(a) => a.time_boot_ms,
-                    MavMessage::LOCAL_POSITION_NED(p) => p.time_boot_ms,
-                    _ => continue,
-                };
-                now_ms = now_ms.max(t);
-            }
-        }
         for (i, socket) in [&silent, &peer].into_iter().enumerate() {
             socket.set_nonblocking(true).expect("nonblocking");
             while let Ok(len) = socket.recv(&mut buf) {
+                if i == 0 {
+                    now_ms = now_ms.max(latest_time_ms(&buf[..len]));
+                }
                 let seqs = heartbeat_seqs(&mut decoders[i], &buf[..len], sysid);
                 if i == 1 && !seqs.is_empty() {
                     joined_ms.get_or_insert(now_ms);
@@ -430,7 +438,7 @@ fn two_ground_station_peers_both_receive_every_heartbeat() {
 fn gust_hover_through_two_processes_reproduces_the_in_process_metrics_within_5_percent() {
     // GIVEN the gust-hover scenario (Beaufort-4 gust, mismatch plant, the paper's state noise), ACO,
     // truth-fed: once in-process, once through the plant server and the autopilot process in lockstep.
-    let (n, _qgc, _api) = free_instance();
+    let (n, _api) = free_instance();
     let out = Command::new(sitl_binary())
         .args(["run", "--scenario", "gust-hover", "--controller", "aco", "--json", "-i", &n.to_string()])
         .output()
@@ -460,7 +468,7 @@ fn figure8_flown_as_a_mission_through_two_processes_tracks_within_1_5x_of_the_in
     // GIVEN the figure-8 scenario (mismatch plant, the paper's 2 cm position noise), ACO: once in-process
     // (the runner's reference, truth plus noise to the controller), once as a mission uploaded to the
     // autopilot process, flown from the ground on its fused estimator (GPS at 2 cm).
-    let (n, _qgc, _api) = free_instance();
+    let (n, _api) = free_instance();
     let out = Command::new(sitl_binary())
         .args(["run", "--scenario", "figure8", "--controller", "aco", "--json", "-i", &n.to_string()])
         .output()
@@ -519,7 +527,7 @@ fn parameters_and_the_mission_survive_a_restart_of_the_autopilot() {
         MISSION_COUNT_DATA, MISSION_ITEM_INT_DATA, MISSION_REQUEST_INT_DATA, MISSION_REQUEST_LIST_DATA, MavFrame,
         MavMissionResult, MavParamType, PARAM_REQUEST_READ_DATA, PARAM_SET_DATA,
     };
-    let (n, socket, _api) = free_instance();
+    let (n, socket) = free_instance();
     let sysid = u8::try_from(n + 1).expect("sysid");
     let state = std::env::temp_dir().join(format!("sitl-e2e-state-{}-{n}", std::process::id()));
     let _ = std::fs::remove_dir_all(&state);
@@ -710,7 +718,7 @@ fn listen(
 fn a_plant_killed_and_restarted_keeps_the_heartbeat_meanwhile_and_its_new_clock_gets_one_within_1_s() {
     use autopilot::core::mavlink::common::MavState;
     use autopilot::runtime::plant_link::{PLANT_LOST_TEXT, PLANT_RESTARTED_TEXT};
-    let (n, socket, _api) = free_instance();
+    let (n, socket) = free_instance();
     let sysid = u8::try_from(n + 1).expect("sysid");
     let spawn = |program: &std::path::Path, args: &[&str]| {
         Guard(

@@ -25,20 +25,21 @@
 //! source = "fused"
 //! ```
 //!
-//! Defaults (instance N): plant `udp://127.0.0.1:4560+N`, UDP bound on `0.0.0.0:18570+N` sending to
-//! `127.0.0.1:14550+N` and `127.0.0.1:14540+N`, TCP on `0.0.0.0:5760+N`, system id N+1. Addresses given in
-//! the file are taken as written (not shifted by N).
+//! Defaults (instance N, [`super::ports`]): plant `udp://127.0.0.1:4560+N`, UDP bound on `0.0.0.0:18570+N`
+//! sending to `127.0.0.1:14550` (QGroundControl, shared by every instance, as PX4's) and to the instance's
+//! API port `127.0.0.1:14540+N` (14541+N from N = 10, skipping 14550), TCP on `0.0.0.0:5760+N`, system id
+//! N+1. Addresses given in the file are taken as written (not shifted by N).
 
 use std::net::{Ipv4Addr, SocketAddr, SocketAddrV4, ToSocketAddrs};
 use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
-use super::tcp::{TCP_PORT, TcpConfig};
+use super::ports::InstancePorts;
+use super::tcp::TcpConfig;
 use super::transport::parse_serial_spec;
 use super::udp::{PEER_EXPIRY, UdpConfig};
 use crate::core::config::VehicleConfig;
-use crate::core::hil::DEFAULT_PLANT_PORT;
 
 /// A configuration that cannot be used; the message names the file and the key.
 #[derive(Debug, thiserror::Error)]
@@ -206,17 +207,8 @@ pub fn default_state_dir(instance: u16) -> Option<PathBuf> {
     Some(base.join("aco-autopilot").join(format!("i{instance}")))
 }
 
-fn shifted(base: u16, instance: u16, what: &'static str) -> Result<u16, ConfigError> {
-    base.checked_add(instance)
-        .ok_or_else(|| ConfigError::Invalid { key: what, message: format!("instance {instance} is too large") })
-}
-
 fn local(port: u16) -> SocketAddr {
     SocketAddr::V4(SocketAddrV4::new(Ipv4Addr::LOCALHOST, port))
-}
-
-fn any(port: u16) -> SocketAddr {
-    SocketAddr::V4(SocketAddrV4::new(Ipv4Addr::UNSPECIFIED, port))
 }
 
 impl RuntimeConfig {
@@ -226,19 +218,16 @@ impl RuntimeConfig {
     /// [`ConfigError::Invalid`] naming the key: an instance whose system id or ports do not fit, a plant
     /// or serial spec that does not parse, a TCP address that is neither an address nor `off`.
     pub fn resolve(file: ConfigFile, instance: u16, overrides: Overrides) -> Result<Self, ConfigError> {
-        let sysid = u8::try_from(u32::from(instance) + 1).map_err(|_| ConfigError::Invalid {
-            key: "instance",
-            message: format!("instance {instance}: the system id N+1 must be at most 255"),
-        })?;
+        let ports = InstancePorts::of(instance)
+            .map_err(|e| ConfigError::Invalid { key: "instance", message: e.to_string() })?;
+        let sysid = ports.system_id;
         let plant = match overrides.plant.or(file.plant.link) {
             Some(spec) => {
                 PlantEndpoint::parse(&spec).map_err(|message| ConfigError::Invalid { key: "plant.link", message })?
             }
-            None => PlantEndpoint::Udp(local(shifted(DEFAULT_PLANT_PORT, instance, "plant.link")?)),
+            None => PlantEndpoint::Udp(local(ports.plant_udp)),
         };
-        let default_udp = UdpConfig::for_instance(instance);
-        shifted(super::udp::LOCAL_PORT, instance, "gcs.udp_bind")?;
-        shifted(super::udp::QGC_PORT, instance, "gcs.udp_targets")?;
+        let default_udp = UdpConfig::for_ports(&ports);
         let udp = UdpConfig {
             link: 0,
             bind: file.gcs.udp_bind.unwrap_or(default_udp.bind),
@@ -254,7 +243,7 @@ impl RuntimeConfig {
                     message: format!("`{addr}` is not an address (or `off`): {e}"),
                 })?,
             }),
-            None => Some(TcpConfig { link: 1, bind: any(shifted(TCP_PORT, instance, "gcs.tcp_bind")?) }),
+            None => Some(TcpConfig::for_ports(&ports)),
         };
         let serial = file
             .gcs
@@ -295,7 +284,7 @@ mod tests {
         assert_eq!(c.plant, PlantEndpoint::Udp("127.0.0.1:4563".parse().expect("addr")));
         assert_eq!(c.vehicle.sysid, 4);
         assert_eq!(c.udp.bind, "0.0.0.0:18573".parse().expect("addr"));
-        assert_eq!(c.udp.targets, vec![local(14553), local(14543)]);
+        assert_eq!(c.udp.targets, vec![local(14550), local(14543)], "QGroundControl's port is shared");
         assert_eq!(c.tcp.map(|t| t.bind), Some("0.0.0.0:5763".parse().expect("addr")));
         assert_eq!((c.serial, c.log_dir), (None, None));
     }

@@ -12,6 +12,7 @@ pub mod frame;
 pub mod link;
 pub mod persist;
 pub mod plant_link;
+pub mod ports;
 pub mod serial;
 pub mod shutdown;
 pub mod signing;

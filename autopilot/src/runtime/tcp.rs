@@ -23,11 +23,10 @@ use tokio::task::JoinSet;
 
 use super::frame::{CountingDecoder, LinkCounters};
 use super::link::{Destination, Incoming, LinkError, LinkId, Outgoing, deliver};
+use super::ports::InstancePorts;
 use super::shutdown::Shutdown;
 use super::signing::LinkSigning;
 
-/// SITL's TCP port for instance 0; instance N listens on `TCP_PORT + N`.
-pub const TCP_PORT: u16 = 5760;
 /// Frames queued to one client before it counts as stalled and its frames are dropped.
 pub const CLIENT_QUEUE_FRAMES: usize = 256;
 /// The most clients served at once; a connection beyond it is closed at once (and logged), so idle
@@ -46,19 +45,16 @@ pub struct TcpConfig {
 }
 
 impl TcpConfig {
-    /// `0.0.0.0:5760 + instance` (wrapping at 65535 rather than panic).
+    /// `0.0.0.0:5760 + N` for an instance ([`InstancePorts`]).
     #[must_use]
-    pub fn for_instance(instance: u16) -> Self {
-        Self {
-            link: 1,
-            bind: SocketAddr::V4(SocketAddrV4::new(Ipv4Addr::UNSPECIFIED, TCP_PORT.wrapping_add(instance))),
-        }
+    pub fn for_ports(ports: &InstancePorts) -> Self {
+        Self { link: 1, bind: SocketAddr::V4(SocketAddrV4::new(Ipv4Addr::UNSPECIFIED, ports.tcp)) }
     }
 }
 
 impl Default for TcpConfig {
     fn default() -> Self {
-        Self::for_instance(0)
+        Self::for_ports(&InstancePorts::FIRST)
     }
 }
 
@@ -394,7 +390,10 @@ mod tests {
 
     #[test]
     fn instance_shifts_the_port() {
-        assert_eq!(TcpConfig::for_instance(3).bind, "0.0.0.0:5763".parse().expect("addr"));
+        assert_eq!(
+            TcpConfig::for_ports(&InstancePorts::of(3).expect("in range")).bind,
+            "0.0.0.0:5763".parse().expect("addr")
+        );
     }
 
     #[tokio::test]

@@ -26,15 +26,10 @@ use tokio::time::Instant;
 
 use super::frame::{CountingDecoder, LinkCounters};
 use super::link::{Destination, Incoming, LinkError, LinkId, Outgoing, deliver};
+use super::ports::InstancePorts;
 use super::shutdown::Shutdown;
 use super::signing::LinkSigning;
 
-/// PX4 SITL's local GCS port for instance 0; instance N binds `LOCAL_PORT + N`.
-pub const LOCAL_PORT: u16 = 18570;
-/// QGroundControl's port for instance 0.
-pub const QGC_PORT: u16 = 14550;
-/// MAVSDK / API port for instance 0.
-pub const API_PORT: u16 = 14540;
 /// How long a peer stays in the table without sending a valid frame.
 pub const PEER_EXPIRY: Duration = Duration::from_secs(10);
 /// Largest UDP payload, in bytes: a datagram may hold several frames.
@@ -56,15 +51,15 @@ pub struct UdpConfig {
 }
 
 impl UdpConfig {
-    /// PX4 SITL's layout for instance `instance`: bind 0.0.0.0:18570+N, send to 127.0.0.1:14550+N and
-    /// 127.0.0.1:14540+N. Ports wrap around at 65535 rather than panic on absurd instance numbers.
+    /// PX4 SITL's layout for an instance ([`InstancePorts`]): bind 0.0.0.0:18570+N, send to QGroundControl
+    /// on 127.0.0.1:14550 (every instance) and to the instance's API port 127.0.0.1:14540+N.
     #[must_use]
-    pub fn for_instance(instance: u16) -> Self {
-        let local = |port: u16| SocketAddr::V4(SocketAddrV4::new(Ipv4Addr::LOCALHOST, port.wrapping_add(instance)));
+    pub fn for_ports(ports: &InstancePorts) -> Self {
+        let local = |port: u16| SocketAddr::V4(SocketAddrV4::new(Ipv4Addr::LOCALHOST, port));
         Self {
             link: 0,
-            bind: SocketAddr::V4(SocketAddrV4::new(Ipv4Addr::UNSPECIFIED, LOCAL_PORT.wrapping_add(instance))),
-            targets: vec![local(QGC_PORT), local(API_PORT)],
+            bind: SocketAddr::V4(SocketAddrV4::new(Ipv4Addr::UNSPECIFIED, ports.autopilot_udp)),
+            targets: vec![local(ports.qgc_udp), local(ports.api_udp)],
             peer_expiry: PEER_EXPIRY,
         }
     }
@@ -72,7 +67,7 @@ impl UdpConfig {
 
 impl Default for UdpConfig {
     fn default() -> Self {
-        Self::for_instance(0)
+        Self::for_ports(&InstancePorts::FIRST)
     }
 }
 
@@ -364,10 +359,10 @@ mod tests {
     }
 
     #[test]
-    fn instance_shifts_every_port() {
-        let c = UdpConfig::for_instance(2);
+    fn every_instance_sends_to_qgroundcontrols_port_and_its_own_api_port() {
+        let c = UdpConfig::for_ports(&InstancePorts::of(2).expect("in range"));
         assert_eq!(c.bind, "0.0.0.0:18572".parse().expect("addr"));
-        assert_eq!(c.targets, vec!["127.0.0.1:14552".parse().expect("addr"), "127.0.0.1:14542".parse().expect("addr")]);
+        assert_eq!(c.targets, vec!["127.0.0.1:14550".parse().expect("addr"), "127.0.0.1:14542".parse().expect("addr")]);
         assert_eq!(c.peer_expiry, Duration::from_secs(10));
     }
 
