@@ -470,6 +470,32 @@ fn truth_plausible(truth: &TruthSample) -> bool {
         && finite3(&truth.specific_force_frd_mps2)
 }
 
+/// The fused filter's latest innovations (measurement minus the prediction it was compared with), fused
+/// or refused by the gate; NaN until a measurement of that kind was compared, and always with the
+/// `Truth` source. What PX4 logs as `estimator_innovations`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Innovations {
+    /// GPS velocity (m/s, NED).
+    pub gps_vel_ned_mps: [f64; 3],
+    /// GPS position (m, NED).
+    pub gps_pos_ned_m: [f64; 3],
+    /// Barometric height (m, up).
+    pub baro_alt_m: f64,
+    /// Magnetic heading (rad).
+    pub heading_rad: f64,
+}
+
+impl Default for Innovations {
+    fn default() -> Self {
+        Self {
+            gps_vel_ned_mps: [f64::NAN; 3],
+            gps_pos_ned_m: [f64::NAN; 3],
+            baro_alt_m: f64::NAN,
+            heading_rad: f64::NAN,
+        }
+    }
+}
+
 /// The estimator: the source switch, the input sanitiser and the fused filter.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Estimator {
@@ -588,6 +614,15 @@ impl Estimator {
         match self.config.source {
             EstimatorSource::Fused => self.fusion.state(),
             EstimatorSource::Truth => &self.truth_state,
+        }
+    }
+
+    /// The fused filter's latest innovations (all NaN with the `Truth` source).
+    #[must_use]
+    pub fn innovations(&self) -> Innovations {
+        match self.config.source {
+            EstimatorSource::Fused => *self.fusion.innovations(),
+            EstimatorSource::Truth => Innovations::default(),
         }
     }
 
