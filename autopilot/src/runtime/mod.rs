@@ -19,6 +19,8 @@ pub mod tcp;
 pub mod tlog;
 pub mod transport;
 pub mod udp;
+pub mod ulog;
+pub mod utc;
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -291,7 +293,9 @@ pub async fn run(config: RuntimeConfig) -> Result<PlantLinkStats, RuntimeError> 
     let (tlog_tx, tlog_task) = match &config.log_dir {
         Some(dir) => {
             std::fs::create_dir_all(dir).map_err(|source| RuntimeError::LogDir { path: dir.clone(), source })?;
-            let name = format!("{}_i{}", wall_us() / 1_000_000, config.instance);
+            // UTC date and time, so that the names sort in the order of the runs.
+            let started = utc::UtcTime::from_unix_us(wall_us());
+            let name = format!("{}_{}_i{}", started.date(), started.time('-'), config.instance);
             let writer = TlogWriter::create(dir, &name)?;
             tracing::info!(path = %writer.temp_path().display(), "tlog open");
             let (tx, rx) = mpsc::channel(TLOG_CHANNEL_CAPACITY);
