@@ -3,10 +3,15 @@ hold, land; paced at 10x real time) leaves exactly one `.ulg` under the state di
 `log/<date>/`, which pyulog parses (its library, and its `ulog_info` and `ulog2csv` commands), with the
 format version and flag bits PX4 writes, the parameters, the topics of the estimator, the setpoints, the
 controller (the ACO weights included), the motors, the battery and the vehicle status, and the mode changes
-as logged messages; `aco-ulog-plot` draws it. Nothing is written with `--no-ulog`."""
+as logged messages; `aco-ulog-plot` draws it. A flight cut short by SIGTERM in the air is finalized all the same;
+nothing is written with `--no-ulog`."""
 
+import os
+import re
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -40,6 +45,15 @@ def fly(sitl):
     vehicle.wait_until(6.0, "a 5 s hold", lambda: vehicle.now_s() >= end)
     land(vehicle)
     return vehicle
+
+
+def pid_alive(pid):
+    """Whether process `pid` still runs (a zombie counts as gone)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().split(")")[-1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
 
 
 def ulogs(state):
@@ -138,6 +152,33 @@ def test_a_flight_leaves_one_ulog_that_pyulog_reads_with_px4s_topics(flown):
     )
     assert plot.returncode == 0, plot.stderr
     assert png.read_bytes()[:8] == PNG_MAGIC
+
+
+def test_a_flight_stopped_in_the_air_by_sigterm_is_still_finalized(tmp_path):
+    sitl = start_sitl(tmp_path, speed="10")
+    try:
+        vehicle = Vehicle(f"udpin:127.0.0.1:{QGC_PORT + sitl.instance}", f"127.0.0.1:{AUTOPILOT_PORT + sitl.instance}", 240.0)
+        vehicle.wait_heartbeat(30.0, sitl.instance)
+        ground, _ = wait_ready(vehicle)
+        takeoff(vehicle, 1.0, ground)
+        assert vehicle.armed
+        autopilot_pid = int(re.search(r"autopilot pid (\d+)", sitl.log_path.read_text()).group(1))
+        # SIGTERM to the group: `sitl` dies at once (it has no handler), the autopilot finalizes its log.
+        os.killpg(sitl.proc.pid, signal.SIGTERM)
+        sitl.proc.wait(timeout=20)
+        deadline = time.monotonic() + 20
+        while pid_alive(autopilot_pid):
+            assert time.monotonic() < deadline, "the autopilot did not stop on SIGTERM"
+            time.sleep(0.05)
+    finally:
+        sitl.stop()
+    print(sitl.log_tail())
+    files = ulogs(tmp_path / "state")
+    assert len(files) == 1 and not list((tmp_path / "state" / "log").glob("*/*.tmp")), list((tmp_path / "state").rglob("*"))
+    from pyulog import ULog
+
+    status = ULog(str(files[0]), message_name_filter_list=["vehicle_status"]).data_list[0].data
+    assert all(a == 2 for a in status["arming_state"]), "it ended armed, in the air"
 
 
 def test_no_ulog_writes_no_flight_log(tmp_path):
