@@ -959,6 +959,14 @@ mod tests {
         assert_eq!(field_name("aco.w_t_n"), "w_t_n");
         assert_eq!(field_name("ca.roll.k1"), "roll_k1");
         assert_eq!(field_name("plain"), "plain");
+        // Every controller's telemetry gives distinct, plain field names.
+        for kind in [ControllerKind::Aco, ControllerKind::Ca, ControllerKind::Pid] {
+            let c = crate::core::control::new_controller(kind, &VehicleConfig::default().control);
+            let names: Vec<String> = c.telemetry().iter().map(|(n, _)| field_name(n)).collect();
+            let unique: std::collections::HashSet<&String> = names.iter().collect();
+            assert_eq!(unique.len(), names.len(), "{kind}: {names:?}");
+            assert!(names.iter().all(|n| !n.is_empty() && n.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')));
+        }
         // Each topic's record matches its format for every controller.
         let v = vehicle();
         let snap = v.log_snapshot();
