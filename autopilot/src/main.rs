@@ -38,9 +38,13 @@ struct Cli {
     /// Controller: aco, ca or pid.
     #[arg(long)]
     controller: Option<ControllerKind>,
-    /// Directory for `.tlog` flight logs (none if omitted).
+    /// Directory for `.tlog` logs of the ground-station traffic (none if omitted).
     #[arg(long)]
     log_dir: Option<PathBuf>,
+    /// No onboard ULog flight log (by default one per armed flight in <state dir>/log/<date>/<time>.ulg,
+    /// or in --log-dir when the state directory is off; the SDLOG_MODE parameter = -1 also turns it off).
+    #[arg(long)]
+    no_ulog: bool,
     /// Directory where parameters and the mission persist across restarts, or `off` (default:
     /// ~/.local/state/aco-autopilot/iN).
     #[arg(long)]
@@ -83,6 +87,7 @@ fn run(cli: Cli) -> Result<()> {
     let overrides = Overrides {
         plant: cli.plant,
         log_dir: cli.log_dir,
+        no_ulog: cli.no_ulog,
         stop_on_stdin_eof: cli.stop_on_stdin_eof,
         state_dir: cli.state_dir,
         signing_key_file: cli.signing_key_file,
@@ -122,6 +127,8 @@ fn run(cli: Cli) -> Result<()> {
             plant_malformed = stats.plant_decoder.malformed(),
             gcs_dropped = stats.gcs_dropped,
             statustext_suppressed = stats.statustext_suppressed,
+            ulog_flights = stats.ulog_flights,
+            ulog_dropped = stats.ulog_dropped,
             "autopilot stopped"
         );
     }

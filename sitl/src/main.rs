@@ -77,6 +77,10 @@ struct RunArgs {
     /// Autopilot `.tlog` directory.
     #[arg(long)]
     log_dir: Option<PathBuf>,
+    /// No onboard ULog flight log from the autopilot (by default one per armed flight, in the state
+    /// directory's log/<date>/<time>.ulg).
+    #[arg(long)]
+    no_ulog: bool,
     /// Autopilot configuration file (TOML; see `autopilot --help`).
     #[arg(long, conflicts_with = "scenario")]
     autopilot_config: Option<PathBuf>,
@@ -616,6 +620,9 @@ fn run(args: &RunArgs) -> Result<()> {
     if let Some(dir) = &args.log_dir {
         ap_args.push("--log-dir".into());
         ap_args.push(dir.into());
+    }
+    if args.no_ulog {
+        ap_args.push("--no-ulog".into());
     }
     let stop = launch::ctrl_c_flag();
     if let Some(name) = &args.scenario {

@@ -19,12 +19,12 @@ use ::mavlink::MavHeader;
 use ::mavlink::dialects::common::{MISSION_CURRENT_DATA, MISSION_ITEM_REACHED_DATA, MavFrame, MavMessage, MavSeverity};
 use nalgebra::Vector3;
 
-use crate::core::battery::BatterySample;
+use crate::core::battery::{BatterySample, BatteryStatus};
 use crate::core::commander::{Commander, CommanderInputs, CommanderOutput, Estimate, FlightMode, LandedState, Request};
 pub use crate::core::config::{AirborneStart, VehicleConfig, VehicleError};
-use crate::core::control::{ControlInput, Controller, Reference, distributor, try_new_controller};
+use crate::core::control::{ControlInput, Controller, ControllerKind, Reference, distributor, try_new_controller};
 use crate::core::estimator::{
-    BaroSample, Estimator, EstimatorSource, EstimatorState, GpsSample, ImuSample, MagSample, TruthSample,
+    BaroSample, Estimator, EstimatorSource, EstimatorState, GpsSample, ImuSample, Innovations, MagSample, TruthSample,
 };
 use crate::core::geofence::{Fence, Rally, Violation};
 use crate::core::mavlink::command::AUTOPILOT_VERSION_ID;
@@ -68,6 +68,27 @@ pub struct VehicleOutputs {
     pub armed: bool,
     /// Telemetry due this step (HEARTBEAT, STATUSTEXT of events, streams), for every ground station.
     pub messages: Vec<MavMessage>,
+}
+
+/// What the onboard log records of the vehicle after a step, copied out so that the shell encodes it
+/// without reaching into the vehicle: the estimate and the fused filter's innovations, the reference
+/// flown and the controller's attitude setpoint, the motor commands and the commander's state. The
+/// controller's own values (adaptive weights and the rest) are [`Controller::telemetry`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct LogSnapshot {
+    pub estimate: EstimatorState,
+    pub innovations: Innovations,
+    /// The reference of the last step (None: motors idle).
+    pub reference: Option<Reference>,
+    /// The attitude (roll, pitch, yaw) the controller's position loop last asked for (rad).
+    pub attitude_setpoint_rad: Vector3<f64>,
+    /// Motor commands (µs), rotors 1..4 as in the paper.
+    pub pwm_us: [f64; 4],
+    pub armed: bool,
+    pub mode: FlightMode,
+    pub landed: LandedState,
+    pub battery: BatteryStatus,
+    pub controller: ControllerKind,
 }
 
 /// What the vehicle asks of the shell around it.
@@ -233,6 +254,23 @@ impl Vehicle {
     #[must_use]
     pub fn reference(&self) -> Option<&Reference> {
         self.reference.as_ref()
+    }
+
+    /// What the onboard log records of the last step (see [`LogSnapshot`]).
+    #[must_use]
+    pub fn log_snapshot(&self) -> LogSnapshot {
+        LogSnapshot {
+            estimate: *self.estimator.state(),
+            innovations: self.estimator.innovations(),
+            reference: self.reference,
+            attitude_setpoint_rad: self.controller.attitude_setpoint_rad(),
+            pwm_us: self.pwm_us,
+            armed: self.output.armed,
+            mode: self.output.mode,
+            landed: self.output.landed,
+            battery: self.output.battery,
+            controller: self.controller.kind(),
+        }
     }
 
     /// The malformed frames the shell's links have dropped so far (reported in SYS_STATUS errors_comm).

@@ -14,6 +14,7 @@
 //!
 //! [log]
 //! dir = "logs"                         # .tlog of all ground-station traffic per run (none by default)
+//! ulog = true                          # a ULog per armed flight in <state dir>/log/ (false: none)
 //!
 //! [state]
 //! dir = "state"                        # parameters and mission kept across restarts; "off": none
@@ -83,6 +84,8 @@ pub struct GcsSection {
 #[serde(default, deny_unknown_fields)]
 pub struct LogSection {
     pub dir: Option<PathBuf>,
+    /// The onboard ULog flight log (default on).
+    pub ulog: Option<bool>,
 }
 
 /// `[state]`.
@@ -178,6 +181,10 @@ pub struct RuntimeConfig {
     pub serial: Option<(String, u32)>,
     /// Where `.tlog` files go; `None`: no log.
     pub log_dir: Option<PathBuf>,
+    /// Where the ULog flight logs go (`<this>/<date>/<time>.ulg`): the state directory's `log/`, or with
+    /// the state directory off the `.tlog` directory; `None`: no flight log (`--no-ulog`,
+    /// `[log] ulog = false`, or neither directory).
+    pub ulog_dir: Option<PathBuf>,
     /// Stop when standard input closes (set by `sitl run`, so that the autopilot never outlives it).
     pub stop_on_stdin_eof: bool,
     /// Where parameters and the mission persist across restarts; `None`: nowhere.
@@ -191,6 +198,8 @@ pub struct RuntimeConfig {
 pub struct Overrides {
     pub plant: Option<String>,
     pub log_dir: Option<PathBuf>,
+    /// `--no-ulog`: no onboard flight log.
+    pub no_ulog: bool,
     pub stop_on_stdin_eof: bool,
     /// A state directory, or `off`.
     pub state_dir: Option<String>,
@@ -256,6 +265,14 @@ impl RuntimeConfig {
             Some(dir) => Some(PathBuf::from(dir)),
             None => default_state_dir(instance),
         };
+        let log_dir = overrides.log_dir.or(file.log.dir);
+        let ulog = !overrides.no_ulog && file.log.ulog.unwrap_or(true);
+        let ulog_dir = match (&state_dir, &log_dir) {
+            _ if !ulog => None,
+            (Some(state), _) => Some(state.join("log")),
+            (None, Some(logs)) => Some(logs.clone()),
+            (None, None) => None,
+        };
         Ok(Self {
             plant,
             instance,
@@ -263,7 +280,8 @@ impl RuntimeConfig {
             udp,
             tcp,
             serial,
-            log_dir: overrides.log_dir.or(file.log.dir),
+            log_dir,
+            ulog_dir,
             stop_on_stdin_eof: overrides.stop_on_stdin_eof,
             state_dir,
             signing_key_file: overrides.signing_key_file.or(file.gcs.signing_key_file),
@@ -287,6 +305,25 @@ mod tests {
         assert_eq!(c.udp.targets, vec![local(14550), local(14543)], "QGroundControl's port is shared");
         assert_eq!(c.tcp.map(|t| t.bind), Some("0.0.0.0:5763".parse().expect("addr")));
         assert_eq!((c.serial, c.log_dir), (None, None));
+        assert_eq!(c.ulog_dir, c.state_dir.map(|d| d.join("log")), "flight logs under the state directory");
+    }
+
+    #[test]
+    fn the_flight_log_follows_the_state_directory_and_turns_off_by_flag_or_file() {
+        let resolve = |text: &str, o: Overrides| {
+            let file = ConfigFile::from_toml_str(text, "t.toml").expect("parses");
+            RuntimeConfig::resolve(file, 0, o).expect("valid").ulog_dir
+        };
+        let state = || Overrides { state_dir: Some("st".into()), ..Overrides::default() };
+        assert_eq!(resolve("", state()), Some(PathBuf::from("st/log")));
+        assert_eq!(resolve("", Overrides { no_ulog: true, ..state() }), None);
+        assert_eq!(resolve("[log]\nulog = false\n", state()), None);
+        assert_eq!(resolve("[log]\nulog = true\n", state()), Some(PathBuf::from("st/log")));
+        // With the state directory off, into the .tlog directory if there is one, else nowhere.
+        let off = Overrides { state_dir: Some("off".into()), ..Overrides::default() };
+        assert_eq!(resolve("", off.clone()), None);
+        assert_eq!(resolve("", Overrides { log_dir: Some("logs".into()), ..off }), Some(PathBuf::from("logs")));
+        assert!(ConfigFile::from_toml_str("[log]\nulog = \"yes\"\n", "t.toml").is_err());
     }
 
     #[test]

@@ -3,11 +3,13 @@
 //! one mpsc channel; back from the core: [`link::Outgoing`] messages to every link, or to the peer of one
 //! link that a reply answers. The core itself runs on the plant link's own thread
 //! ([`plant_link`], blocking I/O: the lockstep round trip is latency-bound). Also the configuration
-//! ([`config`]), the `.tlog` writer and the shutdown signal every task selects on.
+//! ([`config`]), the `.tlog` writer, the onboard ULog flight log ([`flight_log`], encoded by [`ulog`])
+//! and the shutdown signal every task selects on.
 //!
 //! Nothing here decides anything about the vehicle; see `docs/design.md`, the sans-I/O core.
 
 pub mod config;
+pub mod flight_log;
 pub mod frame;
 pub mod link;
 pub mod persist;
@@ -20,6 +22,8 @@ pub mod tcp;
 pub mod tlog;
 pub mod transport;
 pub mod udp;
+pub mod ulog;
+pub mod utc;
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -305,6 +309,19 @@ fn start_signing(config: &RuntimeConfig) -> Result<signing::LinkSigning, Runtime
     Ok(link_signing)
 }
 
+/// Resolves on SIGTERM (how service managers and `kill` stop a process), never elsewhere than on Unix.
+async fn terminated() {
+    #[cfg(unix)]
+    {
+        use tokio::signal::unix::{SignalKind, signal};
+        if let Ok(mut term) = signal(SignalKind::terminate()) {
+            term.recv().await;
+            return;
+        }
+    }
+    std::future::pending::<()>().await;
+}
+
 /// Resolves when standard input reaches its end (a detached thread reads it, so a pending read never
 /// holds up the process exit).
 async fn stdin_closed() {
@@ -364,7 +381,9 @@ pub async fn run(config: RuntimeConfig) -> Result<PlantLinkStats, RuntimeError> 
     let (tlog_tx, tlog_task) = match &config.log_dir {
         Some(dir) => {
             std::fs::create_dir_all(dir).map_err(|source| RuntimeError::LogDir { path: dir.clone(), source })?;
-            let name = format!("{}_i{}", wall_us() / 1_000_000, config.instance);
+            // UTC date and time, so that the names sort in the order of the runs.
+            let started = utc::UtcTime::from_unix_us(wall_us());
+            let name = format!("{}_{}_i{}", started.date(), started.time('-'), config.instance);
             let writer = TlogWriter::create(dir, &name)?;
             tracing::info!(path = %writer.temp_path().display(), "tlog open");
             let (tx, rx) = mpsc::channel(TLOG_CHANNEL_CAPACITY);
@@ -382,7 +401,17 @@ pub async fn run(config: RuntimeConfig) -> Result<PlantLinkStats, RuntimeError> 
     let stop = Arc::new(AtomicBool::new(false));
     let plant_stop = stop.clone();
     let vehicle = config.vehicle.clone();
-    let outputs = GcsOutputs { links: out_links, tlog: tlog_tx, counters, signing: signing.clone(), secure };
+    let (flight_log, ulog_task) = match &config.ulog_dir {
+        Some(dir) => {
+            let (tx, rx) = mpsc::channel(flight_log::ULOG_CHANNEL_CAPACITY);
+            tracing::info!(dir = %dir.display(), "a ULog flight log for every armed flight");
+            let logger = flight_log::FlightLogger::new(Some(tx), dir.clone(), config.vehicle.sysid);
+            (logger, Some(flight_log::spawn_writer(rx)))
+        }
+        None => (flight_log::FlightLogger::off(), None),
+    };
+    let outputs =
+        GcsOutputs { links: out_links, tlog: tlog_tx, counters, signing: signing.clone(), secure, flight_log };
     let mut plant_task = tokio::task::spawn_blocking(move || {
         plant_link::run(plant.as_mut(), vehicle, persisted, in_rx, outputs, &plant_stop)
     });
@@ -398,6 +427,7 @@ pub async fn run(config: RuntimeConfig) -> Result<PlantLinkStats, RuntimeError> 
             tracing::info!("shutting down (Ctrl-C)");
         }
         () = stdin_closed(), if stdin_eof => tracing::info!("shutting down (standard input closed)"),
+        () = terminated() => tracing::info!("shutting down (SIGTERM)"),
         Some(done) = links.join_next() => {
             match done {
                 Ok(Ok(())) => tracing::info!("a ground-station link stopped; shutting down"),
@@ -435,6 +465,12 @@ pub async fn run(config: RuntimeConfig) -> Result<PlantLinkStats, RuntimeError> 
                 first_error.get_or_insert(e.into());
             }
         }
+    }
+    // The plant thread has closed the flight and dropped its sender: the writer finalizes the file.
+    if let Some(task) = ulog_task
+        && let Err(e) = task.await
+    {
+        first_error.get_or_insert(e.into());
     }
     // The plant thread has dropped its tlog sender: the tlog task drains and closes.
     if let Some(task) = tlog_task {

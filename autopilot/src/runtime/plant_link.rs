@@ -47,6 +47,7 @@ use crate::core::mavlink::{own_header, statustext};
 use crate::core::mission::Mission;
 use crate::core::params::ParamStore;
 use crate::core::vehicle::{PWM_MIN_US, ShellEffect, Vehicle, VehicleConfig, VehicleError, VehicleInputs};
+use crate::runtime::flight_log::FlightLogger;
 use crate::runtime::frame::{self, LinkCounters};
 use crate::runtime::link::{Destination, Incoming, LinkId, Outgoing};
 use crate::runtime::persist::Persister;
@@ -117,6 +118,10 @@ pub struct PlantLinkStats {
     pub plant_decoder: DecoderStats,
     /// Broadcast STATUSTEXTs not sent: over [`STATUSTEXT_PER_S`] (see [`TextLimiter`]).
     pub statustext_suppressed: u64,
+    /// Flights written to the onboard ULog.
+    pub ulog_flights: u64,
+    /// Batches of ULog records dropped because its writer was behind.
+    pub ulog_dropped: u64,
     /// First and last vehicle time seen (µs).
     pub first_time_us: Option<u64>,
     pub last_time_us: Option<u64>,
@@ -154,6 +159,8 @@ pub struct GcsOutputs {
     pub signing: Arc<LinkSigning>,
     /// Per link (index = [`LinkId`]): whether it may carry SETUP_SIGNING (TCP, serial).
     pub secure: Vec<bool>,
+    /// The onboard ULog's sampler (off by default).
+    pub flight_log: FlightLogger,
 }
 
 /// The plant link and the vehicle it drives.
@@ -248,6 +255,10 @@ impl Driver {
     /// Queues a message to every link (`to == All`) or to one peer of link `link`; it goes out at the next
     /// [`Driver::flush`] that is due (at once for a reply to one peer).
     fn send_gcs(&mut self, link: Option<LinkId>, to: Destination, message: MavMessage) {
+        // The flight log keeps every text, those the limiter holds back from the ground stations too.
+        if let MavMessage::STATUSTEXT(text) = &message {
+            self.out.flight_log.text(self.now_us, text.severity, text.text.to_str().unwrap_or(""));
+        }
         if let (Destination::All, MavMessage::STATUSTEXT(text)) = (to, &message)
             && !self.texts.allow(self.now_us, text.id != 0 && text.chunk_seq > 0)
         {
@@ -403,8 +414,15 @@ impl Driver {
                 vehicle.set_comm_errors(comm_errors);
                 let outputs = vehicle.step(now_us, &inputs);
                 self.stats.steps += 1;
+                // The flight log opens before the step's texts ("Armed" is its first) and samples after.
+                if let Some(vehicle) = self.vehicle.as_ref() {
+                    self.out.flight_log.begin_step(now_us, vehicle);
+                }
                 for message in outputs.messages {
                     self.send_gcs(None, Destination::All, message);
+                }
+                if let Some(vehicle) = self.vehicle.as_ref() {
+                    self.out.flight_log.end_step(now_us, vehicle);
                 }
                 self.apply_effects();
                 return Ok(Some(ActuatorCommand { time_us: now_us, pwm_us: outputs.pwm_us, armed: outputs.armed }));
@@ -588,6 +606,10 @@ pub fn run(
         }
     }
     driver.flush(Instant::now(), true);
+    driver.out.flight_log.close();
+    let ulog = driver.out.flight_log.stats();
+    driver.stats.ulog_flights = ulog.flights;
+    driver.stats.ulog_dropped = ulog.dropped;
     driver.stats.plant_decoder = decoder.stats();
     Ok(driver.stats)
 }

@@ -10,7 +10,10 @@ use crate::core::control::frames::wrap_pi;
 
 use super::eskf::{ErrVec, Eskf, Nominal, Outcome, ProcessNoise, ScalarObs, idx};
 use super::history::History;
-use super::{BaroSample, EstimatorConfig, EstimatorFlags, EstimatorState, GeoOrigin, GpsSample, ImuSample, MagSample};
+use super::{
+    BaroSample, EstimatorConfig, EstimatorFlags, EstimatorState, GeoOrigin, GpsSample, ImuSample, Innovations,
+    MagSample,
+};
 
 /// Period of the no-aiding pseudo-measurement (µs of vehicle time).
 const FAKE_POS_PERIOD_US: u64 = 100_000;
@@ -76,6 +79,8 @@ pub struct Fusion {
     last_fake_pos_us: Option<u64>,
     /// Measurements rejected by the innovation gate.
     gated: u64,
+    /// The latest innovation of each measurement, fused or gated.
+    innovations: Innovations,
     state: EstimatorState,
 }
 
@@ -119,12 +124,18 @@ impl Fusion {
             fake_pos_hold_ne_m: None,
             last_fake_pos_us: None,
             gated: 0,
+            innovations: Innovations::default(),
             state: EstimatorState::default(),
         }
     }
 
     pub fn state(&self) -> &EstimatorState {
         &self.state
+    }
+
+    /// The latest innovation of each measurement (NaN until one was compared).
+    pub fn innovations(&self) -> &Innovations {
+        &self.innovations
     }
 
     pub fn gated_measurements(&self) -> u64 {
@@ -367,6 +378,7 @@ impl Fusion {
         h[idx::ATT + 1] = -self.field_tan_incl * decl_rad.sin();
         h[idx::ATT + 2] = 1.0;
         let obs = ScalarObs { h, residual: residual_rad, variance: self.config.mag_heading_noise_rad.powi(2) };
+        self.innovations.heading_rad = residual_rad;
         let Stage::Running(f) = &mut self.stage else { return };
         match f.fuse(&[obs], self.config.innovation_gate_sigma) {
             Outcome::Fused { correction, .. } => {
@@ -423,6 +435,7 @@ impl Fusion {
             h[idx::POS + 2] = -1.0;
             h[idx::BARO] = 1.0;
             let residual = baro.pressure_alt_m - (f.x.baro_offset_m - f.x.pos_ned_m.z);
+            self.innovations.baro_alt_m = residual;
             match f.fuse(&[ScalarObs { h, residual, variance: r }], self.config.innovation_gate_sigma) {
                 Outcome::Fused { correction, .. } => {
                     Self::note_correction(&mut self.history, &correction);
@@ -510,6 +523,7 @@ impl Fusion {
             .map(|i| vel_obs[i].residual.powi(2) / (f.p[(idx::VEL + i, idx::VEL + i)] + vel_var_m2ps2))
             .sum::<f64>()
             / 2.0;
+        self.innovations.gps_vel_ned_mps = vel_obs.map(|o| o.residual);
         match f.fuse(&vel_obs, gate) {
             Outcome::Fused { correction, .. } => Self::note_correction(&mut self.history, &correction),
             Outcome::Rejected { .. } => self.gated += 1,
@@ -519,6 +533,7 @@ impl Fusion {
         let pos_obs: [ScalarObs; 3] = std::array::from_fn(|i| {
             ScalarObs::direct(idx::POS + i, gps_pos_ned_m[i] - pos_then_ned_m[i], pos_var_m2[i])
         });
+        self.innovations.gps_pos_ned_m = pos_obs.map(|o| o.residual);
         match f.fuse(&pos_obs, gate) {
             Outcome::Fused { correction, .. } => {
                 Self::note_correction(&mut self.history, &correction);

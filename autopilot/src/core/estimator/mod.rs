@@ -470,6 +470,47 @@ fn truth_plausible(truth: &TruthSample) -> bool {
         && finite3(&truth.specific_force_frd_mps2)
 }
 
+/// The fused filter's latest innovations (measurement minus the prediction it was compared with), fused
+/// or refused by the gate; NaN until a measurement of that kind was compared, and always with the
+/// `Truth` source. What PX4 logs as `estimator_innovations`. Equal when bit-identical (NaN included), so
+/// that an estimator compares equal to its replay.
+#[derive(Debug, Clone, Copy)]
+pub struct Innovations {
+    /// GPS velocity (m/s, NED).
+    pub gps_vel_ned_mps: [f64; 3],
+    /// GPS position (m, NED).
+    pub gps_pos_ned_m: [f64; 3],
+    /// Barometric height (m, up).
+    pub baro_alt_m: f64,
+    /// Magnetic heading (rad).
+    pub heading_rad: f64,
+}
+
+impl Innovations {
+    fn bits(&self) -> [u64; 8] {
+        let [vn, ve, vd] = self.gps_vel_ned_mps.map(f64::to_bits);
+        let [pn, pe, pd] = self.gps_pos_ned_m.map(f64::to_bits);
+        [vn, ve, vd, pn, pe, pd, self.baro_alt_m.to_bits(), self.heading_rad.to_bits()]
+    }
+}
+
+impl PartialEq for Innovations {
+    fn eq(&self, other: &Self) -> bool {
+        self.bits() == other.bits()
+    }
+}
+
+impl Default for Innovations {
+    fn default() -> Self {
+        Self {
+            gps_vel_ned_mps: [f64::NAN; 3],
+            gps_pos_ned_m: [f64::NAN; 3],
+            baro_alt_m: f64::NAN,
+            heading_rad: f64::NAN,
+        }
+    }
+}
+
 /// The estimator: the source switch, the input sanitiser and the fused filter.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Estimator {
@@ -588,6 +629,15 @@ impl Estimator {
         match self.config.source {
             EstimatorSource::Fused => self.fusion.state(),
             EstimatorSource::Truth => &self.truth_state,
+        }
+    }
+
+    /// The fused filter's latest innovations (all NaN with the `Truth` source).
+    #[must_use]
+    pub fn innovations(&self) -> Innovations {
+        match self.config.source {
+            EstimatorSource::Fused => *self.fusion.innovations(),
+            EstimatorSource::Truth => Innovations::default(),
         }
     }
 

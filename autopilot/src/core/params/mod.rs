@@ -335,6 +335,12 @@ impl ParamStore {
     pub fn aco_weights_hz(&self) -> f32 {
         self.get("ACO_WEIGHTS_HZ").unwrap_or(0.0)
     }
+
+    /// SDLOG_MODE: whether the shell writes a ULog for each armed flight (-1 never, 0 arm to disarm).
+    #[must_use]
+    pub fn sdlog_mode(&self) -> i32 {
+        self.get("SDLOG_MODE").map_or(0, |v| v as i32)
+    }
 }
 
 impl<G, B> ParamStore<G, B> {
@@ -665,7 +671,12 @@ mod tests {
         let mut config = VehicleConfig::default();
         store.apply(&mut config);
         let mut back = ParamStore::from_config(&config);
-        back.set("ACO_WEIGHTS_HZ", store.aco_weights_hz()).expect("store-only value");
+        // The store-only values (ACO_WEIGHTS_HZ, SDLOG_MODE) have no config field to come back from.
+        for (i, d) in PARAMS.iter().enumerate() {
+            if d.store_only() {
+                back.set_index(i, store.get_index(i).expect("a value")).expect("store-only value");
+            }
+        }
         assert_eq!(back, store);
         let mut again = config.clone();
         ParamStore::from_config(&config).apply(&mut again);

@@ -761,4 +761,17 @@ pub static PARAMS: &[ParamDef] = &[
         "Largest height above home (0: no limit); setpoints above it are refused.",
         commander.geofence.max_ver_dist_m
     ),
+    // The onboard ULog: kept in the store only, read by the shell at each arming.
+    ParamDef {
+        name: "SDLOG_MODE",
+        group: ParamGroup::Telemetry,
+        kind: ParamKind::Integer,
+        default: 0.0,
+        min: -1.0,
+        max: 0.0,
+        unit: "",
+        restart: false,
+        description: "When the onboard ULog flight log is written: -1 never, 0 from arming until disarming (PX4's default; PX4's other modes are not offered). Read at each arming.",
+        binding: Binding::StoreOnly,
+    },
 ];
