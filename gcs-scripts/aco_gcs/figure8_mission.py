@@ -1,10 +1,10 @@
 """The paper's figure-8 as a mission (pymavlink): NAV_TAKEOFF 1.5 m, DO_CHANGE_SPEED 0.3 m/s, nine
-NAV_SPLINE_WAYPOINTs (one curve through them, as ArduPilot flies spline waypoints) through (N, E) = (0,0) (0.6,0.6) (1.2,0) (0.6,-0.6) (0,0) (-0.6,0.6) (-1.2,0) (-0.6,-0.6)
-(0,0) m from home at 1.5 m (MAV_FRAME_GLOBAL_RELATIVE_ALT_INT), NAV_LAND. Uploads it with the mission
-protocol, downloads it back and compares, arms, switches to AUTO MISSION, follows MISSION_CURRENT /
-MISSION_ITEM_REACHED to the landing, records LOCAL_POSITION_NED, and writes the flown track against the
-waypoints as PNG and CSV. Exit 1 if the mission does not go through (or a waypoint is not reached), 2 if
-no vehicle answers."""
+NAV_SPLINE_WAYPOINTs (one curve through them, as ArduPilot flies spline waypoints) through (N, E) =
+(0,0) (0.6,0.6) (1.2,0) (0.6,-0.6) (0,0) (-0.6,0.6) (-1.2,0) (-0.6,-0.6) (0,0) m from home at 1.5 m
+(MAV_FRAME_GLOBAL_RELATIVE_ALT_INT), NAV_LAND. Uploads it with the mission protocol, downloads it back
+and compares, arms, switches to AUTO MISSION, follows MISSION_CURRENT / MISSION_ITEM_REACHED to the
+landing, records LOCAL_POSITION_NED, and writes the flown track against the waypoints (--png, --csv).
+Exit 1 if the mission does not go through (or a waypoint is not reached), 2 if no vehicle answers."""
 
 import argparse
 import itertools
@@ -270,7 +270,8 @@ def run(args):
 
     flight.say(f"items reached: {len(reached)} of {len(items)} ({sorted(reached)})")
     if xt:
-        flight.say(f"cross-track to the waypoint polyline: max {max(xt):.3f} m, rms {math.sqrt(sum(v * v for v in xt) / len(xt)):.3f} m")
+        rms_m = math.sqrt(sum(v * v for v in xt) / len(xt))
+        flight.say(f"cross-track to the waypoint polyline: max {max(xt):.3f} m, rms {rms_m:.3f} m")
     flight.say(f"mission flown in {duration:.1f} s of vehicle time")
     for what, path in (("plot", args.png), ("track samples", args.csv)):
         if path:

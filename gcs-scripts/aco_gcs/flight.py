@@ -16,7 +16,9 @@ def wait_ready(vehicle, seconds=30.0):
     """Wait for the estimator (SYS_STATUS PREARM_CHECK healthy) and a local position; returns the ground
     point (LOCAL_POSITION_NED x, y, z) and the seconds it took."""
     took = vehicle.wait_until(
-        seconds, "estimator convergence (SYS_STATUS PREARM_CHECK)", lambda: vehicle.prearm_ok and vehicle.pos is not None
+        seconds,
+        "estimator convergence (SYS_STATUS PREARM_CHECK)",
+        lambda: vehicle.prearm_ok and vehicle.pos is not None,
     )
     return vehicle.pos, took
 

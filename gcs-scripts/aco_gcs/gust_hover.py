@@ -24,7 +24,9 @@ def parser():
     p.add_argument("--gust-s", type=positive_float, default=12.0, help="gust duration, s of vehicle time (default 12)")
     p.add_argument("--after", type=positive_float, default=15.0, help="hover after the release, s (default 15)")
     p.add_argument("--gust-speed", type=float, default=6.7, help="gust peak speed, m/s (default 6.7: Beaufort 4)")
-    p.add_argument("--gust-dir", type=float, default=90.0, help="direction the gust blows toward, deg (default 90: east)")
+    p.add_argument(
+        "--gust-dir", type=float, default=90.0, help="direction the gust blows toward, deg (default 90: east)"
+    )
     p.add_argument("--gust-rise", type=positive_float, default=1.0, help="1-cos rise and fall time, s (default 1)")
     p.add_argument("--threshold", type=positive_float, default=0.10, help="recovery threshold, m (default 0.10)")
     p.add_argument("--png", help="write the error plot to this PNG (default: no plot)")

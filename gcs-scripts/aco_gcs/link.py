@@ -2,12 +2,13 @@
 its clock (the largest `time_boot_ms` seen) and its state from telemetry, waits measured on that clock,
 COMMAND_LONG with its ACK, the parameter protocol, the plant's SIM_ parameter link, and the exit codes.
 
-Time: every wait in a flight is measured on the vehicle's clock, so a script behaves the same whether the
-SITL runs at real time (`sitl run`'s default) or at `--speed 30`. Protocol timeouts (an ACK, a
+Time: every wait in a flight is measured on the vehicle's clock, so a script behaves the same whether
+the SITL runs at real time (`sitl run`'s default) or at `--speed 30`. Protocol timeouts (an ACK, a
 PARAM_VALUE) are a few seconds of vehicle time rather than PX4 clients' fraction of a second: sped up, a
-Python client reads the telemetry a little behind the vehicle, and its clock is the telemetry it has read. Wall time is only a hang guard (`--wall-limit`),
-the first HEARTBEAT's timeout (`--heartbeat-timeout`: there is no vehicle clock before it) and the plant's
-SIM_ parameter link (the plant sends no clock on that port).
+Python client reads the telemetry a little behind the vehicle, and its clock is the telemetry it has
+read. Wall time is only a hang guard (`--wall-limit`), the first HEARTBEAT's timeout
+(`--heartbeat-timeout`: there is no vehicle clock before it) and the plant's SIM_ parameter link (the
+plant sends no clock on that port).
 
 Addressing (as `sitl run` sets it up for instance N, PX4's multi-vehicle convention): every autopilot
 sends to UDP 127.0.0.1:14550 (QGroundControl's, shared; system id N+1 tells them apart) and to its own
@@ -158,8 +159,7 @@ def add_link_args(parser, mavsdk=False):
         "--sysid",
         type=int,
         metavar="S",
-        help="the vehicle's system id, for a link several vehicles send on such as udpin:0.0.0.0:14550 "
-        "(default N+1)",
+        help="the vehicle's system id, for a link several vehicles send on such as udpin:0.0.0.0:14550 (default N+1)",
     )
     if mavsdk:
         parser.add_argument(
@@ -507,7 +507,9 @@ class Params:
         while self.count is None or len(self.by_index) < self.count:
             if link.now_s() - start > seconds:
                 have = len(self.by_index)
-                raise CheckFailed(f"parameter list: {have} of {self.count or '?'} in {seconds:g} s of {link.clock_name()}")
+                raise CheckFailed(
+                    f"parameter list: {have} of {self.count or '?'} in {seconds:g} s of {link.clock_name()}"
+                )
             link.pump()
             if len(self.by_index) != seen:
                 seen, last_news = len(self.by_index), link.now_s()
@@ -535,8 +537,10 @@ class Params:
             link.conn.mav.param_request_read_send(link.system_id, self.component, name.encode(), -1)
             got = link.next_message(
                 seconds,
-                lambda m: (m.get_type() == "PARAM_VALUE" and m.param_id == name)
-                or (m.get_type() == "STATUSTEXT" and m.text == reason),
+                lambda m: (
+                    (m.get_type() == "PARAM_VALUE" and m.param_id == name)
+                    or (m.get_type() == "STATUSTEXT" and m.text == reason)
+                ),
             )
             if got is not None and got.get_type() == "PARAM_VALUE":
                 return decode_param(got.param_value, got.param_type), None
@@ -563,7 +567,11 @@ class Params:
             got = link.next_message(seconds, lambda m: m.get_type() == "PARAM_VALUE" and m.param_id == name)
             # A PARAM_VALUE with another value and no word of refusal may be a late answer to the read
             # above (a backlog on a fast vehicle): the echo is still to come.
-            while got is not None and not link.texts_since(since) and not same_float32(decode_param(got.param_value, got.param_type), value):
+            while (
+                got is not None
+                and not link.texts_since(since)
+                and not same_float32(decode_param(got.param_value, got.param_type), value)
+            ):
                 late = link.next_message(seconds, lambda m: m.get_type() == "PARAM_VALUE" and m.param_id == name)
                 if late is None:
                     break

@@ -30,7 +30,9 @@ def parser():
     p.add_argument("--side", type=positive_float, default=1.0, help="side of the square, m (default 1)")
     p.add_argument("--tolerance", type=positive_float, default=0.10, help="corner reached within, m (default 0.10)")
     p.add_argument(
-        "--grpc-port", type=int, help="port of the mavsdk_server this script starts (default 50051+N, so several run at once)"
+        "--grpc-port",
+        type=int,
+        help="port of the mavsdk_server this script starts (default 50051+N, so several run at once)",
     )
     return p
 

@@ -130,7 +130,9 @@ def report(results, verbose=True):
         if echoed is None:
             print(f"refused: {name} = {format_value(value)}: no PARAM_VALUE echo" + (f" ({why})" if why else ""))
         else:
-            print(f"refused: {name} = {format_value(value)}: still {format_value(echoed)}" + (f" ({why})" if why else ""))
+            print(
+                f"refused: {name} = {format_value(value)}: still {format_value(echoed)}" + (f" ({why})" if why else "")
+            )
     if not verbose:
         print(f"{len(results) - refused} of {len(results)} parameters set, {refused} refused")
     return 1 if refused else 0

@@ -30,7 +30,9 @@ def run(args):
     vehicle = Vehicle.from_args(args)
     flight.say(f"vehicle: system {vehicle.system_id} on {vehicle.connect}")
     ground, converge_s = flight.wait_ready(vehicle)
-    flight.say(f"estimator ready after {converge_s:.1f} s; ground at N {ground[0]:.3f} E {ground[1]:.3f} D {ground[2]:.3f} m")
+    flight.say(
+        f"estimator ready after {converge_s:.1f} s; ground at N {ground[0]:.3f} E {ground[1]:.3f} D {ground[2]:.3f} m"
+    )
     hover, climb_s = flight.takeoff(vehicle, args.alt, ground)
     flight.say(f"at {args.alt:g} m after {climb_s:.1f} s")
     worst = [0.0]

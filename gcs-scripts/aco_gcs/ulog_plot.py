@@ -20,7 +20,9 @@ def parser():
     )
     p.add_argument("ulog", help="the .ulg file")
     p.add_argument("--png", help="output plot (default: the log's name with .png)")
-    p.add_argument("--list", action="store_true", help="print the topics, their record counts and the logged messages, and exit")
+    p.add_argument(
+        "--list", action="store_true", help="print the topics, their record counts and the logged messages, and exit"
+    )
     return p
 
 
@@ -56,9 +58,17 @@ def seconds(log, data):
 def euler_deg(q):
     """(roll, pitch, yaw) in degrees of quaternion arrays (w, x, y, z), ZYX as the autopilot's."""
     w, x, y, z = q
-    roll = [math.degrees(math.atan2(2 * (a * b + c * d), 1 - 2 * (b * b + c * c))) for a, b, c, d in zip(w, x, y, z)]
-    pitch = [math.degrees(math.asin(max(-1.0, min(1.0, 2 * (a * c - d * b))))) for a, b, c, d in zip(w, x, y, z)]
-    yaw = [math.degrees(math.atan2(2 * (a * d + b * c), 1 - 2 * (c * c + d * d))) for a, b, c, d in zip(w, x, y, z)]
+    roll = [
+        math.degrees(math.atan2(2 * (a * b + c * d), 1 - 2 * (b * b + c * c)))
+        for a, b, c, d in zip(w, x, y, z, strict=True)
+    ]
+    pitch = [
+        math.degrees(math.asin(max(-1.0, min(1.0, 2 * (a * c - d * b))))) for a, b, c, d in zip(w, x, y, z, strict=True)
+    ]
+    yaw = [
+        math.degrees(math.atan2(2 * (a * d + b * c), 1 - 2 * (c * c + d * d)))
+        for a, b, c, d in zip(w, x, y, z, strict=True)
+    ]
     return roll, pitch, yaw
 
 
@@ -117,7 +127,9 @@ def run(args):
         ax_w.legend(loc="best", fontsize=7, ncol=3)
         ax_w.set_ylabel("ACO LMS weights")
     else:
-        ax_w.text(0.5, 0.5, "no aco_weights (not the ACO controller)", ha="center", va="center", transform=ax_w.transAxes)
+        ax_w.text(
+            0.5, 0.5, "no aco_weights (not the ACO controller)", ha="center", va="center", transform=ax_w.transAxes
+        )
     for ax in axes:
         ax.grid(True, alpha=0.3)
     ax_w.set_xlabel("time since arming (s, vehicle clock)")
@@ -125,7 +137,8 @@ def run(args):
     png = args.png or os.path.splitext(args.ulog)[0] + ".png"
     save(fig, png)
     span = (pos["timestamp"][-1] - pos["timestamp"][0]) / 1e6 if len(pos["timestamp"]) else 0.0
-    print(f"{len(pos['timestamp'])} positions over {span:.1f} s of flight, {len(log.logged_messages)} logged messages: {png}")
+    positions, texts = len(pos["timestamp"]), len(log.logged_messages)
+    print(f"{positions} positions over {span:.1f} s of flight, {texts} logged messages: {png}")
     return 0
 
 

@@ -126,8 +126,20 @@ async def mavsdk_session(instance):
         lat, lon = offset(home.latitude_deg, home.longitude_deg, north_m, east_m)
         items.append(
             MissionItem(
-                lat, lon, 1.5, 0.3, True, float("nan"), float("nan"), MissionItem.CameraAction.NONE,
-                float("nan"), float("nan"), float("nan"), float("nan"), float("nan"), MissionItem.VehicleAction.NONE,
+                lat,
+                lon,
+                1.5,
+                0.3,
+                True,
+                float("nan"),
+                float("nan"),
+                MissionItem.CameraAction.NONE,
+                float("nan"),
+                float("nan"),
+                float("nan"),
+                float("nan"),
+                float("nan"),
+                MissionItem.VehicleAction.NONE,
             )
         )
     await drone.mission.set_return_to_launch_after_mission(False)
@@ -345,8 +357,21 @@ def waypoints(v, count):
         lat, lon = offset(lat0, lon0, 1.0 + seq, 0.0)
         out.append(
             v.conn.mav.mission_item_int_encode(
-                v.system_id, 1, seq, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, mavlink.MAV_CMD_NAV_WAYPOINT,
-                0, 1, 0, 0, 0, float("nan"), int(lat * 1e7), int(lon * 1e7), 2.0, 0,
+                v.system_id,
+                1,
+                seq,
+                mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+                mavlink.MAV_CMD_NAV_WAYPOINT,
+                0,
+                1,
+                0,
+                0,
+                0,
+                float("nan"),
+                int(lat * 1e7),
+                int(lon * 1e7),
+                2.0,
+                0,
             )
         )
     return out
@@ -362,7 +387,12 @@ def test_mavproxy_lean_install_downloads_every_parameter_and_the_mission(sitl, t
     # MAVProxy reads commands from standard input once it runs; give it the connection first.
     script = "wp list\nparam show RTL_RETURN_ALT\nparam show LOOP_INNER_HZ\n"
     proc = subprocess.Popen(
-        [sys.executable, str(mavproxy), f"--master=udpin:127.0.0.1:{link.api_port(sitl.instance)}", "--source-system=250"],
+        [
+            sys.executable,
+            str(mavproxy),
+            f"--master=udpin:127.0.0.1:{link.api_port(sitl.instance)}",
+            "--source-system=250",
+        ],
         stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
@@ -442,7 +472,11 @@ def test_the_qgroundcontrol_connection_sequence_completes(sitl):
     assert (types["ACO_WEIGHTS_HZ"], types["COM_DL_LOSS_T"]) == (mavlink.MAV_PARAM_TYPE_REAL32,) * 2
     assert {"MIS_TAKEOFF_ALT", "RTL_RETURN_ALT"} <= {m.param_id for m in values.values()}
     # The plan: mission (type 0), geofence (1), rally points (2).
-    for mission_type in (mavlink.MAV_MISSION_TYPE_MISSION, mavlink.MAV_MISSION_TYPE_FENCE, mavlink.MAV_MISSION_TYPE_RALLY):
+    for mission_type in (
+        mavlink.MAV_MISSION_TYPE_MISSION,
+        mavlink.MAV_MISSION_TYPE_FENCE,
+        mavlink.MAV_MISSION_TYPE_RALLY,
+    ):
         v.send(v.conn.mav.mission_request_list_encode(sysid, 1, mission_type))
         msg = v.next_message(10, lambda m, t=mission_type: m.get_type() == "MISSION_COUNT" and m.mission_type == t)
         assert msg is not None, f"MISSION_COUNT of type {mission_type}"
@@ -467,14 +501,24 @@ def test_the_qgroundcontrol_connection_sequence_completes(sitl):
                 break
             command, p1, x, y = items[msg.seq]
             frame = mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT
-            v.send(v.conn.mav.mission_item_int_encode(sysid, 1, msg.seq, frame, command, 0, 1, p1, 0, 0, 0, x, y, 10.0, mission_type))
+            v.send(
+                v.conn.mav.mission_item_int_encode(
+                    sysid, 1, msg.seq, frame, command, 0, 1, p1, 0, 0, 0, x, y, 10.0, mission_type
+                )
+            )
         v.send(v.conn.mav.mission_request_list_encode(sysid, 1, mission_type))
         msg = v.next_message(10, lambda m, t=mission_type: m.get_type() == "MISSION_COUNT" and m.mission_type == t)
         assert msg is not None and msg.count == len(items)
         for seq, (command, p1, x, y) in enumerate(items):
             v.send(v.conn.mav.mission_request_int_encode(sysid, 1, seq, mission_type))
             got = v.next_message(10, lambda m, s=seq: m.get_type() == "MISSION_ITEM_INT" and m.seq == s)
-            assert got is not None and (got.command, got.param1, got.x, got.y, got.mission_type) == (command, p1, x, y, mission_type)
+            assert got is not None and (got.command, got.param1, got.x, got.y, got.mission_type) == (
+                command,
+                p1,
+                x,
+                y,
+                mission_type,
+            )
         v.send(v.conn.mav.mission_ack_encode(sysid, 1, mavlink.MAV_MISSION_ACCEPTED, mission_type))
     # A mode change with the SET_MODE message (PX4 POSCTL), then back to Hold.
     for custom_mode in (3 << 16, (4 << 16) | (3 << 24)):

@@ -46,7 +46,9 @@ def run_sitl(tmp_path):
 
 
 def connect(sitl):
-    vehicle = Vehicle(f"udpin:127.0.0.1:{QGC_PORT + sitl.instance}", f"127.0.0.1:{AUTOPILOT_PORT + sitl.instance}", 240.0)
+    vehicle = Vehicle(
+        f"udpin:127.0.0.1:{QGC_PORT + sitl.instance}", f"127.0.0.1:{AUTOPILOT_PORT + sitl.instance}", 240.0
+    )
     vehicle.wait_heartbeat(30.0, sitl.instance)
     return vehicle
 
@@ -76,7 +78,9 @@ def test_gcs_silent_in_a_mission_with_nav_dll_act_2_returns_after_com_dl_loss_t_
         return round(lat * 1e7), round(lon * 1e7)
 
     items = [Item(mavlink.MAV_CMD_NAV_TAKEOFF, rel, (0, 0, 0, nan), *at(0, 0), 5.0)]
-    items += [Item(mavlink.MAV_CMD_NAV_WAYPOINT, rel, (0, 0, 0, nan), *at(n, e), 5.0) for n, e in [(20, 0), (20, 20), (0, 20)]]
+    items += [
+        Item(mavlink.MAV_CMD_NAV_WAYPOINT, rel, (0, 0, 0, nan), *at(n, e), 5.0) for n, e in [(20, 0), (20, 20), (0, 20)]
+    ]
     upload(vehicle, items)
     vehicle.require("arm", mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1)
     vehicle.set_px4_mode(PX4_MAIN_AUTO, 4, "AUTO MISSION")
@@ -85,14 +89,21 @@ def test_gcs_silent_in_a_mission_with_nav_dll_act_2_returns_after_com_dl_loss_t_
     last_heartbeat_s = vehicle._last_gcs_heartbeat[0]
     vehicle.before_pump = lambda: None
     text = "Failsafe: GCS link lost, returning"
-    vehicle.wait_until(10.0, "RTL, announced", lambda: vehicle.px4_mode() == (PX4_MAIN_AUTO, PX4_AUTO_RTL) and said(vehicle, text))
+    vehicle.wait_until(
+        10.0, "RTL, announced", lambda: vehicle.px4_mode() == (PX4_MAIN_AUTO, PX4_AUTO_RTL) and said(vehicle, text)
+    )
     vehicle.wait_until(90.0, "landed and disarmed", lambda: not vehicle.armed)
     announced = said(vehicle, text)
     after_s = announced[0] - last_heartbeat_s
     landed_m = horizontal_m(vehicle.pos, ground)
-    print(f"datalink loss through sitl run: RTL announced {after_s:.3f} s after the last HEARTBEAT, landed {landed_m:.3f} m from home")
+    print(
+        f"datalink loss through sitl run: RTL announced {after_s:.3f} s after the last HEARTBEAT, "
+        f"landed {landed_m:.3f} m from home"
+    )
     assert len(announced) == 1
-    assert abs(after_s - 5.0) <= 0.1 + 0.05, f"{after_s} s (the last telemetry time before the HEARTBEAT went out is 50 ms coarse)"
+    assert abs(after_s - 5.0) <= 0.1 + 0.05, (
+        f"{after_s} s (the last telemetry time before the HEARTBEAT went out is 50 ms coarse)"
+    )
     assert landed_m < 0.2
 
 
@@ -102,7 +113,9 @@ def test_pack_drained_by_sim_bat_drain_warns_returns_and_lands_before_empty(run_
     vehicle = connect(sitl)
     ground, _ = wait_ready(vehicle)
     battery = []
-    vehicle.listeners.append(lambda m: battery.append(m.battery_remaining) if m.get_type() == "BATTERY_STATUS" else None)
+    vehicle.listeners.append(
+        lambda m: battery.append(m.battery_remaining) if m.get_type() == "BATTERY_STATUS" else None
+    )
     vehicle.wait_until(3.0, "BATTERY_STATUS", lambda: battery)
     assert battery[-1] >= 99, "a full pack (the avionics draw from the start)"
     # Drained linearly in 300 s of motor time (1 % every 3 s): low (15 %) after 255 s, critical (7 %)
@@ -119,7 +132,10 @@ def test_pack_drained_by_sim_bat_drain_warns_returns_and_lands_before_empty(run_
     texts = [t for (_, _, t) in vehicle.statustexts]
     low = [t for t in texts if t.startswith("Battery low:")]
     critical = [t for t in texts if t.startswith("Failsafe: battery critical")]
-    print(f"battery through sitl run: {low} then {critical}; landed with {battery[-1]} % at {horizontal_m(vehicle.pos, ground):.3f} m from home")
+    print(
+        f"battery through sitl run: {low} then {critical}; landed with {battery[-1]} % "
+        f"at {horizontal_m(vehicle.pos, ground):.3f} m from home"
+    )
     assert low == ["Battery low: 14% remaining"]
     assert len(critical) == 1 and critical[0].endswith("returning")
     assert texts.index(low[0]) < texts.index(critical[0])
@@ -139,15 +155,30 @@ def fence_items(lat0, lon0):
 def upload_fence(vehicle, vertices):
     vehicle.conn.mav.mission_count_send(vehicle.system_id, 1, len(vertices), FENCE)
     while True:
-        msg = vehicle.next_message(5.0, lambda m: m.get_type() in ("MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"))
+        msg = vehicle.next_message(
+            5.0, lambda m: m.get_type() in ("MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK")
+        )
         assert msg is not None, "fence upload: no answer"
         assert msg.mission_type == FENCE
         if msg.get_type() == "MISSION_ACK":
             return msg.type
         x, y = vertices[msg.seq]
         vehicle.conn.mav.mission_item_int_send(
-            vehicle.system_id, 1, msg.seq, mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
-            0, 1, len(vertices), 0, 0, 0, x, y, 0.0, FENCE,
+            vehicle.system_id,
+            1,
+            msg.seq,
+            mavlink.MAV_FRAME_GLOBAL,
+            mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
+            0,
+            1,
+            len(vertices),
+            0,
+            0,
+            0,
+            x,
+            y,
+            0.0,
+            FENCE,
         )
 
 
@@ -183,18 +214,46 @@ def test_geofence_refuses_a_goto_beyond_it_holds_an_offboard_push_and_keeps_a_po
     lat, lon = offset_deg(lat0, lon0, 20, 0)
     since = vehicle.now_s()
     vehicle.conn.mav.command_int_send(
-        vehicle.system_id, 1, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT, mavlink.MAV_CMD_DO_REPOSITION, 0, 0,
-        -1, 0, 0, float("nan"), round(lat * 1e7), round(lon * 1e7), 3.0,
+        vehicle.system_id,
+        1,
+        mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+        mavlink.MAV_CMD_DO_REPOSITION,
+        0,
+        0,
+        -1,
+        0,
+        0,
+        float("nan"),
+        round(lat * 1e7),
+        round(lon * 1e7),
+        3.0,
     )
     vehicle.wait_until(5.0, "the reposition's ACK", lambda: mavlink.MAV_CMD_DO_REPOSITION in vehicle.acks)
     assert vehicle.acks[mavlink.MAV_CMD_DO_REPOSITION] == mavlink.MAV_RESULT_DENIED
-    vehicle.wait_until(2.0, "the refusal's reason", lambda: "Reposition: beyond GF_MAX_HOR_DIST" in vehicle.texts_since(since))
+    vehicle.wait_until(
+        2.0, "the refusal's reason", lambda: "Reposition: beyond GF_MAX_HOR_DIST" in vehicle.texts_since(since)
+    )
     # An offboard velocity north at 1.5 m/s: the vehicle holds before the fence, on the truth.
     farthest = [0.0]
 
     def stream():
         vehicle.conn.mav.set_position_target_local_ned_send(
-            0, vehicle.system_id, 1, mavlink.MAV_FRAME_LOCAL_NED, 7 | 448 | 1024 | 2048, 0, 0, 0, 1.5, 0, 0, 0, 0, 0, 0, 0
+            0,
+            vehicle.system_id,
+            1,
+            mavlink.MAV_FRAME_LOCAL_NED,
+            7 | 448 | 1024 | 2048,
+            0,
+            0,
+            0,
+            1.5,
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
         )
         if vehicle.pos is not None:
             farthest[0] = max(farthest[0], horizontal_m(vehicle.pos, ground))

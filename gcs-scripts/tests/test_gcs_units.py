@@ -34,6 +34,7 @@ def test_parameter_values_round_trip_as_real32_text():
 
 def test_integer_parameters_travel_bytewise_as_px4_encodes_them():
     mav = link.mavlink
+
     def bits(field):
         return struct.unpack("<I", struct.pack("<f", field))[0]
 

@@ -39,7 +39,9 @@ def tcp(sitl):
 
 
 def udp(sitl, signed):
-    conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{link.api_port(sitl.instance)}", source_system=254, source_component=190)
+    conn = mavutil.mavlink_connection(
+        f"udpin:127.0.0.1:{link.api_port(sitl.instance)}", source_system=254, source_component=190
+    )
     assert conn.wait_heartbeat(timeout=30) is not None
     if signed:
         conn.mav.signing.secret_key = KEY
@@ -51,7 +53,9 @@ def udp(sitl, signed):
 
 def request_version(conn, sitl):
     """REQUEST_MESSAGE(AUTOPILOT_VERSION) as bytes (signed if the connection signs), sent to the autopilot."""
-    frame = conn.mav.command_long_encode(sitl.instance + 1, 1, mavlink.MAV_CMD_REQUEST_MESSAGE, 0, AUTOPILOT_VERSION, 0, 0, 0, 0, 0, 0)
+    frame = conn.mav.command_long_encode(
+        sitl.instance + 1, 1, mavlink.MAV_CMD_REQUEST_MESSAGE, 0, AUTOPILOT_VERSION, 0, 0, 0, 0, 0, 0
+    )
     return frame.pack(conn.mav)
 
 

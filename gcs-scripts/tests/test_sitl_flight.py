@@ -1,10 +1,11 @@
 """The SITL flown with pymavlink as a user scripts it: connect, wait for the estimator, take off to 1.5 m,
 then judged on the plant's truth against the commanded point (home + 1.5 m): the autopilot runs with
 `--estimator truth`, so LOCAL_POSITION_NED is the plant's truth. The climb overshoots by at most 0.03 m,
-the 20 s hover that follows stays within 0.05 m of home + 1.5 m; then it lands and disarms by itself. Twice: with `sitl run` (plant and autopilot over UDP), and with the plant and the
-autopilot on the two ends of a socat pty pair (the serial plant link of the real airframe), paced at 20x real
-time. Every wait is measured on the vehicle's clock (time_boot_ms), never on the wall clock; a wall-clock
-deadline only stops a hung run."""
+the 20 s hover that follows stays within 0.05 m of home + 1.5 m; then it lands and disarms by itself.
+Twice: with `sitl run` (plant and autopilot over UDP), and with the plant and the autopilot on the two
+ends of a socat pty pair (the serial plant link of the real airframe), paced at 20x real time. Every
+wait is measured on the vehicle's clock (time_boot_ms), never on the wall clock; a wall-clock deadline
+only stops a hung run."""
 
 import math
 import os
@@ -220,7 +221,9 @@ def test_pymavlink_takes_off_holds_and_lands(sitl):
     assert worst <= 0.05, f"hover error {worst:.3f} m > 0.05 m (truth against home + 1.5 m)"
 
     assert gcs.command(mavutil.mavlink.MAV_CMD_NAV_LAND) == accepted
-    land_s = gcs.wait_until(30.0, "landed and disarmed", lambda: gcs.landed_state == MAV_LANDED_STATE_ON_GROUND and not gcs.armed)
+    land_s = gcs.wait_until(
+        30.0, "landed and disarmed", lambda: gcs.landed_state == MAV_LANDED_STATE_ON_GROUND and not gcs.armed
+    )
     print(
         f"converge {converge_s:.1f} s, climb {climb_s:.1f} s, overshoot {overshoot:.3f} m, "
         f"hover error max {worst:.3f} m (truth), land {land_s:.1f} s (vehicle time)"

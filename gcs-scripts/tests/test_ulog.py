@@ -15,9 +15,10 @@ import time
 from pathlib import Path
 
 import pytest
-from aco_gcs.flight import land, takeoff, wait_ready
-from aco_gcs.link import AUTOPILOT_PORT, QGC_PORT, Vehicle
 from sitl_harness import start_sitl
+
+from aco_gcs.flight import land, takeoff, wait_ready
+from aco_gcs.link import AUTOPILOT_PORT, Vehicle, api_port
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 TOPICS = [
@@ -37,7 +38,9 @@ TAKEOFF_M = 2.0
 
 def fly(sitl):
     """Arm, take off to TAKEOFF_M, hold 5 s, land and wait for the auto-disarm; returns the vehicle."""
-    vehicle = Vehicle(f"udpin:127.0.0.1:{QGC_PORT + sitl.instance}", f"127.0.0.1:{AUTOPILOT_PORT + sitl.instance}", 240.0)
+    vehicle = Vehicle(
+        f"udpin:127.0.0.1:{api_port(sitl.instance)}", f"127.0.0.1:{AUTOPILOT_PORT + sitl.instance}", 240.0
+    )
     vehicle.wait_heartbeat(30.0, sitl.instance)
     ground, _ = wait_ready(vehicle)
     takeoff(vehicle, TAKEOFF_M, ground)
@@ -128,7 +131,9 @@ def test_a_flight_leaves_one_ulog_that_pyulog_reads_with_px4s_topics(flown):
         assert any(want in t for t in texts), f"{want!r} not in {texts}"
 
     size = path.stat().st_size
-    print(f"{path.name}: {size} bytes over {duration_s:.1f} s of flight, {size / duration_s * 60 / 1e6:.2f} MB per minute")
+    print(
+        f"{path.name}: {size} bytes over {duration_s:.1f} s of flight, {size / duration_s * 60 / 1e6:.2f} MB per minute"
+    )
 
     info = subprocess.run([tool("ulog_info"), str(path)], capture_output=True, text=True, timeout=60)
     assert info.returncode == 0, info.stderr
@@ -157,12 +162,16 @@ def test_a_flight_leaves_one_ulog_that_pyulog_reads_with_px4s_topics(flown):
 def test_a_flight_stopped_in_the_air_by_sigterm_is_still_finalized(tmp_path):
     sitl = start_sitl(tmp_path, speed="10")
     try:
-        vehicle = Vehicle(f"udpin:127.0.0.1:{QGC_PORT + sitl.instance}", f"127.0.0.1:{AUTOPILOT_PORT + sitl.instance}", 240.0)
+        vehicle = Vehicle(
+            f"udpin:127.0.0.1:{api_port(sitl.instance)}", f"127.0.0.1:{AUTOPILOT_PORT + sitl.instance}", 240.0
+        )
         vehicle.wait_heartbeat(30.0, sitl.instance)
         ground, _ = wait_ready(vehicle)
         takeoff(vehicle, 1.0, ground)
         assert vehicle.armed
-        autopilot_pid = int(re.search(r"autopilot pid (\d+)", sitl.log_path.read_text()).group(1))
+        found = re.search(r"autopilot pid (\d+)", sitl.log_path.read_text())
+        assert found is not None, "sitl run's banner names the autopilot's pid"
+        autopilot_pid = int(found.group(1))
         # SIGTERM to the group: `sitl` dies at once (it has no handler), the autopilot finalizes its log.
         os.killpg(sitl.proc.pid, signal.SIGTERM)
         sitl.proc.wait(timeout=20)
@@ -174,7 +183,9 @@ def test_a_flight_stopped_in_the_air_by_sigterm_is_still_finalized(tmp_path):
         sitl.stop()
     print(sitl.log_tail())
     files = ulogs(tmp_path / "state")
-    assert len(files) == 1 and not list((tmp_path / "state" / "log").glob("*/*.tmp")), list((tmp_path / "state").rglob("*"))
+    assert len(files) == 1 and not list((tmp_path / "state" / "log").glob("*/*.tmp")), list(
+        (tmp_path / "state").rglob("*")
+    )
     from pyulog import ULog
 
     status = ULog(str(files[0]), message_name_filter_list=["vehicle_status"]).data_list[0].data
@@ -184,7 +195,9 @@ def test_a_flight_stopped_in_the_air_by_sigterm_is_still_finalized(tmp_path):
 def test_no_ulog_writes_no_flight_log(tmp_path):
     sitl = start_sitl(tmp_path, "--no-ulog", speed="10")
     try:
-        vehicle = Vehicle(f"udpin:127.0.0.1:{QGC_PORT + sitl.instance}", f"127.0.0.1:{AUTOPILOT_PORT + sitl.instance}", 240.0)
+        vehicle = Vehicle(
+            f"udpin:127.0.0.1:{api_port(sitl.instance)}", f"127.0.0.1:{AUTOPILOT_PORT + sitl.instance}", 240.0
+        )
         vehicle.wait_heartbeat(30.0, sitl.instance)
         ground, _ = wait_ready(vehicle)
         takeoff(vehicle, 1.0, ground)
