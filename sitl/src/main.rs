@@ -417,8 +417,14 @@ fn plots(scenario: &Scenario, dir: &Path, outputs: &[RunOutput], mode: Reference
             let panels = [
                 Panel::new("horizontal error (m)", "err_xy", None, 1.0),
                 Panel::new("altitude error (m)", "err_alt", None, 1.0),
-                Panel::new("wind east (m/s)", "windE", None, 1.0),
+                Panel::new("wind east (m/s)", "windE", None, 1.0).common_to_all_runs(),
             ];
+            // The gust is what the figure is about: the start-up transient before its onset does not set
+            // the scale (it is drawn clipped over a shaded band).
+            let panels = match &scenario.wind.gust {
+                Some(g) => panels.map(|p| p.settled_from(g.onset_s)),
+                None => panels,
+            };
             plot::time_panels(&file("gust"), &title("Hover under a Beaufort-4 gust"), &panels, &runs)?;
         }
         ReferenceSpec::Position { .. } => {
