@@ -361,6 +361,19 @@ fn draw_line<DB: DrawingBackend>(chart: &mut Chart<'_, DB>, map: &PixelMap, line
     Ok(())
 }
 
+/// The area under the figure's title; a title wider than the figure is set smaller to fit.
+fn titled<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    title: &str,
+    s: f64,
+) -> Result<DrawingArea<DB, Shift>, String> {
+    let root = root.margin(px(8.0 * s), 0, 0, 0);
+    let room = 0.96 * f64::from(root.dim_in_pixel().0);
+    let wide = f64::from(root.estimate_text_size(title, &font(TITLE_SIZE * s)).map_err(e2s)?.0);
+    let size = if wide > room { TITLE_SIZE * s * room / wide } else { TITLE_SIZE * s };
+    root.titled(title, font(size)).map_err(e2s)
+}
+
 /// The figure's legend, centred in its row: a stroke sample and the label per entry.
 fn draw_legend<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
@@ -439,8 +452,7 @@ struct TimePanels {
 impl Figure for TimePanels {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>, s: f64) -> Result<(), String> {
         root.fill(&WHITE).map_err(e2s)?;
-        let root = root.margin(px(8.0 * s), 0, 0, 0);
-        let root = root.titled(&self.title, font(TITLE_SIZE * s)).map_err(e2s)?;
+        let root = titled(root, &self.title, s)?;
         let (legend, body) = root.split_vertically(px(LEGEND_ROW * s));
         draw_legend(&legend, &self.legend, s)?;
         let areas = body.split_evenly((self.panels.len(), 1));
@@ -607,8 +619,7 @@ struct TrackFigure {
 impl Figure for TrackFigure {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>, s: f64) -> Result<(), String> {
         root.fill(&WHITE).map_err(e2s)?;
-        let root = root.margin(px(8.0 * s), 0, 0, 0);
-        let root = root.titled(&self.title, font(TITLE_SIZE * s)).map_err(e2s)?;
+        let root = titled(root, &self.title, s)?;
         let (legend, body) = root.split_vertically(px(LEGEND_ROW * s));
         draw_legend(&legend, &self.legend, s)?;
         let build = |x: Range<f64>, y: Range<f64>| {
@@ -735,6 +746,24 @@ mod tests {
             assert!(svg.contains(&format!("viewBox=\"0 0 {} ", declared("width") * RENDER_SCALE)));
             assert!(!std::fs::exists(png.with_extension("png.tmp")).unwrap());
         }
+        std::fs::remove_dir_all(dir).unwrap();
+    }
+
+    #[test]
+    fn a_title_wider_than_the_figure_is_set_smaller() {
+        let dir = temp_dir("title");
+        let run = run_trace(|t| t.sin(), 1.0);
+        let circle: Vec<(f64, f64)> = (0..=100).map(|k| (f64::from(k) * 0.063).sin_cos()).collect();
+        let title_size = |title: &str| -> f64 {
+            let png = dir.join("t.png");
+            track(&png, title, &circle, &[Run { label: "ACO", trace: &run }]).unwrap();
+            let svg = std::fs::read_to_string(png.with_extension("svg")).unwrap();
+            let at = svg.find("font-size=\"").unwrap() + 11;
+            svg[at..at + svg[at..].find('"').unwrap()].parse().unwrap()
+        };
+        let short = title_size("Figure-8");
+        let long = title_size(&"Figure-8 at 0.3 m/s, position-only: mismatch plant, ACO vs CA vs PID ".repeat(2));
+        assert!(long < 0.7 * short, "{long} {short}");
         std::fs::remove_dir_all(dir).unwrap();
     }
 
