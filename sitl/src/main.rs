@@ -373,9 +373,9 @@ fn gust_track_lines(gust: Option<&GustMetrics>, track: Option<&TrackMetrics>) ->
     let mut s = String::new();
     if let Some(g) = gust {
         s += &format!(
-            "\n  gust: recovery {} / {} s  peak {:.3} m  steady {:.3} m  rms xy {:.3} m  rms z {:.4} m",
-            fmt_opt(g.recovery_onset_s),
-            fmt_opt(g.recovery_release_s),
+            "\n  gust: recovery {} / {}  peak {:.3} m  steady {:.3} m  rms xy {:.3} m  rms z {:.4} m",
+            fmt_seconds(g.recovery_onset_s),
+            fmt_seconds(g.recovery_release_s),
             g.peak_m,
             g.steady_err_m,
             g.rms_xy_m,
@@ -391,8 +391,14 @@ fn gust_track_lines(gust: Option<&GustMetrics>, track: Option<&TrackMetrics>) ->
     s
 }
 
-fn fmt_opt(v: Option<f64>) -> String {
-    v.map_or_else(|| "never".to_owned(), |x| format!("{x:.2}"))
+/// A time that may not have come: `1.23 s` or `never`.
+fn fmt_seconds(v: Option<f64>) -> String {
+    v.map_or_else(|| "never".to_owned(), |x| format!("{x:.2} s"))
+}
+
+/// The unit of a step metric's axis: attitude axes in rad, position axes (n, e, d) in m.
+fn axis_unit(axis: &str) -> &'static str {
+    if matches!(axis, "roll" | "pitch" | "yaw") { "rad" } else { "m" }
 }
 
 fn summary(out: &RunOutput) -> String {
@@ -403,18 +409,19 @@ fn summary(out: &RunOutput) -> String {
     }
     for seg in m.segments.iter().flatten() {
         s += &format!(
-            "\n  {:5} t0 {:5.1} s: overshoot {:5.2} %  settling {:>5} s  sse {:.1e}",
+            "\n  {:5} t0 {:5.1} s: overshoot {:5.2} %  settling {:>7}  sse {:.1e} {}",
             seg.axis,
             seg.t0_s,
             seg.overshoot_pct,
-            fmt_opt(seg.settling_s),
-            seg.sse
+            fmt_seconds(seg.settling_s),
+            seg.sse,
+            axis_unit(seg.axis)
         );
     }
     if let Some(rms) = &m.rms {
         s += "\n  rms:";
         for (axis, v) in rms {
-            s += &format!(" {axis} {v:.4}");
+            s += &format!(" {axis} {v:.4} {}", axis_unit(axis));
         }
     }
     s += &gust_track_lines(m.gust.as_ref(), m.track.as_ref());
@@ -433,9 +440,10 @@ fn plots(scenario: &Scenario, dir: &Path, outputs: &[RunOutput], mode: Reference
     let suffix = if scenario.reference_modes().len() > 1 { format!("_{mode}") } else { String::new() };
     let file = |kind: &str| dir.join(format!("{kind}_{}{suffix}_seed{}_{}hz.png", m.plant, m.seed, m.rate_hz));
     let mut written = Vec::new();
+    // Each figure is a PNG and an SVG of the same name.
     let mut written_file = |kind: &str| {
         let path = file(kind);
-        written.push(path.clone());
+        written.extend([path.clone(), path.with_extension("svg")]);
         path
     };
     let title = |what: &str| format!("{what}: {} plant, {}", m.plant, labels.join(" vs "));
@@ -456,8 +464,14 @@ fn plots(scenario: &Scenario, dir: &Path, outputs: &[RunOutput], mode: Reference
             let panels = [
                 Panel::new("horizontal error (m)", "err_xy", None, 1.0),
                 Panel::new("altitude error (m)", "err_alt", None, 1.0),
-                Panel::new("wind east (m/s)", "windE", None, 1.0),
+                Panel::new("wind east (m/s)", "windE", None, 1.0).common_to_all_runs(),
             ];
+            // The gust is what the figure is about: the start-up transient before its onset does not set
+            // the scale (it is drawn clipped over a shaded band).
+            let panels = match &scenario.wind.gust {
+                Some(g) => panels.map(|p| p.settled_from(g.onset_s)),
+                None => panels,
+            };
             plot::time_panels(&written_file("gust"), &title("Hover under a Beaufort-4 gust"), &panels, &runs)?;
         }
         ReferenceSpec::Position { .. } => {
