@@ -353,6 +353,115 @@ pub fn run_with_child(
     })
 }
 
+/// What a swarm run measured: one [`LaunchReport`] per vehicle (CPU seconds are the whole plant process's
+/// and each autopilot's), and whether the run ended on `stop`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SwarmReport {
+    pub vehicles: Vec<LaunchReport>,
+    pub wall_s: f64,
+    pub stopped: bool,
+}
+
+/// Step every plant of a swarm in lockstep with its autopilot, on one thread and one clock: each tick sends
+/// every plant's sensors first, then collects every reply and steps that plant, so the autopilots compute
+/// at the same time. Runs until `duration_us` of plant time (`None`: no limit) or until `stop` is set, or
+/// until an autopilot exits; then stops every child. `on_tick` is called with the plant time after each
+/// tick.
+///
+/// # Errors
+/// The first link error, or [`LaunchError::AutopilotExited`] naming no vehicle (the message carries the
+/// status) if a child died first.
+pub fn run_swarm(
+    servers: &mut [PlantServer<UdpTransport>],
+    children: Vec<AutopilotChild>,
+    duration_us: Option<u64>,
+    stop: &AtomicBool,
+    mut on_tick: impl FnMut(u64) + Send,
+) -> Result<SwarmReport, LaunchError> {
+    let halt = AtomicBool::new(false);
+    let mut children = children;
+    let (result, exit) = std::thread::scope(|scope| {
+        let plants = scope.spawn(|| -> Result<(f64, bool), LinkError> {
+            let mut first: Option<Instant> = None;
+            loop {
+                let t = servers.first().map_or(0, |s| s.plant().time_us());
+                if duration_us.is_some_and(|d| t >= d) {
+                    break Ok((first.map_or(0.0, |t0| t0.elapsed().as_secs_f64()), false));
+                }
+                for server in servers.iter_mut() {
+                    server.begin_step()?;
+                }
+                for server in servers.iter_mut() {
+                    match server.end_step(&halt) {
+                        Ok(_) => {}
+                        Err(LinkError::Stopped) => {
+                            return Ok((first.map_or(0.0, |t0| t0.elapsed().as_secs_f64()), true));
+                        }
+                        Err(e) => return Err(e),
+                    }
+                }
+                if first.is_none() {
+                    first = Some(Instant::now());
+                }
+                on_tick(servers.first().map_or(0, |s| s.plant().time_us()));
+            }
+        });
+        let mut exit = None;
+        while !plants.is_finished() {
+            if exit.is_none() {
+                exit = children.iter_mut().find_map(AutopilotChild::exited);
+            }
+            if stop.load(Ordering::Relaxed) || exit.is_some() {
+                halt.store(true, Ordering::Relaxed);
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        (plants.join(), exit)
+    });
+    let stop_all = |children: Vec<AutopilotChild>| {
+        for child in children {
+            child.stop();
+        }
+    };
+    let (wall_s, stopped) = match result {
+        Ok(Ok(measured)) => measured,
+        Ok(Err(e)) => {
+            stop_all(children);
+            return Err(e.into());
+        }
+        Err(_) => {
+            stop_all(children);
+            return Err(LaunchError::Panicked);
+        }
+    };
+    if let Some(status) = exit
+        && !status.success()
+    {
+        stop_all(children);
+        return Err(LaunchError::AutopilotExited(status));
+    }
+    let autopilot_cpu: Vec<Option<f64>> = children.iter().map(AutopilotChild::cpu_s).collect();
+    stop_all(children);
+    let plant_cpu_s = own_cpu_s();
+    let vehicles = servers
+        .iter()
+        .zip(autopilot_cpu)
+        .map(|(server, autopilot_cpu_s)| {
+            let stats = server.stats();
+            LaunchReport {
+                steps: stats.steps,
+                sim_s: server.plant().time_us() as f64 * 1e-6,
+                wall_s,
+                link: stats,
+                autopilot_cpu_s,
+                plant_cpu_s,
+                stopped,
+            }
+        })
+        .collect();
+    Ok(SwarmReport { vehicles, wall_s, stopped })
+}
+
 /// What the plant thread measured.
 struct Measured {
     wall_s: f64,

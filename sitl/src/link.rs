@@ -479,6 +479,17 @@ impl<T: Transport> PlantServer<T> {
     /// [`LinkError::Stopped`] once `stop` is set; the plant has not stepped then (call again to keep
     /// waiting).
     pub fn step(&mut self, stop: &AtomicBool) -> Result<ActuatorCommand, LinkError> {
+        self.begin_step()?;
+        self.end_step(stop)
+    }
+
+    /// The first half of [`PlantServer::step`]: send the sensors for the current plant time (again, if
+    /// they were sent and not yet answered). A swarm sends every plant's sensors first and then collects
+    /// the replies, so its autopilots compute at the same time rather than one after another.
+    ///
+    /// # Errors
+    /// [`LinkError::Io`] from the transport.
+    pub fn begin_step(&mut self) -> Result<(), LinkError> {
         let t = self.plant.time_us();
         let datagram = match self.pending.take() {
             Some((time_us, datagram)) if time_us == t => datagram,
@@ -487,7 +498,22 @@ impl<T: Transport> PlantServer<T> {
                 self.sensor_datagram()
             }
         };
-        self.transport.send(&datagram)?;
+        let sent = self.transport.send(&datagram);
+        self.pending = Some((t, datagram));
+        Ok(sent?)
+    }
+
+    /// The second half of [`PlantServer::step`]: wait for the reply to the sensors [`PlantServer::begin_step`]
+    /// sent (sending them first if it did not), (pace,) step the plant.
+    ///
+    /// # Errors
+    /// As [`PlantServer::step`].
+    pub fn end_step(&mut self, stop: &AtomicBool) -> Result<ActuatorCommand, LinkError> {
+        let t = self.plant.time_us();
+        if self.pending.as_ref().is_none_or(|(time_us, _)| *time_us != t) {
+            self.begin_step()?;
+        }
+        let Some((_, datagram)) = self.pending.take() else { return Err(LinkError::Stopped) };
         let reply = self.wait_for_reply(t, &datagram, stop);
         self.pending = Some((t, datagram));
         let command = reply?;
