@@ -100,6 +100,15 @@ struct RunArgs {
     /// With --scenario: print the metrics as one JSON object.
     #[arg(long, requires = "scenario")]
     json: bool,
+    /// A swarm of N vehicles in one command: instances -i .. -i+N-1 (system ids from -i+1), every one's
+    /// telemetry to UDP 14550 and its own API port; the plants share this process and one clock, each
+    /// autopilot is its own process.
+    #[arg(short = 'n', long = "count", default_value_t = 1, value_name = "N", conflicts_with = "scenario",
+          value_parser = clap::value_parser!(u16).range(1..=255))]
+    count: u16,
+    /// Swarm spawn grid spacing (m): vehicle k starts k-th on a square grid, rows north, columns east.
+    #[arg(long, default_value_t = 3.0, value_name = "M")]
+    spacing: f64,
     /// Start clean: the autopilot removes the instance's kept parameters, mission, fence and rally points
     /// before it starts (ArduPilot's `-w`; a signing key is kept).
     #[arg(long, conflicts_with = "scenario")]
@@ -145,6 +154,12 @@ struct PlantArgs {
 impl PlantArgs {
     /// The plant and its pacing; `default` is the configuration used without `--config`.
     fn build(&self, default: PlantConfig) -> Result<(Plant, Pacing)> {
+        let config = self.config(default)?;
+        Ok((Plant::new(config, &InitialState::default(), self.seed)?, self.pacing()))
+    }
+
+    /// The plant configuration: `--config` (else `default`) with `--plant`'s airframe over it.
+    fn config(&self, default: PlantConfig) -> Result<PlantConfig> {
         let mut config = match &self.config {
             Some(path) => {
                 let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
@@ -155,7 +170,7 @@ impl PlantArgs {
         if let Some(preset) = &self.preset {
             config.airframe = Airframe::preset(preset)?;
         }
-        Ok((Plant::new(config, &InitialState::default(), self.seed)?, self.pacing()))
+        Ok(config)
     }
 
     /// `--speed` or `--lockstep`; without either, real time.
@@ -611,6 +626,9 @@ fn print_two_process(m: &two_process::TwoProcessMetrics, json: bool) -> Result<(
 }
 
 fn run(args: &RunArgs) -> Result<()> {
+    if args.count > 1 {
+        return run_swarm(args);
+    }
     if args.scenario.is_some() && (args.plant.config.is_some() || args.plant.pacing_given() || args.duration.is_some())
     {
         bail!(
@@ -733,6 +751,124 @@ fn run(args: &RunArgs) -> Result<()> {
         l.stale_actuators,
         l.junk_datagrams,
         l.decoder.malformed(),
+    );
+    Ok(())
+}
+
+/// Where swarm vehicle `k` of `count` starts: on a square grid `spacing_m` apart, rows north, columns east
+/// (NED, metres from the plant origin).
+fn grid_position_ned_m(k: u16, count: u16, spacing_m: f64) -> nalgebra::Vector3<f64> {
+    let columns = (f64::from(count).sqrt().ceil() as u16).max(1);
+    nalgebra::Vector3::new(f64::from(k / columns) * spacing_m, f64::from(k % columns) * spacing_m, 0.0)
+}
+
+/// `sitl run -n N`: N plants in this process on one clock, N autopilot processes.
+fn run_swarm(args: &RunArgs) -> Result<()> {
+    let (first, count) = (args.instance, args.count);
+    let last = first
+        .checked_add(count - 1)
+        .filter(|&last| last <= autopilot::runtime::ports::MAX_INSTANCE)
+        .with_context(|| format!("-i {first} -n {count}: instances are 0..=254"))?;
+    if !(args.spacing.is_finite() && args.spacing > 0.0) {
+        bail!("--spacing must be a positive number of metres, got {}", args.spacing);
+    }
+    if args.estimator.as_deref() == Some("truth") {
+        // The truth feed's local frame is the plant's origin, which only the vehicle spawned there shares:
+        // the others would report their spawn offset twice.
+        bail!("a swarm (-n) flies the fused estimator; --estimator truth is for one vehicle");
+    }
+    let autopilot = launch::autopilot_binary()?;
+    for n in first..=last {
+        launch::check_instance_free(n, true)?;
+    }
+    if let Some(path) = &args.autopilot_config {
+        let file = ConfigFile::load(path)?;
+        let config = RuntimeConfig::resolve(file, first, Overrides::default())
+            .with_context(|| format!("autopilot configuration {}", path.display()))?;
+        Vehicle::new(config.vehicle).with_context(|| format!("autopilot configuration {}", path.display()))?;
+    }
+    let config = args.plant.config(realistic_plant_config())?;
+    let pacing = args.plant.pacing();
+    let duration = duration_us(args.duration)?;
+    let stop = launch::ctrl_c_flag();
+    let mut servers = Vec::new();
+    let mut children = Vec::new();
+    for (k, n) in (first..=last).enumerate() {
+        let k = u16::try_from(k).context("swarm index")?;
+        let ports = InstancePorts::of(n)?;
+        let start = InitialState { pos_ned_m: grid_position_ned_m(k, count, args.spacing), ..InitialState::default() };
+        let plant = Plant::new(config.clone(), &start, args.plant.seed.wrapping_add(u64::from(k)))?;
+        let link = LinkConfig {
+            pacing,
+            connect_timeout: Some(Duration::from_secs(30)),
+            truth_odometry: args.estimator.as_deref() == Some("truth"),
+            ..LinkConfig::default()
+        };
+        let listen = format!("127.0.0.1:{}", ports.plant_udp);
+        let (sim_params, _) = bind_sim_params(n, &plant)?;
+        let mut server =
+            PlantServer::bind_udp(plant, listen.as_str(), link).with_context(|| format!("binding {listen}"))?;
+        server.set_hook(Box::new(sim_params));
+        servers.push(server);
+        let mut ap_args: Vec<OsString> = vec!["--plant".into(), format!("udp://{listen}").into()];
+        ap_args.extend(["-i".into(), n.to_string().into()]);
+        if let Some(estimator) = &args.estimator {
+            ap_args.extend(["--estimator".into(), estimator.into()]);
+        }
+        if let Some(controller) = args.controller {
+            ap_args.extend(["--controller".into(), controller.to_string().into()]);
+        }
+        if let Some(path) = &args.autopilot_config {
+            ap_args.extend(["--config".into(), path.into()]);
+        }
+        if let Some(dir) = &args.log_dir {
+            ap_args.extend(["--log-dir".into(), dir.into()]);
+        }
+        match args.state_dir.as_deref().map(str::trim) {
+            Some("off") => ap_args.extend(["--state-dir".into(), "off".into()]),
+            Some(dir) => ap_args.extend(["--state-dir".into(), Path::new(dir).join(format!("i{n}")).into()]),
+            None => {}
+        }
+        if args.wipe {
+            ap_args.push("--wipe".into());
+        }
+        children.push(AutopilotChild::spawn(&autopilot, &ap_args)?);
+    }
+    let api: Vec<String> =
+        (first..=last).map(|n| InstancePorts::of(n).map(|p| p.api_udp.to_string())).collect::<Result<_, _>>()?;
+    eprintln!(
+        "sitl: swarm of {count} vehicles running {}: instances {first}..={last} (system ids {}..={}), spawned {} m \
+         apart; every vehicle sends to udp 14550 (QGroundControl shows them all) and to its API port ({}); \
+         plants on udp {}..={}, SIM_ parameters on udp {}..={}. Ctrl-C stops them all.",
+        describe_pacing(pacing),
+        u32::from(first) + 1,
+        u32::from(last) + 1,
+        args.spacing,
+        api.join(", "),
+        InstancePorts::of(first)?.plant_udp,
+        InstancePorts::of(last)?.plant_udp,
+        InstancePorts::of(first)?.sim_params_udp,
+        InstancePorts::of(last)?.sim_params_udp,
+    );
+    let mut progress = match duration {
+        Some(us) => Progress::new("sitl: swarm", us.div_ceil(1_000_000), "sim s"),
+        None => Progress::hidden(0),
+    };
+    let report = launch::run_swarm(&mut servers, children, duration, &stop, |t_us| progress.set(t_us / 1_000_000));
+    progress.finish();
+    let report = report?;
+    let steps: u64 = report.vehicles.iter().map(|v| v.steps).sum();
+    let sim_s = report.vehicles.first().map_or(0.0, |v| v.sim_s);
+    let resends: u64 = report.vehicles.iter().map(|v| v.link.resends).sum();
+    let malformed: u64 = report.vehicles.iter().map(|v| v.link.decoder.malformed()).sum();
+    let autopilot_cpu_s: f64 = report.vehicles.iter().filter_map(|v| v.autopilot_cpu_s).sum();
+    eprintln!(
+        "sitl: swarm of {count}: {sim_s:.1} sim s in {:.1} s wall ({:.1}x real time), {steps} plant steps in all; \
+         CPU: plants {:.2} s in this process, autopilots {autopilot_cpu_s:.2} s together; plant links: {resends} \
+         resends, {malformed} malformed frames dropped",
+        report.wall_s,
+        if report.wall_s > 0.0 { sim_s / report.wall_s } else { 0.0 },
+        report.vehicles.first().and_then(|v| v.plant_cpu_s).unwrap_or(f64::NAN),
     );
     Ok(())
 }
