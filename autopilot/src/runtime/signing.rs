@@ -104,7 +104,7 @@ impl LinkSigning {
     /// station. Keeps (or removes) the key file.
     pub fn setup(&self, key: [u8; 32], initial_timestamp: u64, secure: bool) -> String {
         if !secure {
-            return "Signing: SETUP_SIGNING refused on UDP (use TCP or serial, or mark the link udp_secure)".into();
+            return "Signing: refused on UDP (use TCP or udp_secure)".into();
         }
         let key = SecretKey(key);
         if key.is_zero() {
@@ -185,10 +185,7 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
         let s = LinkSigning::new(Some(dir.clone()));
-        assert_eq!(
-            s.setup([3; 32], 0, false),
-            "Signing: SETUP_SIGNING refused on UDP (use TCP or serial, or mark the link udp_secure)"
-        );
+        assert_eq!(s.setup([3; 32], 0, false), "Signing: refused on UDP (use TCP or udp_secure)");
         assert!(!s.enabled());
         assert_eq!(s.setup([3; 32], 0, true), "Signing enabled");
         let text = std::fs::read_to_string(dir.join(KEY_FILE)).unwrap();
