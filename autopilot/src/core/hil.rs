@@ -682,7 +682,8 @@ enum Scan {
 /// or [`FrameDecoder::decode_datagram`] one UDP datagram (a datagram holds whole frames: what is left
 /// incomplete at its end is counted as truncated). Bad frames are counted in [`DecoderStats`] and dropped
 /// by skipping their start byte only, so a good frame inside or after them is still found. Memory is
-/// bounded by one maximum frame (280 bytes) plus the latest input.
+/// bounded by one maximum frame (283 bytes with a 32-bit system id; less is kept between reads) plus the
+/// latest input.
 #[derive(Debug, Clone, Default)]
 pub struct FrameDecoder {
     buf: Vec<u8>,

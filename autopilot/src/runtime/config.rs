@@ -10,6 +10,9 @@
 //! udp_bind = "0.0.0.0:18570"           # the UDP ground-station link: bound here ...
 //! udp_targets = ["127.0.0.1:14550", "127.0.0.1:14540"]   # ... always sending here, and to every peer
 //! tcp_bind = "0.0.0.0:5760"            # TCP server; "off" disables it
+//! tcp_max_clients = 16                 # TCP clients served at once (1-1024); more are refused
+//! udp_max_peers = 32                   # UDP peers broadcast to at once (1-1024); more are only answered
+//! udp_secure = false                   # true: SETUP_SIGNING accepted over UDP; only on a network you trust
 //! serial = "/dev/ttyUSB0:57600"        # a telemetry radio (none by default)
 //!
 //! [log]
@@ -37,9 +40,9 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 
 use super::ports::InstancePorts;
-use super::tcp::TcpConfig;
+use super::tcp::{MAX_TCP_CLIENTS, TcpConfig};
 use super::transport::parse_serial_spec;
-use super::udp::{PEER_EXPIRY, UdpConfig};
+use super::udp::{MAX_UDP_PEERS, PEER_EXPIRY, UdpConfig};
 use crate::core::config::VehicleConfig;
 
 /// A configuration that cannot be used; the message names the file and the key.
@@ -77,6 +80,25 @@ pub struct GcsSection {
     pub serial: Option<String>,
     /// The MAVLink signing key (a file of 64 hex digits; see `runtime::signing`).
     pub signing_key_file: Option<PathBuf>,
+    /// The most TCP clients served at once (default 16, at most [`MAX_PEER_CAP`]).
+    pub tcp_max_clients: Option<usize>,
+    /// The most UDP peers broadcast to at once (default 32, at most [`MAX_PEER_CAP`]).
+    pub udp_max_peers: Option<usize>,
+    /// Whether the UDP link may carry a SETUP_SIGNING (default false). Only on a network you trust:
+    /// anyone who reaches the port could set the key.
+    pub udp_secure: Option<bool>,
+}
+
+/// The largest `tcp_max_clients` and `udp_max_peers` a configuration may ask for: each TCP client holds a
+/// task, a socket and a 256-frame queue, and every UDP broadcast goes to every peer.
+pub const MAX_PEER_CAP: usize = 1024;
+
+fn peer_cap(value: Option<usize>, default: usize, key: &'static str) -> Result<usize, ConfigError> {
+    match value {
+        None => Ok(default),
+        Some(n) if (1..=MAX_PEER_CAP).contains(&n) => Ok(n),
+        Some(n) => Err(ConfigError::Invalid { key, message: format!("{n} is outside 1-{MAX_PEER_CAP}") }),
+    }
 }
 
 /// `[log]`.
@@ -242,7 +264,10 @@ impl RuntimeConfig {
             bind: file.gcs.udp_bind.unwrap_or(default_udp.bind),
             targets: file.gcs.udp_targets.unwrap_or(default_udp.targets),
             peer_expiry: PEER_EXPIRY,
+            max_peers: peer_cap(file.gcs.udp_max_peers, MAX_UDP_PEERS, "gcs.udp_max_peers")?,
+            secure: file.gcs.udp_secure.unwrap_or(false),
         };
+        let max_clients = peer_cap(file.gcs.tcp_max_clients, MAX_TCP_CLIENTS, "gcs.tcp_max_clients")?;
         let tcp = match file.gcs.tcp_bind.as_deref().map(str::trim) {
             Some("off") => None,
             Some(addr) => Some(TcpConfig {
@@ -251,8 +276,9 @@ impl RuntimeConfig {
                     key: "gcs.tcp_bind",
                     message: format!("`{addr}` is not an address (or `off`): {e}"),
                 })?,
+                max_clients,
             }),
-            None => Some(TcpConfig::for_ports(&ports)),
+            None => Some(TcpConfig { max_clients, ..TcpConfig::for_ports(&ports) }),
         };
         let serial = file
             .gcs
@@ -303,8 +329,10 @@ mod tests {
         assert_eq!(c.vehicle.sysid, 4);
         assert_eq!(c.udp.bind, "0.0.0.0:18573".parse().expect("addr"));
         assert_eq!(c.udp.targets, vec![local(14550), local(14543)], "QGroundControl's port is shared");
-        assert_eq!(c.tcp.map(|t| t.bind), Some("0.0.0.0:5763".parse().expect("addr")));
+        assert_eq!(c.tcp.as_ref().map(|t| t.bind), Some("0.0.0.0:5763".parse().expect("addr")));
         assert_eq!((c.serial, c.log_dir), (None, None));
+        assert_eq!((c.udp.max_peers, c.udp.secure), (MAX_UDP_PEERS, false));
+        assert_eq!(c.tcp.map(|t| t.max_clients), Some(MAX_TCP_CLIENTS));
         assert_eq!(c.ulog_dir, c.state_dir.map(|d| d.join("log")), "flight logs under the state directory");
     }
 
@@ -324,6 +352,25 @@ mod tests {
         assert_eq!(resolve("", off.clone()), None);
         assert_eq!(resolve("", Overrides { log_dir: Some("logs".into()), ..off }), Some(PathBuf::from("logs")));
         assert!(ConfigFile::from_toml_str("[log]\nulog = \"yes\"\n", "t.toml").is_err());
+    }
+
+    #[test]
+    fn the_peer_caps_and_udp_secure_are_set_and_checked() {
+        let file = ConfigFile::from_toml_str(
+            "[gcs]\ntcp_max_clients = 4\nudp_max_peers = 1024\nudp_secure = true\n",
+            "caps.toml",
+        )
+        .expect("parses");
+        let c = RuntimeConfig::resolve(file, 0, Overrides::default()).expect("valid");
+        assert_eq!((c.tcp.map(|t| t.max_clients), c.udp.max_peers, c.udp.secure), (Some(4), 1024, true));
+        let bad = |text: &str| {
+            let file = ConfigFile::from_toml_str(text, "c.toml").expect("parses");
+            RuntimeConfig::resolve(file, 0, Overrides::default()).unwrap_err().to_string()
+        };
+        assert_eq!(bad("[gcs]\ntcp_max_clients = 0\n"), "gcs.tcp_max_clients: 0 is outside 1-1024");
+        assert_eq!(bad("[gcs]\nudp_max_peers = 1025\n"), "gcs.udp_max_peers: 1025 is outside 1-1024");
+        let negative = ConfigFile::from_toml_str("[gcs]\ntcp_max_clients = -1\n", "n.toml").unwrap_err();
+        assert!(negative.to_string().contains("tcp_max_clients"), "{negative}");
     }
 
     #[test]

@@ -351,8 +351,12 @@ pub async fn run(config: RuntimeConfig) -> Result<PlantLinkStats, RuntimeError> 
     let mut counters = Vec::new();
 
     let signing = Arc::new(start_signing(&config)?);
-    // Which links may carry SETUP_SIGNING: TCP and serial (a cable or a connection the user made), not UDP.
-    let mut secure = vec![false];
+    // Which links may carry SETUP_SIGNING: TCP and serial (a cable or a connection the user made), not UDP
+    // unless the configuration marks it secure (`[gcs] udp_secure`, for a network the user trusts).
+    let mut secure = vec![config.udp.secure];
+    if config.udp.secure {
+        tracing::warn!("UDP link marked secure: a SETUP_SIGNING over UDP will be accepted");
+    }
     let udp = UdpLink::bind(config.udp.clone()).await?.with_signing(signing.clone());
     counters.push(udp.counters());
     let (tx, rx) = mpsc::channel(CHANNEL_CAPACITY);

@@ -6,8 +6,8 @@
 //! - On: every outgoing frame is signed; a received frame that is unsigned (except RADIO_STATUS), wrongly
 //!   signed, replayed or a minute stale is dropped and counted in the link's `LinkStats::signature_rejected`.
 //! - The key comes from `--signing-key-file` (64 hex digits; also the `signing_key_file` config key), or
-//!   from a SETUP_SIGNING received on a secure link (TCP or serial; never UDP, which anyone on the network
-//!   reaches). A key set by SETUP_SIGNING is kept in the state directory as [`KEY_FILE`] (key and last
+//!   from a SETUP_SIGNING received on a secure link (TCP or serial; not UDP, which anyone on the network
+//!   reaches, unless the configuration marks it secure with `[gcs] udp_secure`, for a trusted network). A key set by SETUP_SIGNING is kept in the state directory as [`KEY_FILE`] (key and last
 //!   timestamp, owner-only permissions, written atomically) and used again at the next start, with
 //!   timestamps that continue from the saved one. It is never logged.
 //! - Turning signing off: SETUP_SIGNING with the all-zero key (while signing is on it must itself be signed,
@@ -104,7 +104,7 @@ impl LinkSigning {
     /// station. Keeps (or removes) the key file.
     pub fn setup(&self, key: [u8; 32], initial_timestamp: u64, secure: bool) -> String {
         if !secure {
-            return "Signing: SETUP_SIGNING refused on UDP (use TCP or serial)".into();
+            return "Signing: refused on UDP (use TCP or udp_secure)".into();
         }
         let key = SecretKey(key);
         if key.is_zero() {
@@ -185,7 +185,7 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
         let s = LinkSigning::new(Some(dir.clone()));
-        assert_eq!(s.setup([3; 32], 0, false), "Signing: SETUP_SIGNING refused on UDP (use TCP or serial)");
+        assert_eq!(s.setup([3; 32], 0, false), "Signing: refused on UDP (use TCP or udp_secure)");
         assert!(!s.enabled());
         assert_eq!(s.setup([3; 32], 0, true), "Signing enabled");
         let text = std::fs::read_to_string(dir.join(KEY_FILE)).unwrap();

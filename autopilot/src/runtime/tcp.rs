@@ -1,6 +1,6 @@
 //! The TCP ground-station link: a server on `0.0.0.0:5760 + N` for instance N (ArduPilot's and PX4's
-//! SITL TCP port; configurable) accepting up to [`MAX_TCP_CLIENTS`] clients at once (one more is closed at
-//! once). In: each client's byte stream through
+//! SITL TCP port; configurable) accepting up to [`TcpConfig::max_clients`] clients at once (default
+//! [`MAX_TCP_CLIENTS`]; one more is closed at once, and a burst of refusals is logged once). In: each client's byte stream through
 //! its own stream decoder; each valid frame goes to the core as an [`Incoming`] tagged with the client's
 //! address. Out: each [`Outgoing`] is encoded once and queued to every connected client
 //! ([`Destination::All`]) or to one ([`Destination::Peer`]).
@@ -29,8 +29,8 @@ use super::signing::LinkSigning;
 
 /// Frames queued to one client before it counts as stalled and its frames are dropped.
 pub const CLIENT_QUEUE_FRAMES: usize = 256;
-/// The most clients served at once; a connection beyond it is closed at once (and logged), so idle
-/// connections cannot exhaust the process.
+/// The default of [`TcpConfig::max_clients`]: the most clients served at once; a connection beyond it is
+/// closed at once, so idle connections cannot exhaust the process.
 pub const MAX_TCP_CLIENTS: usize = 16;
 /// Read size per client, in bytes.
 const READ_CHUNK_BYTES: usize = 4096;
@@ -42,13 +42,19 @@ pub struct TcpConfig {
     pub link: LinkId,
     /// Local address to listen on (port 0 picks a free one, for tests).
     pub bind: SocketAddr,
+    /// The most clients served at once ([`MAX_TCP_CLIENTS`] by default); `[gcs] tcp_max_clients`.
+    pub max_clients: usize,
 }
 
 impl TcpConfig {
     /// `0.0.0.0:5760 + N` for an instance ([`InstancePorts`]).
     #[must_use]
     pub fn for_ports(ports: &InstancePorts) -> Self {
-        Self { link: 1, bind: SocketAddr::V4(SocketAddrV4::new(Ipv4Addr::UNSPECIFIED, ports.tcp)) }
+        Self {
+            link: 1,
+            bind: SocketAddr::V4(SocketAddrV4::new(Ipv4Addr::UNSPECIFIED, ports.tcp)),
+            max_clients: MAX_TCP_CLIENTS,
+        }
     }
 }
 
@@ -64,6 +70,7 @@ pub struct TcpLink {
     link: LinkId,
     listener: TcpListener,
     local: SocketAddr,
+    max_clients: usize,
     counters: Arc<LinkCounters>,
     signing: Arc<LinkSigning>,
 }
@@ -81,7 +88,14 @@ impl TcpLink {
             TcpListener::bind(config.bind).await.map_err(|source| LinkError::Bind { addr: config.bind, source })?;
         let local = listener.local_addr()?;
         tracing::info!(%local, "TCP ground-station link listening");
-        Ok(Self { link: config.link, listener, local, counters: LinkCounters::new_shared(), signing: Arc::default() })
+        Ok(Self {
+            link: config.link,
+            listener,
+            local,
+            max_clients: config.max_clients,
+            counters: LinkCounters::new_shared(),
+            signing: Arc::default(),
+        })
     }
 
     /// Signs and verifies with the process's shared signing state (default: its own, off).
@@ -114,8 +128,9 @@ impl TcpLink {
         mut outgoing: mpsc::Receiver<Outgoing>,
         mut shutdown: Shutdown,
     ) -> Result<(), LinkError> {
-        let mut clients: BTreeMap<SocketAddr, mpsc::Sender<Frame>> = BTreeMap::new();
+        let mut clients: BTreeMap<SocketAddr, ClientQueue> = BTreeMap::new();
         let mut tasks = JoinSet::new();
+        let mut refusals = Refusals::default();
         let result = loop {
             tokio::select! {
                 biased;
@@ -124,6 +139,7 @@ impl TcpLink {
                     match done {
                         Ok(peer) => {
                             clients.remove(&peer);
+                            let _logged = refusals.slot_freed(self.max_clients);
                         }
                         Err(e) => tracing::error!(error = %e, "TCP client task panicked"),
                     }
@@ -133,14 +149,14 @@ impl TcpLink {
                     self.route(&mut clients, &out);
                 }
                 accepted = self.listener.accept() => match accepted {
-                    Ok((stream, peer)) if clients.len() >= MAX_TCP_CLIENTS => {
-                        tracing::warn!(%peer, max = MAX_TCP_CLIENTS, "TCP client refused: too many clients");
+                    Ok((stream, peer)) if clients.len() >= self.max_clients => {
+                        let _logged = refusals.refused(peer, self.max_clients);
                         drop(stream);
                     }
                     Ok((stream, peer)) => {
                         tracing::info!(%peer, "TCP ground-station client connected");
                         let (tx, rx) = mpsc::channel(CLIENT_QUEUE_FRAMES);
-                        clients.insert(peer, tx);
+                        clients.insert(peer, ClientQueue { tx, stalled: false });
                         let client = Client {
                             link: self.link,
                             peer,
@@ -171,20 +187,26 @@ impl TcpLink {
         result
     }
 
-    fn route(&self, clients: &mut BTreeMap<SocketAddr, mpsc::Sender<Frame>>, out: &Outgoing) {
+    fn route(&self, clients: &mut BTreeMap<SocketAddr, ClientQueue>, out: &Outgoing) {
         let frame: Frame = self.signing.encode(out.header, &out.message).into();
         let mut gone = Vec::new();
-        for (peer, tx) in clients.iter() {
+        for (peer, ClientQueue { tx, stalled }) in clients.iter_mut() {
             if let Destination::Peer(to) = out.to
                 && to != *peer
             {
                 continue;
             }
             match tx.try_send(frame.clone()) {
-                Ok(()) => {}
+                Ok(()) => {
+                    if std::mem::take(stalled) {
+                        tracing::info!(%peer, "TCP client reading again");
+                    }
+                }
                 Err(TrySendError::Full(_)) => {
                     self.counters.add_send_error();
-                    tracing::warn!(%peer, "TCP client is not reading; frame dropped");
+                    if !std::mem::replace(stalled, true) {
+                        tracing::warn!(%peer, "TCP client is not reading; its frames are dropped until it reads");
+                    }
                 }
                 Err(TrySendError::Closed(_)) => gone.push(*peer),
             }
@@ -198,6 +220,44 @@ impl TcpLink {
         for peer in gone {
             clients.remove(&peer);
         }
+    }
+}
+
+/// The queue to one client's task, and whether it is full (said once per stall, not per frame dropped).
+struct ClientQueue {
+    tx: mpsc::Sender<Frame>,
+    stalled: bool,
+}
+
+/// The refusals of one burst: while the server is full, the first refused connection is logged (with the
+/// cap) and the rest only counted; when a client leaves, how many were refused is logged and the next
+/// burst starts. A thousand connection attempts make two log lines, not a thousand.
+#[derive(Debug, Default)]
+struct Refusals {
+    in_burst: u64,
+    total: u64,
+}
+
+impl Refusals {
+    /// One connection refused; true if this one was logged (the first of its burst).
+    fn refused(&mut self, peer: SocketAddr, max: usize) -> bool {
+        let first = self.in_burst == 0;
+        if first {
+            tracing::warn!(%peer, max, "TCP client cap reached: refusing new clients until one leaves");
+        }
+        self.in_burst += 1;
+        self.total += 1;
+        first
+    }
+
+    /// A client left; true if that ended a burst of refusals (and it was logged).
+    fn slot_freed(&mut self, max: usize) -> bool {
+        let ended = self.in_burst > 0;
+        if ended {
+            tracing::info!(refused = self.in_burst, total_refused = self.total, max, "TCP client slot free again");
+            self.in_burst = 0;
+        }
+        ended
     }
 }
 
@@ -286,8 +346,13 @@ mod tests {
     }
 
     async fn start() -> Harness {
-        let link =
-            TcpLink::bind(TcpConfig { link: 1, bind: "127.0.0.1:0".parse().expect("addr") }).await.expect("bind");
+        let link = TcpLink::bind(TcpConfig {
+            link: 1,
+            bind: "127.0.0.1:0".parse().expect("addr"),
+            max_clients: MAX_TCP_CLIENTS,
+        })
+        .await
+        .expect("bind");
         let addr = link.local_addr();
         let (in_tx, incoming) = mpsc::channel(CHANNEL_CAPACITY);
         let (outgoing, out_rx) = mpsc::channel(CHANNEL_CAPACITY);
@@ -386,6 +451,18 @@ mod tests {
         let mut buf = [0u8; 16];
         let n = tokio::time::timeout(WAIT, a.read(&mut buf)).await.expect("closed promptly");
         assert!(matches!(n, Ok(0) | Err(_)), "the client sees the connection end: {n:?}");
+    }
+
+    #[test]
+    fn a_burst_of_refusals_is_logged_once_and_its_end_once() {
+        let mut r = Refusals::default();
+        let peer: SocketAddr = "127.0.0.1:9".parse().expect("addr");
+        let logged = (0..1000).filter(|_| r.refused(peer, 16)).count();
+        assert_eq!(logged, 1);
+        assert!(r.slot_freed(16), "the end of the burst is said");
+        assert!(!r.slot_freed(16), "a client leaving without refusals says nothing");
+        assert!(r.refused(peer, 16), "a new burst is said again");
+        assert_eq!(r.total, 1001);
     }
 
     #[test]

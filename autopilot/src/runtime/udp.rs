@@ -7,7 +7,8 @@
 //! Peers expire after [`PEER_EXPIRY`] (10 s) without a valid frame from them: GCS heartbeats come at 1 Hz
 //! and clients give up on a silent vehicle after 3-3.5 s, so 10 s keeps a client through a few lost
 //! heartbeats and a one-shot script for a while after its last message. Fixed targets never expire. At
-//! most [`MAX_UDP_PEERS`] peers are live at once; a new sender beyond that is answered but not broadcast to.
+//! most [`UdpConfig::max_peers`] peers (default [`MAX_UDP_PEERS`]) are live at once; a new sender beyond
+//! that is answered but not broadcast to, and a burst of such refusals is logged once.
 //! rust-mavlink's `udpin` answers only the last sender, which is why this shell keeps its own socket.
 //!
 //! Malformed datagrams are counted in the link's `LinkStats` and dropped; a send that fails (nobody
@@ -48,6 +49,11 @@ pub struct UdpConfig {
     pub targets: Vec<SocketAddr>,
     /// How long a peer stays without traffic.
     pub peer_expiry: Duration,
+    /// The most live peers at once ([`MAX_UDP_PEERS`] by default); `[gcs] udp_max_peers`.
+    pub max_peers: usize,
+    /// Whether this link may carry a SETUP_SIGNING (`[gcs] udp_secure`): false by default, since anyone
+    /// on the network reaches a UDP port; only for a network the user trusts (see `runtime::signing`).
+    pub secure: bool,
 }
 
 impl UdpConfig {
@@ -61,6 +67,8 @@ impl UdpConfig {
             bind: SocketAddr::V4(SocketAddrV4::new(Ipv4Addr::UNSPECIFIED, ports.autopilot_udp)),
             targets: vec![local(ports.qgc_udp), local(ports.api_udp)],
             peer_expiry: PEER_EXPIRY,
+            max_peers: MAX_UDP_PEERS,
+            secure: false,
         }
     }
 }
@@ -71,32 +79,45 @@ impl Default for UdpConfig {
     }
 }
 
-/// The most live UDP peers a link broadcasts to: a flood of senders from new addresses cannot grow the
-/// table (and every broadcast) without bound. A sender beyond it still gets its replies.
+/// The default of [`UdpConfig::max_peers`], the most live UDP peers a link broadcasts to: a flood of
+/// senders from new addresses cannot grow the table (and every broadcast) without bound. A sender beyond
+/// it still gets its replies.
 pub const MAX_UDP_PEERS: usize = 32;
 
-/// Fixed targets plus every address that sent a valid frame within the expiry time (at most
-/// [`MAX_UDP_PEERS`] of them).
+/// Fixed targets plus every address that sent a valid frame within the expiry time (at most `max_peers`
+/// of them).
 #[derive(Debug, Clone)]
 pub struct PeerTable {
     fixed: Vec<SocketAddr>,
     last_heard: BTreeMap<SocketAddr, Instant>,
     expiry: Duration,
+    max_peers: usize,
     /// New peers not taken because the table was full.
     refused: u64,
+    /// Of them, since the table last had room (the burst that was logged once).
+    refused_in_burst: u64,
 }
 
 impl PeerTable {
+    /// Fixed targets `fixed`, peers expiring after `expiry`, at most `max_peers` live ones.
     #[must_use]
-    pub fn new(fixed: Vec<SocketAddr>, expiry: Duration) -> Self {
-        Self { fixed, last_heard: BTreeMap::new(), expiry, refused: 0 }
+    pub fn new(fixed: Vec<SocketAddr>, expiry: Duration, max_peers: usize) -> Self {
+        Self { fixed, last_heard: BTreeMap::new(), expiry, max_peers, refused: 0, refused_in_burst: 0 }
     }
 
-    /// `peer` sent a valid frame at `now`; true if it was not live before. A new peer while
-    /// [`MAX_UDP_PEERS`] are live is not taken (and counted in [`PeerTable::refused`]).
+    /// `peer` sent a valid frame at `now`; true if it was not live before. A new peer while `max_peers`
+    /// are live is not taken (and counted in [`PeerTable::refused`]); the first of a burst is logged.
     pub fn heard(&mut self, peer: SocketAddr, now: Instant) -> bool {
-        if !self.last_heard.contains_key(&peer) && self.last_heard.len() >= MAX_UDP_PEERS {
+        if !self.last_heard.contains_key(&peer) && self.last_heard.len() >= self.max_peers {
+            if self.refused_in_burst == 0 {
+                tracing::warn!(
+                    %peer,
+                    max = self.max_peers,
+                    "UDP peer cap reached: new senders are answered but not broadcast to until a peer expires"
+                );
+            }
             self.refused += 1;
+            self.refused_in_burst += 1;
             return false;
         }
         self.last_heard.insert(peer, now).is_none_or(|last| now.duration_since(last) >= self.expiry)
@@ -119,6 +140,10 @@ impl PeerTable {
             }
             live
         });
+        if !gone.is_empty() && self.refused_in_burst > 0 {
+            tracing::info!(refused = self.refused_in_burst, total_refused = self.refused, "UDP peer slot free again");
+            self.refused_in_burst = 0;
+        }
         gone
     }
 
@@ -161,7 +186,7 @@ impl UdpLink {
             link: config.link,
             socket,
             local,
-            peers: PeerTable::new(config.targets, config.peer_expiry),
+            peers: PeerTable::new(config.targets, config.peer_expiry, config.max_peers),
             counters: LinkCounters::new_shared(),
             signing: Arc::default(),
         })
@@ -317,7 +342,7 @@ mod tests {
             link: 0,
             bind: "127.0.0.1:0".parse().expect("addr"),
             targets: vec![fixed.local_addr().expect("addr")],
-            peer_expiry: PEER_EXPIRY,
+            ..UdpConfig::default()
         };
         let link = UdpLink::bind(config).await.expect("bind link");
         let link_addr = link.local_addr();
@@ -370,7 +395,7 @@ mod tests {
     fn peer_table_expires_peers_not_fixed_targets_and_never_doubles() {
         let fixed: SocketAddr = "127.0.0.1:14550".parse().expect("addr");
         let peer: SocketAddr = "127.0.0.1:40000".parse().expect("addr");
-        let mut t = PeerTable::new(vec![fixed], Duration::from_secs(10));
+        let mut t = PeerTable::new(vec![fixed], Duration::from_secs(10), MAX_UDP_PEERS);
         let t0 = Instant::now();
         assert!(t.heard(peer, t0));
         assert!(!t.heard(peer, t0 + Duration::from_secs(1)));
@@ -506,7 +531,7 @@ mod tests {
 
     #[test]
     fn a_flood_of_new_senders_cannot_grow_the_peer_table_past_its_cap() {
-        let mut table = PeerTable::new(vec![], Duration::from_secs(10));
+        let mut table = PeerTable::new(vec![], Duration::from_secs(10), MAX_UDP_PEERS);
         let now = Instant::now();
         for port in 0..(MAX_UDP_PEERS as u16 + 10) {
             table.heard(SocketAddr::from(([127, 0, 0, 1], 20_000 + port)), now);
