@@ -60,6 +60,25 @@ pub struct VehicleInputs {
     pub battery: Option<BatterySample>,
 }
 
+#[cfg(test)]
+impl VehicleInputs {
+    /// A truth-fed vehicle at rest, level, at the origin: the truth and the IMU reading gravity (tests).
+    pub(crate) fn at_rest_truth(time_us: u64) -> Self {
+        use nalgebra::UnitQuaternion;
+        let truth = TruthSample {
+            time_us,
+            pos_ned_m: Vector3::zeros(),
+            vel_ned_mps: Vector3::zeros(),
+            q_ned_frd: UnitQuaternion::identity(),
+            rate_frd_radps: Vector3::zeros(),
+            specific_force_frd_mps2: Vector3::new(0.0, 0.0, -crate::core::estimator::eskf::GRAVITY_MPS2),
+        };
+        let imu =
+            ImuSample { time_us, accel_frd_mps2: truth.specific_force_frd_mps2, gyro_frd_radps: Vector3::zeros() };
+        Self { imu: Some(imu), truth: Some(truth), ..Self::default() }
+    }
+}
+
 /// One step's outputs.
 #[derive(Debug, Clone, PartialEq)]
 pub struct VehicleOutputs {
@@ -863,7 +882,6 @@ impl Vehicle {
 mod tests {
     use ::mavlink::Message as _;
     use ::mavlink::dialects::common::{COMMAND_INT_DATA, MavCmd, MavFrame, MavModeFlag, MavResult, MavSeverity};
-    use nalgebra::UnitQuaternion;
 
     use super::*;
     use crate::core::commander::State;
@@ -887,16 +905,6 @@ mod tests {
     }
 
     fn at_rest(time_us: u64) -> VehicleInputs {
-        let truth = TruthSample {
-            time_us,
-            pos_ned_m: Vector3::zeros(),
-            vel_ned_mps: Vector3::zeros(),
-            q_ned_frd: UnitQuaternion::identity(),
-            rate_frd_radps: Vector3::zeros(),
-            specific_force_frd_mps2: Vector3::new(0.0, 0.0, -9.81),
-        };
-        let imu =
-            ImuSample { time_us, accel_frd_mps2: truth.specific_force_frd_mps2, gyro_frd_radps: Vector3::zeros() };
         let gps = time_us.is_multiple_of(100_000).then_some(GpsSample {
             time_us,
             lat_deg: ORIGIN.lat_deg,
@@ -908,7 +916,7 @@ mod tests {
             eph_m: 0.5,
             epv_m: 0.8,
         });
-        VehicleInputs { imu: Some(imu), truth: Some(truth), gps, ..VehicleInputs::default() }
+        VehicleInputs { gps, ..VehicleInputs::at_rest_truth(time_us) }
     }
 
     /// Steps `v` from `*t_us` for `seconds`, returning every message with its time.

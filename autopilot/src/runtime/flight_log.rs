@@ -31,9 +31,11 @@ use tokio::sync::mpsc::error::TrySendError;
 
 use super::ulog::{self, Field, FieldType, Record, Topic, Value};
 use super::utc::UtcTime;
+// Standard gravity (m/s²), to turn the specific force into an acceleration.
 use crate::core::battery::BatteryWarning;
 use crate::core::commander::FlightMode;
 use crate::core::control::ControllerKind;
+use crate::core::estimator::eskf::GRAVITY_MPS2 as G_MPS2;
 use crate::core::params::{ParamKind, ParamStore};
 use crate::core::vehicle::{LogSnapshot, Vehicle};
 
@@ -45,8 +47,6 @@ pub const SYNC_INTERVAL_US: u64 = 1_000_000;
 pub const PARAM_CHECK_INTERVAL_US: u64 = 1_000_000;
 /// Wall time between flushes of the file.
 const FLUSH_INTERVAL: std::time::Duration = std::time::Duration::from_secs(1);
-/// Standard gravity (m/s²), to turn the specific force into an acceleration.
-const G_MPS2: f64 = 9.806_65;
 
 /// The logged topics and the interval (µs of vehicle time) each is sampled at. PX4's topic names, and
 /// the fields of PX4's messages that this vehicle has, with their names and types; `controller_status`
@@ -730,7 +730,7 @@ mod tests {
     use super::*;
     use crate::core::commander::State;
     use crate::core::config::VehicleConfig;
-    use crate::core::estimator::{EstimatorSource, GeoOrigin, ImuSample, TruthSample};
+    use crate::core::estimator::{EstimatorSource, GeoOrigin};
     use crate::core::mavlink::MavHeader;
     use crate::core::mavlink::command_long;
     use crate::core::mavlink::common::{MavCmd, MavMessage};
@@ -753,17 +753,7 @@ mod tests {
     }
 
     fn at_rest(time_us: u64) -> VehicleInputs {
-        let truth = TruthSample {
-            time_us,
-            pos_ned_m: Vector3::zeros(),
-            vel_ned_mps: Vector3::zeros(),
-            q_ned_frd: UnitQuaternion::identity(),
-            rate_frd_radps: Vector3::zeros(),
-            specific_force_frd_mps2: Vector3::new(0.0, 0.0, -G_MPS2),
-        };
-        let imu =
-            ImuSample { time_us, accel_frd_mps2: truth.specific_force_frd_mps2, gyro_frd_radps: Vector3::zeros() };
-        VehicleInputs { imu: Some(imu), truth: Some(truth), ..VehicleInputs::default() }
+        VehicleInputs::at_rest_truth(time_us)
     }
 
     /// Steps the vehicle for `seconds` as the plant link does, the logger around each step.
