@@ -107,3 +107,22 @@ def test_signing_set_up_over_tcp_drops_unsigned_and_replayed_udp_commands_and_su
     finally:
         sitl.stop()
         print(sitl.log_tail())
+
+
+def test_a_udp_link_the_configuration_marks_secure_takes_setup_signing(tmp_path):
+    # GIVEN an autopilot whose configuration marks its UDP link secure (a network the user trusts).
+    config = tmp_path / "autopilot.toml"
+    config.write_text("[gcs]\nudp_secure = true\n")
+    sitl = start_sitl(tmp_path, "--autopilot-config", str(config), speed="4")
+    try:
+        conn = udp(sitl, signed=False)
+        # WHEN a SETUP_SIGNING arrives over UDP THEN it is taken, and unsigned commands are dropped after it.
+        conn.mav.setup_signing_send(sitl.instance + 1, 1, KEY, now_timestamp())
+        said = wait_for(conn, lambda m: m.get_type() == "STATUSTEXT" and m.text.startswith("Signing"), 5.0)
+        assert said is not None and said.text == "Signing enabled", said
+        assert not answered(conn, sitl, request_version(conn, sitl)), "an unsigned command is dropped"
+        conn.close()
+        signed = udp(sitl, signed=True)
+        assert answered(signed, sitl, request_version(signed, sitl)), "a signed one is answered"
+    finally:
+        sitl.stop()
