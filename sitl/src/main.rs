@@ -772,11 +772,6 @@ fn run_swarm(args: &RunArgs) -> Result<()> {
     if !(args.spacing.is_finite() && args.spacing > 0.0) {
         bail!("--spacing must be a positive number of metres, got {}", args.spacing);
     }
-    if args.estimator.as_deref() == Some("truth") {
-        // The truth feed's local frame is the plant's origin, which only the vehicle spawned there shares:
-        // the others would report their spawn offset twice.
-        bail!("a swarm (-n) flies the fused estimator; --estimator truth is for one vehicle");
-    }
     let autopilot = launch::autopilot_binary()?;
     for n in first..=last {
         launch::check_instance_free(n, true)?;

@@ -168,6 +168,9 @@ struct Driver {
     config: VehicleConfig,
     vehicle: Option<Vehicle>,
     home: Option<GeoOrigin>,
+    /// Whether `home` is the plant's origin (from the configuration, or moved there by the first
+    /// ODOMETRY) rather than the vehicle's first position.
+    home_is_plant_origin: bool,
     inputs: VehicleInputs,
     now_us: u64,
     sequence: u8,
@@ -383,6 +386,19 @@ impl Driver {
             Some(HilInput::Battery(battery)) => self.inputs.battery = Some(battery),
             Some(HilInput::Truth(truth)) if self.home.is_some() => self.inputs.truth = Some(truth),
             Some(HilInput::LocalTruth(local)) => {
+                // ODOMETRY positions are about the plant's origin, but a home latched from the first
+                // HIL_STATE_QUATERNION is the vehicle's first position: a vehicle that starts away from
+                // the origin (a swarm's) would count its offset twice. Before the vehicle is built, home
+                // moves to the plant's origin, the first position less the odometry's.
+                if !self.home_is_plant_origin
+                    && self.vehicle.is_none()
+                    && self.config.estimator.truth_origin.is_none()
+                    && let Some(first) = self.home
+                {
+                    let (lat_deg, lon_deg, alt_amsl_m) = first.geodetic_from_ned(&-local.pos_ned_m);
+                    self.home = Some(GeoOrigin { lat_deg, lon_deg, alt_amsl_m });
+                    self.home_is_plant_origin = true;
+                }
                 if let Some(truth) = self.inputs.truth.as_mut().filter(|t| t.time_us == local.time_us) {
                     *truth = local.refine(truth);
                 }
@@ -515,6 +531,7 @@ pub fn run(
         config: vehicle,
         vehicle: None,
         home: None,
+        home_is_plant_origin: false,
         inputs: VehicleInputs::default(),
         now_us: 0,
         sequence: 0,
