@@ -16,10 +16,10 @@ from aco_gcs.link import (
     AUTOPILOT_PORT,
     PX4_AUTO_LOITER,
     PX4_MAIN_AUTO,
-    QGC_PORT,
     Params,
     Plant,
     Vehicle,
+    api_port,
     mavlink,
 )
 
@@ -47,7 +47,7 @@ def run_sitl(tmp_path):
 
 def connect(sitl):
     vehicle = Vehicle(
-        f"udpin:127.0.0.1:{QGC_PORT + sitl.instance}", f"127.0.0.1:{AUTOPILOT_PORT + sitl.instance}", 240.0
+        f"udpin:127.0.0.1:{api_port(sitl.instance)}", f"127.0.0.1:{AUTOPILOT_PORT + sitl.instance}", 240.0
     )
     vehicle.wait_heartbeat(30.0, sitl.instance)
     return vehicle

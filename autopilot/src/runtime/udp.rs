@@ -1,8 +1,9 @@
 //! The UDP ground-station link, PX4 SITL style. One socket, bound on `0.0.0.0:18570 + N` for instance N
 //! (PX4's SITL GCS port; configurable). In: datagrams from any address; each valid frame goes to the core
 //! as an [`Incoming`] tagged with its sender, and the sender enters the [`PeerTable`]. Out: each
-//! [`Outgoing`] is encoded once as MAVLink 2 and sent to every fixed target (127.0.0.1:14550 + N for
-//! QGroundControl, 127.0.0.1:14540 + N for MAVSDK) and every live peer, or to one peer for a reply.
+//! [`Outgoing`] is encoded once as MAVLink 2 and sent to every fixed target (127.0.0.1:14550 for
+//! QGroundControl, shared by every instance, and the instance's API port 127.0.0.1:14540 + N for MAVSDK and
+//! scripts; [`super::ports`]) and every live peer, or to one peer for a reply.
 //!
 //! Peers expire after [`PEER_EXPIRY`] (10 s) without a valid frame from them: GCS heartbeats come at 1 Hz
 //! and clients give up on a silent vehicle after 3-3.5 s, so 10 s keeps a client through a few lost
