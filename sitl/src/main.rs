@@ -642,22 +642,17 @@ fn run(args: &RunArgs) -> Result<()> {
     // Everything the command line names is checked before anything starts: a busy instance, an autopilot
     // configuration the autopilot would refuse, a scenario that does not load.
     launch::check_instance_free(n, true)?;
-    if let Some(path) = &args.autopilot_config {
-        let file = ConfigFile::load(path)?;
-        let config = RuntimeConfig::resolve(file, n, Overrides::default())
-            .with_context(|| format!("autopilot configuration {}", path.display()))?;
-        Vehicle::new(config.vehicle).with_context(|| format!("autopilot configuration {}", path.display()))?;
-    }
-    let mut ap_args: Vec<OsString> = Vec::new();
-    if let Some(dir) = &args.log_dir {
-        ap_args.push("--log-dir".into());
-        ap_args.push(dir.into());
-    }
-    if args.no_ulog {
-        ap_args.push("--no-ulog".into());
-    }
+    check_autopilot_config(args, n)?;
     let stop = launch::ctrl_c_flag();
     if let Some(name) = &args.scenario {
+        // The scenario runner gives the autopilot its plant, instance and estimator itself.
+        let mut ap_args: Vec<OsString> = Vec::new();
+        if let Some(dir) = &args.log_dir {
+            ap_args.extend(["--log-dir".into(), dir.into()]);
+        }
+        if args.no_ulog {
+            ap_args.push("--no-ulog".into());
+        }
         let scenario = Scenario::load(name)?;
         let controller =
             args.controller.unwrap_or_else(|| scenario.controllers.first().copied().unwrap_or(ControllerKind::Aco));
@@ -686,35 +681,12 @@ fn run(args: &RunArgs) -> Result<()> {
 
     let (plant, pacing) = args.plant.build(realistic_plant_config())?;
     let duration = duration_us(args.duration)?;
-    if let Some(estimator) = &args.estimator {
-        ap_args.extend(["--estimator".into(), estimator.into()]);
-    }
-    if let Some(controller) = args.controller {
-        ap_args.extend(["--controller".into(), controller.to_string().into()]);
-    }
-    if args.wipe {
-        ap_args.push("--wipe".into());
-    }
-    if let Some(path) = &args.autopilot_config {
-        ap_args.push("--config".into());
-        ap_args.push(path.into());
-    }
-    if let Some(dir) = &args.state_dir {
-        ap_args.push("--state-dir".into());
-        ap_args.push(dir.into());
-    }
-    let link = LinkConfig {
-        pacing,
-        connect_timeout: Some(Duration::from_secs(30)),
-        truth_odometry: args.estimator.as_deref() == Some("truth"),
-        ..LinkConfig::default()
-    };
     let listen = format!("127.0.0.1:{plant_port}");
     let (sim_params, sim_port) = bind_sim_params(n, &plant)?;
-    let mut server =
-        PlantServer::bind_udp(plant, listen.as_str(), link).with_context(|| format!("binding {listen}"))?;
+    let mut server = PlantServer::bind_udp(plant, listen.as_str(), run_link_config(args, pacing))
+        .with_context(|| format!("binding {listen}"))?;
     server.set_hook(Box::new(sim_params));
-    ap_args.extend(["--plant".into(), format!("udp://{listen}").into(), "-i".into(), n.to_string().into()]);
+    let ap_args = autopilot_args(args, n, &listen, args.state_dir.as_ref().map(OsString::from));
     let child = AutopilotChild::spawn(&autopilot, &ap_args)?;
     eprintln!(
         "sitl: instance {n} running {}{}; plant on udp {listen}, SIM_ parameters on udp 127.0.0.1:{sim_port} \
@@ -755,6 +727,57 @@ fn run(args: &RunArgs) -> Result<()> {
     Ok(())
 }
 
+/// Checks `--autopilot-config` as the autopilot of instance `n` would (parsed, resolved and a vehicle
+/// built from it) before anything starts.
+fn check_autopilot_config(args: &RunArgs, n: u16) -> Result<()> {
+    let Some(path) = &args.autopilot_config else { return Ok(()) };
+    let file = ConfigFile::load(path)?;
+    let config = RuntimeConfig::resolve(file, n, Overrides::default())
+        .with_context(|| format!("autopilot configuration {}", path.display()))?;
+    Vehicle::new(config.vehicle).with_context(|| format!("autopilot configuration {}", path.display()))?;
+    Ok(())
+}
+
+/// The plant link of `sitl run` at `pacing`: the autopilot has 30 s to connect; the truth estimator gets
+/// ODOMETRY too.
+fn run_link_config(args: &RunArgs, pacing: Pacing) -> LinkConfig {
+    LinkConfig {
+        pacing,
+        connect_timeout: Some(Duration::from_secs(30)),
+        truth_odometry: args.estimator.as_deref() == Some("truth"),
+        ..LinkConfig::default()
+    }
+}
+
+/// The `autopilot` command line of instance `n` with its plant on `listen`, from `sitl run`'s options, and
+/// `state_dir` when one is to be passed.
+fn autopilot_args(args: &RunArgs, n: u16, listen: &str, state_dir: Option<OsString>) -> Vec<OsString> {
+    let mut ap_args: Vec<OsString> = vec!["--plant".into(), format!("udp://{listen}").into()];
+    ap_args.extend(["-i".into(), n.to_string().into()]);
+    if let Some(estimator) = &args.estimator {
+        ap_args.extend(["--estimator".into(), estimator.into()]);
+    }
+    if let Some(controller) = args.controller {
+        ap_args.extend(["--controller".into(), controller.to_string().into()]);
+    }
+    if let Some(path) = &args.autopilot_config {
+        ap_args.extend(["--config".into(), path.into()]);
+    }
+    if let Some(dir) = &args.log_dir {
+        ap_args.extend(["--log-dir".into(), dir.into()]);
+    }
+    if let Some(dir) = state_dir {
+        ap_args.extend(["--state-dir".into(), dir]);
+    }
+    if args.no_ulog {
+        ap_args.push("--no-ulog".into());
+    }
+    if args.wipe {
+        ap_args.push("--wipe".into());
+    }
+    ap_args
+}
+
 /// Where swarm vehicle `k` of `count` starts: on a square grid `spacing_m` apart, rows north, columns east
 /// (NED, metres from the plant origin).
 fn grid_position_ned_m(k: u16, count: u16, spacing_m: f64) -> nalgebra::Vector3<f64> {
@@ -776,12 +799,7 @@ fn run_swarm(args: &RunArgs) -> Result<()> {
     for n in first..=last {
         launch::check_instance_free(n, true)?;
     }
-    if let Some(path) = &args.autopilot_config {
-        let file = ConfigFile::load(path)?;
-        let config = RuntimeConfig::resolve(file, first, Overrides::default())
-            .with_context(|| format!("autopilot configuration {}", path.display()))?;
-        Vehicle::new(config.vehicle).with_context(|| format!("autopilot configuration {}", path.display()))?;
-    }
+    check_autopilot_config(args, first)?;
     let config = args.plant.config(realistic_plant_config())?;
     let pacing = args.plant.pacing();
     let duration = duration_us(args.duration)?;
@@ -793,40 +811,19 @@ fn run_swarm(args: &RunArgs) -> Result<()> {
         let ports = InstancePorts::of(n)?;
         let start = InitialState { pos_ned_m: grid_position_ned_m(k, count, args.spacing), ..InitialState::default() };
         let plant = Plant::new(config.clone(), &start, args.plant.seed.wrapping_add(u64::from(k)))?;
-        let link = LinkConfig {
-            pacing,
-            connect_timeout: Some(Duration::from_secs(30)),
-            truth_odometry: args.estimator.as_deref() == Some("truth"),
-            ..LinkConfig::default()
-        };
         let listen = format!("127.0.0.1:{}", ports.plant_udp);
         let (sim_params, _) = bind_sim_params(n, &plant)?;
-        let mut server =
-            PlantServer::bind_udp(plant, listen.as_str(), link).with_context(|| format!("binding {listen}"))?;
+        let mut server = PlantServer::bind_udp(plant, listen.as_str(), run_link_config(args, pacing))
+            .with_context(|| format!("binding {listen}"))?;
         server.set_hook(Box::new(sim_params));
         servers.push(server);
-        let mut ap_args: Vec<OsString> = vec!["--plant".into(), format!("udp://{listen}").into()];
-        ap_args.extend(["-i".into(), n.to_string().into()]);
-        if let Some(estimator) = &args.estimator {
-            ap_args.extend(["--estimator".into(), estimator.into()]);
-        }
-        if let Some(controller) = args.controller {
-            ap_args.extend(["--controller".into(), controller.to_string().into()]);
-        }
-        if let Some(path) = &args.autopilot_config {
-            ap_args.extend(["--config".into(), path.into()]);
-        }
-        if let Some(dir) = &args.log_dir {
-            ap_args.extend(["--log-dir".into(), dir.into()]);
-        }
-        match args.state_dir.as_deref().map(str::trim) {
-            Some("off") => ap_args.extend(["--state-dir".into(), "off".into()]),
-            Some(dir) => ap_args.extend(["--state-dir".into(), Path::new(dir).join(format!("i{n}")).into()]),
-            None => {}
-        }
-        if args.wipe {
-            ap_args.push("--wipe".into());
-        }
+        // Each vehicle keeps its own state: a directory given for the swarm holds one per instance.
+        let state_dir = match args.state_dir.as_deref().map(str::trim) {
+            Some("off") => Some(OsString::from("off")),
+            Some(dir) => Some(Path::new(dir).join(format!("i{n}")).into_os_string()),
+            None => None,
+        };
+        let ap_args = autopilot_args(args, n, &listen, state_dir);
         children.push(AutopilotChild::spawn(&autopilot, &ap_args)?);
     }
     let api: Vec<String> =
