@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from aco_gcs.link import api_port
+from aco_gcs.link import AUTOPILOT_PORT, Vehicle, api_port
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -105,3 +105,13 @@ def start_sitl(tmp_path, *extra, speed, instance=None):
             start_new_session=True,
         )
     return Sitl(n, log_dir, proc, log_path)
+
+
+def connect(sitl, wall_limit_s=240.0):
+    """A pymavlink link to the vehicle of `sitl`, as a script connects: listening on the instance's API port,
+    sending to its autopilot's port; returned once its HEARTBEAT and timed telemetry have come."""
+    vehicle = Vehicle(
+        f"udpin:127.0.0.1:{api_port(sitl.instance)}", f"127.0.0.1:{AUTOPILOT_PORT + sitl.instance}", wall_limit_s
+    )
+    vehicle.wait_heartbeat(30.0, sitl.instance)
+    return vehicle

@@ -8,18 +8,15 @@ under 0.1 s of vehicle time. Every wait is on the vehicle's clock; a wall-clock 
 import math
 
 import pytest
-from sitl_harness import start_sitl
+from sitl_harness import connect, start_sitl
 
 from aco_gcs.figure8_mission import Item, offset_deg, upload
 from aco_gcs.flight import takeoff, wait_ready
 from aco_gcs.link import (
-    AUTOPILOT_PORT,
     PX4_AUTO_LOITER,
     PX4_MAIN_AUTO,
     Params,
     Plant,
-    Vehicle,
-    api_port,
     mavlink,
 )
 
@@ -43,14 +40,6 @@ def run_sitl(tmp_path):
         s.stop()
     if running:
         print(running[-1].log_tail())
-
-
-def connect(sitl):
-    vehicle = Vehicle(
-        f"udpin:127.0.0.1:{api_port(sitl.instance)}", f"127.0.0.1:{AUTOPILOT_PORT + sitl.instance}", 240.0
-    )
-    vehicle.wait_heartbeat(30.0, sitl.instance)
-    return vehicle
 
 
 def said(vehicle, text):

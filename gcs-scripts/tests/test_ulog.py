@@ -15,10 +15,9 @@ import time
 from pathlib import Path
 
 import pytest
-from sitl_harness import start_sitl
+from sitl_harness import connect, start_sitl
 
 from aco_gcs.flight import land, takeoff, wait_ready
-from aco_gcs.link import AUTOPILOT_PORT, Vehicle, api_port
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 TOPICS = [
@@ -38,10 +37,7 @@ TAKEOFF_M = 2.0
 
 def fly(sitl):
     """Arm, take off to TAKEOFF_M, hold 5 s, land and wait for the auto-disarm; returns the vehicle."""
-    vehicle = Vehicle(
-        f"udpin:127.0.0.1:{api_port(sitl.instance)}", f"127.0.0.1:{AUTOPILOT_PORT + sitl.instance}", 240.0
-    )
-    vehicle.wait_heartbeat(30.0, sitl.instance)
+    vehicle = connect(sitl)
     ground, _ = wait_ready(vehicle)
     takeoff(vehicle, TAKEOFF_M, ground)
     end = vehicle.now_s() + 5.0
@@ -162,10 +158,7 @@ def test_a_flight_leaves_one_ulog_that_pyulog_reads_with_px4s_topics(flown):
 def test_a_flight_stopped_in_the_air_by_sigterm_is_still_finalized(tmp_path):
     sitl = start_sitl(tmp_path, speed="10")
     try:
-        vehicle = Vehicle(
-            f"udpin:127.0.0.1:{api_port(sitl.instance)}", f"127.0.0.1:{AUTOPILOT_PORT + sitl.instance}", 240.0
-        )
-        vehicle.wait_heartbeat(30.0, sitl.instance)
+        vehicle = connect(sitl)
         ground, _ = wait_ready(vehicle)
         takeoff(vehicle, 1.0, ground)
         assert vehicle.armed
@@ -195,10 +188,7 @@ def test_a_flight_stopped_in_the_air_by_sigterm_is_still_finalized(tmp_path):
 def test_no_ulog_writes_no_flight_log(tmp_path):
     sitl = start_sitl(tmp_path, "--no-ulog", speed="10")
     try:
-        vehicle = Vehicle(
-            f"udpin:127.0.0.1:{api_port(sitl.instance)}", f"127.0.0.1:{AUTOPILOT_PORT + sitl.instance}", 240.0
-        )
-        vehicle.wait_heartbeat(30.0, sitl.instance)
+        vehicle = connect(sitl)
         ground, _ = wait_ready(vehicle)
         takeoff(vehicle, 1.0, ground)
     finally:
