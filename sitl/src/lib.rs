@@ -1,5 +1,5 @@
 //! The SITL side: the paper's quadrotor plant (`plant`), pure and deterministic, and the paper's
-//! experiments run against it.
+//! experiments run against it, one at a time (`scenario`) or swept over plants, winds and seeds (`sweep`).
 
 pub mod launch;
 pub mod link;
@@ -7,3 +7,4 @@ pub mod plant;
 pub mod progress;
 pub mod scenario;
 pub mod sim_params;
+pub mod sweep;

@@ -33,6 +33,7 @@ use sitl::scenario::runner::{self, RunOptions, RunOutput};
 use sitl::scenario::two_process::{self, TwoProcessOptions};
 use sitl::scenario::{BUILT_INS, MetricKind, Scenario};
 use sitl::sim_params::SimParamLink;
+use sitl::sweep::Sweep;
 use std::ffi::OsString;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -57,6 +58,37 @@ enum Command {
     Run(RunArgs),
     /// Measure the two-process SITL: lockstep real-time factor, and CPU and telemetry at real time.
     Bench(BenchArgs),
+    /// Sweep a scenario over airframes, winds, seeds and controllers (a Monte Carlo or grid study):
+    /// every run in-process in lockstep across all cores; one row per run, a robustness table, plots.
+    Sweep(SweepArgs),
+}
+
+#[derive(Args)]
+struct SweepArgs {
+    /// The sweep spec (TOML; docs/sweeps.md).
+    spec: PathBuf,
+    /// Run shard K of N only: every N-th run from run K-1 (`--shard 2/3`); `--merge` joins the shards.
+    #[arg(long, value_name = "K/N", value_parser = sitl::sweep::parse_shard, conflicts_with = "merge")]
+    shard: Option<(u64, u64)>,
+    /// Instead of running, merge the row files of shards (from `--shard`) into the whole sweep's, checked
+    /// against the spec: every run once, each with the values the spec gives it.
+    #[arg(long, value_name = "CSV", num_args = 1..)]
+    merge: Vec<PathBuf>,
+    /// A scenario file in place of the spec's `scenario`.
+    #[arg(long, value_name = "FILE")]
+    scenario: Option<PathBuf>,
+    /// Worker threads (default: one per core).
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
+    jobs: Option<u16>,
+    /// Output directory (default: out/sweep-<name>).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Skip the plots.
+    #[arg(long)]
+    no_plots: bool,
+    /// Print the summary as JSON instead of the table.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Args)]
@@ -289,6 +321,7 @@ fn main() -> ExitCode {
         Command::Serve(args) => serve(&args),
         Command::Run(args) => run(&args),
         Command::Bench(args) => bench(&args),
+        Command::Sweep(args) => sweep(&args),
     };
     autopilot::cli::exit("sitl", result)
 }
@@ -367,6 +400,118 @@ fn scenario(args: &ScenarioArgs) -> Result<()> {
     }
     progress.finish();
     Ok(())
+}
+
+fn sweep(args: &SweepArgs) -> Result<()> {
+    let spec = Sweep::load(&args.spec, args.scenario.as_deref())?;
+    let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(format!("sweep-{}", spec.name)));
+    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    let (rows, file) = if args.merge.is_empty() {
+        let runs = match args.shard {
+            Some(shard) => sitl::sweep::shard_runs(spec.runs(), shard),
+            None => (0..spec.runs()).collect(),
+        };
+        let threads = args
+            .jobs
+            .map_or_else(|| std::thread::available_parallelism().map_or(1, std::num::NonZero::get), usize::from);
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
+        let progress = std::sync::Mutex::new(Progress::new("sitl sweep", runs.len() as u64, "runs"));
+        let done = std::sync::atomic::AtomicU64::new(0);
+        let start = std::time::Instant::now();
+        let rows = pool.install(|| {
+            use rayon::prelude::*;
+            runs.par_iter()
+                .map(|&r| {
+                    let row = spec.run(r);
+                    let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+                    if let Ok(mut p) = progress.lock() {
+                        p.set(n);
+                    }
+                    row
+                })
+                .collect::<Result<Vec<_>, _>>()
+        })?;
+        if let Ok(p) = progress.into_inner() {
+            p.finish();
+        }
+        let wall_s = start.elapsed().as_secs_f64();
+        let sim_s = spec.scenario.duration_s * rows.len() as f64;
+        eprintln!(
+            "sitl: {} runs in {wall_s:.1} s on {threads} thread{}: {:.1} runs/s, {:.0}x real time per thread",
+            rows.len(),
+            if threads == 1 { "" } else { "s" },
+            rows.len() as f64 / wall_s,
+            sim_s / wall_s / threads as f64
+        );
+        let file = match args.shard {
+            Some((k, n)) => format!("runs-shard-{k}-of-{n}.csv"),
+            None => "runs.csv".to_owned(),
+        };
+        (rows, file)
+    } else {
+        let mut shards = Vec::new();
+        for path in &args.merge {
+            let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+            shards.push(sitl::sweep::table::from_csv(&spec, &path.display().to_string(), &text)?);
+        }
+        (sitl::sweep::table::merge(&spec, shards)?, "runs.csv".to_owned())
+    };
+    let csv = out.join(file);
+    write_atomically(&csv, sitl::sweep::table::to_csv(&spec, &rows).as_bytes())?;
+    eprintln!("sitl: wrote {}", csv.display());
+    let summary = sitl::sweep::table::summarize(&spec, &rows);
+    let json = serde_json::to_string_pretty(&summary)?;
+    let summary_path = if args.shard.is_some() { csv.with_extension("summary.json") } else { out.join("summary.json") };
+    write_atomically(&summary_path, json.as_bytes())?;
+    eprintln!("sitl: wrote {}", summary_path.display());
+    if !args.no_plots {
+        for path in sweep_plots(&spec, &rows, &out)? {
+            eprintln!("sitl: wrote {}", path.display());
+        }
+    }
+    let text = if args.json { json } else { summary.table() };
+    match writeln!(std::io::stdout().lock(), "{text}") {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        result => Ok(result?),
+    }
+}
+
+/// One figure per metric (flags and the airframe's thrust-to-weight excepted): its CDF and box plot per
+/// controller.
+fn sweep_plots(spec: &Sweep, rows: &[sitl::sweep::Row], out: &Path) -> Result<Vec<PathBuf>> {
+    let mut written = Vec::new();
+    for (i, metric) in spec.metric_columns().iter().enumerate() {
+        if matches!(metric.as_str(), "weights_at_bounds" | "non_finite" | sitl::sweep::table::THRUST_TO_WEIGHT) {
+            continue;
+        }
+        let per_controller: Vec<(String, Vec<f64>)> = spec
+            .controllers
+            .iter()
+            .map(|c| {
+                let values =
+                    rows.iter().filter(|r| r.controller == *c).map(|r| r.metrics[i].unwrap_or(f64::INFINITY)).collect();
+                (c.to_string(), values)
+            })
+            .collect();
+        let samples: Vec<plot::Sample<'_>> =
+            per_controller.iter().map(|(label, values)| plot::Sample { label, values }).collect();
+        let path = out.join(format!("{metric}.png"));
+        let title =
+            format!("{}: {metric} over {} runs per controller", spec.name, rows.len() / spec.controllers.len().max(1));
+        plot::distribution(&path, &title, &metric_axis_label(metric), &samples)?;
+        written.push(path);
+    }
+    Ok(written)
+}
+
+/// `gust_peak_m` -> `gust peak (m)`.
+fn metric_axis_label(metric: &str) -> String {
+    for (suffix, unit) in [("_m", "m"), ("_s", "s"), ("_pct", "%"), ("_rad", "rad"), ("_us", "µs")] {
+        if let Some(stem) = metric.strip_suffix(suffix) {
+            return format!("{} ({unit})", stem.replace('_', " "));
+        }
+    }
+    metric.replace('_', " ")
 }
 
 fn run_stem(out: &RunOutput, mode: ReferenceMode, scenario: &Scenario) -> String {

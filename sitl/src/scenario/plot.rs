@@ -3,7 +3,8 @@
 //! drawn at four times and averaged down 2x2 so lines are smooth (plotters draws whole pixels without
 //! anti-aliasing; DejaVu Sans is embedded so no system font is needed). Two kinds: stacked time panels
 //! (the paper's Fig. 5 and Fig. 6 layouts, the gust-hover error) and a north-east track view (figure-8),
-//! several controllers on one figure.
+//! several controllers on one figure; and a sweep's distribution of one metric per controller (CDF and
+//! box plot side by side).
 //!
 //! Print conventions: ACO, the paper's controller, is drawn last with the widest solid line, so the
 //! baselines never hide it; CA is dashed, PID dash-dotted, and the three colours differ in grey level
@@ -675,6 +676,152 @@ pub fn track(path: &Path, title: &str, path_ne_m: &[(f64, f64)], runs: &[Run<'_>
     }
     let fig = TrackFigure { title: title.to_owned(), legend: legend(&labels, Some("path")), x, y, lines };
     write_figure(path, (plot_w as u32 + 96, height), &fig)
+}
+
+/// One series of a sweep's distribution figure: a controller's values of one metric (non-finite
+/// values are runs where the event never came: off the chart, so the CDF ends below 1).
+#[derive(Debug, Clone, Copy)]
+pub struct Sample<'a> {
+    pub label: &'a str,
+    pub values: &'a [f64],
+}
+
+struct DistributionFigure {
+    title: String,
+    x_label: String,
+    legend: Vec<(String, LineStyle)>,
+    x: Range<f64>,
+    /// CDF steps, in drawing order (ACO last).
+    cdfs: Vec<Line>,
+    /// Per label, top to bottom: style, and the 5th, 25th, 50th, 75th and 95th percentiles.
+    boxes: Vec<(String, LineStyle, [f64; 5])>,
+}
+
+impl Figure for DistributionFigure {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>, s: f64) -> Result<(), String> {
+        root.fill(&WHITE).map_err(e2s)?;
+        let root = titled(root, &self.title, s)?;
+        let (legend, body) = root.split_vertically(px(LEGEND_ROW * s));
+        draw_legend(&legend, &self.legend, s)?;
+        let (left, right) = body.split_horizontally(px(f64::from(body.dim_in_pixel().0) / 2.0));
+        let x = self.x.clone();
+        let build = |area: &DrawingArea<DB, Shift>, y: Range<f64>, y_area: f64| {
+            ChartBuilder::on(area)
+                .margin(px(6.0 * s))
+                .margin_right(px(20.0 * s))
+                .x_label_area_size(px(44.0 * s))
+                .y_label_area_size(px(y_area * s))
+                .build_cartesian_2d(x.clone(), y)
+                .map_err(e2s)
+        };
+        let y = 0.0..1.02;
+        let mut chart = build(&left, y.clone(), 70.0)?;
+        draw_mesh(&mut chart, &x, &y, &self.x_label, "fraction of runs", s)?;
+        let map = PixelMap::new(&chart, x.clone(), y);
+        for line in &self.cdfs {
+            draw_line(&mut chart, &map, line, s)?;
+        }
+        let n = self.boxes.len();
+        let y = -0.5..(n as f64 - 0.5);
+        let mut chart = build(&right, y.clone(), 60.0)?;
+        let names: Vec<String> = self.boxes.iter().map(|b| b.0.clone()).collect();
+        let name_of = move |v: &f64| {
+            let i = v.round();
+            if (v - i).abs() < 1e-6 && i >= 0.0 {
+                names.get(n - 1 - i as usize).cloned().unwrap_or_default()
+            } else {
+                String::new()
+            }
+        };
+        let xd = tick_decimals(x.clone(), X_TICKS);
+        chart
+            .configure_mesh()
+            .x_labels(X_TICKS)
+            .y_labels(n + 1)
+            .x_label_formatter(&move |v: &f64| fmt_tick(*v, xd))
+            .y_label_formatter(&name_of)
+            .x_desc("box: quartiles, median; whiskers: 5th-95th percentile")
+            .label_style(font(TICK_SIZE * s))
+            .axis_desc_style(font(AXIS_LABEL_SIZE * s))
+            .bold_line_style(ShapeStyle::from(&GRID).stroke_width(px(s)))
+            .light_line_style(TRANSPARENT)
+            .axis_style(ShapeStyle::from(&BLACK).stroke_width(px(s)))
+            .set_all_tick_mark_size(px(5.0 * s))
+            .draw()
+            .map_err(e2s)?;
+        for (i, (_, style, q)) in self.boxes.iter().enumerate() {
+            let yc = (n - 1 - i) as f64;
+            let stroke = ShapeStyle::from(&style.colour).stroke_width(px(1.6 * s).max(1));
+            let clamp = |v: f64| v.clamp(x.start, x.end);
+            let [p5, q1, med, q3, p95] = q.map(clamp);
+            let boxes = [
+                Rectangle::new([(q1, yc - 0.28), (q3, yc + 0.28)], style.colour.mix(0.18).filled()),
+                Rectangle::new([(q1, yc - 0.28), (q3, yc + 0.28)], stroke),
+            ];
+            chart.draw_series(boxes).map_err(e2s)?;
+            let lines = [
+                vec![(med, yc - 0.28), (med, yc + 0.28)],
+                vec![(p5, yc), (q1, yc)],
+                vec![(q3, yc), (p95, yc)],
+                vec![(p5, yc - 0.14), (p5, yc + 0.14)],
+                vec![(p95, yc - 0.14), (p95, yc + 0.14)],
+            ];
+            let widths = [3.0, 1.6, 1.6, 1.6, 1.6];
+            chart
+                .draw_series(
+                    lines.into_iter().zip(widths).map(|(l, w)| {
+                        PathElement::new(l, ShapeStyle::from(&style.colour).stroke_width(px(w * s).max(1)))
+                    }),
+                )
+                .map_err(e2s)?;
+        }
+        Ok(())
+    }
+}
+
+/// A metric's distribution over a sweep's runs, one series per controller: its CDF (left) and a box
+/// plot (right) on the same axis; written as `path` (PNG) and its `.svg`. A series' non-finite values
+/// (never recovered, never settled) are counted in its legend label.
+///
+/// # Errors
+/// A drawing failure (e.g. the directory is not writable).
+pub fn distribution(path: &Path, title: &str, x_label: &str, samples: &[Sample<'_>]) -> Result<(), PlotError> {
+    let labels: Vec<String> = samples
+        .iter()
+        .map(|smp| {
+            let never = smp.values.iter().filter(|v| !v.is_finite()).count();
+            let name = smp.label.to_ascii_uppercase();
+            if never > 0 { format!("{name} ({never} of {} never)", smp.values.len()) } else { name }
+        })
+        .collect();
+    let x = padded_range(samples.iter().flat_map(|smp| smp.values.iter().copied()));
+    let order = draw_order(&samples.iter().map(|smp| smp.label).collect::<Vec<_>>());
+    let mut cdfs = Vec::new();
+    for &i in &order {
+        let mut finite: Vec<f64> = samples[i].values.iter().copied().filter(|v| v.is_finite()).collect();
+        finite.sort_by(f64::total_cmp);
+        let n = samples[i].values.len().max(1) as f64;
+        let mut points = vec![(x.start, 0.0)];
+        for (k, v) in finite.iter().enumerate() {
+            points.push((*v, k as f64 / n));
+            points.push((*v, (k + 1) as f64 / n));
+        }
+        points.push((x.end, finite.len() as f64 / n));
+        cdfs.push(Line { points, style: run_style(samples[i].label, i) });
+    }
+    let boxes = samples
+        .iter()
+        .enumerate()
+        .map(|(i, smp)| {
+            let mut sorted = smp.values.to_vec();
+            sorted.sort_by(f64::total_cmp);
+            let q = [5.0, 25.0, 50.0, 75.0, 95.0].map(|p| crate::sweep::table::percentile(&sorted, p));
+            (smp.label.to_ascii_uppercase(), run_style(smp.label, i), q)
+        })
+        .collect();
+    let legend = samples.iter().enumerate().map(|(i, smp)| (labels[i].clone(), run_style(smp.label, i))).collect();
+    let fig = DistributionFigure { title: title.to_owned(), x_label: x_label.to_owned(), legend, x, cdfs, boxes };
+    write_figure(path, (1100, 44 + LEGEND_ROW as u32 + 320), &fig)
 }
 
 #[cfg(test)]
