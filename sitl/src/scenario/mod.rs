@@ -24,6 +24,7 @@
 
 pub mod gcs;
 pub mod metrics;
+pub mod path;
 pub mod plot;
 pub mod reference;
 pub mod runner;
