@@ -78,9 +78,9 @@ fn one() -> u32 {
     1
 }
 
-/// The reference part of a scenario file.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+/// The reference part of a scenario file: a table with `kind` and that kind's keys.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
 pub enum ReferenceSpec {
     /// The paper's Fig. 5 mode: scripted attitude, altitude held at `pos_d_m`.
     Attitude {
@@ -91,6 +91,55 @@ pub enum ReferenceSpec {
         steps: Vec<PositionStep>,
     },
     Track(TrackSpec),
+}
+
+/// Read by hand rather than as serde's internally tagged enum, which buffers the table and so loses the
+/// key a type error is about: here the kind's keys are read from the table with their path, and an error
+/// says e.g. ``[reference] kind = "position": invalid length 2, expected an array of length 3 in
+/// `steps.vel_ned_mps` ``. Unknown keys stay an error.
+impl<'de> Deserialize<'de> for ReferenceSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        use serde::de::Error;
+
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct AttitudeTable {
+            pos_d_m: f64,
+            steps: Vec<AttitudeStep>,
+        }
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct PositionTable {
+            steps: Vec<PositionStep>,
+        }
+
+        let mut table = toml::Table::deserialize(deserializer)?;
+        let kind = match table.remove("kind") {
+            Some(toml::Value::String(kind)) => kind,
+            Some(other) => return Err(D::Error::custom(format!("reference.kind must be a string, got {other}"))),
+            None => return Err(D::Error::custom("reference.kind is missing: \"attitude\", \"position\" or \"track\"")),
+        };
+        let body = toml::Value::Table(table);
+        let keyed = |e: toml::de::Error| {
+            let text = e.to_string();
+            let message: Vec<&str> = text.lines().map(str::trim).filter(|l| !l.is_empty()).collect();
+            D::Error::custom(format!("[reference] kind = \"{kind}\": {}", message.join(" ")))
+        };
+        match kind.as_str() {
+            "attitude" => {
+                let AttitudeTable { pos_d_m, steps } = body.try_into().map_err(keyed)?;
+                Ok(Self::Attitude { pos_d_m, steps })
+            }
+            "position" => {
+                let PositionTable { steps } = body.try_into().map_err(keyed)?;
+                Ok(Self::Position { steps })
+            }
+            "track" => Ok(Self::Track(body.try_into().map_err(keyed)?)),
+            other => Err(D::Error::custom(format!(
+                "unknown reference kind `{other}`, expected `attitude`, `position` or `track`"
+            ))),
+        }
+    }
 }
 
 impl ReferenceSpec {
