@@ -1,25 +1,31 @@
 //! The paper's experiments as scenario files: a TOML format, the built-in scenarios, an in-process
 //! lockstep runner (plant + controller on simulated time, no sockets), metrics and plots.
 //!
-//! A scenario file (all lengths m, angles rad, times s; NED/FRD):
+//! The format, every key with its unit, frame and default, and an example per feature:
+//! `docs/scenarios.md`. In short (all lengths m, angles rad, times s; NED/FRD):
 //! ```toml
 //! name = "paper-attitude"
 //! description = "..."
 //! duration_s = 16.0
 //! plant = "nominal"               # airframe preset; `--plant` overrides it
 //! state_noise = "none"            # "none" | "paper": white noise on the state the controller sees
+//! state_noise_scale = 1.0         # multiplies the noise's sigmas (>= 0)
+//! ground = true                   # the plant's ground contact at D = 0
 //! metrics = ["steps"]             # any of "steps", "gust", "track"
 //! controllers = ["aco", "ca", "pid"]  # the default set when `--controller` is not given
 //! [initial]                       # optional; at rest at the origin with hover lift by default
 //! pos_ned_m = [0.0, 0.0, -3.0]
 //! euler_rad = [0.4, -0.5, -0.4]
-//! [reference]                     # kind = "attitude" | "position" | "track" (see `reference`)
+//! [reference]                     # kind = "attitude" | "position" | "track" (see `reference`);
+//!                                 # position steps may carry vel_ned_mps, acc_ned_mps2 feed-forward;
+//!                                 # a track's path = "spline" (default) | "polyline"
 //! kind = "attitude"
 //! pos_d_m = -3.0
 //! steps = [{ t_s = 0.0, euler_rad = [0.0, 0.0, 0.0] }]
 //! [airframe]                      # optional overrides of the preset's values (e.g. mass_kg = 5.3)
 //! [wind]                          # optional: gust, turbulence, steady wind (the plant's WindConfig)
 //! [controller]                    # optional overrides of the controllers' configuration
+//! [metric_windows]                # optional: step_sse_s, gust_steady_s, gust_peak_s, gust_rms_s
 //! ```
 
 pub mod gcs;
