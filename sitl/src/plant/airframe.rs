@@ -220,6 +220,30 @@ impl Default for AirframeConfig {
 }
 
 impl AirframeConfig {
+    /// The values set over the preset, in declaration order: (key, value; one number for a scalar, each
+    /// element for an array).
+    #[must_use]
+    pub fn overrides(&self) -> Vec<(&'static str, Vec<f64>)> {
+        let scalar = |name, v: Option<f64>| v.map(|v| (name, vec![v]));
+        let array = |name, v: Option<&[f64]>| v.map(|v| (name, v.to_vec()));
+        [
+            scalar("mass_kg", self.mass_kg),
+            array("inertia_kgm2", self.inertia_kgm2.as_ref().map(|v| &v[..])),
+            scalar("arm_m", self.arm_m),
+            scalar("yaw_moment_m", self.yaw_moment_m),
+            scalar("motor_tau_s", self.motor_tau_s),
+            scalar("thrust_scale", self.thrust_scale),
+            array("rotor_health", self.rotor_health.as_ref().map(|v| &v[..])),
+            array("disturbance_torque_frd_nm", self.disturbance_torque_frd_nm.as_ref().map(|v| &v[..])),
+            scalar("drag_cda_m2", self.drag_cda_m2),
+            scalar("air_density_kgpm3", self.air_density_kgpm3),
+            scalar("gravity_mps2", self.gravity_mps2),
+        ]
+        .into_iter()
+        .flatten()
+        .collect()
+    }
+
     /// The preset with the overrides applied, validated.
     ///
     /// # Errors

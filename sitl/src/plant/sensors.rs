@@ -561,6 +561,18 @@ impl StateNoise {
     pub fn none() -> Self {
         Self { pos_sigma_m: 0.0, vel_sigma_mps: 0.0, att_sigma_rad: 0.0, gyro_sigma_radps: 0.0, accel_sigma_mps2: 0.0 }
     }
+
+    /// Every σ multiplied by `scale` (>= 0; 0 is no noise and draws nothing, 1 is `self` exactly).
+    #[must_use]
+    pub fn scaled(self, scale: f64) -> Self {
+        Self {
+            pos_sigma_m: self.pos_sigma_m * scale,
+            vel_sigma_mps: self.vel_sigma_mps * scale,
+            att_sigma_rad: self.att_sigma_rad * scale,
+            gyro_sigma_radps: self.gyro_sigma_radps * scale,
+            accel_sigma_mps2: self.accel_sigma_mps2 * scale,
+        }
+    }
 }
 
 impl Default for StateNoise {

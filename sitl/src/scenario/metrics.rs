@@ -8,8 +8,11 @@
 //! - sse: largest |error| over the last 0.5 s of the segment;
 //! - rms: root mean square of the error against the active setpoint;
 //! - gust recovery: time from onset (or release) until the horizontal error stays below 0.10 m.
+//!
+//! The fixed windows (the sse window, the gust's steady-error window, and the whole run for the gust peak
+//! and RMS) are a scenario's defaults; its `[metric_windows]` table ([`MetricWindows`]) may set others.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Settling band as a fraction of the step.
 pub const SETTLING_BAND: f64 = 0.02;
@@ -19,6 +22,52 @@ pub const SSE_WINDOW_S: f64 = 0.5;
 pub const RECOVERY_BAND_M: f64 = 0.10;
 /// The window before release over which the steady error during a gust is averaged (s).
 pub const GUST_STEADY_WINDOW_S: f64 = 3.0;
+
+/// The windows a scenario's metrics are taken over (`[metric_windows]`); the defaults are this module's
+/// constants and the whole run.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MetricWindows {
+    /// Steps: the sse is the largest |error| over the last `step_sse_s` (s) of each segment.
+    pub step_sse_s: f64,
+    /// Gust: the steady error is the mean horizontal error over the `gust_steady_s` (s) before release.
+    pub gust_steady_s: f64,
+    /// Gust: the peak horizontal error is taken over `[from, to)` (s of simulated time); `None`: the run.
+    pub gust_peak_s: Option<[f64; 2]>,
+    /// Gust: the horizontal and vertical RMS are taken over `[from, to)` (s); `None`: the whole run.
+    pub gust_rms_s: Option<[f64; 2]>,
+}
+
+impl Default for MetricWindows {
+    fn default() -> Self {
+        Self { step_sse_s: SSE_WINDOW_S, gust_steady_s: GUST_STEADY_WINDOW_S, gust_peak_s: None, gust_rms_s: None }
+    }
+}
+
+impl MetricWindows {
+    /// Checks every window, naming the offending key.
+    ///
+    /// # Errors
+    /// A message naming the field: a length not finite and > 0, or a `[from, to)` not finite with
+    /// `0 <= from < to`.
+    pub fn validate(&self) -> Result<(), String> {
+        for (name, v) in [("step_sse_s", self.step_sse_s), ("gust_steady_s", self.gust_steady_s)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!("metric_windows.{name} must be finite and > 0 s, got {v}"));
+            }
+        }
+        for (name, w) in [("gust_peak_s", self.gust_peak_s), ("gust_rms_s", self.gust_rms_s)] {
+            if let Some([from, to]) = w
+                && !(from.is_finite() && to.is_finite() && from >= 0.0 && from < to)
+            {
+                return Err(format!(
+                    "metric_windows.{name} must be [from, to] with 0 <= from < to (s), got [{from}, {to}]"
+                ));
+            }
+        }
+        Ok(())
+    }
+}
 
 /// A step on one axis: from `start` to `target`, over `[t0_s, t1_s)`.
 #[derive(Debug, Clone, PartialEq)]
@@ -72,6 +121,12 @@ fn time_to_stay_within(t: &[f64], abs_err: &[f64], t0: f64, band: f64) -> Option
 /// Metrics of one step. `t` and `y` are the whole run; the segment selects its window.
 #[must_use]
 pub fn step_metrics(t: &[f64], y: &[f64], seg: &StepSegment) -> SegmentMetrics {
+    step_metrics_in(t, y, seg, SSE_WINDOW_S)
+}
+
+/// [`step_metrics`] with the sse over the last `sse_window_s` (s) of the segment.
+#[must_use]
+pub fn step_metrics_in(t: &[f64], y: &[f64], seg: &StepSegment, sse_window_s: f64) -> SegmentMetrics {
     let r = in_window(t, seg.t0_s, seg.t1_s);
     let err = |v: f64| if seg.wrap { wrap_pi(v - seg.target) } else { v - seg.target };
     let step = if seg.wrap { wrap_pi(seg.target - seg.start) } else { seg.target - seg.start };
@@ -79,7 +134,7 @@ pub fn step_metrics(t: &[f64], y: &[f64], seg: &StepSegment) -> SegmentMetrics {
     let errors: Vec<f64> = yy.iter().map(|&v| err(v)).collect();
     let past = errors.iter().map(|e| e * step.signum()).fold(0.0_f64, f64::max);
     let abs_err: Vec<f64> = errors.iter().map(|e| e.abs()).collect();
-    let sse_from = in_window(tt, seg.t1_s - SSE_WINDOW_S, seg.t1_s).start;
+    let sse_from = in_window(tt, seg.t1_s - sse_window_s, seg.t1_s).start;
     SegmentMetrics {
         axis: seg.axis,
         t0_s: seg.t0_s,
@@ -112,10 +167,25 @@ pub struct GustMetrics {
 /// truth; the gust starts at `onset_s` and is released at `release_s`.
 #[must_use]
 pub fn gust_metrics(t: &[f64], err_xy_m: &[f64], err_z_m: &[f64], onset_s: f64, release_s: f64) -> GustMetrics {
+    gust_metrics_in(t, err_xy_m, err_z_m, onset_s, release_s, &MetricWindows::default())
+}
+
+/// [`gust_metrics`] over `windows` (its gust keys).
+#[must_use]
+pub fn gust_metrics_in(
+    t: &[f64],
+    err_xy_m: &[f64],
+    err_z_m: &[f64],
+    onset_s: f64,
+    release_s: f64,
+    windows: &MetricWindows,
+) -> GustMetrics {
     let end = t.last().copied().unwrap_or(0.0) + 1.0;
     let during = in_window(t, onset_s, release_s);
     let after = in_window(t, release_s, end);
-    let steady = in_window(t, release_s - GUST_STEADY_WINDOW_S, release_s);
+    let steady = in_window(t, release_s - windows.gust_steady_s, release_s);
+    let within = |w: Option<[f64; 2]>| w.map_or(0..t.len(), |[from, to]| in_window(t, from, to));
+    let (peak, rms_r) = (within(windows.gust_peak_s), within(windows.gust_rms_s));
     let mean = |r: std::ops::Range<usize>| {
         let n = r.len();
         if n == 0 { 0.0 } else { err_xy_m[r].iter().sum::<f64>() / n as f64 }
@@ -123,15 +193,15 @@ pub fn gust_metrics(t: &[f64], err_xy_m: &[f64], err_z_m: &[f64], onset_s: f64, 
     GustMetrics {
         recovery_onset_s: time_to_stay_within(&t[during.clone()], &err_xy_m[during], onset_s, RECOVERY_BAND_M),
         recovery_release_s: time_to_stay_within(&t[after.clone()], &err_xy_m[after], release_s, RECOVERY_BAND_M),
-        peak_m: err_xy_m.iter().copied().fold(0.0, f64::max),
-        rms_xy_m: rms(err_xy_m.iter().copied()),
+        peak_m: err_xy_m[peak].iter().copied().fold(0.0, f64::max),
+        rms_xy_m: rms(err_xy_m[rms_r.clone()].iter().copied()),
         steady_err_m: mean(steady),
-        rms_z_m: rms(err_z_m.iter().copied()),
+        rms_z_m: rms(err_z_m[rms_r].iter().copied()),
     }
 }
 
-/// [`gust_metrics`] of a hover: `pos_ned_m` and `ref_ned_m` are per-axis series (N, E, D in m) sampled at
-/// `t`; the errors are the horizontal distance and the down error to the reference.
+/// [`gust_metrics_in`] of a hover: `pos_ned_m` and `ref_ned_m` are per-axis series (N, E, D in m) sampled
+/// at `t`; the errors are the horizontal distance and the down error to the reference.
 #[must_use]
 pub fn hover_gust_metrics(
     t: &[f64],
@@ -139,11 +209,12 @@ pub fn hover_gust_metrics(
     ref_ned_m: &[Vec<f64>; 3],
     onset_s: f64,
     release_s: f64,
+    windows: &MetricWindows,
 ) -> GustMetrics {
     let err_xy: Vec<f64> =
         (0..t.len()).map(|k| (pos_ned_m[0][k] - ref_ned_m[0][k]).hypot(pos_ned_m[1][k] - ref_ned_m[1][k])).collect();
     let err_z: Vec<f64> = (0..t.len()).map(|k| pos_ned_m[2][k] - ref_ned_m[2][k]).collect();
-    gust_metrics(t, &err_xy, &err_z, onset_s, release_s)
+    gust_metrics_in(t, &err_xy, &err_z, onset_s, release_s, windows)
 }
 
 /// Track-following metrics over the track's active window.
@@ -240,5 +311,56 @@ mod tests {
         assert!((g.recovery_release_s.unwrap() - 2.0).abs() < 1e-9);
         assert_eq!(g.peak_m, 0.2);
         assert!((g.steady_err_m - 0.01).abs() < 1e-12);
+    }
+
+    #[test]
+    fn given_metric_windows_then_peak_rms_steady_and_sse_are_taken_over_them() {
+        let t = times(3001, 0.01);
+        // A start-up transient of 0.5 m over the first second, the gust's 0.2 m from 5 s to 7.5 s, and a
+        // last second before release at 0.05 m.
+        let err: Vec<f64> = t
+            .iter()
+            .map(|&x| match x {
+                x if x < 1.0 => 0.5,
+                x if (5.0..7.5).contains(&x) => 0.2,
+                x if (16.0..17.0).contains(&x) => 0.05,
+                _ => 0.01,
+            })
+            .collect();
+        let z = vec![0.0; t.len()];
+        let whole = gust_metrics(&t, &err, &z, 5.0, 17.0);
+        assert_eq!(whole.peak_m, 0.5, "the default window is the whole run, transient included");
+        let windows = MetricWindows {
+            gust_peak_s: Some([5.0, 30.0]),
+            gust_rms_s: Some([5.0, 7.5]),
+            gust_steady_s: 1.0,
+            ..MetricWindows::default()
+        };
+        let g = gust_metrics_in(&t, &err, &z, 5.0, 17.0, &windows);
+        assert_eq!(g.peak_m, 0.2);
+        assert!((g.rms_xy_m - 0.2).abs() < 1e-3, "{}", g.rms_xy_m);
+        assert!((g.steady_err_m - 0.05).abs() < 1e-3, "{}", g.steady_err_m);
+        assert!((whole.steady_err_m - (0.05 + 2.0 * 0.01) / 3.0).abs() < 1e-3, "{}", whole.steady_err_m);
+        // The defaults are the module's constants: the same numbers as the plain functions.
+        assert_eq!(gust_metrics_in(&t, &err, &z, 5.0, 17.0, &MetricWindows::default()), whole);
+
+        // The sse of a step that is still 0.1 off at 9 s and on target from 9.3 s.
+        let y: Vec<f64> = t.iter().map(|&x| if x < 9.3 { 0.9 } else { 1.0 }).collect();
+        let seg = StepSegment { axis: "x", t0_s: 0.0, t1_s: 10.0, start: 0.0, target: 1.0, wrap: false };
+        assert!(step_metrics(&t, &y, &seg).sse < 1e-12);
+        assert!((step_metrics_in(&t, &y, &seg, 1.0).sse - 0.1).abs() < 1e-9);
+    }
+
+    #[test]
+    fn given_bad_metric_windows_then_validate_names_the_key() {
+        let bad = MetricWindows { step_sse_s: 0.0, ..MetricWindows::default() };
+        assert!(bad.validate().unwrap_err().contains("metric_windows.step_sse_s"));
+        let bad = MetricWindows { gust_peak_s: Some([5.0, 5.0]), ..MetricWindows::default() };
+        assert!(bad.validate().unwrap_err().contains("metric_windows.gust_peak_s"));
+        let bad = MetricWindows { gust_rms_s: Some([f64::NAN, 5.0]), ..MetricWindows::default() };
+        assert!(bad.validate().unwrap_err().contains("metric_windows.gust_rms_s"));
+        let bad = MetricWindows { gust_steady_s: f64::INFINITY, ..MetricWindows::default() };
+        assert!(bad.validate().unwrap_err().contains("metric_windows.gust_steady_s"));
+        assert!(MetricWindows::default().validate().is_ok());
     }
 }

@@ -1,40 +1,50 @@
 //! The paper's experiments as scenario files: a TOML format, the built-in scenarios, an in-process
 //! lockstep runner (plant + controller on simulated time, no sockets), metrics and plots.
 //!
-//! A scenario file (all lengths m, angles rad, times s; NED/FRD):
+//! The format, every key with its unit, frame and default, and an example per feature:
+//! `docs/scenarios.md`. In short (all lengths m, angles rad, times s; NED/FRD):
 //! ```toml
 //! name = "paper-attitude"
 //! description = "..."
 //! duration_s = 16.0
 //! plant = "nominal"               # airframe preset; `--plant` overrides it
 //! state_noise = "none"            # "none" | "paper": white noise on the state the controller sees
+//! state_noise_scale = 1.0         # multiplies the noise's sigmas (>= 0)
+//! ground = true                   # the plant's ground contact at D = 0
 //! metrics = ["steps"]             # any of "steps", "gust", "track"
 //! controllers = ["aco", "ca", "pid"]  # the default set when `--controller` is not given
 //! [initial]                       # optional; at rest at the origin with hover lift by default
 //! pos_ned_m = [0.0, 0.0, -3.0]
 //! euler_rad = [0.4, -0.5, -0.4]
-//! [reference]                     # kind = "attitude" | "position" | "track" (see `reference`)
+//! [reference]                     # kind = "attitude" | "position" | "track" (see `reference`);
+//!                                 # position steps may carry vel_ned_mps, acc_ned_mps2 feed-forward;
+//!                                 # a track's path = "spline" (default) | "polyline"
 //! kind = "attitude"
 //! pos_d_m = -3.0
 //! steps = [{ t_s = 0.0, euler_rad = [0.0, 0.0, 0.0] }]
 //! [airframe]                      # optional overrides of the preset's values (e.g. mass_kg = 5.3)
 //! [wind]                          # optional: gust, turbulence, steady wind (the plant's WindConfig)
 //! [controller]                    # optional overrides of the controllers' configuration
+//! [metric_windows]                # optional: step_sse_s, gust_steady_s, gust_peak_s, gust_rms_s
 //! ```
 
 pub mod gcs;
 pub mod metrics;
+pub mod path;
 pub mod plot;
 pub mod reference;
 pub mod runner;
 pub mod two_process;
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use autopilot::core::control::{ControllerConfig, ControllerKind};
 use serde::{Deserialize, Serialize};
 
-use crate::plant::{AirframeConfig, WindConfig};
+use crate::plant::{AirframeConfig, StateNoise, WindConfig};
+pub use metrics::MetricWindows;
+pub use path::PathKind;
 pub use reference::{ReferenceMode, ReferenceSpec};
 
 /// Why a scenario could not be loaded or run.
@@ -74,6 +84,14 @@ pub enum MetricKind {
     Track,
 }
 
+/// An `[airframe]` override's value in the metrics JSON: a number, or an array for vector keys.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum OverrideValue {
+    Scalar(f64),
+    Array(Vec<f64>),
+}
+
 /// The initial state of the plant.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
 #[serde(deny_unknown_fields, default)]
@@ -96,7 +114,17 @@ pub struct Scenario {
     pub plant: String,
     #[serde(default)]
     pub state_noise: StateNoiseKind,
+    /// Multiplies every σ of `state_noise` (>= 0, finite; 0 = no noise, 1 = the paper's). A sweep may set
+    /// it after loading; [`Scenario::state_noise`] checks it again.
+    #[serde(default = "unit_scale")]
+    pub state_noise_scale: f64,
+    /// The plant's ground contact at D = 0 (on by default); off, nothing stops the vehicle below D = 0.
+    #[serde(default = "ground_on")]
+    pub ground: bool,
     pub metrics: Vec<MetricKind>,
+    /// The windows the metrics are taken over; the defaults reproduce the fixed windows of `metrics`.
+    #[serde(default)]
+    pub metric_windows: MetricWindows,
     #[serde(default = "default_controllers")]
     pub controllers: Vec<ControllerKind>,
     #[serde(default)]
@@ -109,6 +137,14 @@ pub struct Scenario {
     pub wind: WindConfig,
     #[serde(default)]
     pub controller: ControllerConfig,
+}
+
+fn unit_scale() -> f64 {
+    1.0
+}
+
+fn ground_on() -> bool {
+    true
 }
 
 fn default_plant() -> String {
@@ -166,6 +202,8 @@ impl Scenario {
             return Err(ScenarioError::Invalid("metrics must name at least one of steps, gust, track".into()));
         }
         self.reference.validate()?;
+        self.state_noise()?;
+        self.validate_metric_windows()?;
         let unset = AirframeConfig::default().preset;
         if self.airframe.preset != unset && self.airframe.preset != self.plant {
             return Err(ScenarioError::Invalid(format!(
@@ -188,7 +226,85 @@ impl Scenario {
         {
             return Err(ScenarioError::Invalid("initial state must be finite".into()));
         }
+        if self.ground && init.pos_ned_m[2] > 0.0 {
+            return Err(ScenarioError::Invalid(format!(
+                "initial.pos_ned_m starts below the ground (D = {} m > 0): raise it or set ground = false",
+                init.pos_ned_m[2]
+            )));
+        }
         Ok(())
+    }
+
+    fn validate_metric_windows(&self) -> Result<(), ScenarioError> {
+        let w = &self.metric_windows;
+        w.validate().map_err(ScenarioError::Invalid)?;
+        let unset = MetricWindows::default();
+        let needs = |key: &str, set: bool, metric: MetricKind, name: &str| {
+            if set && !self.metrics.contains(&metric) {
+                Err(ScenarioError::Invalid(format!("metric_windows.{key} needs the {name} metric")))
+            } else {
+                Ok(())
+            }
+        };
+        needs("step_sse_s", w.step_sse_s != unset.step_sse_s, MetricKind::Steps, "steps")?;
+        needs("gust_steady_s", w.gust_steady_s != unset.gust_steady_s, MetricKind::Gust, "gust")?;
+        needs("gust_peak_s", w.gust_peak_s.is_some(), MetricKind::Gust, "gust")?;
+        needs("gust_rms_s", w.gust_rms_s.is_some(), MetricKind::Gust, "gust")?;
+        for (key, window) in [("gust_peak_s", w.gust_peak_s), ("gust_rms_s", w.gust_rms_s)] {
+            if let Some([from, _]) = window
+                && from >= self.duration_s
+            {
+                return Err(ScenarioError::Invalid(format!(
+                    "metric_windows.{key} starts at {from} s, after the run's end (duration_s = {})",
+                    self.duration_s
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// The noise on the state the controller sees: `state_noise`'s σ times `state_noise_scale`.
+    ///
+    /// # Errors
+    /// [`ScenarioError::Invalid`] for a scale that is negative or not finite, or a scale other than 1 with
+    /// `state_noise = "none"` (it would scale nothing).
+    pub fn state_noise(&self) -> Result<StateNoise, ScenarioError> {
+        let scale = self.state_noise_scale;
+        if !(scale.is_finite() && scale >= 0.0) {
+            return Err(ScenarioError::Invalid(format!("state_noise_scale must be finite and >= 0, got {scale}")));
+        }
+        match self.state_noise {
+            StateNoiseKind::None if scale != 1.0 => Err(ScenarioError::Invalid(format!(
+                "state_noise_scale = {scale} scales nothing with state_noise = \"none\": set state_noise = \"paper\""
+            ))),
+            StateNoiseKind::None => Ok(StateNoise::none()),
+            StateNoiseKind::Paper => Ok(StateNoise::paper().scaled(scale)),
+        }
+    }
+
+    /// The plant's label in metrics, file names and figures: the preset (`preset`, or else the scenario's
+    /// `plant`), then `+key=value` for each `[airframe]` override (array elements joined by commas), e.g.
+    /// `mismatch+mass_kg=5.3`.
+    #[must_use]
+    pub fn plant_label(&self, preset: Option<&str>) -> String {
+        let mut label = preset.unwrap_or(&self.plant).to_owned();
+        for (key, values) in self.airframe.overrides() {
+            let values: Vec<String> = values.iter().map(f64::to_string).collect();
+            label += &format!("+{key}={}", values.join(","));
+        }
+        label
+    }
+
+    /// The `[airframe]` overrides by key, or `None` when there are none.
+    #[must_use]
+    pub fn airframe_overrides(&self) -> Option<BTreeMap<&'static str, OverrideValue>> {
+        let overrides = self.airframe.overrides();
+        (!overrides.is_empty()).then(|| {
+            overrides
+                .into_iter()
+                .map(|(key, v)| (key, if let [x] = v[..] { OverrideValue::Scalar(x) } else { OverrideValue::Array(v) }))
+                .collect()
+        })
     }
 
     /// The reference modes a run of this scenario covers: each track mode, or one run otherwise.
@@ -227,5 +343,76 @@ mod tests {
         let text = text.replace("bogus = 1\n", "").replace("duration_s = 5.0", "duration_s = -1.0");
         let e = Scenario::from_toml("x", &text).unwrap_err().to_string();
         assert!(e.contains("duration_s"), "{e}");
+    }
+
+    /// A valid hover with a gust, to break one key at a time.
+    const HOVER: &str = "name = \"x\"\nduration_s = 10.0\nstate_noise = \"paper\"\nmetrics = [\"gust\"]\n\
+                         [initial]\npos_ned_m = [0.0, 0.0, -1.0]\n\
+                         [reference]\nkind = \"position\"\nsteps = [{ t_s = 0.0, pos_ned_m = [0.0, 0.0, -1.0] }]\n\
+                         [wind.gust]\namplitude_mps = 3.0\ndirection_ned = [0.0, 1.0, 0.0]\nonset_s = 2.0\n\
+                         rise_s = 1.0\nrelease_s = 6.0\nfall_s = 1.0\n";
+
+    #[test]
+    fn given_each_new_key_with_a_bad_value_then_the_error_names_it() {
+        let s = Scenario::from_toml("x", HOVER).unwrap();
+        assert_eq!((s.state_noise_scale, s.ground, s.metric_windows), (1.0, true, MetricWindows::default()));
+        let top = |line: &str| HOVER.replacen("metrics =", &format!("{line}\nmetrics ="), 1);
+        let cases = [
+            (top("state_noise_scale = -0.5"), "state_noise_scale"),
+            (top("state_noise_scale = nan"), "state_noise_scale"),
+            (top("state_noise_scale = 2.0").replace("\"paper\"", "\"none\""), "state_noise_scale"),
+            (top("ground = \"no\""), "ground"),
+            (
+                HOVER.replace("pos_ned_m = [0.0, 0.0, -1.0]\n[reference]", "pos_ned_m = [0.0, 0.0, 0.5]\n[reference]"),
+                "ground = false",
+            ),
+            (HOVER.replace("-1.0] }", "-1.0], vel_ned_mps = [nan, 0.0, 0.0] }"), "vel_ned_mps"),
+            (HOVER.replace("-1.0] }", "-1.0], acc_ned_mps2 = [0.0, inf, 0.0] }"), "acc_ned_mps2"),
+            (HOVER.replace("-1.0] }", "-1.0], vel_ned_mps = [1.0, 0.0] }"), "vel_ned_mps"),
+            (format!("{HOVER}[metric_windows]\ngust_peak_s = [5.0, 1.0]\n"), "metric_windows.gust_peak_s"),
+            (format!("{HOVER}[metric_windows]\ngust_rms_s = [11.0, 12.0]\n"), "metric_windows.gust_rms_s"),
+            (format!("{HOVER}[metric_windows]\ngust_steady_s = 0.0\n"), "metric_windows.gust_steady_s"),
+            (format!("{HOVER}[metric_windows]\nstep_sse_s = 1.0\n"), "needs the steps metric"),
+            (format!("{HOVER}[metric_windows]\npeak_s = [0.0, 1.0]\n"), "peak_s"),
+        ];
+        for (text, needle) in &cases {
+            let e = match Scenario::from_toml("x", text) {
+                Ok(_) => panic!("{needle}: accepted"),
+                Err(e) => e.to_string(),
+            };
+            assert!(e.contains(needle), "{needle}: {e}");
+        }
+        // Below the ground is fine without one.
+        let below = top("ground = false")
+            .replace("pos_ned_m = [0.0, 0.0, -1.0]\n[reference]", "pos_ned_m = [0.0, 0.0, 0.5]\n[reference]");
+        assert!(!Scenario::from_toml("x", &below).unwrap().ground);
+    }
+
+    #[test]
+    fn given_a_track_path_key_then_spline_is_the_default_and_others_are_refused() {
+        let track = BUILT_INS.iter().find(|b| b.0 == "figure8").unwrap().1;
+        let spec = |s: &Scenario| match &s.reference {
+            ReferenceSpec::Track(t) => t.path,
+            _ => unreachable!(),
+        };
+        assert_eq!(spec(&Scenario::from_toml("f", track).unwrap()), PathKind::Spline);
+        let poly = track.replace("kind = \"track\"", "kind = \"track\"\npath = \"polyline\"");
+        assert_eq!(spec(&Scenario::from_toml("f", &poly).unwrap()), PathKind::Polyline);
+        let e = Scenario::from_toml("f", &poly.replace("polyline", "bezier")).unwrap_err().to_string();
+        assert!(e.contains("path") && e.contains("polyline"), "{e}");
+    }
+
+    #[test]
+    fn given_no_overrides_then_the_label_is_the_preset() {
+        let s = Scenario::load("gust-hover").unwrap();
+        assert_eq!((s.plant_label(None), s.plant_label(Some("nominal"))), ("mismatch".into(), "nominal".into()));
+        assert!(s.airframe_overrides().is_none());
+        let mut s = s;
+        s.airframe.disturbance_torque_frd_nm = Some([0.1, 0.0, -0.05]);
+        s.airframe.motor_tau_s = Some(0.06);
+        assert_eq!(s.plant_label(None), "mismatch+motor_tau_s=0.06+disturbance_torque_frd_nm=0.1,0,-0.05");
+        let o = s.airframe_overrides().unwrap();
+        assert_eq!(o["motor_tau_s"], OverrideValue::Scalar(0.06));
+        assert_eq!(o["disturbance_torque_frd_nm"], OverrideValue::Array(vec![0.1, 0.0, -0.05]));
     }
 }

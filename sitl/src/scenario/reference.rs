@@ -1,21 +1,25 @@
-//! Reference generators for scenarios: step schedules (position or attitude) and a closed waypoint track.
+//! Reference generators for scenarios: step schedules (position or attitude) and a waypoint track.
 //!
 //! In: simulated time `t_s`, monotonically non-decreasing. Out: an `autopilot` [`Reference`] (NED, metres,
-//! radians; feed-forward velocity and acceleration for tracks). Evaluated once per control tick.
+//! radians; feed-forward velocity and acceleration for tracks, and for position steps that carry it).
+//! Evaluated once per control tick.
 //!
-//! The track is a C2 cubic spline through the waypoints (periodic when the last waypoint repeats the
-//! first), parametrised by arc length. The prefilter (critically damped, natural frequency `wf`) acts on
-//! the along-track progress `s(t)`, not on the position: the reference therefore never leaves the path,
-//! starts from rest and reaches the commanded speed smoothly, and its velocity `P'(s) s_dot` and
-//! acceleration `P''(s) s_dot^2 + P'(s) s_ddot` are exact feed-forward for it.
+//! The track is a path through the waypoints ([`TrackPath`]: a C2 cubic spline, periodic when the last
+//! waypoint repeats the first, or straight segments), parametrised by arc length. The prefilter
+//! (critically damped, natural frequency `wf`) acts on the along-track progress `s(t)`, not on the
+//! position: the reference therefore never leaves the path, starts from rest and reaches the commanded
+//! speed smoothly, and its velocity `P'(s) s_dot` and acceleration `P''(s) s_dot^2 + P'(s) s_ddot` are
+//! exact feed-forward for it. On a polyline `P'` is the current segment's direction and `P''` is zero:
+//! the speed is constant along each segment and the velocity turns instantly at a corner (a velocity
+//! step; the corner's impulse of acceleration is not fed forward).
 
 use autopilot::core::control::Reference;
 use autopilot::core::navigator::spline::ProgressFilter;
-pub use autopilot::core::navigator::spline::SplinePath;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
 use super::ScenarioError;
+pub use super::path::{PathKind, SplinePath, TrackPath};
 
 /// One step of an attitude schedule: from `t_s` on, hold `euler_rad` (phi, theta, psi; NED/FRD ZYX).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -25,7 +29,8 @@ pub struct AttitudeStep {
     pub euler_rad: [f64; 3],
 }
 
-/// One step of a position schedule: from `t_s` on, hold `pos_ned_m` with heading `yaw_rad`.
+/// One step of a position schedule: from `t_s` on, hold `pos_ned_m` with heading `yaw_rad`, handing the
+/// controller `vel_ned_mps` and `acc_ned_mps2` as feed-forward (zero by default: a plain step).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PositionStep {
@@ -33,6 +38,12 @@ pub struct PositionStep {
     pub pos_ned_m: [f64; 3],
     #[serde(default)]
     pub yaw_rad: f64,
+    /// Velocity feed-forward (m/s, NED).
+    #[serde(default)]
+    pub vel_ned_mps: [f64; 3],
+    /// Acceleration feed-forward (m/s², NED).
+    #[serde(default)]
+    pub acc_ned_mps2: [f64; 3],
 }
 
 /// How a track's reference is handed to the controller.
@@ -60,6 +71,9 @@ impl std::fmt::Display for ReferenceMode {
 pub struct TrackSpec {
     /// Horizontal waypoints (N, E) in metres. The track is closed when the last repeats the first.
     pub waypoints_ne_m: Vec<[f64; 2]>,
+    /// The path through them: a spline (default) or straight segments.
+    #[serde(default)]
+    pub path: PathKind,
     pub pos_d_m: f64,
     pub speed_mps: f64,
     /// Natural frequency of the critically damped progress prefilter.
@@ -78,9 +92,9 @@ fn one() -> u32 {
     1
 }
 
-/// The reference part of a scenario file.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+/// The reference part of a scenario file: a table with `kind` and that kind's keys.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
 pub enum ReferenceSpec {
     /// The paper's Fig. 5 mode: scripted attitude, altitude held at `pos_d_m`.
     Attitude {
@@ -91,6 +105,55 @@ pub enum ReferenceSpec {
         steps: Vec<PositionStep>,
     },
     Track(TrackSpec),
+}
+
+/// Read by hand rather than as serde's internally tagged enum, which buffers the table and so loses the
+/// key a type error is about: here the kind's keys are read from the table with their path, and an error
+/// says e.g. ``[reference] kind = "position": invalid length 2, expected an array of length 3 in
+/// `steps.vel_ned_mps` ``. Unknown keys stay an error.
+impl<'de> Deserialize<'de> for ReferenceSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        use serde::de::Error;
+
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct AttitudeTable {
+            pos_d_m: f64,
+            steps: Vec<AttitudeStep>,
+        }
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct PositionTable {
+            steps: Vec<PositionStep>,
+        }
+
+        let mut table = toml::Table::deserialize(deserializer)?;
+        let kind = match table.remove("kind") {
+            Some(toml::Value::String(kind)) => kind,
+            Some(other) => return Err(D::Error::custom(format!("reference.kind must be a string, got {other}"))),
+            None => return Err(D::Error::custom("reference.kind is missing: \"attitude\", \"position\" or \"track\"")),
+        };
+        let body = toml::Value::Table(table);
+        let keyed = |e: toml::de::Error| {
+            let text = e.to_string();
+            let message: Vec<&str> = text.lines().map(str::trim).filter(|l| !l.is_empty()).collect();
+            D::Error::custom(format!("[reference] kind = \"{kind}\": {}", message.join(" ")))
+        };
+        match kind.as_str() {
+            "attitude" => {
+                let AttitudeTable { pos_d_m, steps } = body.try_into().map_err(keyed)?;
+                Ok(Self::Attitude { pos_d_m, steps })
+            }
+            "position" => {
+                let PositionTable { steps } = body.try_into().map_err(keyed)?;
+                Ok(Self::Position { steps })
+            }
+            "track" => Ok(Self::Track(body.try_into().map_err(keyed)?)),
+            other => Err(D::Error::custom(format!(
+                "unknown reference kind `{other}`, expected `attitude`, `position` or `track`"
+            ))),
+        }
+    }
 }
 
 impl ReferenceSpec {
@@ -126,6 +189,12 @@ impl ReferenceSpec {
                 check_times(&mut steps.iter().map(|s| s.t_s))?;
                 if steps.iter().any(|s| !finite(&s.pos_ned_m) || !s.yaw_rad.is_finite()) {
                     return Err(invalid("position reference values must be finite"));
+                }
+                if steps.iter().any(|s| !finite(&s.vel_ned_mps)) {
+                    return Err(invalid("position step vel_ned_mps must be finite"));
+                }
+                if steps.iter().any(|s| !finite(&s.acc_ned_mps2)) {
+                    return Err(invalid("position step acc_ned_mps2 must be finite"));
                 }
             }
             Self::Track(track) => {
@@ -192,7 +261,10 @@ impl ReferenceGen {
             }
             Self::Position { steps } => {
                 let s = active(steps, t_s, |s| s.t_s);
-                Reference::position(Vector3::from(s.pos_ned_m), s.yaw_rad)
+                let mut reference = Reference::position(Vector3::from(s.pos_ned_m), s.yaw_rad);
+                reference.vel_ned_mps = Vector3::from(s.vel_ned_mps);
+                reference.acc_ned_mps2 = Vector3::from(s.acc_ned_mps2);
+                reference
             }
             Self::Track(track) => track.at(t_s),
         }
@@ -206,10 +278,10 @@ fn active<T: Copy>(items: &[T], t_s: f64, start: impl Fn(&T) -> f64) -> T {
     items[idx.saturating_sub(1)]
 }
 
-/// The prefiltered progress along a spline path.
+/// The prefiltered progress along a track's path.
 #[derive(Debug, Clone)]
 pub struct TrackGen {
-    pub path: SplinePath,
+    pub path: TrackPath,
     spec: TrackSpec,
     mode: ReferenceMode,
     /// The progress (m, m/s) after `filter_steps` steps.
@@ -225,7 +297,7 @@ impl TrackGen {
     #[must_use]
     pub fn new(spec: &TrackSpec, mode: ReferenceMode) -> Self {
         Self {
-            path: SplinePath::new(&spec.waypoints_ne_m),
+            path: TrackPath::new(spec.path, &spec.waypoints_ne_m),
             spec: spec.clone(),
             mode,
             filter: ProgressFilter::at_rest(spec.prefilter_wn_radps, 0.0),
@@ -295,6 +367,7 @@ mod tests {
     fn given_a_track_when_followed_then_feed_forward_is_the_derivative_of_the_reference() {
         let spec = TrackSpec {
             waypoints_ne_m: figure8(),
+            path: PathKind::Spline,
             pos_d_m: -1.5,
             speed_mps: 0.3,
             prefilter_wn_radps: 2.5,
@@ -330,6 +403,7 @@ mod tests {
     fn given_position_only_mode_then_the_reference_has_no_feed_forward() {
         let spec = TrackSpec {
             waypoints_ne_m: figure8(),
+            path: PathKind::Spline,
             pos_d_m: -1.5,
             speed_mps: 0.3,
             prefilter_wn_radps: 2.5,
@@ -367,8 +441,20 @@ mod tests {
     fn given_bad_references_then_validate_says_what_is_wrong() {
         let bad = ReferenceSpec::Position {
             steps: vec![
-                PositionStep { t_s: 1.0, pos_ned_m: [0.0; 3], yaw_rad: 0.0 },
-                PositionStep { t_s: 1.0, pos_ned_m: [1.0; 3], yaw_rad: 0.0 },
+                PositionStep {
+                    t_s: 1.0,
+                    pos_ned_m: [0.0; 3],
+                    yaw_rad: 0.0,
+                    vel_ned_mps: [0.0; 3],
+                    acc_ned_mps2: [0.0; 3],
+                },
+                PositionStep {
+                    t_s: 1.0,
+                    pos_ned_m: [1.0; 3],
+                    yaw_rad: 0.0,
+                    vel_ned_mps: [0.0; 3],
+                    acc_ned_mps2: [0.0; 3],
+                },
             ],
         };
         assert!(bad.validate().unwrap_err().to_string().contains("increasing"));

@@ -14,8 +14,8 @@ use serde::Serialize;
 
 use super::metrics::{self, GustMetrics, SegmentMetrics, StepSegment, TrackMetrics};
 use super::reference::{ReferenceGen, ReferenceMode, ReferenceSpec, TrackGen};
-use super::{MetricKind, Scenario, ScenarioError, StateNoiseKind};
-use crate::plant::{AirframeConfig, InitialState, Plant, PlantConfig, StateNoise};
+use super::{MetricKind, OverrideValue, Scenario, ScenarioError};
+use crate::plant::{AirframeConfig, GroundConfig, InitialState, Plant, PlantConfig};
 
 /// What varies between runs of one scenario.
 #[derive(Debug, Clone, PartialEq)]
@@ -49,7 +49,11 @@ impl RunOptions {
 pub struct RunMetrics {
     pub scenario: String,
     pub controller: String,
+    /// The preset, then `+key=value` per `[airframe]` override ([`Scenario::plant_label`]).
     pub plant: String,
+    /// The `[airframe]` overrides by key (absent when there are none).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub airframe_overrides: Option<BTreeMap<&'static str, OverrideValue>>,
     pub seed: u64,
     pub rate_hz: u32,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -155,7 +159,8 @@ struct Series {
 pub fn plant_config(scenario: &Scenario, preset: Option<&str>) -> Result<PlantConfig, ScenarioError> {
     let preset = preset.unwrap_or(&scenario.plant).to_owned();
     let airframe = AirframeConfig { preset, ..scenario.airframe.clone() }.resolve()?;
-    Ok(PlantConfig { airframe, wind: scenario.wind.clone(), ..PlantConfig::default() })
+    let ground = GroundConfig { enabled: scenario.ground, ..GroundConfig::default() };
+    Ok(PlantConfig { airframe, wind: scenario.wind.clone(), ground, ..PlantConfig::default() })
 }
 
 /// Runs one scenario with one controller on one plant, in lockstep.
@@ -177,7 +182,7 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
     let mut controller = new_controller(opts.controller, &controller_config);
 
     let config = plant_config(scenario, opts.plant.as_deref())?;
-    let plant_name = opts.plant.clone().unwrap_or_else(|| scenario.plant.clone());
+    let plant_name = scenario.plant_label(opts.plant.as_deref());
     let init = &scenario.initial;
     let initial = InitialState {
         pos_ned_m: Vector3::from(init.pos_ned_m),
@@ -187,10 +192,7 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
         rotor_lift_n: None,
     };
     let mut plant = Plant::new(config, &initial, opts.seed)?;
-    let noise = match scenario.state_noise {
-        StateNoiseKind::None => StateNoise::none(),
-        StateNoiseKind::Paper => StateNoise::paper(),
-    };
+    let noise = scenario.state_noise()?;
     let mut reference = ReferenceGen::new(&scenario.reference, opts.mode);
 
     let dt_us = u64::from(1_000_000 / rates.inner_hz);
@@ -269,6 +271,7 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
         scenario: scenario.name.clone(),
         controller: opts.controller.to_string(),
         plant: plant_name,
+        airframe_overrides: scenario.airframe_overrides(),
         seed: opts.seed,
         rate_hz: rates.inner_hz,
         reference_mode: matches!(scenario.reference, ReferenceSpec::Track(_)).then(|| opts.mode.to_string()),
@@ -290,8 +293,15 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
     }
     if scenario.metrics.contains(&MetricKind::Gust) {
         let gust = scenario.wind.gust.as_ref().expect("validated: the gust metric has a gust");
-        m.gust =
-            Some(metrics::hover_gust_metrics(&series.t, &series.pos, &series.ref_pos, gust.onset_s, gust.release_s));
+        let windows = &scenario.metric_windows;
+        m.gust = Some(metrics::hover_gust_metrics(
+            &series.t,
+            &series.pos,
+            &series.ref_pos,
+            gust.onset_s,
+            gust.release_s,
+            windows,
+        ));
     }
     if let (true, ReferenceSpec::Track(spec)) = (scenario.metrics.contains(&MetricKind::Track), &scenario.reference) {
         let track = TrackGen::new(spec, opts.mode);
@@ -371,7 +381,7 @@ fn step_metrics(scenario: &Scenario, s: &Series) -> (Vec<SegmentMetrics>, BTreeM
                 target: target[axis],
                 wrap,
             };
-            segments.push(metrics::step_metrics(&s.t, &values[axis], &seg));
+            segments.push(metrics::step_metrics_in(&s.t, &values[axis], &seg, scenario.metric_windows.step_sse_s));
         }
         previous = *target;
     }
@@ -379,4 +389,254 @@ fn step_metrics(scenario: &Scenario, s: &Series) -> (Vec<SegmentMetrics>, BTreeM
         .map(|axis| (names[axis], metrics::tracking_rms(&values[axis], &refs[axis], names[axis] == "yaw")))
         .collect();
     (segments, rms)
+}
+
+#[cfg(test)]
+mod tests {
+    use autopilot::core::control::ControllerKind;
+    use nalgebra::Vector2;
+
+    use super::*;
+    use crate::scenario::MetricWindows;
+    use crate::scenario::path::{PathKind, TrackPath};
+
+    /// A scenario from TOML text, validated.
+    fn scenario(text: &str) -> Scenario {
+        Scenario::from_toml("test", text).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// An ACO run that traces every tick.
+    fn run_every_tick(s: &Scenario) -> RunOutput {
+        let opts = RunOptions { trace_hz: 500, ..RunOptions::new(ControllerKind::Aco) };
+        run(s, &opts).unwrap()
+    }
+
+    fn column(out: &RunOutput, name: &str) -> Vec<f64> {
+        out.trace.column(name).unwrap_or_else(|| panic!("no column {name}"))
+    }
+
+    /// The metrics JSON without the wall-clock fields.
+    fn metrics_json(m: &RunMetrics) -> serde_json::Value {
+        let mut v = serde_json::to_value(m).unwrap();
+        let o = v.as_object_mut().unwrap();
+        o.remove("wall_s");
+        o.remove("realtime_factor");
+        v
+    }
+
+    const SQUARE_TRACK: &str = r#"
+name = "square"
+duration_s = 17.0
+plant = "mismatch"
+metrics = ["track"]
+[initial]
+pos_ned_m = [0.0, 0.0, -1.5]
+[reference]
+kind = "track"
+path = "PATH"
+waypoints_ne_m = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.0, 0.0]]
+pos_d_m = -1.5
+speed_mps = 0.3
+prefilter_wn_radps = 2.5
+start_s = 1.0
+reference_modes = ["feed-forward"]
+"#;
+
+    /// Distance from `p` to the closed unit square's sides.
+    fn distance_to_square(p: Vector2<f64>) -> f64 {
+        let corners = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.0, 0.0]].map(|c| Vector2::new(c[0], c[1]));
+        corners
+            .windows(2)
+            .map(|w| {
+                let (a, ab) = (w[0], w[1] - w[0]);
+                let x = ((p - a).dot(&ab) / ab.norm_squared()).clamp(0.0, 1.0);
+                (p - (a + ab * x)).norm()
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    #[test]
+    fn given_a_polyline_square_then_the_reference_runs_on_its_sides_and_cross_track_is_measured_to_them() {
+        let s = scenario(&SQUARE_TRACK.replace("PATH", "polyline"));
+        let out = run_every_tick(&s);
+        let (t, n, e) = (column(&out, "t"), column(&out, "pN"), column(&out, "pE"));
+        let (rn, re) = (column(&out, "refN"), column(&out, "refE"));
+        let end_s = 1.0 + 4.0 / 0.3;
+        let mut cross = Vec::new();
+        let mut spline_cross = Vec::new();
+        let spline = TrackPath::new(PathKind::Spline, &[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.0, 0.0]]);
+        for k in 0..t.len() {
+            // The reference never leaves the straight sides.
+            assert!(distance_to_square(Vector2::new(rn[k], re[k])) < 1e-9, "t {}: ref ({}, {})", t[k], rn[k], re[k]);
+            if t[k] >= 1.0 && t[k] <= end_s {
+                let p = Vector2::new(n[k], e[k]);
+                cross.push(distance_to_square(p));
+                spline_cross.push(spline.nearest_near(p, 0.0, 10.0).0);
+            }
+        }
+        let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
+        let m = out.metrics.track.unwrap();
+        assert!((m.cross_track_rms_m - rms(&cross)).abs() < 1e-12, "{} vs {}", m.cross_track_rms_m, rms(&cross));
+        let max = cross.iter().copied().fold(0.0, f64::max);
+        assert!((m.cross_track_max_m - max).abs() < 1e-12, "{} vs {max}", m.cross_track_max_m);
+        // Against the spline through the same corners the same flight measures something else.
+        let spline_rms = rms(&spline_cross);
+        assert!((spline_rms - m.cross_track_rms_m).abs() > 0.2 * m.cross_track_rms_m, "{spline_rms} vs {m:?}");
+        // It flew the square: the corners (1, 0), (1, 1) and (0, 1) were passed within 10 cm.
+        for c in [[1.0, 0.0], [1.0, 1.0], [0.0, 1.0]] {
+            let closest = (0..t.len()).map(|k| (n[k] - c[0]).hypot(e[k] - c[1])).fold(f64::INFINITY, f64::min);
+            assert!(closest < 0.1, "corner {c:?}: {closest}");
+        }
+    }
+
+    #[test]
+    fn given_a_spline_track_when_path_is_named_then_nothing_changes() {
+        let implicit = scenario(&SQUARE_TRACK.replace("path = \"PATH\"\n", ""));
+        let explicit = scenario(&SQUARE_TRACK.replace("PATH", "spline"));
+        let (a, b) = (run_every_tick(&implicit), run_every_tick(&explicit));
+        assert_eq!(a.trace, b.trace);
+        assert_eq!(metrics_json(&a.metrics), metrics_json(&b.metrics));
+    }
+
+    /// A hover at 2 m, then from 1 s a ramp along N at 0.5 m/s as 0.1 s steps (FF: their feed-forward),
+    /// held at 1 m from 3 s.
+    fn ramp(feed_forward: &str) -> Scenario {
+        let mut steps = vec!["{ t_s = 0.0, pos_ned_m = [0.0, 0.0, -2.0] }".to_owned()];
+        for k in 1..=20 {
+            let t = 1.0 + 0.1 * f64::from(k - 1);
+            let n = 0.05 * f64::from(k);
+            steps.push(format!("{{ t_s = {t:.1}, pos_ned_m = [{n:.2}, 0.0, -2.0]{feed_forward} }}"));
+        }
+        steps.push("{ t_s = 3.0, pos_ned_m = [1.0, 0.0, -2.0] }".to_owned());
+        scenario(&format!(
+            "name = \"ramp\"\nduration_s = 8.0\nmetrics = [\"steps\"]\n[initial]\npos_ned_m = [0.0, 0.0, -2.0]\n\
+             [reference]\nkind = \"position\"\nsteps = [{}]\n",
+            steps.join(", ")
+        ))
+    }
+
+    #[test]
+    fn given_position_steps_with_velocity_feed_forward_then_the_vehicle_lags_less() {
+        let plain = run_every_tick(&ramp(""));
+        let fed = run_every_tick(&ramp(", vel_ned_mps = [0.5, 0.0, 0.0]"));
+        // Lag: how far behind the moving target the vehicle is at the end of the ramp (3 s), and when it
+        // first comes within 5 cm of the final 1 m.
+        let lag = |out: &RunOutput| {
+            let (t, n) = (column(out, "t"), column(out, "pN"));
+            let k3 = t.iter().position(|&x| x >= 3.0).unwrap();
+            let reached = (0..t.len()).find(|&k| (n[k] - 1.0).abs() < 0.05).map_or(f64::INFINITY, |k| t[k]);
+            (1.0 - n[k3], reached)
+        };
+        let ((behind_plain, reached_plain), (behind_fed, reached_fed)) = (lag(&plain), lag(&fed));
+        assert!(behind_fed < 0.5 * behind_plain, "behind at 3 s: {behind_fed} with, {behind_plain} without");
+        assert!(reached_fed + 0.5 < reached_plain, "within 5 cm at {reached_fed} s with, {reached_plain} s without");
+    }
+
+    #[test]
+    fn given_position_steps_with_feed_forward_then_the_reference_carries_it() {
+        let s = ramp(", vel_ned_mps = [0.5, 0.0, 0.0], acc_ned_mps2 = [0.0, 0.1, -0.2]");
+        let mut g = ReferenceGen::new(&s.reference, ReferenceMode::FeedForward);
+        let r = g.at(1.55);
+        assert_eq!(r.pos_ned_m, Vector3::new(0.30, 0.0, -2.0));
+        assert_eq!(r.vel_ned_mps, Vector3::new(0.5, 0.0, 0.0));
+        assert_eq!(r.acc_ned_mps2, Vector3::new(0.0, 0.1, -0.2));
+        // The hold before and after carries none.
+        assert_eq!((g.at(0.5).vel_ned_mps, g.at(3.5).acc_ned_mps2), (Vector3::zeros(), Vector3::zeros()));
+    }
+
+    #[test]
+    fn given_a_gust_peak_window_then_the_peak_is_taken_over_it_and_defaults_change_nothing() {
+        let base = Scenario::load("gust-hover").unwrap();
+        let explicit = scenario(&format!(
+            "{}\n[metric_windows]\nstep_sse_s = 0.5\ngust_steady_s = 3.0\n",
+            crate::scenario::BUILT_INS.iter().find(|b| b.0 == "gust-hover").unwrap().1
+        ));
+        let windowed = Scenario {
+            metric_windows: MetricWindows { gust_peak_s: Some([0.0, 4.5]), ..base.metric_windows },
+            ..base.clone()
+        };
+        let (a, b, c) = (run_every_tick(&base), run_every_tick(&explicit), run_every_tick(&windowed));
+        assert_eq!(metrics_json(&a.metrics), metrics_json(&b.metrics), "explicit defaults");
+        let (whole, before_gust) = (a.metrics.gust.clone().unwrap(), c.metrics.gust.clone().unwrap());
+        // Before the gust the error is the noise's; the gust's peak is several times that.
+        assert!(before_gust.peak_m < 0.5 * whole.peak_m, "{} vs {}", before_gust.peak_m, whole.peak_m);
+        let (t, n, e) = (column(&c, "t"), column(&c, "pN"), column(&c, "pE"));
+        let expected = (0..t.len()).filter(|&k| t[k] < 4.5 - 1e-9).map(|k| n[k].hypot(e[k])).fold(0.0, f64::max);
+        assert!((before_gust.peak_m - expected).abs() < 1e-12, "{} vs {expected}", before_gust.peak_m);
+        // Only the peak moved.
+        assert_eq!((before_gust.rms_xy_m, before_gust.steady_err_m), (whole.rms_xy_m, whole.steady_err_m));
+    }
+
+    #[test]
+    fn given_airframe_overrides_then_the_label_and_json_name_them() {
+        let text = "name = \"x\"\nduration_s = 0.2\nplant = \"mismatch\"\nmetrics = [\"steps\"]\n\
+                    [initial]\npos_ned_m = [0.0, 0.0, -1.0]\n\
+                    [reference]\nkind = \"position\"\nsteps = [{ t_s = 0.0, pos_ned_m = [0.0, 0.0, -1.0] }]\n";
+        let plain = run_every_tick(&scenario(text));
+        assert_eq!(plain.metrics.plant, "mismatch");
+        assert!(metrics_json(&plain.metrics).get("airframe_overrides").is_none());
+
+        let s = scenario(&format!("{text}[airframe]\nmass_kg = 5.3\nrotor_health = [1.0, 1.0, 0.8, 1.0]\n"));
+        let out = run_every_tick(&s);
+        assert_eq!(out.metrics.plant, "mismatch+mass_kg=5.3+rotor_health=1,1,0.8,1");
+        let json = metrics_json(&out.metrics);
+        assert_eq!(
+            json["airframe_overrides"],
+            serde_json::json!({"mass_kg": 5.3, "rotor_health": [1.0, 1.0, 0.8, 1.0]})
+        );
+        // `--plant` changes the preset, the overrides stay.
+        let opts = RunOptions { plant: Some("nominal".into()), ..RunOptions::new(ControllerKind::Aco) };
+        assert_eq!(run(&s, &opts).unwrap().metrics.plant, "nominal+mass_kg=5.3+rotor_health=1,1,0.8,1");
+    }
+
+    #[test]
+    fn given_noise_scale_zero_then_the_run_is_the_noise_free_one_bit_for_bit() {
+        let mut paper = Scenario::load("gust-hover").unwrap();
+        paper.duration_s = 8.0;
+        let none = Scenario { state_noise: super::super::StateNoiseKind::None, ..paper.clone() };
+        let zero = Scenario { state_noise_scale: 0.0, ..paper.clone() };
+        let (a, b, c) = (run_every_tick(&none), run_every_tick(&zero), run_every_tick(&paper));
+        let bits = |t: &Trace| t.rows.iter().flatten().map(|v| v.to_bits()).collect::<Vec<u64>>();
+        assert_eq!(bits(&a.trace), bits(&b.trace));
+        assert_eq!(metrics_json(&a.metrics), metrics_json(&b.metrics));
+        assert_ne!(bits(&a.trace), bits(&c.trace), "the paper's noise does change the run");
+    }
+
+    #[test]
+    fn given_noise_scale_two_then_the_sampled_state_has_twice_the_sigma() {
+        let paper = Scenario::load("gust-hover").unwrap();
+        let doubled = Scenario { state_noise_scale: 2.0, ..paper.clone() };
+        let sample_sigma = |s: &Scenario| {
+            let config = plant_config(s, None).unwrap();
+            let initial = InitialState { pos_ned_m: Vector3::new(0.0, 0.0, -1.5), ..InitialState::default() };
+            let mut plant = Plant::new(config, &initial, 7).unwrap();
+            let noise = s.state_noise().unwrap();
+            let truth = plant.truth();
+            let x: Vec<f64> = (0..20_000).map(|_| plant.sample_state_of(&truth, &noise).pos_ned_m.x).collect();
+            let mean = x.iter().sum::<f64>() / x.len() as f64;
+            (x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (x.len() - 1) as f64).sqrt()
+        };
+        let (one, two) = (sample_sigma(&paper), sample_sigma(&doubled));
+        assert!((one - 0.02).abs() < 0.02 * 0.03, "{one}");
+        assert!((two / one - 2.0).abs() < 1e-9, "{two} / {one}");
+    }
+
+    /// From hover at 0.5 m, a step to 1 m below the ground plane.
+    const INTO_THE_GROUND: &str = "name = \"dig\"\nduration_s = 6.0\nmetrics = [\"steps\"]\nGROUND\n\
+                                   [initial]\npos_ned_m = [0.0, 0.0, -0.5]\n\
+                                   [reference]\nkind = \"position\"\n\
+                                   steps = [{ t_s = 0.0, pos_ned_m = [0.0, 0.0, 1.0] }]\n";
+
+    #[test]
+    fn given_the_ground_off_then_the_vehicle_passes_below_d_0_freely() {
+        let on = run_every_tick(&scenario(&INTO_THE_GROUND.replace("GROUND", "")));
+        let off = run_every_tick(&scenario(&INTO_THE_GROUND.replace("GROUND", "ground = false")));
+        let lowest = |out: &RunOutput| column(out, "pD").into_iter().fold(f64::NEG_INFINITY, f64::max);
+        assert_eq!(lowest(&on), 0.0, "the ground stops it at D = 0");
+        assert!(lowest(&off) > 0.9, "{}", lowest(&off));
+        // No contact acted: the plant of a ground-off scenario has none.
+        let s = scenario(&INTO_THE_GROUND.replace("GROUND", "ground = false"));
+        assert!(!plant_config(&s, None).unwrap().ground.enabled);
+        assert!(plant_config(&Scenario { ground: true, ..s }, None).unwrap().ground.enabled);
+    }
 }

@@ -17,6 +17,10 @@
 //!   (σ 0.02 m, eph 0.02 m) and the estimator is told so; the other sensors carry `sitl run`'s modest
 //!   noise. Cross-track and altitude errors are measured from truth against the scenario's spline while
 //!   the mission is between its first and last waypoint, as the runner measures its reference's lap.
+//!   A polyline track (`path = "polyline"`) is uploaded as straight waypoints (NAV_WAYPOINT, which stop
+//!   at each corner) and measured against its straight segments. A track run starts on the ground, so it
+//!   needs the ground on, and its noise is sensor noise, which `state_noise_scale` does not scale.
+//! - A hover's step is held as a point: feed-forward on it cannot reach the autopilot and is refused.
 //!
 //! Either way the autopilot runs its commander, MAVLink services and telemetry as in any flight, with no
 //! state directory (no saved parameters or mission).
@@ -31,18 +35,18 @@ use autopilot::core::estimator::EstimatorSource;
 use autopilot::core::estimator::GeoOrigin;
 use autopilot::core::hil::deg_to_dege7;
 use autopilot::core::mavlink::common::{MISSION_ITEM_INT_DATA, MavCmd, MavFrame};
-use autopilot::core::navigator::spline::SplinePath;
 use nalgebra::{Vector2, Vector3};
 use serde::Serialize;
 
 use super::gcs::Gcs;
 use super::metrics::{self, GustMetrics, TrackMetrics};
+use super::path::{PathKind, TrackPath};
 use super::reference::{ReferenceSpec, TrackSpec};
 use super::runner::plant_config;
-use super::{Scenario, ScenarioError, StateNoiseKind};
+use super::{OverrideValue, Scenario, ScenarioError, StateNoiseKind};
 use crate::launch::{AutopilotChild, LaunchError, LaunchReport, TempConfig, run_with_child};
 use crate::link::{LinkConfig, PlantServer, UdpTransport, home_origin};
-use crate::plant::{InitialState, Plant, SensorConfig, StateNoise};
+use crate::plant::{InitialState, Plant, SensorConfig};
 
 /// Why a two-process scenario run failed.
 #[derive(Debug, thiserror::Error)]
@@ -93,7 +97,10 @@ pub struct TwoProcessOptions {
 pub struct TwoProcessMetrics {
     pub scenario: String,
     pub controller: String,
+    /// As the runner's: the preset, then `+key=value` per `[airframe]` override.
     pub plant: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub airframe_overrides: Option<std::collections::BTreeMap<&'static str, OverrideValue>>,
     pub seed: u64,
     pub estimator: String,
     pub processes: u8,
@@ -257,6 +264,14 @@ fn run_hover(
         return Err(TwoProcessError::NotHover(scenario.name.clone()));
     };
     let hold = steps[0].pos_ned_m;
+    if steps[0].vel_ned_mps != [0.0; 3] || steps[0].acc_ned_mps2 != [0.0; 3] {
+        return Err(ScenarioError::Invalid(
+            "a two-process hover holds its step's position: its vel_ned_mps and acc_ned_mps2 feed-forward \
+             cannot reach the autopilot"
+                .into(),
+        )
+        .into());
+    }
     let config = plant_config(scenario, opts.plant.as_deref())?;
     let init = &scenario.initial;
     let initial = InitialState {
@@ -267,10 +282,8 @@ fn run_hover(
         rotor_lift_n: None,
     };
     let plant = Plant::new(config, &initial, opts.seed).map_err(ScenarioError::from)?;
-    let truth_noise = match scenario.state_noise {
-        StateNoiseKind::None => None,
-        StateNoiseKind::Paper => Some(StateNoise::paper()),
-    };
+    let noise = scenario.state_noise()?;
+    let truth_noise = (scenario.state_noise == StateNoiseKind::Paper).then_some(noise);
     let link = LinkConfig {
         truth_noise,
         truth_odometry: true,
@@ -301,15 +314,14 @@ fn run_hover(
     if report.stopped {
         return Err(TwoProcessError::Stopped(report.sim_s));
     }
-    let gust = scenario
-        .wind
-        .gust
-        .as_ref()
-        .map(|g| metrics::hover_gust_metrics(&rec.t, &rec.pos, &rec.ref_pos, g.onset_s, g.release_s));
+    let gust = scenario.wind.gust.as_ref().map(|g| {
+        metrics::hover_gust_metrics(&rec.t, &rec.pos, &rec.ref_pos, g.onset_s, g.release_s, &scenario.metric_windows)
+    });
     Ok(TwoProcessMetrics {
         scenario: scenario.name.clone(),
         controller: opts.controller.to_string(),
-        plant: opts.plant.clone().unwrap_or_else(|| scenario.plant.clone()),
+        plant: scenario.plant_label(opts.plant.as_deref()),
+        airframe_overrides: scenario.airframe_overrides(),
         seed: opts.seed,
         estimator: format!("{:?}", estimator_of(scenario, opts)).to_lowercase(),
         processes: 2,
@@ -371,6 +383,10 @@ fn track_item(
 /// The track as a mission: takeoff, speed, every waypoint of every lap, land at the last. Returns the
 /// items and the sequence numbers of the first and last waypoint.
 fn track_mission(track: &TrackSpec, home: &GeoOrigin) -> (Vec<MISSION_ITEM_INT_DATA>, u16, u16) {
+    let waypoint = match track.path {
+        PathKind::Spline => MavCmd::MAV_CMD_NAV_SPLINE_WAYPOINT,
+        PathKind::Polyline => MavCmd::MAV_CMD_NAV_WAYPOINT,
+    };
     let alt_m = (-track.pos_d_m) as f32;
     let nan = f32::NAN;
     let mut items = vec![
@@ -385,14 +401,7 @@ fn track_mission(track: &TrackSpec, home: &GeoOrigin) -> (Vec<MISSION_ITEM_INT_D
                 continue;
             }
             let seq = u16::try_from(items.len()).unwrap_or(u16::MAX);
-            items.push(track_item(
-                seq,
-                MavCmd::MAV_CMD_NAV_SPLINE_WAYPOINT,
-                [0.0, 0.0, 0.0, nan],
-                home,
-                Some(*w),
-                alt_m,
-            ));
+            items.push(track_item(seq, waypoint, [0.0, 0.0, 0.0, nan], home, Some(*w), alt_m));
         }
     }
     let last = u16::try_from(items.len() - 1).unwrap_or(u16::MAX);
@@ -445,6 +454,18 @@ fn run_track(
     autopilot: &Path,
     stop: &AtomicBool,
 ) -> Result<TwoProcessMetrics, TwoProcessError> {
+    if !scenario.ground {
+        return Err(ScenarioError::Invalid(
+            "a two-process track run starts on the ground: it needs ground = true".into(),
+        )
+        .into());
+    }
+    if scenario.state_noise_scale != 1.0 {
+        return Err(ScenarioError::Invalid(
+            "a two-process track run's noise is sensor noise, which state_noise_scale does not scale".into(),
+        )
+        .into());
+    }
     let mut config = plant_config(scenario, opts.plant.as_deref())?;
     config.sensors = track_sensors(scenario.state_noise);
     let plant = Plant::new(config, &InitialState::default(), opts.seed).map_err(ScenarioError::from)?;
@@ -457,7 +478,7 @@ fn run_track(
     };
     let (mut server, child, config) = launch(scenario, opts, autopilot, plant, link)?;
     let (items, first_wp, last_wp) = track_mission(track, &home);
-    let path = SplinePath::new(&track.waypoints_ne_m);
+    let path = TrackPath::new(track.path, &track.waypoints_ne_m);
     let lap_m = path.length_m();
     let reached = AtomicU32::new(NONE_REACHED);
     let finished = AtomicBool::new(false);
@@ -530,7 +551,8 @@ fn run_track(
     Ok(TwoProcessMetrics {
         scenario: scenario.name.clone(),
         controller: opts.controller.to_string(),
-        plant: opts.plant.clone().unwrap_or_else(|| scenario.plant.clone()),
+        plant: scenario.plant_label(opts.plant.as_deref()),
+        airframe_overrides: scenario.airframe_overrides(),
         seed: opts.seed,
         estimator: format!("{:?}", estimator_of(scenario, opts)).to_lowercase(),
         processes: 2,
