@@ -23,7 +23,7 @@ use autopilot::runtime::transport::{POLL_INTERVAL, SerialTransport, parse_serial
 use autopilot::runtime::{ConfigFile, Overrides, RuntimeConfig};
 use clap::{Args, Parser, Subcommand};
 use sitl::launch::{self, AutopilotChild, TempConfig};
-use sitl::link::{LinkConfig, Pacing, PlantServer};
+use sitl::link::{LinkConfig, Pacing, PlantServer, UdpTransport};
 use sitl::plant::{Airframe, InitialState, Plant, PlantConfig, SensorConfig};
 use sitl::progress::Progress;
 use sitl::scenario::metrics::{GustMetrics, TrackMetrics};
@@ -785,8 +785,13 @@ fn grid_position_ned_m(k: u16, count: u16, spacing_m: f64) -> nalgebra::Vector3<
     nalgebra::Vector3::new(f64::from(k / columns) * spacing_m, f64::from(k % columns) * spacing_m, 0.0)
 }
 
-/// `sitl run -n N`: N plants in this process on one clock, N autopilot processes.
-fn run_swarm(args: &RunArgs) -> Result<()> {
+/// The swarm of `sitl run -n N` started, once the instances, `--spacing` and the autopilot configuration
+/// have been checked: N plant servers bound (not yet stepping) and N autopilot processes spawned (with
+/// `RUST_LOG` set to `log_filter` unless the environment sets it), in instance order.
+fn start_swarm(
+    args: &RunArgs,
+    log_filter: Option<&str>,
+) -> Result<(Vec<PlantServer<UdpTransport>>, Vec<AutopilotChild>)> {
     let (first, count) = (args.instance, args.count);
     let last = first
         .checked_add(count - 1)
@@ -802,8 +807,6 @@ fn run_swarm(args: &RunArgs) -> Result<()> {
     check_autopilot_config(args, first)?;
     let config = args.plant.config(realistic_plant_config())?;
     let pacing = args.plant.pacing();
-    let duration = duration_us(args.duration)?;
-    let stop = launch::ctrl_c_flag();
     let mut servers = Vec::new();
     let mut children = Vec::new();
     for (k, n) in (first..=last).enumerate() {
@@ -824,8 +827,18 @@ fn run_swarm(args: &RunArgs) -> Result<()> {
             None => None,
         };
         let ap_args = autopilot_args(args, n, &listen, state_dir);
-        children.push(AutopilotChild::spawn(&autopilot, &ap_args)?);
+        children.push(AutopilotChild::spawn_with(&autopilot, &ap_args, log_filter)?);
     }
+    Ok((servers, children))
+}
+
+/// `sitl run -n N`: N plants in this process on one clock, N autopilot processes.
+fn run_swarm(args: &RunArgs) -> Result<()> {
+    let duration = duration_us(args.duration)?;
+    let stop = launch::ctrl_c_flag();
+    let (mut servers, children) = start_swarm(args, None)?;
+    let (first, count, pacing) = (args.instance, args.count, args.plant.pacing());
+    let last = first + (count - 1);
     let api: Vec<String> =
         (first..=last).map(|n| InstancePorts::of(n).map(|p| p.api_udp.to_string())).collect::<Result<_, _>>()?;
     eprintln!(
