@@ -7,8 +7,10 @@
 //! plant at real time unless told otherwise (`--speed X` for X times real time, `--speed max` or
 //! `--lockstep` for as fast as the autopilot answers), as a ground station and the person watching it
 //! expect; scenarios (`sitl scenario`, `sitl run --scenario`) are batch runs, always as fast as possible.
-//! `sitl bench` measures the two-process real-time factor in lockstep and the CPU cost of the SITL and its
-//! telemetry in real time.
+//! `sitl bench` (`bench`) measures the two-process real-time factor in lockstep and the CPU cost of the SITL
+//! and its telemetry in real time.
+
+mod bench;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -22,7 +24,7 @@ use autopilot::runtime::ports::InstancePorts;
 use autopilot::runtime::transport::{POLL_INTERVAL, SerialTransport, parse_serial_spec};
 use autopilot::runtime::{ConfigFile, Overrides, RuntimeConfig};
 use clap::{Args, Parser, Subcommand};
-use sitl::launch::{self, AutopilotChild, TempConfig};
+use sitl::launch::{self, AutopilotChild};
 use sitl::link::{LinkConfig, Pacing, PlantServer, UdpTransport};
 use sitl::plant::{Airframe, InitialState, Plant, PlantConfig, SensorConfig};
 use sitl::progress::Progress;
@@ -34,8 +36,6 @@ use sitl::scenario::two_process::{self, TwoProcessOptions};
 use sitl::scenario::{BUILT_INS, MetricKind, Scenario};
 use sitl::sim_params::SimParamLink;
 use std::ffi::OsString;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 #[derive(Parser)]
@@ -288,7 +288,7 @@ fn main() -> ExitCode {
         Command::Scenario(args) => scenario(&args),
         Command::Serve(args) => serve(&args),
         Command::Run(args) => run(&args),
-        Command::Bench(args) => bench(&args),
+        Command::Bench(args) => bench::run(&args),
     };
     autopilot::cli::exit("sitl", result)
 }
@@ -874,124 +874,6 @@ fn run_swarm(args: &RunArgs) -> Result<()> {
         report.wall_s,
         if report.wall_s > 0.0 { sim_s / report.wall_s } else { 0.0 },
         report.vehicles.first().and_then(|v| v.plant_cpu_s).unwrap_or(f64::NAN),
-    );
-    Ok(())
-}
-
-/// Counts what arrives on a UDP port (the ground-station side of a bench run) until stopped.
-struct TelemetryCounter {
-    stop: Arc<AtomicBool>,
-    thread: std::thread::JoinHandle<(u64, u64)>,
-}
-
-impl TelemetryCounter {
-    fn listen(port: u16) -> Result<Self> {
-        let socket = std::net::UdpSocket::bind(("127.0.0.1", port)).with_context(|| format!("binding udp {port}"))?;
-        socket.set_read_timeout(Some(Duration::from_millis(20)))?;
-        let stop = Arc::new(AtomicBool::new(false));
-        let flag = stop.clone();
-        let thread = std::thread::spawn(move || {
-            let mut decoder = autopilot::core::hil::FrameDecoder::new();
-            let (mut frames, mut bytes) = (0, 0);
-            let mut buf = [0u8; 65_536];
-            while !flag.load(Ordering::Relaxed) {
-                if let Ok(n) = socket.recv(&mut buf) {
-                    frames += decoder.decode_datagram(&buf[..n]).len() as u64;
-                    bytes += n as u64;
-                }
-            }
-            (frames, bytes)
-        });
-        Ok(Self { stop, thread })
-    }
-
-    /// (MAVLink messages, bytes) received.
-    fn finish(self) -> (u64, u64) {
-        self.stop.store(true, Ordering::Relaxed);
-        self.thread.join().unwrap_or((0, 0))
-    }
-}
-
-/// One bench run: the default `sitl run` plant and autopilot for `duration_s` simulated seconds, with a
-/// ground station listening on the QGroundControl port, or (`gcs` false) with the autopilot's
-/// ground-station links off.
-fn bench_once(
-    n: u16,
-    pacing: Pacing,
-    duration_s: f64,
-    gcs: bool,
-    stop: &AtomicBool,
-) -> Result<(launch::LaunchReport, u64, u64)> {
-    let (plant_port, _, qgc_port, _) = instance_ports(n)?;
-    let plant = Plant::new(realistic_plant_config(), &InitialState::default(), 1)?;
-    let link = LinkConfig { pacing, connect_timeout: Some(Duration::from_secs(30)), ..LinkConfig::default() };
-    let listen = format!("127.0.0.1:{plant_port}");
-    // As `sitl run`: the SIM_ parameter service polled between steps.
-    let (sim_params, _) = bind_sim_params(n, &plant)?;
-    let mut server =
-        PlantServer::bind_udp(plant, listen.as_str(), link).with_context(|| format!("binding {listen}"))?;
-    server.set_hook(Box::new(sim_params));
-    let counter = TelemetryCounter::listen(qgc_port)?;
-    let mut args: Vec<OsString> = vec![
-        "--plant".into(),
-        format!("udp://{listen}").into(),
-        "-i".into(),
-        n.to_string().into(),
-        "--state-dir".into(),
-        "off".into(),
-    ];
-    let _config = if gcs {
-        None
-    } else {
-        let config = TempConfig::write("bench", "[gcs]\nudp_targets = []\ntcp_bind = \"off\"\n")
-            .map_err(|(path, e)| anyhow::anyhow!("writing {}: {e}", path.display()))?;
-        args.extend(["--config".into(), config.path().into()]);
-        Some(config)
-    };
-    let child = AutopilotChild::spawn_with(&launch::autopilot_binary()?, &args, Some("warn"))?;
-    let report = launch::run_with_child(&mut server, child, duration_us(Some(duration_s))?, stop, |_, _| {})?;
-    let (messages, bytes) = counter.finish();
-    if report.stopped {
-        bail!("stopped");
-    }
-    Ok((report, messages, bytes))
-}
-
-fn bench(args: &BenchArgs) -> Result<()> {
-    let stop = launch::ctrl_c_flag();
-    let n = args.instance;
-    println!(
-        "sitl bench: the default `sitl run` plant (nominal, modest sensor noise) and autopilot (fused estimator, \
-         ACO, on the ground), telemetry to a ground station on udp {}",
-        InstancePorts::of(n)?.qgc_udp
-    );
-    for gcs in [true, false] {
-        let (r, messages, _) = bench_once(n, Pacing::Lockstep, args.sim_s, gcs, &stop)?;
-        println!(
-            "  lockstep, {}: {:.1} sim s in {:.2} s wall = {:.1}x real time, {:.0} steps/s, {:.1} us per step; CPU \
-             per step: autopilot {:.1} us, plant {:.1} us (both poll while waiting); {} telemetry messages received",
-            if gcs { "telemetry to the ground station" } else { "ground-station links off" },
-            r.sim_s,
-            r.wall_s,
-            r.realtime_factor(),
-            r.steps as f64 / r.wall_s,
-            r.wall_s * 1e6 / r.steps as f64,
-            r.autopilot_cpu_s.unwrap_or(f64::NAN) * 1e6 / r.steps as f64,
-            r.plant_cpu_s.unwrap_or(f64::NAN) * 1e6 / r.steps as f64,
-            messages,
-        );
-    }
-    if args.realtime_s <= 0.0 {
-        return Ok(());
-    }
-    let (r, messages, bytes) = bench_once(n, Pacing::RealTime { speed: 1.0 }, args.realtime_s, true, &stop)?;
-    println!(
-        "  real time: {:.1} s: CPU autopilot {:.2} % of a core, plant {:.2} %; telemetry {:.1} messages/s, {:.2} kB/s",
-        r.wall_s,
-        100.0 * r.autopilot_cpu_s.unwrap_or(f64::NAN) / r.wall_s,
-        100.0 * r.plant_cpu_s.unwrap_or(f64::NAN) / r.wall_s,
-        messages as f64 / r.wall_s,
-        bytes as f64 / r.wall_s / 1000.0,
     );
     Ok(())
 }
