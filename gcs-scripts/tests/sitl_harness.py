@@ -1,16 +1,18 @@
-"""What the ground-station tests share: the binaries `cargo test` built, a free SITL instance, starting
-`sitl run` (its own state directory and log) and stopping its whole process group."""
+"""What the ground-station tests share: the binaries `cargo test` built, a free SITL instance (or a free
+run of them for a swarm), starting `sitl run` (its own state directory and log) and stopping its whole
+process group, and the QGroundControl port 14550 held by one test at a time."""
 
 import os
 import random
 import signal
 import socket
 import subprocess
+import time
 from pathlib import Path
 
 import pytest
 
-from aco_gcs.link import AUTOPILOT_PORT, Vehicle, api_port
+from aco_gcs.link import AUTOPILOT_PORT, GCS_COMPONENT, GCS_SYSTEM, QGC_PORT, Vehicle, api_port, mavutil
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -40,13 +42,40 @@ def ports_free(n):
     return True
 
 
-def free_instance(low=61, high=99):
-    """A random instance in low..=high whose ports are all free."""
+def free_instance(low=61, high=99, count=1):
+    """A random instance n in low..=high whose ports are all free, and those of the `count` - 1 instances
+    after it (a swarm of `count` from n stays within low..=high)."""
     for _ in range(100):
-        n = random.randint(low, high)
-        if ports_free(n):
+        n = random.randint(low, high - count + 1)
+        if all(ports_free(k) for k in range(n, n + count)):
             return n
-    pytest.fail("no free SITL instance")
+    pytest.fail(f"no free run of {count} SITL instance(s) in {low}..={high}")
+
+
+def qgc_connection(wait_s=120.0):
+    """A pymavlink ground station on UDP 127.0.0.1:14550, where QGroundControl listens and every instance
+    sends its telemetry, holding the port alone: bound without SO_REUSEADDR, so a second ground station
+    (another test of a concurrent run, QGroundControl) cannot share it and silently take datagrams from it.
+    Waits up to `wait_s` wall seconds for the port while someone else holds it."""
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    # Eight vehicles' telemetry while Python is busy elsewhere: room for a few seconds of it.
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 22)
+    deadline = time.monotonic() + wait_s
+    while True:
+        try:
+            sock.bind(("127.0.0.1", QGC_PORT))
+            break
+        except OSError as e:
+            if time.monotonic() > deadline:
+                sock.close()
+                pytest.fail(f"udp {QGC_PORT} stayed taken for {wait_s:.0f} s (QGroundControl or another test?): {e}")
+            time.sleep(0.5)
+    # pymavlink's udpin binds with SO_REUSEADDR; it gets a throwaway port and then this socket in its place.
+    conn = mavutil.mavlink_connection("udpin:127.0.0.1:0", source_system=GCS_SYSTEM, source_component=GCS_COMPONENT)
+    conn.port.close()
+    sock.setblocking(False)
+    conn.port, conn.fd = sock, sock.fileno()
+    return conn
 
 
 def stop_group(proc, timeout=10):

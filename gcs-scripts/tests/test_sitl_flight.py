@@ -16,7 +16,7 @@ import time
 from typing import Any
 
 import pytest
-from sitl_harness import binary, stop_group
+from sitl_harness import binary, qgc_connection, stop_group
 
 os.environ["MAVLINK20"] = "1"  # pymavlink speaks MAVLink 1 unless told otherwise
 from pymavlink import mavutil
@@ -28,10 +28,10 @@ MAV_LANDED_STATE_ON_GROUND = 1
 
 class Gcs:
     """A pymavlink ground station where QGroundControl listens: UDP 14550, which every instance sends to
-    (PX4's multi-vehicle convention); it takes only instance N's system id, N+1."""
+    (PX4's multi-vehicle convention), held by this test alone; it takes only instance N's system id, N+1."""
 
     def __init__(self, instance):
-        self.conn = mavutil.mavlink_connection("udpin:127.0.0.1:14550", source_system=255)
+        self.conn = qgc_connection()
         self.autopilot = ("127.0.0.1", 18570 + instance)
         self.deadline = time.monotonic() + WALL_LIMIT_S
         self.now_ms = 0
@@ -173,8 +173,17 @@ def sitl(request, tmp_path):
             stop_group(proc)
 
 
-def test_pymavlink_takes_off_holds_and_lands(sitl):
-    gcs = Gcs(sitl)
+@pytest.fixture
+def gcs(sitl):
+    """The ground station on 14550, closed after the test: it holds the port alone."""
+    g = Gcs(sitl)
+    try:
+        yield g
+    finally:
+        g.conn.close()
+
+
+def test_pymavlink_takes_off_holds_and_lands(sitl, gcs):
     hb = None
     end = time.monotonic() + 30
     while hb is None and time.monotonic() < end:

@@ -7,8 +7,10 @@
 //! plant at real time unless told otherwise (`--speed X` for X times real time, `--speed max` or
 //! `--lockstep` for as fast as the autopilot answers), as a ground station and the person watching it
 //! expect; scenarios (`sitl scenario`, `sitl run --scenario`) are batch runs, always as fast as possible.
-//! `sitl bench` measures the two-process real-time factor in lockstep and the CPU cost of the SITL and its
-//! telemetry in real time.
+//! `sitl bench` (`bench`) measures the two-process real-time factor in lockstep and the CPU cost of the SITL
+//! and its telemetry in real time, or with `--vehicles N` how a swarm of N answers a ground station.
+
+mod bench;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -22,8 +24,8 @@ use autopilot::runtime::ports::InstancePorts;
 use autopilot::runtime::transport::{POLL_INTERVAL, SerialTransport, parse_serial_spec};
 use autopilot::runtime::{ConfigFile, Overrides, RuntimeConfig};
 use clap::{Args, Parser, Subcommand};
-use sitl::launch::{self, AutopilotChild, TempConfig};
-use sitl::link::{LinkConfig, Pacing, PlantServer};
+use sitl::launch::{self, AutopilotChild};
+use sitl::link::{LinkConfig, Pacing, PlantServer, UdpTransport};
 use sitl::plant::{Airframe, InitialState, Plant, PlantConfig, SensorConfig};
 use sitl::progress::Progress;
 use sitl::scenario::metrics::{GustMetrics, TrackMetrics};
@@ -35,8 +37,6 @@ use sitl::scenario::{BUILT_INS, MetricKind, Scenario};
 use sitl::sim_params::SimParamLink;
 use sitl::sweep::Sweep;
 use std::ffi::OsString;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 #[derive(Parser)]
@@ -158,6 +158,11 @@ struct BenchArgs {
     /// Wall seconds of the real-time run (0 skips it).
     #[arg(long, default_value_t = 10.0)]
     realtime_s: f64,
+    /// Instead: a swarm of N at real time as `sitl run -n N -i <instance>` starts it, measured by a ground
+    /// station on udp 14550 for --realtime-s: each vehicle's HEARTBEAT intervals and COMMAND_ACK latency,
+    /// total CPU; PASS or FAIL against p99 1.2 s and 20 ms.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=255))]
+    vehicles: Option<u16>,
 }
 
 /// The plant options `sitl run` and `sitl serve` share.
@@ -320,7 +325,7 @@ fn main() -> ExitCode {
         Command::Scenario(args) => scenario(&args),
         Command::Serve(args) => serve(&args),
         Command::Run(args) => run(&args),
-        Command::Bench(args) => bench(&args),
+        Command::Bench(args) => bench::run(&args),
         Command::Sweep(args) => sweep(&args),
     };
     autopilot::cli::exit("sitl", result)
@@ -423,7 +428,7 @@ fn sweep(args: &SweepArgs) -> Result<()> {
             runs.par_iter()
                 .map(|&r| {
                     let row = spec.run(r);
-                    let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+                    let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
                     if let Ok(mut p) = progress.lock() {
                         p.set(n);
                     }
@@ -930,8 +935,13 @@ fn grid_position_ned_m(k: u16, count: u16, spacing_m: f64) -> nalgebra::Vector3<
     nalgebra::Vector3::new(f64::from(k / columns) * spacing_m, f64::from(k % columns) * spacing_m, 0.0)
 }
 
-/// `sitl run -n N`: N plants in this process on one clock, N autopilot processes.
-fn run_swarm(args: &RunArgs) -> Result<()> {
+/// The swarm of `sitl run -n N` started, once the instances, `--spacing` and the autopilot configuration
+/// have been checked: N plant servers bound (not yet stepping) and N autopilot processes spawned (with
+/// `RUST_LOG` set to `log_filter` unless the environment sets it), in instance order.
+fn start_swarm(
+    args: &RunArgs,
+    log_filter: Option<&str>,
+) -> Result<(Vec<PlantServer<UdpTransport>>, Vec<AutopilotChild>)> {
     let (first, count) = (args.instance, args.count);
     let last = first
         .checked_add(count - 1)
@@ -947,8 +957,6 @@ fn run_swarm(args: &RunArgs) -> Result<()> {
     check_autopilot_config(args, first)?;
     let config = args.plant.config(realistic_plant_config())?;
     let pacing = args.plant.pacing();
-    let duration = duration_us(args.duration)?;
-    let stop = launch::ctrl_c_flag();
     let mut servers = Vec::new();
     let mut children = Vec::new();
     for (k, n) in (first..=last).enumerate() {
@@ -969,8 +977,18 @@ fn run_swarm(args: &RunArgs) -> Result<()> {
             None => None,
         };
         let ap_args = autopilot_args(args, n, &listen, state_dir);
-        children.push(AutopilotChild::spawn(&autopilot, &ap_args)?);
+        children.push(AutopilotChild::spawn_with(&autopilot, &ap_args, log_filter)?);
     }
+    Ok((servers, children))
+}
+
+/// `sitl run -n N`: N plants in this process on one clock, N autopilot processes.
+fn run_swarm(args: &RunArgs) -> Result<()> {
+    let duration = duration_us(args.duration)?;
+    let stop = launch::ctrl_c_flag();
+    let (mut servers, children) = start_swarm(args, None)?;
+    let (first, count, pacing) = (args.instance, args.count, args.plant.pacing());
+    let last = first + (count - 1);
     let api: Vec<String> =
         (first..=last).map(|n| InstancePorts::of(n).map(|p| p.api_udp.to_string())).collect::<Result<_, _>>()?;
     eprintln!(
@@ -1006,124 +1024,6 @@ fn run_swarm(args: &RunArgs) -> Result<()> {
         report.wall_s,
         if report.wall_s > 0.0 { sim_s / report.wall_s } else { 0.0 },
         report.vehicles.first().and_then(|v| v.plant_cpu_s).unwrap_or(f64::NAN),
-    );
-    Ok(())
-}
-
-/// Counts what arrives on a UDP port (the ground-station side of a bench run) until stopped.
-struct TelemetryCounter {
-    stop: Arc<AtomicBool>,
-    thread: std::thread::JoinHandle<(u64, u64)>,
-}
-
-impl TelemetryCounter {
-    fn listen(port: u16) -> Result<Self> {
-        let socket = std::net::UdpSocket::bind(("127.0.0.1", port)).with_context(|| format!("binding udp {port}"))?;
-        socket.set_read_timeout(Some(Duration::from_millis(20)))?;
-        let stop = Arc::new(AtomicBool::new(false));
-        let flag = stop.clone();
-        let thread = std::thread::spawn(move || {
-            let mut decoder = autopilot::core::hil::FrameDecoder::new();
-            let (mut frames, mut bytes) = (0, 0);
-            let mut buf = [0u8; 65_536];
-            while !flag.load(Ordering::Relaxed) {
-                if let Ok(n) = socket.recv(&mut buf) {
-                    frames += decoder.decode_datagram(&buf[..n]).len() as u64;
-                    bytes += n as u64;
-                }
-            }
-            (frames, bytes)
-        });
-        Ok(Self { stop, thread })
-    }
-
-    /// (MAVLink messages, bytes) received.
-    fn finish(self) -> (u64, u64) {
-        self.stop.store(true, Ordering::Relaxed);
-        self.thread.join().unwrap_or((0, 0))
-    }
-}
-
-/// One bench run: the default `sitl run` plant and autopilot for `duration_s` simulated seconds, with a
-/// ground station listening on the QGroundControl port, or (`gcs` false) with the autopilot's
-/// ground-station links off.
-fn bench_once(
-    n: u16,
-    pacing: Pacing,
-    duration_s: f64,
-    gcs: bool,
-    stop: &AtomicBool,
-) -> Result<(launch::LaunchReport, u64, u64)> {
-    let (plant_port, _, qgc_port, _) = instance_ports(n)?;
-    let plant = Plant::new(realistic_plant_config(), &InitialState::default(), 1)?;
-    let link = LinkConfig { pacing, connect_timeout: Some(Duration::from_secs(30)), ..LinkConfig::default() };
-    let listen = format!("127.0.0.1:{plant_port}");
-    // As `sitl run`: the SIM_ parameter service polled between steps.
-    let (sim_params, _) = bind_sim_params(n, &plant)?;
-    let mut server =
-        PlantServer::bind_udp(plant, listen.as_str(), link).with_context(|| format!("binding {listen}"))?;
-    server.set_hook(Box::new(sim_params));
-    let counter = TelemetryCounter::listen(qgc_port)?;
-    let mut args: Vec<OsString> = vec![
-        "--plant".into(),
-        format!("udp://{listen}").into(),
-        "-i".into(),
-        n.to_string().into(),
-        "--state-dir".into(),
-        "off".into(),
-    ];
-    let _config = if gcs {
-        None
-    } else {
-        let config = TempConfig::write("bench", "[gcs]\nudp_targets = []\ntcp_bind = \"off\"\n")
-            .map_err(|(path, e)| anyhow::anyhow!("writing {}: {e}", path.display()))?;
-        args.extend(["--config".into(), config.path().into()]);
-        Some(config)
-    };
-    let child = AutopilotChild::spawn_with(&launch::autopilot_binary()?, &args, Some("warn"))?;
-    let report = launch::run_with_child(&mut server, child, duration_us(Some(duration_s))?, stop, |_, _| {})?;
-    let (messages, bytes) = counter.finish();
-    if report.stopped {
-        bail!("stopped");
-    }
-    Ok((report, messages, bytes))
-}
-
-fn bench(args: &BenchArgs) -> Result<()> {
-    let stop = launch::ctrl_c_flag();
-    let n = args.instance;
-    println!(
-        "sitl bench: the default `sitl run` plant (nominal, modest sensor noise) and autopilot (fused estimator, \
-         ACO, on the ground), telemetry to a ground station on udp {}",
-        InstancePorts::of(n)?.qgc_udp
-    );
-    for gcs in [true, false] {
-        let (r, messages, _) = bench_once(n, Pacing::Lockstep, args.sim_s, gcs, &stop)?;
-        println!(
-            "  lockstep, {}: {:.1} sim s in {:.2} s wall = {:.1}x real time, {:.0} steps/s, {:.1} us per step; CPU \
-             per step: autopilot {:.1} us, plant {:.1} us (both poll while waiting); {} telemetry messages received",
-            if gcs { "telemetry to the ground station" } else { "ground-station links off" },
-            r.sim_s,
-            r.wall_s,
-            r.realtime_factor(),
-            r.steps as f64 / r.wall_s,
-            r.wall_s * 1e6 / r.steps as f64,
-            r.autopilot_cpu_s.unwrap_or(f64::NAN) * 1e6 / r.steps as f64,
-            r.plant_cpu_s.unwrap_or(f64::NAN) * 1e6 / r.steps as f64,
-            messages,
-        );
-    }
-    if args.realtime_s <= 0.0 {
-        return Ok(());
-    }
-    let (r, messages, bytes) = bench_once(n, Pacing::RealTime { speed: 1.0 }, args.realtime_s, true, &stop)?;
-    println!(
-        "  real time: {:.1} s: CPU autopilot {:.2} % of a core, plant {:.2} %; telemetry {:.1} messages/s, {:.2} kB/s",
-        r.wall_s,
-        100.0 * r.autopilot_cpu_s.unwrap_or(f64::NAN) / r.wall_s,
-        100.0 * r.plant_cpu_s.unwrap_or(f64::NAN) / r.wall_s,
-        messages as f64 / r.wall_s,
-        bytes as f64 / r.wall_s / 1000.0,
     );
     Ok(())
 }
