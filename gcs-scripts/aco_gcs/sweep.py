@@ -17,6 +17,7 @@ Python with Ray that the cluster runs; the spec and its scenario file travel wit
 from __future__ import annotations
 
 import argparse
+import logging
 import shutil
 import subprocess
 import sys
@@ -81,7 +82,7 @@ def run_on_ray(args: argparse.Namespace, sitl: str, out: Path) -> list[Path]:
     scenario_text = scenario.read_text() if scenario else None
     # The task travels by value, so the nodes need Ray but not this package.
     ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])
-    ray.init(address=args.ray_address, logging_level="warning", log_to_driver=False)
+    ray.init(address=args.ray_address, logging_level=logging.WARNING, log_to_driver=False)
     try:
         n = args.shards or max(1, int(ray.cluster_resources().get("CPU", 1)) // args.jobs_per_shard)
         task = ray.remote(run_shard).options(num_cpus=args.jobs_per_shard, max_retries=1)
@@ -98,7 +99,8 @@ def run_on_ray(args: argparse.Namespace, sitl: str, out: Path) -> list[Path]:
             tmp.write_text(ray.get(ready[0]))
             tmp.replace(path)
             files[k] = path
-            print(f"aco-sweep: shard {k}/{n} done ({len(files)} of {n}, {time.monotonic() - start:.1f} s)", file=sys.stderr)
+            elapsed_s = time.monotonic() - start
+            print(f"aco-sweep: shard {k}/{n} done ({len(files)} of {n}, {elapsed_s:.1f} s)", file=sys.stderr)
         return [files[k] for k in sorted(files)]
     finally:
         ray.shutdown()

@@ -10,10 +10,10 @@ import signal
 import subprocess
 import sys
 import time
+import tomllib
 from pathlib import Path
 
 import pytest
-import tomllib
 from sitl_harness import free_instance, start_sitl
 
 from aco_gcs import link

@@ -23,7 +23,7 @@ use crate::plant::rotor::{PWM_MAX_US, lift_from_pwm_n};
 use crate::plant::wind::GaussMarkovConfig;
 use crate::plant::{InitialState, Plant, TurbulenceConfig};
 use crate::scenario::runner::{self, RunOptions};
-use crate::scenario::{ReferenceMode, Scenario, ScenarioError};
+use crate::scenario::{ReferenceMode, Scenario, ScenarioError, StateNoiseKind};
 pub use table::{Row, Summary};
 
 /// Why a sweep could not be loaded or run.
@@ -74,12 +74,13 @@ pub enum Param {
     GustAmplitudeMps,
     GustAzimuthDeg,
     TurbulenceScale,
+    StateNoiseScale,
     Seed,
 }
 
 impl Param {
     /// Every parameter with its name in a spec's `[vary]` table and in the rows' header.
-    pub const ALL: [(Self, &'static str); 15] = [
+    pub const ALL: [(Self, &'static str); 16] = [
         (Self::MassKg, "mass_kg"),
         (Self::InertiaKgm2, "inertia_kgm2"),
         (Self::ThrustScale, "thrust_scale"),
@@ -94,6 +95,7 @@ impl Param {
         (Self::GustAmplitudeMps, "gust_amplitude_mps"),
         (Self::GustAzimuthDeg, "gust_azimuth_deg"),
         (Self::TurbulenceScale, "turbulence_scale"),
+        (Self::StateNoiseScale, "state_noise_scale"),
         (Self::Seed, "seed"),
     ];
 
@@ -132,6 +134,7 @@ impl Param {
             Self::WindSpeedMps => Some(horizontal_norm(wind.steady_ned_mps)),
             Self::GustAmplitudeMps => wind.gust.as_ref().and_then(|g| g.amplitude_mps),
             Self::TurbulenceScale => Some(1.0),
+            Self::StateNoiseScale => Some(scenario.state_noise_scale),
             Self::WindAzimuthDeg | Self::Beaufort | Self::GustAzimuthDeg | Self::Seed => None,
         })
     }
@@ -280,6 +283,11 @@ impl Sweep {
             if matches!(param, Param::GustAmplitudeMps | Param::GustAzimuthDeg) && !has_gust {
                 return invalid(format!("{name} needs a scenario with a [wind.gust]"));
             }
+            if *param == Param::StateNoiseScale && scenario.state_noise == StateNoiseKind::None {
+                return invalid(format!(
+                    "{name} scales the paper's sensor noise; this scenario has state_noise = \"none\""
+                ));
+            }
             if *param == Param::TurbulenceScale && matches!(scenario.wind.turbulence, Some(TurbulenceConfig::Dryden(_)))
             {
                 return invalid(format!("{name} scales Gauss-Markov turbulence; this scenario's is Dryden"));
@@ -334,6 +342,7 @@ impl Sweep {
                 .map_err(|source| SweepError::Case { case: case.index, source })?;
             Plant::new(config, &InitialState::default(), case.seed)
                 .map_err(|e| SweepError::Case { case: case.index, source: e.into() })?;
+            case.scenario.state_noise().map_err(|source| SweepError::Case { case: case.index, source })?;
         }
         Ok(sweep)
     }
@@ -456,6 +465,10 @@ fn load_scenario(name: &str, spec_dir: &Path) -> Result<Scenario, ScenarioError>
 
 /// Sets one varied value on a scenario.
 fn apply(scenario: &mut Scenario, param: Param, v: f64, plant: Option<&str>) -> Result<(), ScenarioError> {
+    if param == Param::StateNoiseScale {
+        scenario.state_noise_scale = v;
+        return Ok(());
+    }
     let resolved = runner::plant_config(scenario, plant)?.airframe;
     let a = &mut scenario.airframe;
     let wind = &mut scenario.wind;
@@ -512,7 +525,7 @@ fn apply(scenario: &mut Scenario, param: Param, v: f64, plant: Option<&str>) -> 
             let sigma_mps = base.sigma_mps.map(|s| s * v);
             wind.turbulence = Some(TurbulenceConfig::GaussMarkov(GaussMarkovConfig { sigma_mps, ..base }));
         }
-        Param::Seed => {}
+        Param::StateNoiseScale | Param::Seed => {}
     }
     Ok(())
 }

@@ -71,6 +71,10 @@ fn the_cases_are_the_grid_times_the_samples_and_each_runs_every_controller() {
     }
     // The grid axis: the first three cases at 0 deg, the next three at 90 deg.
     assert_eq!(azimuths, [0.0, 0.0, 0.0, 90.0, 90.0, 90.0]);
+    // The sensor-noise scale reaches the run's scenario.
+    let noisy = sweep(&SPEC.replace("[bounds]", "state_noise_scale = { values = [0.5, 2.0] }\n[bounds]")).unwrap();
+    assert_eq!(noisy.cases(), 12);
+    assert_eq!(noisy.case(11).unwrap().scenario.state_noise_scale, 2.0);
     // Random draws differ between cases and repeat for the same case.
     assert_ne!(s.case(0).unwrap().values, s.case(1).unwrap().values);
     assert_eq!(s.case(4).unwrap().values, s.case(4).unwrap().values);
@@ -109,6 +113,8 @@ fn bad_specs_are_refused_naming_what_is_wrong() {
     // A value no plant can have fails at load, naming the case, before any run.
     let e = error(&SPEC.replace("{ scale = [0.85, 1.15] }", "{ uniform = [-1.0, -0.5] }"));
     assert!(e.contains("case 0") && e.contains("mass"), "{e}");
+    let e = error(&SPEC.replace("[bounds]", "state_noise_scale = { uniform = [-1.0, 0.0] }\n[bounds]"));
+    assert!(e.contains("case 0") && e.contains("state_noise_scale"), "{e}");
     // The gust parameters need a gust.
     let mut calm = short_gust();
     calm.wind.gust = None;
