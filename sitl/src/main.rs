@@ -486,7 +486,8 @@ fn sweep(args: &SweepArgs) -> Result<()> {
 fn sweep_plots(spec: &Sweep, rows: &[sitl::sweep::Row], out: &Path) -> Result<Vec<PathBuf>> {
     let mut written = Vec::new();
     for (i, metric) in spec.metric_columns().iter().enumerate() {
-        if matches!(metric.as_str(), "weights_at_bounds" | "non_finite" | sitl::sweep::table::THRUST_TO_WEIGHT) {
+        if ["weights_at_bounds", "non_finite"].iter().chain(&sitl::sweep::table::THRUST_TO_WEIGHT).any(|c| c == metric)
+        {
             continue;
         }
         let per_controller: Vec<(String, Vec<f64>)> = spec

@@ -19,7 +19,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Deserialize;
 
-use crate::plant::rotor::{PWM_MAX_US, lift_from_pwm_n};
+use crate::plant::rotor::{PWM_MAX_US, PWM_MIN_US, lift_from_pwm_n};
 use crate::plant::wind::GaussMarkovConfig;
 use crate::plant::{InitialState, Plant, TurbulenceConfig};
 use crate::scenario::runner::{self, RunOptions};
@@ -435,8 +435,11 @@ impl Sweep {
         let airframe = runner::plant_config(&case.scenario, self.plant.as_deref())
             .map_err(|source| SweepError::Case { case: case.index, source })?
             .airframe;
-        let max_lift_n: f64 = airframe.rotor_health.iter().map(|h| h * lift_from_pwm_n(PWM_MAX_US)).sum();
-        let thrust_to_weight = max_lift_n * airframe.thrust_scale / (airframe.mass_kg * airframe.gravity_mps2);
+        let weight_n = airframe.mass_kg * airframe.gravity_mps2;
+        let thrust_to_weight = [PWM_MAX_US, PWM_MIN_US].map(|pwm_us| {
+            airframe.rotor_health.iter().map(|h| h * lift_from_pwm_n(pwm_us)).sum::<f64>() * airframe.thrust_scale
+                / weight_n
+        });
         Ok(Row {
             run,
             case: case.index,

@@ -34,10 +34,11 @@ const GUST_COLUMNS: [&str; 6] = [
 ];
 const TRACK_COLUMNS: [&str; 3] = ["cross_track_rms_m", "cross_track_max_m", "alt_rms_m"];
 const COMMON_COLUMNS: [&str; 3] = ["weights_at_bounds", "non_finite", "pwm_activity_us"];
-/// The case's airframe: its largest total lift (every rotor at full PWM) over its weight. Under 1 the
-/// airframe cannot hover whatever the controller does (the paper's lift curve tops out at 14.48 N a
-/// rotor, so about 5.9 kg at `thrust_scale` 1).
-pub const THRUST_TO_WEIGHT: &str = "thrust_to_weight";
+/// The case's airframe: its total lift with every rotor at full PWM, and at the least PWM, over its
+/// weight. The paper's lift curve spans only 11.28-14.48 N a rotor, so at `thrust_scale` 1 an airframe
+/// of more than 5.90 kg cannot hover (max under 1) and one of less than 4.60 kg cannot descend (min
+/// over 1), whatever the controller does.
+pub const THRUST_TO_WEIGHT: [&str; 2] = ["max_thrust_to_weight", "min_thrust_to_weight"];
 
 /// The step axes' RMS column names of a scenario (with their unit).
 fn step_rms_columns(scenario: &Scenario) -> [&'static str; 3] {
@@ -50,7 +51,7 @@ fn step_rms_columns(scenario: &Scenario) -> [&'static str; 3] {
 /// The metric columns of a scenario's rows, in order.
 #[must_use]
 pub fn metric_columns(scenario: &Scenario) -> Vec<String> {
-    let mut columns: Vec<&str> = vec![THRUST_TO_WEIGHT];
+    let mut columns: Vec<&str> = THRUST_TO_WEIGHT.to_vec();
     if scenario.metrics.contains(&MetricKind::Steps) {
         columns.extend(["max_overshoot_pct", "max_settling_s"]);
         columns.extend(step_rms_columns(scenario));
@@ -67,8 +68,8 @@ pub fn metric_columns(scenario: &Scenario) -> Vec<String> {
 
 /// A run's metrics in [`metric_columns`] order. A step that never settled makes `max_settling_s` empty.
 #[must_use]
-pub fn metric_values(scenario: &Scenario, thrust_to_weight: f64, m: &RunMetrics) -> Vec<Option<f64>> {
-    let mut v = vec![Some(thrust_to_weight)];
+pub fn metric_values(scenario: &Scenario, thrust_to_weight: [f64; 2], m: &RunMetrics) -> Vec<Option<f64>> {
+    let mut v: Vec<Option<f64>> = thrust_to_weight.iter().copied().map(Some).collect();
     if scenario.metrics.contains(&MetricKind::Steps) {
         let segments = m.segments.as_deref().unwrap_or_default();
         v.push(Some(segments.iter().map(|s| s.overshoot_pct).fold(0.0, f64::max)));

@@ -211,3 +211,22 @@ fn the_summary_ranks_runs_that_never_recovered_last_and_counts_the_bound() {
     assert!(summary.table().contains("never"), "{}", summary.table());
     assert!(summary.table().contains("50.0 % <= 0.500"), "{}", summary.table());
 }
+
+#[test]
+fn each_row_says_whether_its_airframe_can_hover_at_all() {
+    // The paper's lift curve spans 11.28-14.48 N a rotor: the mismatch plant (lift factor 0.99) cannot
+    // hover above about 5.84 kg, nor descend below about 4.55 kg.
+    let s = sweep(
+        "name = \"t\"\nscenario = \"x\"\ncontrollers = [\"aco\"]\nseed = 1\n[vary]\nmass_kg = { values = [4.4, 5.4, 6.2] }\n",
+    )
+    .unwrap();
+    let columns = s.metric_columns();
+    let (max, min) = (0, 1);
+    assert_eq!(&columns[..2], ["max_thrust_to_weight", "min_thrust_to_weight"]);
+    let rows: Vec<Row> = (0..3).map(|r| s.run(r).unwrap()).collect();
+    let tw = |r: &Row, i: usize| r.metrics[i].unwrap();
+    assert!(tw(&rows[0], min) > 1.0, "4.4 kg cannot descend: {:?}", rows[0].metrics);
+    assert!(tw(&rows[1], max) > 1.0 && tw(&rows[1], min) < 1.0, "5.4 kg hovers: {:?}", rows[1].metrics);
+    assert!(tw(&rows[2], max) < 1.0, "6.2 kg cannot hover: {:?}", rows[2].metrics);
+    assert!((tw(&rows[1], max) - 4.0 * 14.477 * 0.99 / (5.4 * 9.81)).abs() < 2e-3, "{:?}", rows[1].metrics);
+}
