@@ -794,7 +794,26 @@ pub fn distribution(path: &Path, title: &str, x_label: &str, samples: &[Sample<'
             if never > 0 { format!("{name} ({never} of {} never)", smp.values.len()) } else { name }
         })
         .collect();
-    let x = padded_range(samples.iter().flat_map(|smp| smp.values.iter().copied()));
+    // The axis ends at the largest 95th percentile: a few runs that flew away would otherwise squash
+    // every distribution into its first pixels. The CDFs run on off the chart; the title says so.
+    let p95 = samples
+        .iter()
+        .map(|smp| {
+            let mut sorted = smp.values.to_vec();
+            sorted.sort_by(f64::total_cmp);
+            crate::sweep::table::percentile(&sorted, 95.0)
+        })
+        .filter(|v| v.is_finite())
+        .fold(f64::NEG_INFINITY, f64::max);
+    let shown = |v: &f64| v.is_finite() && (!p95.is_finite() || *v <= p95);
+    let x = padded_range(samples.iter().flat_map(|smp| smp.values.iter().copied().filter(shown)));
+    let beyond: usize =
+        samples.iter().map(|smp| smp.values.iter().filter(|v| v.is_finite() && !shown(v)).count()).sum();
+    let title = if beyond > 0 {
+        format!("{title} (axis to the 95th percentile; {beyond} runs beyond)")
+    } else {
+        title.to_owned()
+    };
     let order = draw_order(&samples.iter().map(|smp| smp.label).collect::<Vec<_>>());
     let mut cdfs = Vec::new();
     for &i in &order {
@@ -820,7 +839,7 @@ pub fn distribution(path: &Path, title: &str, x_label: &str, samples: &[Sample<'
         })
         .collect();
     let legend = samples.iter().enumerate().map(|(i, smp)| (labels[i].clone(), run_style(smp.label, i))).collect();
-    let fig = DistributionFigure { title: title.to_owned(), x_label: x_label.to_owned(), legend, x, cdfs, boxes };
+    let fig = DistributionFigure { title, x_label: x_label.to_owned(), legend, x, cdfs, boxes };
     write_figure(path, (1100, 44 + LEGEND_ROW as u32 + 320), &fig)
 }
 
@@ -893,6 +912,25 @@ mod tests {
             assert!(svg.contains(&format!("viewBox=\"0 0 {} ", declared("width") * RENDER_SCALE)));
             assert!(!std::fs::exists(png.with_extension("png.tmp")).unwrap());
         }
+        std::fs::remove_dir_all(dir).unwrap();
+    }
+
+    #[test]
+    fn a_distribution_figure_counts_runs_that_never_came_and_keeps_a_far_tail_off_the_axis() {
+        let dir = temp_dir("distribution");
+        let mut aco: Vec<f64> = (0..100).map(|k| f64::from(k) * 0.01).collect();
+        aco[99] = 60.0; // one run that flew away
+        aco[98] = f64::INFINITY; // one that never recovered
+        let ca: Vec<f64> = (0..100).map(|k| f64::from(k) * 0.012).collect();
+        let png = dir.join("dist.png");
+        let samples = [Sample { label: "aco", values: &aco }, Sample { label: "ca", values: &ca }];
+        distribution(&png, "test", "peak (m)", &samples).unwrap();
+        let svg = std::fs::read_to_string(png.with_extension("svg")).unwrap();
+        assert!(svg.contains("ACO (1 of 100 never)"), "the never-recovered run is counted in the legend");
+        assert!(svg.contains("runs beyond"), "the far tail is named in the title");
+        // The axis ends near the 95th percentiles (about 1.1 m), not at 60 m.
+        assert!(!svg.contains(">60<") && !svg.contains(">50<"), "the tail set the axis");
+        assert!(image::load_from_memory(&std::fs::read(&png).unwrap()).is_ok());
         std::fs::remove_dir_all(dir).unwrap();
     }
 
