@@ -2,6 +2,7 @@
 run of them for a swarm), starting `sitl run` (its own state directory and log) and stopping its whole
 process group, and the QGroundControl port 14550 held by one test at a time."""
 
+import asyncio
 import os
 import random
 import signal
@@ -144,3 +145,17 @@ def connect(sitl, wall_limit_s=240.0):
     )
     vehicle.wait_heartbeat(30.0, sitl.instance)
     return vehicle
+
+
+async def first(stream, cond=lambda _: True, what="telemetry", timeout_s=120.0):
+    """The first item of a MAVSDK stream for which `cond` holds (a wall-clock hang guard only)."""
+
+    async def scan():
+        async for item in stream:
+            if cond(item):
+                return item
+
+    try:
+        return await asyncio.wait_for(scan(), timeout_s)
+    except TimeoutError:
+        pytest.fail(f"MAVSDK: {what} not within {timeout_s:g} s of wall time")

@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 import pytest
-from sitl_harness import ROOT, start_sitl
+from sitl_harness import ROOT, first, start_sitl
 
 os.environ["MAVLINK20"] = "1"
 from pymavlink import mavparm, mavutil
@@ -79,20 +79,6 @@ def vehicle(s):
 
 
 # -- MAVSDK -------------------------------------------------------------------------------------------
-
-
-async def first(stream, cond=lambda _: True, what="telemetry", timeout_s=120):
-    """The first item of a MAVSDK stream for which `cond` holds (a wall-clock hang guard only)."""
-
-    async def scan():
-        async for item in stream:
-            if cond(item):
-                return item
-
-    try:
-        return await asyncio.wait_for(scan(), timeout_s)
-    except TimeoutError:
-        pytest.fail(f"MAVSDK: {what} not within {timeout_s} s of wall time")
 
 
 async def mavsdk_session(instance):

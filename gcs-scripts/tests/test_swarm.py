@@ -14,7 +14,7 @@ import threading
 import time
 
 import pytest
-from sitl_harness import free_instance, qgc_connection, start_sitl
+from sitl_harness import first, free_instance, qgc_connection, start_sitl
 
 from aco_gcs.figure8_mission import offset_deg
 from aco_gcs.link import AUTOPILOT_COMPONENT, AUTOPILOT_PORT, LANDED_ON_GROUND, PREARM_CHECK, api_port, mavlink
@@ -306,37 +306,23 @@ def corner_ll(home, north_m, east_m):
     return lat * 1e7, lon * 1e7
 
 
-async def first_item(stream, cond, what, timeout_s=60.0):
-    """The first item of a MAVSDK stream for which `cond` holds (a wall-clock hang guard only)."""
-
-    async def scan():
-        async for item in stream:
-            if cond(item):
-                return item
-
-    try:
-        return await asyncio.wait_for(scan(), timeout_s)
-    except TimeoutError:
-        pytest.fail(f"MAVSDK: {what} not within {timeout_s:g} s of wall time")
-
-
 async def mavsdk_takeoff_and_land(instance, grpc_port):
     """MAVSDK on instance `instance`'s API port: arm, take off to 1.5 m, land, as its own vehicle."""
     from mavsdk import System
 
     drone = System(port=grpc_port)
     await drone.connect(system_address=f"udpin://0.0.0.0:{api_port(instance)}")
-    await first_item(drone.core.connection_state(), lambda s: s.is_connected, f"instance {instance}: connection")
-    await first_item(drone.telemetry.health(), lambda h: h.is_armable, f"instance {instance}: armable")
+    await first(drone.core.connection_state(), lambda s: s.is_connected, f"instance {instance}: connection")
+    await first(drone.telemetry.health(), lambda h: h.is_armable, f"instance {instance}: armable")
     await drone.action.set_takeoff_altitude(MAVSDK_ALT_M)
     await drone.action.arm()
     await drone.action.takeoff()
-    await first_item(
+    await first(
         drone.telemetry.position(), lambda p: p.relative_altitude_m > MAVSDK_ALT_M - 0.15, f"instance {instance}: up"
     )
     await drone.action.land()
-    await first_item(drone.telemetry.in_air(), lambda a: not a, f"instance {instance}: landed")
-    await first_item(drone.telemetry.armed(), lambda a: not a, f"instance {instance}: disarmed")
+    await first(drone.telemetry.in_air(), lambda a: not a, f"instance {instance}: landed")
+    await first(drone.telemetry.armed(), lambda a: not a, f"instance {instance}: disarmed")
 
 
 def fly_with_mavsdk(gcs):

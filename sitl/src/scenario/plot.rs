@@ -405,7 +405,7 @@ fn draw_legend<DB: DrawingBackend>(
     Ok(())
 }
 
-/// The mesh both figure kinds use: light major grid only, units on both axes, ticks without `-0.0`.
+/// The mesh every figure uses: light major grid only, units on both axes, ticks without `-0.0`.
 fn draw_mesh<DB: DrawingBackend>(
     chart: &mut Chart<'_, DB>,
     x: &Range<f64>,
@@ -414,15 +414,27 @@ fn draw_mesh<DB: DrawingBackend>(
     y_desc: &str,
     s: f64,
 ) -> Result<(), String> {
-    let (xd, yd) = (tick_decimals(x.clone(), X_TICKS), tick_decimals(y.clone(), Y_TICKS));
+    let yd = tick_decimals(y.clone(), Y_TICKS);
+    draw_mesh_with(chart, x, (Y_TICKS, &move |v: &f64| fmt_tick(*v, yd)), x_desc, y_desc, s)
+}
+
+/// [`draw_mesh`] with the y axis's tick count and labels given (e.g. names at whole numbers).
+fn draw_mesh_with<DB: DrawingBackend>(
+    chart: &mut Chart<'_, DB>,
+    x: &Range<f64>,
+    (y_ticks, y_fmt): (usize, &dyn Fn(&f64) -> String),
+    x_desc: &str,
+    y_desc: &str,
+    s: f64,
+) -> Result<(), String> {
+    let xd = tick_decimals(x.clone(), X_TICKS);
     let x_fmt = move |v: &f64| fmt_tick(*v, xd);
-    let y_fmt = move |v: &f64| fmt_tick(*v, yd);
     chart
         .configure_mesh()
         .x_labels(X_TICKS)
-        .y_labels(Y_TICKS)
+        .y_labels(y_ticks)
         .x_label_formatter(&x_fmt)
-        .y_label_formatter(&y_fmt)
+        .y_label_formatter(y_fmt)
         .x_desc(x_desc)
         .y_desc(y_desc)
         .label_style(font(TICK_SIZE * s))
@@ -733,22 +745,8 @@ impl Figure for DistributionFigure {
                 String::new()
             }
         };
-        let xd = tick_decimals(x.clone(), X_TICKS);
-        chart
-            .configure_mesh()
-            .x_labels(X_TICKS)
-            .y_labels(n + 1)
-            .x_label_formatter(&move |v: &f64| fmt_tick(*v, xd))
-            .y_label_formatter(&name_of)
-            .x_desc("box: quartiles, median; whiskers: 5th-95th percentile")
-            .label_style(font(TICK_SIZE * s))
-            .axis_desc_style(font(AXIS_LABEL_SIZE * s))
-            .bold_line_style(ShapeStyle::from(&GRID).stroke_width(px(s)))
-            .light_line_style(TRANSPARENT)
-            .axis_style(ShapeStyle::from(&BLACK).stroke_width(px(s)))
-            .set_all_tick_mark_size(px(5.0 * s))
-            .draw()
-            .map_err(e2s)?;
+        let caption = "box: quartiles, median; whiskers: 5th-95th percentile";
+        draw_mesh_with(&mut chart, &x, (n + 1, &name_of), caption, "", s)?;
         for (i, (_, style, q)) in self.boxes.iter().enumerate() {
             let yc = (n - 1 - i) as f64;
             let stroke = ShapeStyle::from(&style.colour).stroke_width(px(1.6 * s).max(1));
