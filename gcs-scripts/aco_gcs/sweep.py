@@ -107,7 +107,9 @@ def run_on_ray(args: argparse.Namespace, sitl: str, out: Path) -> list[Path]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawTextHelpFormatter)
+    p = argparse.ArgumentParser(
+        prog="aco-sweep", description=__doc__.split("\n\n")[0], formatter_class=argparse.RawTextHelpFormatter
+    )
     p.add_argument("spec", help="the sweep spec (TOML, as for `sitl sweep`)")
     p.add_argument("--ray-address", help="the Ray cluster (host:port, or `auto`); without it: locally, all cores")
     p.add_argument("--shards", type=int, help="shards, one Ray task each (default: the cluster's CPUs)")

@@ -21,7 +21,16 @@ from aco_gcs import link
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGE = ROOT / "gcs-scripts"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
-SCRIPTS = ["takeoff_hover_land", "figure8_mission", "offboard_square", "gust_hover", "params", "tlog_plot", "ulog_plot"]
+SCRIPTS = [
+    "takeoff_hover_land",
+    "figure8_mission",
+    "offboard_square",
+    "gust_hover",
+    "params",
+    "tlog_plot",
+    "ulog_plot",
+    "sweep",
+]
 # Wall-clock limits of a script run (a hang guard: the scripts' own waits are on vehicle time).
 FLIGHT_WALL_S = 300
 
