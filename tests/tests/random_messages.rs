@@ -205,3 +205,29 @@ proptest! {
         }
     }
 }
+
+/// Found by the sequence test in CI: an offboard velocity the airframe cannot reach (4.6 m/s; it tops out
+/// near 2.8) streamed once, so offboard is lost and the vehicle holds. Hold stopped the reference, which
+/// ran 1 m ahead at 4.6 m/s, 22 m on, and the vehicle followed it through the fence; it must stop itself.
+#[test]
+fn given_an_unreachable_offboard_velocity_when_the_stream_stops_then_hold_stops_the_vehicle_not_its_reference() {
+    let mut rig = flying();
+    rig.send(&MavMessage::SET_POSITION_TARGET_LOCAL_NED(SET_POSITION_TARGET_LOCAL_NED_DATA {
+        vy: 4.611_171,
+        type_mask: PositionTargetTypemask::from_bits_truncate(7 | 448 | 1024 | 2048),
+        target_system: 1,
+        target_component: 1,
+        coordinate_frame: MavFrame::MAV_FRAME_LOCAL_NED,
+        ..Default::default()
+    }));
+    rig.command(MavCmd::MAV_CMD_DO_SET_MODE, [1.0, 6.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+    rig.wait_until(2.0, "offboard lost", |r| {
+        r.vehicle.commander().mode() == autopilot::core::commander::FlightMode::Hold
+    });
+    let held_at = rig.plant.truth().pos_ned_m;
+    let mut farthest_m: f64 = 0.0;
+    rig.run_s(15.0, |r| farthest_m = farthest_m.max((r.plant.truth().pos_ned_m - held_at).xy().norm()));
+    let truth = rig.plant.truth();
+    assert!(farthest_m < 2.0, "ran {farthest_m:.2} m past where Hold began (before the fix: 23.4 m)");
+    assert!(truth.vel_ned_mps.norm() < 0.05, "still moving at {:.2} m/s", truth.vel_ned_mps.norm());
+}

@@ -242,6 +242,10 @@ pub(crate) enum Climb {
 /// (PX4 ramps its takeoff the same way): an airframe heavier or weaker than the controller's model then
 /// lifts off a few centimetres behind its reference instead of lagging it by a metre and catching up.
 const LIFTOFF_SPEED_FRAC: f64 = 0.25;
+/// A reference farther than this from the vehicle (m), or faster or slower by more than
+/// [`RUNAWAY_MPS`] (m/s), has run away from it: new legs start from the vehicle (see [`Planner::start`]).
+const RUNAWAY_M: f64 = 0.5;
+const RUNAWAY_MPS: f64 = 1.0;
 /// A retargeted leg continues a reference moving across its new direction at up to this speed (m/s).
 const RETARGET_CROSS_MPS: f64 = 0.5;
 /// The vehicle has lifted off once this high above the ground (m).
@@ -268,9 +272,18 @@ impl Planner {
         self.speed_mps.unwrap_or(self.config.cruise_speed_mps)
     }
 
-    /// Where a new leg starts: the reference's motion, or the vehicle at rest.
+    /// Where a new leg starts: the reference's motion, so the flight goes on smoothly; the vehicle at rest
+    /// when there is none; and the vehicle's own motion when the reference has run away from it (farther
+    /// than [`RUNAWAY_M`] or faster by [`RUNAWAY_MPS`]: an offboard velocity the airframe cannot reach),
+    /// so that a stop stops the vehicle where it can, not a reference metres ahead of it.
     pub fn start(&self, input: &NavInput) -> Motion3 {
-        self.last.unwrap_or_else(|| Motion3::rest(input.pos_ned_m))
+        let Some(last) = self.last else { return Motion3::rest(input.pos_ned_m) };
+        let gap_m = (last.pos_ned_m - input.pos_ned_m).norm();
+        let gap_mps = (last.vel_ned_mps - input.vel_ned_mps).norm();
+        if gap_m > RUNAWAY_M || gap_mps > RUNAWAY_MPS {
+            return Motion3 { vel_ned_mps: input.vel_ned_mps, ..Motion3::rest(input.pos_ned_m) };
+        }
+        last
     }
 
     /// The progress limits of `path` for `climb`.
