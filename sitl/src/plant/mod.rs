@@ -276,8 +276,12 @@ impl Plant {
         self.time_us += dt_us;
     }
 
-    /// Phase 5: the pack delivers the rotors' power at the lifts the step ended with.
+    /// Phase 5: the pack delivers the rotors' power at the lifts the step ended with. A plant without a
+    /// pack (`battery.enabled = false`) skips it: [`Plant::battery`] shows nothing to read.
     fn drain_battery(&mut self, dt_s: f64) {
+        if !self.config.battery.enabled {
+            return;
+        }
         let rho = self.config.airframe.air_density_kgpm3;
         self.battery.step(dt_s, &self.state.rotor_lift_n, self.motors_running, rho);
     }

@@ -181,7 +181,10 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
     controller_config.rates.validate().map_err(|e| ScenarioError::Controller(e.to_string()))?;
     let mut controller = new_controller(opts.controller, &controller_config);
 
-    let config = plant_config(scenario, opts.plant.as_deref())?;
+    let mut config = plant_config(scenario, opts.plant.as_deref())?;
+    // No metric or trace reads the pack, and the lift does not depend on it: draining one every tick
+    // would only cost time. (A two-process run keeps it: the autopilot monitors it.)
+    config.battery.enabled = false;
     let plant_name = scenario.plant_label(opts.plant.as_deref());
     let init = &scenario.initial;
     let initial = InitialState {
