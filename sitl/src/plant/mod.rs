@@ -255,7 +255,7 @@ impl Plant {
         };
         // The wind at t = 0 (nothing to advance yet), then whether the start rests on the ground.
         plant.update_wind();
-        let free_acc = plant.free_derivative().acc_ned_mps2;
+        let free_acc = plant.free_acc_ned_mps2();
         plant.on_ground = ground::is_resting(&plant.state, &free_acc, &plant.config.ground);
         Ok(plant)
     }
@@ -276,8 +276,12 @@ impl Plant {
         self.time_us += dt_us;
     }
 
-    /// Phase 5: the pack delivers the rotors' power at the lifts the step ended with.
+    /// Phase 5: the pack delivers the rotors' power at the lifts the step ended with. A plant without a
+    /// pack (`battery.enabled = false`) skips it: [`Plant::battery`] shows nothing to read.
     fn drain_battery(&mut self, dt_s: f64) {
+        if !self.config.battery.enabled {
+            return;
+        }
         let rho = self.config.airframe.air_density_kgpm3;
         self.battery.step(dt_s, &self.state.rotor_lift_n, self.motors_running, rho);
     }
@@ -322,10 +326,12 @@ impl Plant {
         }
     }
 
-    /// The derivative at the current state with the held wind and the last PWM, ignoring the ground.
-    fn free_derivative(&self) -> rigid_body::StateDerivative {
-        let inputs = self.rotor_forces(&self.last_pwm_us, self.wind.current_ned_mps());
-        rigid_body::derivative(&self.state, &inputs, &self.config.airframe)
+    /// The acceleration at the current state with the held wind, ignoring the ground (the translational
+    /// part of the derivative: the commanded lifts only move the rotor lag, so they are not needed).
+    fn free_acc_ned_mps2(&self) -> Vector3<f64> {
+        let airframe = &self.config.airframe;
+        let thrust_n = rotor::mix(&self.state.rotor_lift_n, airframe.arm_m, airframe.yaw_moment_m).thrust_n;
+        rigid_body::acceleration_ned_mps2(&self.state, thrust_n, &self.wind.current_ned_mps(), airframe)
     }
 
     /// Plant time (µs).
@@ -339,7 +345,7 @@ impl Plant {
     #[must_use]
     pub fn truth(&self) -> Truth {
         let q_ned_frd = self.state.attitude();
-        let acc_ned_mps2 = ground::constrained_acc_ned_mps2(self.free_derivative().acc_ned_mps2, self.on_ground);
+        let acc_ned_mps2 = ground::constrained_acc_ned_mps2(self.free_acc_ned_mps2(), self.on_ground);
         let gravity_ned = Vector3::new(0.0, 0.0, self.config.airframe.gravity_mps2);
         Truth {
             time_us: self.time_us,

@@ -112,17 +112,8 @@ pub struct HeldInputs {
 /// The equations of motion (module docs) evaluated at `state`.
 #[must_use]
 pub fn derivative(state: &RigidBodyState, inputs: &HeldInputs, airframe: &Airframe) -> StateDerivative {
-    let attitude = state.attitude();
     let wrench = rotor::mix(&state.rotor_lift_n, airframe.arm_m, airframe.yaw_moment_m);
-
-    // Translation: gravity, thrust along -z_FRD, quadratic drag on the air-relative velocity.
-    let thrust_dir_ned = attitude.transform_vector(&Vector3::z());
-    let air_rel_ned_mps = state.vel_ned_mps - inputs.wind_ned_mps;
-    let drag_per_speed =
-        airframe.air_density_kgpm3 * airframe.drag_cda_m2 / (2.0 * airframe.mass_kg) * air_rel_ned_mps.norm();
-    let acc_ned_mps2 = Vector3::new(0.0, 0.0, airframe.gravity_mps2)
-        - thrust_dir_ned * (wrench.thrust_n / airframe.mass_kg)
-        - air_rel_ned_mps * drag_per_speed;
+    let acc_ned_mps2 = acceleration_ned_mps2(state, wrench.thrust_n, &inputs.wind_ned_mps, airframe);
 
     // Rotation, Eq 7 with a diagonal inertia.
     let omega = state.rate_frd_radps;
@@ -140,6 +131,25 @@ pub fn derivative(state: &RigidBodyState, inputs: &HeldInputs, airframe: &Airfra
         ang_acc_frd_radps2,
         lift_rate_nps: rotor::lift_rate_nps(&state.rotor_lift_n, &inputs.lift_cmd_n, airframe.motor_tau_s),
     }
+}
+
+/// The translational part of [`derivative`], v̇ (m/s², NED), for a total rotor thrust `thrust_n` (N) and
+/// the air moving at `wind_ned_mps`: all the plant's true state needs between steps.
+#[must_use]
+pub fn acceleration_ned_mps2(
+    state: &RigidBodyState,
+    thrust_n: f64,
+    wind_ned_mps: &Vector3<f64>,
+    airframe: &Airframe,
+) -> Vector3<f64> {
+    // Gravity, thrust along -z_FRD, quadratic drag on the air-relative velocity.
+    let thrust_dir_ned = state.attitude().transform_vector(&Vector3::z());
+    let air_rel_ned_mps = state.vel_ned_mps - wind_ned_mps;
+    let drag_per_speed =
+        airframe.air_density_kgpm3 * airframe.drag_cda_m2 / (2.0 * airframe.mass_kg) * air_rel_ned_mps.norm();
+    Vector3::new(0.0, 0.0, airframe.gravity_mps2)
+        - thrust_dir_ned * (thrust_n / airframe.mass_kg)
+        - air_rel_ned_mps * drag_per_speed
 }
 
 /// One classical 4th-order Runge-Kutta step of length `h_s` (s), inputs held, q renormalised at the end.

@@ -287,6 +287,8 @@ pub struct TrackGen {
     /// The progress (m, m/s) after `filter_steps` steps.
     filter: ProgressFilter,
     filter_steps: u64,
+    /// One lap's length times the laps (m), read at every prefilter step.
+    total_length_m: f64,
 }
 
 /// The prefilter is integrated at this fixed step, whatever the control rate, so the reference is the
@@ -296,19 +298,22 @@ const PREFILTER_STEP_S: f64 = 1e-4;
 impl TrackGen {
     #[must_use]
     pub fn new(spec: &TrackSpec, mode: ReferenceMode) -> Self {
+        let path = TrackPath::new(spec.path, &spec.waypoints_ne_m);
+        let total_length_m = path.length_m() * f64::from(spec.laps);
         Self {
-            path: TrackPath::new(spec.path, &spec.waypoints_ne_m),
+            path,
             spec: spec.clone(),
             mode,
             filter: ProgressFilter::at_rest(spec.prefilter_wn_radps, 0.0),
             filter_steps: 0,
+            total_length_m,
         }
     }
 
     /// Total arc length the reference travels (all laps).
     #[must_use]
     pub fn total_length_m(&self) -> f64 {
-        self.path.length_m() * f64::from(self.spec.laps)
+        self.total_length_m
     }
 
     /// The time at which the unfiltered progress reaches the end of the last lap.

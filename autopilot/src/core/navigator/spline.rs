@@ -206,15 +206,17 @@ impl SplinePath {
         let lo = ((s_m - window_m) / step).floor() as i64;
         let hi = ((s_m + window_m) / step).ceil() as i64;
         let (lo, hi) = if self.closed { (lo, hi) } else { (lo.max(0), hi.min(segments as i64)) };
-        let n = segments as i64;
-        let point = |k: i64| self.polyline[usize::try_from(k.rem_euclid(n)).expect("rem_euclid is non-negative")];
+        // Segment k runs from point k mod n to point (k + 1) mod n; the index is stepped along rather than
+        // reduced per segment.
+        let mut i = usize::try_from(lo.rem_euclid(segments as i64)).expect("rem_euclid is non-negative");
         let mut best = (f64::INFINITY, s_m);
         for k in lo..hi {
-            let (a, b) = (point(k), point(k + 1));
-            let (d, x) = point_segment(p_ne_m, a, b);
+            let next = if i + 1 == segments { 0 } else { i + 1 };
+            let (d, x) = point_segment(p_ne_m, self.polyline[i], self.polyline[next]);
             if d < best.0 {
                 best = (d, (k as f64 + x) * step);
             }
+            i = next;
         }
         best
     }
