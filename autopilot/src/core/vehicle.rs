@@ -36,8 +36,9 @@ use crate::core::mavlink::router::{
     self, Commands, GcsHeartbeats, Housekeeping, MessageContext, Microservice, OffboardReceiver, Service,
 };
 use crate::core::mavlink::{
-    CommandContext, CommandEffect, CommandPoint, Home, MavlinkService, Stream, TelemetrySnapshot, VehicleCommand,
-    command_replies, housekeeping, plant_lost_heartbeat, statustext, statustext_chunks, sys_status_plant_lost,
+    CommandContext, CommandEffect, CommandPoint, Home, LinkErrors, MavlinkService, Stream, TelemetrySnapshot,
+    VehicleCommand, command_replies, housekeeping, plant_lost_heartbeat, statustext, statustext_chunks,
+    sys_status_plant_lost,
 };
 use crate::core::mission::{Mission, MissionError, XY_UNSET, items_to_wpl};
 use crate::core::navigator::{AutoMode, MAX_SETPOINT_FROM_HOME_M, NavEvent, NavInput, Navigator, Task, nav_items};
@@ -147,7 +148,7 @@ pub struct Vehicle {
     /// The reference the controller tracked at the last step (None: idle).
     reference: Option<Reference>,
     throttle_low_pwm_us: f64,
-    comm_errors: u64,
+    link_errors: LinkErrors,
     /// The id of the last chunked STATUSTEXT.
     text_id: u16,
     /// When a ground station last sent a HEARTBEAT (µs of vehicle time).
@@ -220,7 +221,7 @@ impl Vehicle {
             pwm_us: [PWM_MIN_US; 4],
             reference: None,
             throttle_low_pwm_us,
-            comm_errors: 0,
+            link_errors: LinkErrors::default(),
             text_id: 0,
             gcs_heartbeat_us: None,
             navigator: {
@@ -292,9 +293,9 @@ impl Vehicle {
         }
     }
 
-    /// The malformed frames the shell's links have dropped so far (reported in SYS_STATUS errors_comm).
-    pub fn set_comm_errors(&mut self, count: u64) {
-        self.comm_errors = count;
+    /// What the shell's links have dropped so far (reported in SYS_STATUS, see [`LinkErrors`]).
+    pub fn set_link_errors(&mut self, errors: LinkErrors) {
+        self.link_errors = errors;
     }
 
     /// The MAVLink services (stream rates).
@@ -441,7 +442,7 @@ impl Vehicle {
             home: self.home.as_ref(),
             commander: &self.output,
             pwm_us: self.pwm_us,
-            comm_errors: self.comm_errors,
+            link_errors: self.link_errors,
             mission_seq: (self.navigator.mission_len() > 0).then(|| self.navigator.current_seq()),
             controller: Some(self.controller.as_ref()),
         }
@@ -731,7 +732,7 @@ impl Vehicle {
     /// cadence, once a second, while the plant is lost.
     #[must_use]
     pub fn plant_lost_telemetry(&self) -> Vec<MavMessage> {
-        vec![plant_lost_heartbeat(&self.output), sys_status_plant_lost(self.comm_errors)]
+        vec![plant_lost_heartbeat(&self.output), sys_status_plant_lost(self.link_errors)]
     }
 
     /// One step at `now_us`. See the module docs.
@@ -1411,7 +1412,7 @@ mod tests {
         let checked = S::MAV_SYS_STATUS_SENSOR_3D_GYRO | S::MAV_SYS_STATUS_SENSOR_GPS | S::MAV_SYS_STATUS_PREARM_CHECK;
         assert!(healthy.onboard_control_sensors_health.contains(checked), "{healthy:?}");
         assert_eq!(healthy.voltage_battery, 16_200);
-        v.set_comm_errors(3);
+        v.set_link_errors(LinkErrors { malformed: 3, signing_rejected: 5 });
         // WHEN the plant is lost (no step comes) and the shell asks for the fallback.
         let lost = v.plant_lost_telemetry();
         // THEN a HEARTBEAT as usual but CRITICAL (disarmed), and a SYS_STATUS with every sensor present
@@ -1431,7 +1432,7 @@ mod tests {
         assert!((status.onboard_control_sensors_health & sensors).is_empty(), "{status:?}");
         assert!(!status.onboard_control_sensors_present.contains(S::MAV_SYS_STATUS_SENSOR_BATTERY));
         assert_eq!((status.voltage_battery, status.current_battery, status.battery_remaining), (u16::MAX, -1, -1));
-        assert_eq!(status.errors_comm, 3);
+        assert_eq!((status.errors_comm, status.errors_count1), (3, 5));
         // Asked again (the next wall second): the same.
         assert_eq!(v.plant_lost_telemetry(), lost);
         // WHEN armed and taking off, then the plant lost THEN EMERGENCY, armed, in TAKEOFF.

@@ -43,7 +43,7 @@ use crate::core::hil::{
     ActuatorCommand, DecoderStats, FrameDecoder, HilInput, SensorSamples, decode_hil_message, dege7_to_deg,
     encode_actuator_controls, encode_frame_v2, mm_to_m,
 };
-use crate::core::mavlink::{own_header, statustext};
+use crate::core::mavlink::{LinkErrors, own_header, statustext};
 use crate::core::mission::Mission;
 use crate::core::params::ParamStore;
 use crate::core::vehicle::{PWM_MIN_US, ShellEffect, Vehicle, VehicleConfig, VehicleError, VehicleInputs};
@@ -423,11 +423,11 @@ impl Driver {
                 self.stats.first_time_us.get_or_insert(now_us);
                 self.stats.last_time_us = Some(now_us);
                 let inputs = std::mem::take(&mut self.inputs);
-                let comm_errors = self.comm_errors(plant_malformed);
+                let link_errors = self.link_errors(plant_malformed);
                 let Some(vehicle) = self.vehicle()? else {
                     return Ok(Some(ActuatorCommand { time_us: now_us, pwm_us: [PWM_MIN_US; 4], armed: false }));
                 };
-                vehicle.set_comm_errors(comm_errors);
+                vehicle.set_link_errors(link_errors);
                 let outputs = vehicle.step(now_us, &inputs);
                 self.stats.steps += 1;
                 // The flight log opens before the step's texts ("Armed" is its first) and samples after.
@@ -448,19 +448,25 @@ impl Driver {
         Ok(None)
     }
 
-    /// Malformed frames dropped so far on every link: the plant link's (`plant_malformed`) and the
-    /// ground-station links'.
-    fn comm_errors(&self, plant_malformed: u64) -> u64 {
-        plant_malformed + self.out.counters.iter().map(|c| c.snapshot().malformed).sum::<u64>()
+    /// What every link has dropped so far: malformed frames, the plant link's (`plant_malformed`) and
+    /// the ground-station links', and the frames signing refused.
+    fn link_errors(&self, plant_malformed: u64) -> LinkErrors {
+        self.out.counters.iter().map(|c| c.snapshot()).fold(
+            LinkErrors { malformed: plant_malformed, signing_rejected: 0 },
+            |acc, s| LinkErrors {
+                malformed: acc.malformed + s.malformed,
+                signing_rejected: acc.signing_rejected + s.signature_rejected,
+            },
+        )
     }
 
     /// The vehicle's fallback telemetry while the plant is lost (HEARTBEAT CRITICAL or EMERGENCY,
     /// SYS_STATUS with the sensors unhealthy), queued to every ground-station link. Nothing when no
     /// vehicle can be built yet (the `Truth` source before any truth sample): it has not spoken either.
     fn plant_lost_telemetry(&mut self, plant_malformed: u64) -> Result<(), VehicleError> {
-        let comm_errors = self.comm_errors(plant_malformed);
+        let link_errors = self.link_errors(plant_malformed);
         let Some(vehicle) = self.vehicle()? else { return Ok(()) };
-        vehicle.set_comm_errors(comm_errors);
+        vehicle.set_link_errors(link_errors);
         for message in vehicle.plant_lost_telemetry() {
             self.send_gcs(None, Destination::All, message);
         }

@@ -38,7 +38,7 @@ pub use command::{
 };
 pub use identity::{gcs_heartbeat, heartbeat, plant_lost_heartbeat};
 pub use telemetry::{
-    Home, Stream, StreamScheduler, TelemetrySnapshot, statustext, statustext_chunks, sys_status_plant_lost,
+    Home, LinkErrors, Stream, StreamScheduler, TelemetrySnapshot, statustext, statustext_chunks, sys_status_plant_lost,
 };
 
 /// The autopilot's component id (MAV_COMP_ID_AUTOPILOT1).

@@ -48,8 +48,8 @@ pub struct TelemetrySnapshot<'a> {
     pub commander: &'a CommanderOutput,
     /// The motor commands of this step (µs).
     pub pwm_us: [f64; 4],
-    /// Malformed frames dropped so far on every link (plant and ground stations): SYS_STATUS errors_comm.
-    pub comm_errors: u64,
+    /// What the links have dropped so far (SYS_STATUS errors_comm and errors_count1).
+    pub link_errors: LinkErrors,
     /// The mission item being flown towards, when a mission is loaded (MISSION_CURRENT).
     pub mission_seq: Option<u16>,
     /// The controller, for the adaptive-weight stream.
@@ -150,7 +150,7 @@ impl Stream {
     #[must_use]
     pub fn message(self, snap: &TelemetrySnapshot<'_>) -> Option<MavMessage> {
         match self {
-            Self::SysStatus => Some(sys_status(&snap.estimate.flags, &snap.commander.battery, snap.comm_errors)),
+            Self::SysStatus => Some(sys_status(&snap.estimate.flags, &snap.commander.battery, snap.link_errors)),
             Self::Attitude => Some(attitude(snap)),
             Self::AttitudeQuaternion => Some(attitude_quaternion(snap)),
             Self::LocalPositionNed => Some(local_position_ned(snap)),
@@ -291,10 +291,10 @@ fn sensors(bits: &[(bool, MavSysStatusSensor)]) -> MavSysStatusSensor {
 
 /// SYS_STATUS: gyro, accel, mag, baro, GPS and PREARM_CHECK present and enabled; healthy from the estimator
 /// flags (IMU: attitude valid; PREARM_CHECK: converged, i.e. armable). The battery present while it
-/// reports, healthy above its critical level; its voltage, current and remaining. `errors_comm`: the
-/// malformed frames dropped on every link (saturating at 65535).
+/// reports, healthy above its critical level; its voltage, current and remaining. `errors_comm` and
+/// `errors_count1`: see [`LinkErrors`].
 #[must_use]
-pub fn sys_status(flags: &EstimatorFlags, battery: &BatteryStatus, comm_errors: u64) -> MavMessage {
+pub fn sys_status(flags: &EstimatorFlags, battery: &BatteryStatus, errors: LinkErrors) -> MavMessage {
     use MavSysStatusSensor as S;
     let all = S::MAV_SYS_STATUS_SENSOR_3D_GYRO
         | S::MAV_SYS_STATUS_SENSOR_3D_ACCEL
@@ -326,7 +326,8 @@ pub fn sys_status(flags: &EstimatorFlags, battery: &BatteryStatus, comm_errors: 
             .and_then(|b| b.current_a)
             .map_or(-1, |a| (a * 100.0).round().clamp(0.0, f64::from(i16::MAX)) as i16),
         battery_remaining: battery.remaining_pct().map_or(-1, |p| p as i8),
-        errors_comm: u16::try_from(comm_errors).unwrap_or(u16::MAX),
+        errors_comm: u16::try_from(errors.malformed).unwrap_or(u16::MAX),
+        errors_count1: u16::try_from(errors.signing_rejected).unwrap_or(u16::MAX),
         ..SYS_STATUS_DATA::default()
     })
 }
@@ -334,10 +335,20 @@ pub fn sys_status(flags: &EstimatorFlags, battery: &BatteryStatus, comm_errors: 
 /// SYS_STATUS while the plant link is lost (no sensor sample arrives): the sensors stay present and
 /// enabled but none is healthy (gyro, accel, mag, baro, GPS, and PREARM_CHECK: nothing could be checked),
 /// and the battery, read over the same link, is not reported (MAVLink's unknown values), as with no
-/// reading. `errors_comm` as in [`sys_status`].
+/// reading. The error counts as in [`sys_status`].
 #[must_use]
-pub fn sys_status_plant_lost(comm_errors: u64) -> MavMessage {
-    sys_status(&EstimatorFlags::default(), &BatteryStatus::default(), comm_errors)
+pub fn sys_status_plant_lost(errors: LinkErrors) -> MavMessage {
+    sys_status(&EstimatorFlags::default(), &BatteryStatus::default(), errors)
+}
+
+/// What the shell's links have dropped so far, as SYS_STATUS reports it (each saturating at 65535).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct LinkErrors {
+    /// Malformed frames on every link, the plant's and the ground stations': `errors_comm`.
+    pub malformed: u64,
+    /// Valid frames the ground-station links dropped for MAVLink signing (unsigned, another key,
+    /// replayed or stale): `errors_count1`, the first autopilot-specific count.
+    pub signing_rejected: u64,
 }
 
 fn attitude(snap: &TelemetrySnapshot<'_>) -> MavMessage {
