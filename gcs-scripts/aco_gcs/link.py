@@ -334,11 +334,11 @@ def _sendto(sock, buf, address):
         sock.sendto(buf, address)
 
 
-class Vehicle(Link):
-    """The autopilot (component 1): its clock is the largest `time_boot_ms` of its telemetry."""
+class VehicleState:
+    """What a ground station knows of one autopilot from its telemetry; its clock is the largest
+    `time_boot_ms` seen. `update` takes each of the autopilot's messages."""
 
-    def __init__(self, connect, target=None, wall_limit_s=600.0):
-        super().__init__(connect, target, wall_limit_s)
+    def __init__(self):
         self.now_ms = 0
         self.heartbeat = None
         self.armed = False
@@ -350,6 +350,45 @@ class Vehicle(Link):
         self.home = None  # HOME_POSITION message
         self.landed_state = None
         self.acks = {}
+
+    def now_s(self):
+        return self.now_ms / 1000.0
+
+    def landed(self):
+        """On the ground (EXTENDED_SYS_STATE) and disarmed."""
+        return self.landed_state == LANDED_ON_GROUND and not self.armed
+
+    def update(self, msg):
+        kind = msg.get_type()
+        t = getattr(msg, "time_boot_ms", None)
+        if t is not None:
+            self.now_ms = max(self.now_ms, t)
+        if kind == "HEARTBEAT":
+            self.heartbeat = msg
+            self.armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
+            self.custom_mode = msg.custom_mode
+        elif kind == "SYS_STATUS":
+            self.prearm_ok = bool(msg.onboard_control_sensors_health & PREARM_CHECK)
+        elif kind == "LOCAL_POSITION_NED":
+            self.pos = (msg.x, msg.y, msg.z)
+            self.vel = (msg.vx, msg.vy, msg.vz)
+        elif kind == "GLOBAL_POSITION_INT":
+            self.global_pos = msg
+        elif kind == "HOME_POSITION":
+            self.home = msg
+        elif kind == "EXTENDED_SYS_STATE":
+            self.landed_state = msg.landed_state
+        elif kind == "COMMAND_ACK":
+            self.acks[msg.command] = msg.result
+
+
+class Vehicle(VehicleState, Link):
+    """The autopilot (component 1) over a link of its own: its state ([`VehicleState`]) and clock from
+    its telemetry, and commands to it."""
+
+    def __init__(self, connect, target=None, wall_limit_s=600.0):
+        Link.__init__(self, connect, target, wall_limit_s)
+        VehicleState.__init__(self)
         self._last_gcs_heartbeat = (-1e9, 0.0)
 
     @classmethod
@@ -359,9 +398,6 @@ class Vehicle(Link):
         sysid = args.sysid if getattr(args, "sysid", None) is not None else args.instance + 1
         vehicle.wait_heartbeat(args.heartbeat_timeout, args.instance, sysid)
         return vehicle
-
-    def now_s(self):
-        return self.now_ms / 1000.0
 
     def name(self):
         return "vehicle"
@@ -406,28 +442,8 @@ class Vehicle(Link):
         return super().ours(msg) and msg.get_srcComponent() == AUTOPILOT_COMPONENT
 
     def handle(self, msg):
-        super().handle(msg)
-        kind = msg.get_type()
-        t = getattr(msg, "time_boot_ms", None)
-        if t is not None:
-            self.now_ms = max(self.now_ms, t)
-        if kind == "HEARTBEAT":
-            self.heartbeat = msg
-            self.armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
-            self.custom_mode = msg.custom_mode
-        elif kind == "SYS_STATUS":
-            self.prearm_ok = bool(msg.onboard_control_sensors_health & PREARM_CHECK)
-        elif kind == "LOCAL_POSITION_NED":
-            self.pos = (msg.x, msg.y, msg.z)
-            self.vel = (msg.vx, msg.vy, msg.vz)
-        elif kind == "GLOBAL_POSITION_INT":
-            self.global_pos = msg
-        elif kind == "HOME_POSITION":
-            self.home = msg
-        elif kind == "EXTENDED_SYS_STATE":
-            self.landed_state = msg.landed_state
-        elif kind == "COMMAND_ACK":
-            self.acks[msg.command] = msg.result
+        Link.handle(self, msg)
+        self.update(msg)
 
     def px4_mode(self):
         """(main, sub) of the PX4 custom mode in the last HEARTBEAT."""

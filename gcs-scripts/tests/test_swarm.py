@@ -17,7 +17,7 @@ import pytest
 from sitl_harness import first, free_instance, qgc_connection, start_sitl
 
 from aco_gcs.figure8_mission import offset_deg
-from aco_gcs.link import AUTOPILOT_COMPONENT, AUTOPILOT_PORT, LANDED_ON_GROUND, PREARM_CHECK, api_port, mavlink
+from aco_gcs.link import AUTOPILOT_COMPONENT, AUTOPILOT_PORT, VehicleState, api_port, mavlink
 
 VEHICLES = 8
 SPACING_M = 6.0  # neighbours' 3 m squares never meet
@@ -49,50 +49,20 @@ STILL_M = 0.02
 WALL_LIMIT_S = 240.0
 
 
-class Member:
+class Member(VehicleState):
     """One vehicle of the swarm as the ground station tracks it, by its system id (instance + 1)."""
 
     def __init__(self, instance):
+        super().__init__()
         self.instance = instance
         self.system_id = instance + 1
         self.autopilot = ("127.0.0.1", AUTOPILOT_PORT + instance)
-        self.now_ms = 0
-        self.heartbeat = None
-        self.armed = False
-        self.prearm_ok = False
-        self.pos = None  # LOCAL_POSITION_NED (x, y, z) m: the plant's truth with --estimator truth
-        self.vel = None
-        self.global_pos = None
-        self.landed_state = None
-        self.acks = {}
         self.on_position = None  # called with each LOCAL_POSITION_NED
 
-    def now_s(self):
-        return self.now_ms / 1000.0
-
-    def handle(self, msg):
-        kind = msg.get_type()
-        t = getattr(msg, "time_boot_ms", None)
-        if t is not None:
-            self.now_ms = max(self.now_ms, t)
-        if kind == "HEARTBEAT":
-            self.heartbeat = msg
-            self.armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
-        elif kind == "SYS_STATUS":
-            self.prearm_ok = bool(msg.onboard_control_sensors_health & PREARM_CHECK)
-        elif kind == "LOCAL_POSITION_NED":
-            self.pos, self.vel = (msg.x, msg.y, msg.z), (msg.vx, msg.vy, msg.vz)
-            if self.on_position is not None:
-                self.on_position(self)
-        elif kind == "GLOBAL_POSITION_INT":
-            self.global_pos = msg
-        elif kind == "EXTENDED_SYS_STATE":
-            self.landed_state = msg.landed_state
-        elif kind == "COMMAND_ACK":
-            self.acks[msg.command] = msg.result
-
-    def landed(self):
-        return self.landed_state == LANDED_ON_GROUND and not self.armed
+    def update(self, msg):
+        super().update(msg)
+        if msg.get_type() == "LOCAL_POSITION_NED" and self.on_position is not None:
+            self.on_position(self)
 
 
 class SwarmGcs:
@@ -126,7 +96,7 @@ class SwarmGcs:
             self.systems_seen.add(msg.get_srcSystem())
         member = self.by_id.get(msg.get_srcSystem())
         if member is not None:
-            member.handle(msg)
+            member.update(msg)
 
     def wait(self, wall_s, what, cond):
         """Pump until `cond()` holds; fail after `wall_s` wall seconds (a hang guard, not the judgement)."""
