@@ -13,7 +13,8 @@
 //! `MPC_Z_VEL_MAX_UP` / `MPC_ACC_UP_MAX` up and `MPC_Z_VEL_MAX_DN` / `MPC_ACC_DOWN_MAX` down,
 //! `MPC_TKO_SPEED` for takeoffs, `MPC_LAND_SPEED` for landings, `MPC_JERK_AUTO` for all (a slanted line
 //! gets the tightest of its horizontal and vertical limits). A new leg starts from the reference's motion,
-//! so the reference is continuous in position, velocity and acceleration across every mode change.
+//! so the reference is continuous in position, velocity and acceleration across every mode change,
+//! unless the reference has run away from the vehicle ([`Planner::start`]).
 //!
 //! - **Takeoff** ([`Task::Takeoff`]): a vertical leg from the ground to the target. The hold that follows
 //!   at the same point continues the same leg.
