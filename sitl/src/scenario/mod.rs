@@ -155,13 +155,14 @@ fn default_controllers() -> Vec<ControllerKind> {
     vec![ControllerKind::Aco, ControllerKind::Ca, ControllerKind::Pid]
 }
 
-/// The built-in scenarios, one per experiment of the paper (plus the turbulence variant).
+/// The built-in scenarios, one per experiment of the paper (plus the turbulence and fast figure-8 variants).
 pub const BUILT_INS: &[(&str, &str)] = &[
     ("paper-attitude", include_str!("../../scenarios/paper-attitude.toml")),
     ("paper-translation", include_str!("../../scenarios/paper-translation.toml")),
     ("gust-hover", include_str!("../../scenarios/gust-hover.toml")),
     ("turbulence-hover", include_str!("../../scenarios/turbulence-hover.toml")),
     ("figure8", include_str!("../../scenarios/figure8.toml")),
+    ("figure8-fast", include_str!("../../scenarios/figure8-fast.toml")),
 ];
 
 impl Scenario {

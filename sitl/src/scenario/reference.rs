@@ -54,6 +54,9 @@ pub enum ReferenceMode {
     FeedForward,
     /// Position of the prefiltered reference only (velocity and acceleration zero).
     PositionOnly,
+    /// Position, velocity, acceleration and jerk of the prefiltered reference: the jerk lets ACO and PID
+    /// lead their tilt (`control::tilt_lead_mps2`), as they do on the navigator's trajectories.
+    FeedForwardJerk,
 }
 
 impl std::fmt::Display for ReferenceMode {
@@ -61,6 +64,7 @@ impl std::fmt::Display for ReferenceMode {
         f.write_str(match self {
             Self::FeedForward => "feed-forward",
             Self::PositionOnly => "position-only",
+            Self::FeedForwardJerk => "feed-forward-jerk",
         })
     }
 }
@@ -295,6 +299,9 @@ pub struct TrackGen {
 /// same function of time at every loop rate.
 const PREFILTER_STEP_S: f64 = 1e-4;
 
+/// The arc-length step (m) of the path's third derivative in the jerk feed-forward.
+const JERK_ARC_STEP_M: f64 = 1e-3;
+
 impl TrackGen {
     #[must_use]
     pub fn new(spec: &TrackSpec, mode: ReferenceMode) -> Self {
@@ -326,6 +333,12 @@ impl TrackGen {
         ((t_s - self.spec.start_s) * self.spec.speed_mps).clamp(0.0, self.total_length_m())
     }
 
+    /// The rate of [`Self::raw_progress_m`] (m/s): the speed while it ramps, zero before and after.
+    fn raw_rate_mps(&self, t_s: f64) -> f64 {
+        let s = (t_s - self.spec.start_s) * self.spec.speed_mps;
+        if s > 0.0 && s < self.total_length_m() { self.spec.speed_mps } else { 0.0 }
+    }
+
     /// Progress along the path (m) of the prefiltered reference at `t_s`.
     pub fn progress_m(&mut self, t_s: f64) -> f64 {
         // Steps are counted, not summed as time, so every tick integrates exactly its share.
@@ -350,11 +363,23 @@ impl TrackGen {
         let (p, dp_ds, d2p_ds2) = self.path.eval(s);
         let d = self.spec.pos_d_m;
         let mut reference = Reference::position(Vector3::new(p.x, p.y, d), self.spec.yaw_rad);
-        if self.mode == ReferenceMode::FeedForward {
+        if matches!(self.mode, ReferenceMode::FeedForward | ReferenceMode::FeedForwardJerk) {
             let v = dp_ds * s_dot;
             let a = d2p_ds2 * s_dot.powi(2) + dp_ds * s_ddot;
             reference.vel_ned_mps = Vector3::new(v.x, v.y, 0.0);
             reference.acc_ned_mps2 = Vector3::new(a.x, a.y, 0.0);
+        }
+        if self.mode == ReferenceMode::FeedForwardJerk {
+            // Jerk = p3 v^3 + 3 p2 v a + p1 j_s, with p1..p3 the path's derivatives in arc length and v, a,
+            // j_s the progress's rate, acceleration and jerk. The prefilter's j_s = wn^2 (r' - v) - 2 wn a
+            // (r' the raw progress's rate); p3 is a central difference of the curvature vector over a
+            // millimetre of arc.
+            let wn = self.filter.wn_radps;
+            let s_dddot = wn * wn * (self.raw_rate_mps(self.filter_time_s()) - s_dot) - 2.0 * wn * s_ddot;
+            let from = (s - JERK_ARC_STEP_M / 2.0).max(0.0);
+            let d3p_ds3 = (self.path.eval(from + JERK_ARC_STEP_M).2 - self.path.eval(from).2) / JERK_ARC_STEP_M;
+            let j = d3p_ds3 * s_dot.powi(3) + d2p_ds2 * (3.0 * s_dot * s_ddot) + dp_ds * s_dddot;
+            reference.jerk_ned_mps3 = Vector3::new(j.x, j.y, 0.0);
         }
         reference
     }
@@ -402,6 +427,48 @@ mod tests {
         // After the end, the reference comes to rest back at the start of the closed track.
         let r = track.at(track.end_s() + 10.0);
         assert!(r.pos_ned_m.xy().norm() < 1e-3 && r.vel_ned_mps.norm() < 1e-3);
+    }
+
+    #[test]
+    fn given_the_jerk_mode_then_the_jerk_is_the_derivative_of_the_acceleration_and_the_rest_is_unchanged() {
+        let spec = TrackSpec {
+            waypoints_ne_m: figure8(),
+            path: PathKind::Spline,
+            pos_d_m: -1.5,
+            speed_mps: 0.9,
+            prefilter_wn_radps: 2.5,
+            start_s: 1.0,
+            laps: 1,
+            yaw_rad: 0.0,
+            reference_modes: vec![ReferenceMode::FeedForwardJerk],
+        };
+        let mut jerk = TrackGen::new(&spec, ReferenceMode::FeedForwardJerk);
+        let mut plain = TrackGen::new(&spec, ReferenceMode::FeedForward);
+        let dt = 0.002;
+        let mut prev = jerk.at(0.0);
+        plain.at(0.0);
+        let mut max_jerk: f64 = 0.0;
+        for k in 1..7_000 {
+            let t = f64::from(k) * dt;
+            let r = jerk.at(t);
+            let p = plain.at(t);
+            assert_eq!((r.pos_ned_m, r.vel_ned_mps, r.acc_ned_mps2), (p.pos_ned_m, p.vel_ned_mps, p.acc_ned_mps2));
+            assert_eq!(p.jerk_ned_mps3, Vector3::zeros());
+            // The difference of the acceleration over the tick lies between the jerks at its ends (the jerk
+            // steps where the spline's third derivative does, at the knots, and where the ramp starts).
+            let fd_j = (r.acc_ned_mps2 - prev.acc_ned_mps2) / dt;
+            let (a, b) = (prev.jerk_ned_mps3, r.jerk_ned_mps3);
+            let x = if (b - a).norm() > 0.0 {
+                ((fd_j - a).dot(&(b - a)) / (b - a).norm_squared()).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let off = (fd_j - (a + (b - a) * x)).norm();
+            assert!(off < 0.02 * (1.0 + b.norm()), "t {t}: fd {fd_j:?} ff {a:?} .. {b:?}");
+            max_jerk = max_jerk.max(r.jerk_ned_mps3.norm());
+            prev = r;
+        }
+        assert!(max_jerk > 1.0, "a 0.9 m/s figure-8 has jerk: {max_jerk}");
     }
 
     #[test]
