@@ -180,7 +180,7 @@ fn the_parameter_file_loads_in_the_autopilots_store_with_the_tuned_values() {
     let aco = &vehicle.control.aco;
     assert_eq!(
         [aco.kp_pos_per_s, aco.kv_vel_per_s, aco.k_rate_per_s[0], aco.k_rate_per_s[1]],
-        [values[0], values[0 + 1], values[2], values[2]]
+        [values[0], values[1], values[2], values[2]]
     );
     assert_eq!(aco.k_rate_per_s[2], 4.5, "yaw is not tuned");
     // The [controller] block describes the same controller.
@@ -284,4 +284,14 @@ fn a_bad_gain_file_is_refused_naming_what_is_wrong() {
     assert!(e.contains("lpf_rotation_hz"), "{e}");
     let ok = GainSet::from_toml("[controller.mrac]\nwn_att_radps = [6.0, 6.0, 2.5]\n", "ca.toml").unwrap();
     assert_eq!(ok.controller, ControllerKind::Ca);
+}
+
+#[test]
+fn the_example_specs_load_with_a_300_evaluation_budget() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tunes");
+    for (name, controller) in [("aco", ControllerKind::Aco), ("ca", ControllerKind::Ca), ("pid", ControllerKind::Pid)] {
+        let spec = Tune::load(&dir.join(format!("{name}.toml"))).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!((spec.controller, spec.budget), (controller, 300), "{name}");
+        assert!(!spec.guards.is_empty() && !spec.heldout.is_empty(), "{name}");
+    }
 }
