@@ -8,3 +8,4 @@ pub mod progress;
 pub mod scenario;
 pub mod sim_params;
 pub mod sweep;
+pub mod tune;

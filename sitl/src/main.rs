@@ -61,6 +61,29 @@ enum Command {
     /// Sweep a scenario over airframes, winds, seeds and controllers (a Monte Carlo or grid study):
     /// every run in-process in lockstep across all cores; one row per run, a robustness table, plots.
     Sweep(SweepArgs),
+    /// Tune one controller's gains (CMA-ES, a budget of evaluations, a seed) on a training cost with
+    /// guards, every evaluation's runs in parallel; write the gains as a [controller] block and a parameter
+    /// file, the trace, and a held-out report. With --evaluate: fly gain files on the spec's held-out set.
+    Tune(TuneArgs),
+}
+
+#[derive(Args)]
+struct TuneArgs {
+    /// The tuning spec (TOML; docs/tuning.md).
+    spec: PathBuf,
+    /// Instead of tuning, fly these gain sets on the spec's held-out set: gain files (a `[controller]`
+    /// block, e.g. a tuning's controller.toml) or `aco`, `ca`, `pid` for a controller's defaults.
+    #[arg(long, value_name = "GAINS", num_args = 1..)]
+    evaluate: Vec<String>,
+    /// Worker threads (default: one per core).
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
+    jobs: Option<u16>,
+    /// Output directory (default: out/tune-<name>, or out/tune-<name>-evaluate with --evaluate).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Print the held-out report as JSON instead of the table.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Args)]
@@ -327,6 +350,7 @@ fn main() -> ExitCode {
         Command::Run(args) => run(&args),
         Command::Bench(args) => bench::run(&args),
         Command::Sweep(args) => sweep(&args),
+        Command::Tune(args) => tune(&args),
     };
     autopilot::cli::exit("sitl", result)
 }
@@ -476,6 +500,78 @@ fn sweep(args: &SweepArgs) -> Result<()> {
     }
     let text = if args.json { json } else { summary.table() };
     match writeln!(std::io::stdout().lock(), "{text}") {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        result => Ok(result?),
+    }
+}
+
+/// A rayon pool of `--jobs` threads (default one per core).
+fn pool(jobs: Option<u16>) -> Result<(rayon::ThreadPool, usize)> {
+    let threads =
+        jobs.map_or_else(|| std::thread::available_parallelism().map_or(1, std::num::NonZero::get), usize::from);
+    Ok((rayon::ThreadPoolBuilder::new().num_threads(threads).build()?, threads))
+}
+
+fn tune(args: &TuneArgs) -> Result<()> {
+    use sitl::tune::{GainSet, Tune, output};
+    let spec = Tune::load(&args.spec)?;
+    let (pool, threads) = pool(args.jobs)?;
+    let suffix = if args.evaluate.is_empty() { "" } else { "-evaluate" };
+    let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(format!("tune-{}{suffix}", spec.name)));
+    let mut gain_sets = Vec::new();
+    if args.evaluate.is_empty() {
+        let mut progress = Progress::new("sitl tune", spec.budget as u64, "evaluations");
+        let start = std::time::Instant::now();
+        let outcome = spec.run(&pool, |n| progress.set(n as u64));
+        progress.finish();
+        let wall_s = start.elapsed().as_secs_f64();
+        let n = outcome.evaluations.len();
+        eprintln!(
+            "sitl: {n} evaluations in {wall_s:.1} s on {threads} thread{}: {:.1} evaluations/s",
+            if threads == 1 { "" } else { "s" },
+            n as f64 / wall_s
+        );
+        for path in output::write_tuning(&out, &spec, &outcome)? {
+            eprintln!("sitl: wrote {}", path.display());
+        }
+        print_stdout(&output::Summary::of(&spec, &outcome).text())?;
+        // The held-out set flies the file just written, so the report is of what a user takes away.
+        let file = out.join("controller.toml");
+        let text = std::fs::read_to_string(&file).with_context(|| format!("reading {}", file.display()))?;
+        gain_sets.push(GainSet::defaults(spec.controller));
+        gain_sets.push(GainSet::from_toml(&text, &format!("{} (tuned)", spec.controller))?);
+    } else {
+        for item in &args.evaluate {
+            match item.parse::<ControllerKind>() {
+                Ok(kind) if !Path::new(item).exists() => gain_sets.push(GainSet::defaults(kind)),
+                _ => {
+                    let text = std::fs::read_to_string(item).with_context(|| format!("reading gain file {item}"))?;
+                    gain_sets.push(GainSet::from_toml(&text, item)?);
+                }
+            }
+        }
+    }
+    if spec.heldout.is_empty() {
+        if !args.evaluate.is_empty() {
+            bail!("{}: no [[heldout]] set to evaluate on", args.spec.display());
+        }
+        return Ok(());
+    }
+    let results = spec.evaluate_heldout(&gain_sets, &pool);
+    for path in output::write_heldout(&out, &spec, &results)? {
+        eprintln!("sitl: wrote {}", path.display());
+    }
+    let text = if args.json {
+        serde_json::to_string_pretty(&results)?
+    } else {
+        format!("held out:\n{}", output::heldout_table(&results))
+    };
+    print_stdout(&text)
+}
+
+/// Prints to standard output; a closed pipe (`| head`) is not an error.
+fn print_stdout(text: &str) -> Result<()> {
+    match writeln!(std::io::stdout().lock(), "{}", text.trim_end()) {
         Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
         result => Ok(result?),
     }

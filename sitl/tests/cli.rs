@@ -223,3 +223,95 @@ fn a_run_says_what_it_restored_and_wipe_starts_clean() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A tiny tuning: two gains, 6 s scenarios, 8 evaluations.
+const TUNE_SPEC: &str = r#"
+name = "tiny"
+controller = "pid"
+budget = 8
+seed = 3
+[optimizer]
+population = 4
+[[gain]]
+name = "pid.kp_pos_per_s"
+bounds = [0.3, 2.0]
+scale = "log"
+[[gain]]
+name = "pid.k_att_per_s"
+axes = [0, 1]
+bounds = [1.0, 8.0]
+[[train]]
+scenario = "hover.toml"
+cost = { gust_peak_m = 1.0 }
+[[heldout]]
+scenario = "hover.toml"
+seeds = [5]
+limits = { gust_recovery_release_s = 3.0 }
+"#;
+
+const TUNE_HOVER: &str = r#"
+name = "hover"
+duration_s = 6.0
+plant = "mismatch"
+metrics = ["gust"]
+[initial]
+pos_ned_m = [0.0, 0.0, -1.5]
+[reference]
+kind = "position"
+steps = [{ t_s = 0.0, pos_ned_m = [0.0, 0.0, -1.5] }]
+[wind.gust]
+amplitude_mps = 3.0
+onset_s = 1.0
+rise_s = 0.5
+release_s = 2.5
+fall_s = 0.5
+"#;
+
+#[test]
+fn tune_writes_the_same_files_on_one_thread_and_two_and_evaluate_flies_them_held_out() {
+    let dir = temp_dir("tune");
+    std::fs::write(dir.join("tiny.toml"), TUNE_SPEC).unwrap();
+    std::fs::write(dir.join("hover.toml"), TUNE_HOVER).unwrap();
+    let spec = dir.join("tiny.toml");
+    let mut outputs = Vec::new();
+    for jobs in ["1", "2"] {
+        let out = dir.join(format!("out{jobs}"));
+        let o = sitl(&["tune", spec.to_str().unwrap(), "--jobs", jobs, "--out", out.to_str().unwrap()]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let stdout = String::from_utf8_lossy(&o.stdout);
+        assert!(stdout.contains("tiny (pid): 8 evaluations") && stdout.contains("held out:"), "{stdout}");
+        assert!(stdout.contains("pid (defaults) [pid]") && stdout.contains("pid (tuned) [pid]"), "{stdout}");
+        let files: Vec<Vec<u8>> = ["trace.csv", "controller.toml", "params.txt", "result.json", "heldout.json"]
+            .iter()
+            .map(|f| std::fs::read(out.join(f)).unwrap_or_else(|e| panic!("{f}: {e}")))
+            .collect();
+        outputs.push(files);
+    }
+    assert!(outputs[0] == outputs[1], "one thread and two wrote different files");
+    // The tuned gains fly held out from the file; `pid` is the defaults.
+    let gains = dir.join("out1").join("controller.toml");
+    let out = dir.join("evaluate");
+    let o = sitl(&[
+        "tune",
+        spec.to_str().unwrap(),
+        "--evaluate",
+        gains.to_str().unwrap(),
+        "pid",
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
+    assert_eq!(report.as_array().map(Vec::len), Some(2), "{report}");
+    assert_eq!(report[1]["gains"], "pid (defaults)");
+    assert!(report[0]["sets"][0]["metrics"]["gust_peak_m"].as_f64().is_some(), "{report}");
+    assert!(out.join("heldout.csv").exists());
+    // A bad spec fails before any run, naming the key.
+    std::fs::write(&spec, TUNE_SPEC.replace("pid.kp_pos_per_s", "pid.kp_position")).unwrap();
+    let o = sitl(&["tune", spec.to_str().unwrap(), "--out", dir.join("bad").to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("pid.kp_position"), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(!dir.join("bad").exists(), "nothing written");
+    let _ = std::fs::remove_dir_all(&dir);
+}

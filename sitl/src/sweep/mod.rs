@@ -99,7 +99,7 @@ impl Param {
         (Self::Seed, "seed"),
     ];
 
-    fn parse(name: &str) -> Result<Self, SweepError> {
+    pub(crate) fn parse(name: &str) -> Result<Self, SweepError> {
         Self::ALL.iter().find(|(_, n)| *n == name).map(|(p, _)| *p).ok_or_else(|| {
             let known: Vec<&str> = Self::ALL.iter().map(|(_, n)| *n).collect();
             SweepError::Invalid(format!("[vary] has unknown key `{name}` (known: {})", known.join(", ")))
@@ -113,7 +113,7 @@ impl Param {
     }
 
     /// Whole numbers only (a seed, a Beaufort force).
-    fn is_integer(self) -> bool {
+    pub(crate) fn is_integer(self) -> bool {
         matches!(self, Self::Beaufort | Self::Seed)
     }
 
@@ -431,23 +431,9 @@ impl Sweep {
             mode: self.mode,
             trace_hz: 1,
         };
-        let out = runner::run(&case.scenario, &opts).map_err(|source| SweepError::Case { case: case.index, source })?;
-        let airframe = runner::plant_config(&case.scenario, self.plant.as_deref())
-            .map_err(|source| SweepError::Case { case: case.index, source })?
-            .airframe;
-        let weight_n = airframe.mass_kg * airframe.gravity_mps2;
-        let thrust_to_weight = [PWM_MAX_US, PWM_MIN_US].map(|pwm_us| {
-            airframe.rotor_health.iter().map(|h| h * lift_from_pwm_n(pwm_us)).sum::<f64>() * airframe.thrust_scale
-                / weight_n
-        });
-        Ok(Row {
-            run,
-            case: case.index,
-            controller,
-            seed: case.seed,
-            params: case.values,
-            metrics: table::metric_values(&self.scenario, thrust_to_weight, &out.metrics),
-        })
+        let metrics =
+            run_metric_values(&case.scenario, &opts).map_err(|source| SweepError::Case { case: case.index, source })?;
+        Ok(Row { run, case: case.index, controller, seed: case.seed, params: case.values, metrics })
     }
 
     /// The metric column names of this sweep's rows.
@@ -457,8 +443,24 @@ impl Sweep {
     }
 }
 
+/// Runs `scenario` once with `opts` and returns the run's metrics in [`table::metric_columns`] order (the
+/// values of one sweep row; `sitl tune` scores its candidates on the same values).
+///
+/// # Errors
+/// A run that cannot start (a bad plant or rate).
+pub fn run_metric_values(scenario: &Scenario, opts: &RunOptions) -> Result<Vec<Option<f64>>, ScenarioError> {
+    let out = runner::run(scenario, opts)?;
+    let airframe = runner::plant_config(scenario, opts.plant.as_deref())?.airframe;
+    let weight_n = airframe.mass_kg * airframe.gravity_mps2;
+    let thrust_to_weight = [PWM_MAX_US, PWM_MIN_US].map(|pwm_us| {
+        airframe.rotor_health.iter().map(|h| h * lift_from_pwm_n(pwm_us)).sum::<f64>() * airframe.thrust_scale
+            / weight_n
+    });
+    Ok(table::metric_values(scenario, thrust_to_weight, &out.metrics))
+}
+
 /// A scenario named in a spec: a built-in, or a file relative to the spec's directory.
-fn load_scenario(name: &str, spec_dir: &Path) -> Result<Scenario, ScenarioError> {
+pub(crate) fn load_scenario(name: &str, spec_dir: &Path) -> Result<Scenario, ScenarioError> {
     if crate::scenario::BUILT_INS.iter().any(|(n, _)| *n == name) {
         return Scenario::load(name);
     }
@@ -467,7 +469,7 @@ fn load_scenario(name: &str, spec_dir: &Path) -> Result<Scenario, ScenarioError>
 }
 
 /// Sets one varied value on a scenario.
-fn apply(scenario: &mut Scenario, param: Param, v: f64, plant: Option<&str>) -> Result<(), ScenarioError> {
+pub(crate) fn apply(scenario: &mut Scenario, param: Param, v: f64, plant: Option<&str>) -> Result<(), ScenarioError> {
     if param == Param::StateNoiseScale {
         scenario.state_noise_scale = v;
         return Ok(());

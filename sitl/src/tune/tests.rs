@@ -1,0 +1,297 @@
+//! Tests of tuning specs, guards, reproducibility and the files a tuning writes.
+
+use std::path::PathBuf;
+
+use autopilot::core::config::VehicleConfig;
+use autopilot::core::params::ParamStore;
+
+use super::*;
+
+/// A 6 s hover with a 1 s gust and a 6 s step of 1 m north: short enough that a tuning of a few
+/// evaluations takes well under a second.
+const SHORT_GUST: &str = r#"
+name = "short-gust"
+duration_s = 6.0
+plant = "mismatch"
+state_noise = "paper"
+metrics = ["gust"]
+[initial]
+pos_ned_m = [0.0, 0.0, -1.5]
+[reference]
+kind = "position"
+steps = [{ t_s = 0.0, pos_ned_m = [0.0, 0.0, -1.5] }]
+[wind.gust]
+amplitude_mps = 4.0
+onset_s = 1.0
+rise_s = 0.5
+release_s = 2.5
+fall_s = 0.5
+"#;
+
+const SHORT_STEP: &str = r#"
+name = "short-step"
+duration_s = 6.0
+plant = "nominal"
+metrics = ["steps"]
+[initial]
+pos_ned_m = [0.0, 0.0, -1.5]
+[reference]
+kind = "position"
+steps = [{ t_s = 0.0, pos_ned_m = [1.0, 0.0, -1.5] }]
+"#;
+
+const SPEC: &str = r#"
+name = "t"
+controller = "aco"
+budget = 10
+seed = 7
+[optimizer]
+population = 4
+[[gain]]
+name = "aco.kp_pos_per_s"
+bounds = [0.2, 3.0]
+scale = "log"
+[[gain]]
+name = "aco.kv_vel_per_s"
+bounds = [0.5, 8.0]
+scale = "log"
+[[train]]
+scenario = "short-gust.toml"
+seeds = [1, 2]
+cost = { gust_peak_m = 10.0, gust_recovery_release_s = 1.0 }
+[[guard]]
+scenario = "short-step.toml"
+limits = { max_overshoot_pct = 15.0 }
+[[heldout]]
+name = "short-gust-west"
+scenario = "short-gust.toml"
+set = { gust_azimuth_deg = 270.0 }
+seeds = [3]
+report = ["gust_peak_m"]
+[[heldout]]
+scenario = "short-step.toml"
+limits = { max_overshoot_pct = 15.0 }
+"#;
+
+/// A fresh directory holding the two short scenarios.
+fn scenario_dir(test: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("sitl-tune-{test}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("short-gust.toml"), SHORT_GUST).unwrap();
+    std::fs::write(dir.join("short-step.toml"), SHORT_STEP).unwrap();
+    dir
+}
+
+fn tune(text: &str, dir: &Path) -> Result<Tune, TuneError> {
+    Tune::from_toml(text, dir, "spec")
+}
+
+fn pool(threads: usize) -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap()
+}
+
+/// Every file of `dir`, by name.
+fn files(dir: &Path) -> BTreeMap<String, Vec<u8>> {
+    let mut out = BTreeMap::new();
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let entry = entry.unwrap();
+        out.insert(entry.file_name().to_string_lossy().into_owned(), std::fs::read(entry.path()).unwrap());
+    }
+    out
+}
+
+#[test]
+fn the_same_spec_and_seed_write_the_same_files_byte_for_byte_on_one_thread_or_two() {
+    let dir = scenario_dir("repro");
+    let spec = tune(SPEC, &dir).unwrap();
+    let write = |threads: usize, name: &str| {
+        let out = dir.join(name);
+        let outcome = spec.run(&pool(threads), |_| {});
+        output::write_tuning(&out, &spec, &outcome).unwrap();
+        let text = std::fs::read_to_string(out.join("controller.toml")).unwrap();
+        let sets = [GainSet::defaults(spec.controller), GainSet::from_toml(&text, "tuned").unwrap()];
+        output::write_heldout(&out, &spec, &spec.evaluate_heldout(&sets, &pool(threads))).unwrap();
+        (outcome, files(&out))
+    };
+    let (outcome, one) = write(1, "one");
+    let (_, two) = write(2, "two");
+    assert_eq!(
+        one.keys().collect::<Vec<_>>(),
+        ["controller.toml", "heldout.csv", "heldout.json", "heldout.txt", "params.txt", "result.json", "trace.csv"]
+    );
+    for (name, bytes) in &one {
+        assert!(bytes == &two[name], "{name} differs between one and two threads");
+    }
+    // The budget is spent exactly; the start is evaluation 0 and the result is no worse than it.
+    assert_eq!(outcome.evaluations.len(), 10);
+    let trace = String::from_utf8(one["trace.csv"].clone()).unwrap();
+    assert_eq!(trace.lines().count(), 11, "{trace}");
+    assert!(trace.starts_with("evaluation,generation,aco.kp_pos_per_s,aco.kv_vel_per_s,cost,"), "{trace}");
+    assert_eq!(outcome.start().gains, [0.6667, 2.16]);
+    assert!(outcome.start().verdict.safe(), "{:?}", outcome.start().verdict);
+    assert!(outcome.result().verdict.safe());
+    assert!(outcome.result().verdict.cost <= outcome.start().verdict.cost);
+    // Another seed searches elsewhere.
+    let other = tune(&SPEC.replace("seed = 7", "seed = 8"), &dir).unwrap().run(&pool(2), |_| {});
+    assert_ne!(other.evaluations[1].gains, outcome.evaluations[1].gains);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_guard_rejects_a_candidate_with_a_known_bad_gain() {
+    let dir = scenario_dir("guard");
+    let spec = tune(SPEC, &dir).unwrap();
+    // Kp 3 /s over Kv 0.5 /s: the position loop's damping is sqrt(Kv / Kp) / 2 = 0.2, far past 15 %.
+    let verdicts = spec.evaluate(&[spec.start(), vec![3.0, 0.5]], &pool(2));
+    assert!(verdicts[0].safe(), "{:?}", verdicts[0]);
+    assert_eq!(verdicts[0].penalised, verdicts[0].cost);
+    let bad = &verdicts[1];
+    assert!(!bad.safe());
+    assert!(bad.violations.iter().any(|v| v.contains("short-step") && v.contains("max_overshoot_pct")), "{bad:?}");
+    assert!(bad.penalised >= UNSAFE_COST, "{bad:?}");
+    // The held-out report says the same of a gain file with that gain.
+    let file = "[controller.aco]\nkp_pos_per_s = 3.0\nkv_vel_per_s = 0.5\n";
+    let sets = [GainSet::defaults(ControllerKind::Aco), GainSet::from_toml(file, "bad.toml").unwrap()];
+    let report = spec.evaluate_heldout(&sets, &pool(2));
+    assert!(report[0].safe, "{:?}", report[0]);
+    assert!(!report[1].safe);
+    assert!(report[1].violations.iter().any(|v| v.contains("max_overshoot_pct")), "{:?}", report[1]);
+    let over = report[1].sets[1].metrics["max_overshoot_pct"].unwrap();
+    assert!(over > 15.0, "{over}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn the_parameter_file_loads_in_the_autopilots_store_with_the_tuned_values() {
+    let dir = scenario_dir("params");
+    let text = SPEC.replace(
+        "[[train]]",
+        "[[gain]]\nname = \"aco.k_rate_per_s\"\naxes = [0, 1]\nbounds = [2.0, 40.0]\nscale = \"log\"\n[[train]]",
+    );
+    let spec = tune(&text, &dir).unwrap();
+    assert_eq!(spec.gains[2].params, ["ACO_ROLLRATE_P", "ACO_PITCHRATE_P"]);
+    let values: Vec<f64> = spec.gains.iter().map(|g| g.value_at(0.3)).collect();
+    let file = spec.param_file(&values, "a header").unwrap();
+    let (store, warnings) = ParamStore::from_text(&file, ParamStore::defaults()).unwrap();
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let mut vehicle = VehicleConfig::default();
+    store.apply(&mut vehicle);
+    let aco = &vehicle.control.aco;
+    assert_eq!(
+        [aco.kp_pos_per_s, aco.kv_vel_per_s, aco.k_rate_per_s[0], aco.k_rate_per_s[1]],
+        [values[0], values[1], values[2], values[2]]
+    );
+    assert_eq!(aco.k_rate_per_s[2], 4.5, "yaw is not tuned");
+    // The [controller] block describes the same controller.
+    let block = GainSet::from_toml(&spec.controller_block(&values).unwrap(), "block").unwrap();
+    let scenario = &spec.train[0].scenario;
+    assert_eq!(block.config(scenario, spec.rates).unwrap().aco, vehicle.control.aco);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_gain_no_parameter_carries_is_named_in_the_parameter_file() {
+    let dir = scenario_dir("mrac");
+    let text = SPEC
+        .replace("controller = \"aco\"", "controller = \"ca\"")
+        .replace("aco.kp_pos_per_s", "mrac.wn_pos_radps")
+        .replace("bounds = [0.2, 3.0]", "bounds = [0.4, 4.0]")
+        .replace(
+            "name = \"aco.kv_vel_per_s\"\nbounds = [0.5, 8.0]",
+            "name = \"mrac.gamma_k_att\"\nbounds = [50.0, 5000.0]",
+        );
+    let spec = tune(&text, &dir).unwrap();
+    assert!(spec.gains[0].params.is_empty());
+    assert_eq!(spec.gains[1].params, ["MRAC_GAM_K_ATT"]);
+    let file = spec.param_file(&[2.0, 400.0], "h").unwrap();
+    assert!(file.contains("No parameter carries mrac.wn_pos_radps"), "{file}");
+    assert!(file.contains("MRAC_GAM_K_ATT\t400"), "{file}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_bad_spec_is_refused_at_load_naming_what_is_wrong() {
+    let dir = scenario_dir("bad");
+    let error = |text: &str| match tune(text, &dir) {
+        Ok(_) => panic!("accepted:\n{text}"),
+        Err(e) => e.to_string(),
+    };
+    let cases = [
+        (SPEC.replace("seed = 7", "seed = 7\nbogus = 1"), vec!["bogus"]),
+        (SPEC.replace("scale = \"log\"\n[[gain]]", "scale = \"log\"\nbound = 1\n[[gain]]"), vec!["bound"]),
+        (SPEC.replace("seeds = [1, 2]", "seeds = [1, 2]\ncosts = 1"), vec!["costs"]),
+        (SPEC.replace("population = 4", "population = 4\nkind2 = 1"), vec!["kind2"]),
+        (SPEC.replace("aco.kp_pos_per_s", "aco.kp_pos"), vec!["aco.kp_pos", "kp_pos_per_s"]),
+        (SPEC.replace("aco.kp_pos_per_s", "pid.kp_pos_per_s"), vec!["pid.kp_pos_per_s", "aco."]),
+        (SPEC.replace("bounds = [0.2, 3.0]", "bounds = [1.0, 3.0]"), vec!["aco.kp_pos_per_s", "0.6667", "outside"]),
+        (SPEC.replace("bounds = [0.2, 3.0]", "bounds = [0.2, 9.0]"), vec!["aco.kp_pos_per_s", "ACO_POS_P"]),
+        (SPEC.replace("bounds = [0.2, 3.0]", "bounds = [3.0, 0.2]"), vec!["aco.kp_pos_per_s", "ascending"]),
+        (
+            SPEC.replace("bounds = [0.2, 3.0]\nscale = \"log\"", "bounds = [0.0, 3.0]\nscale = \"log\""),
+            vec!["aco.kp_pos_per_s", "log"],
+        ),
+        (SPEC.replace("aco.kp_pos_per_s", "aco.k_att_per_s"), vec!["aco.k_att_per_s", "axes"]),
+        (SPEC.replace("name = \"aco.kp_pos_per_s\"", "name = \"aco.k_att_per_s\"\naxes = [3]"), vec!["axis 3"]),
+        (
+            SPEC.replace(
+                "name = \"aco.kv_vel_per_s\"\nbounds = [0.5, 8.0]",
+                "name = \"aco.kp_pos_per_s\"\nbounds = [0.5, 3.0]",
+            ),
+            vec!["twice"],
+        ),
+        (SPEC.replace("gust_peak_m = 10.0", "gust_pek_m = 10.0"), vec!["gust_pek_m", "gust_peak_m"]),
+        (
+            SPEC.replace("max_overshoot_pct = 15.0 }\n[[heldout]]", "overshoot = 15.0 }\n[[heldout]]"),
+            vec!["guard[0]", "overshoot"],
+        ),
+        (SPEC.replace("gust_azimuth_deg = 270.0", "gust_heading_deg = 270.0"), vec!["heldout[0]", "gust_heading_deg"]),
+        (
+            SPEC.replace(
+                "scenario = \"short-step.toml\"\nlimits",
+                "scenario = \"short-step.toml\"\nspeed_mps = 1.0\nlimits",
+            ),
+            vec!["guard[0]", "speed_mps"],
+        ),
+        (SPEC.replace("budget = 10", "budget = 0"), vec!["budget"]),
+        (SPEC.replace("population = 4", "sigma0 = 0.0"), vec!["sigma0"]),
+        (SPEC.replace("population = 4", "kind = \"nelder-mead\""), vec!["nelder-mead"]),
+        (SPEC.replace("seeds = [1, 2]", "seeds = []"), vec!["train[0]", "seeds"]),
+        (SPEC.replace("seeds = [1, 2]", "plants = [\"heavy\"]"), vec!["train[0]", "heavy"]),
+        (SPEC.replace("short-gust.toml\"\nseeds", "no-such.toml\"\nseeds"), vec!["train[0]", "no-such.toml"]),
+        (SPEC.replace("cost = { gust_peak_m = 10.0, gust_recovery_release_s = 1.0 }", ""), vec!["train[0]", "cost"]),
+        (SPEC.replace("gust_peak_m = 10.0", "gust_peak_m = -1.0"), vec!["gust_peak_m", "weight"]),
+    ];
+    for (text, needles) in &cases {
+        let e = error(text);
+        for needle in needles {
+            assert!(e.contains(needle), "`{needle}` not in: {e}");
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_bad_gain_file_is_refused_naming_what_is_wrong() {
+    let error = |text: &str| GainSet::from_toml(text, "g.toml").unwrap_err().to_string();
+    let e = error("[controller.aco]\nkp_pos_per_s = 1.0\nkp_typo = 2.0\n");
+    assert!(e.contains("g.toml") && e.contains("controller.aco.kp_typo"), "{e}");
+    let e = error("[controller.aco]\nkp_pos_per_s = 1.0\n[controller.pid]\nkp_pos_per_s = 1.0\n");
+    assert!(e.contains("exactly one"), "{e}");
+    let e = error("[gains]\nkp = 1\n");
+    assert!(e.contains("gains"), "{e}");
+    let e = error("[controller.aco]\nlpf_rotation_hz = 400.0\n");
+    assert!(e.contains("lpf_rotation_hz"), "{e}");
+    let ok = GainSet::from_toml("[controller.mrac]\nwn_att_radps = [6.0, 6.0, 2.5]\n", "ca.toml").unwrap();
+    assert_eq!(ok.controller, ControllerKind::Ca);
+}
+
+#[test]
+fn the_example_specs_load_with_a_300_evaluation_budget() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tunes");
+    for (name, controller) in [("aco", ControllerKind::Aco), ("ca", ControllerKind::Ca), ("pid", ControllerKind::Pid)] {
+        let spec = Tune::load(&dir.join(format!("{name}.toml"))).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!((spec.controller, spec.budget), (controller, 300), "{name}");
+        assert!(!spec.guards.is_empty() && !spec.heldout.is_empty(), "{name}");
+    }
+}
