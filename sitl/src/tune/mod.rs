@@ -87,6 +87,9 @@ struct RunFile {
     speed_mps: Option<f64>,
     #[serde(default)]
     duration_s: Option<f64>,
+    /// A track's reference mode, over the first of its scenario's `reference_modes`.
+    #[serde(default)]
+    mode: Option<ReferenceMode>,
     #[serde(default)]
     set: BTreeMap<String, f64>,
     #[serde(default)]
@@ -720,6 +723,12 @@ fn parse_run_set(r: &RunFile, dir: &Path, key: &str, rates: LoopRates) -> Result
             _ => return invalid(format!("{key}: speed_mps needs a track scenario")),
         }
     }
+    // Any of a track's modes, whether or not its scenario lists it (`figure8` flies with the jerk too).
+    let mode = match r.mode {
+        None => scenario.reference_modes()[0],
+        Some(m) if matches!(scenario.reference, ReferenceSpec::Track(_)) => m,
+        Some(_) => return invalid(format!("{key}: mode needs a track scenario")),
+    };
     if let Some(d) = r.duration_s {
         if !(d.is_finite() && d > 0.0 && d <= 3600.0) {
             return invalid(format!("{key}: duration_s = {d} must be in (0, 3600]"));
@@ -799,17 +808,7 @@ fn parse_run_set(r: &RunFile, dir: &Path, key: &str, rates: LoopRates) -> Result
     } else {
         r.report.iter().map(|m| column(m, "report")).collect::<Result<_, _>>()?
     };
-    Ok(RunSet {
-        name,
-        mode: scenario.reference_modes()[0],
-        scenario,
-        plants,
-        seeds: r.seeds.clone(),
-        columns,
-        cost,
-        limits,
-        report,
-    })
+    Ok(RunSet { name, mode, scenario, plants, seeds: r.seeds.clone(), columns, cost, limits, report })
 }
 
 /// One set of gains to fly: the controller and its configuration overrides (a JSON tree merged over each

@@ -253,6 +253,20 @@ fn a_bad_spec_is_refused_at_load_naming_what_is_wrong() {
             ),
             vec!["guard[0]", "speed_mps"],
         ),
+        (
+            SPEC.replace(
+                "scenario = \"short-step.toml\"\nlimits",
+                "scenario = \"short-step.toml\"\nmode = \"feed-forward-jerk\"\nlimits",
+            ),
+            vec!["guard[0]", "mode needs a track"],
+        ),
+        (
+            SPEC.replace(
+                "scenario = \"short-step.toml\"\nlimits",
+                "scenario = \"short-step.toml\"\nmode = \"jerky\"\nlimits",
+            ),
+            vec!["jerky"],
+        ),
         (SPEC.replace("budget = 10", "budget = 0"), vec!["budget"]),
         (SPEC.replace("population = 4", "sigma0 = 0.0"), vec!["sigma0"]),
         (SPEC.replace("population = 4", "kind = \"nelder-mead\""), vec!["nelder-mead"]),
