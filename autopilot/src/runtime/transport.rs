@@ -31,18 +31,23 @@ pub const UDP_SPIN: Duration = Duration::from_micros(50);
 /// real-time plant step, so one slow round trip in lockstep does not leave both ends blocking for good.
 pub const UDP_SPIN_REARM: Duration = Duration::from_micros(500);
 
-/// Receives on a non-blocking UDP socket: polls for up to [`UDP_SPIN`], then blocks for up to the
-/// socket's read timeout (switching it to blocking for that wait only). It polls only while datagrams
-/// come quickly: after a wait longer than [`UDP_SPIN_REARM`] (real-time pacing, a datagram every 2 ms)
-/// it blocks at once, until a wait is short again, so a paced SITL does not burn a core polling.
+/// Receives on a UDP socket opened non-blocking: polls for up to [`UDP_SPIN`], then blocks for up to the
+/// socket's read timeout. It polls only while datagrams come quickly: after a wait longer than
+/// [`UDP_SPIN_REARM`] (real-time pacing, a datagram every 2 ms) it blocks at once, until a wait is short
+/// again, so a paced SITL does not burn a core polling. The socket's mode changes only when the receiver
+/// switches between polling and blocking, not around every wait: paced, a receive is one blocking call
+/// rather than a failed poll and two mode changes besides (of a paced autopilot's five system calls per
+/// step, three).
 #[derive(Debug, Clone, Copy)]
 pub struct SpinReceiver {
     spin: bool,
+    /// Whether this receiver last left the socket blocking.
+    blocking: bool,
 }
 
 impl Default for SpinReceiver {
     fn default() -> Self {
-        Self { spin: true }
+        Self { spin: true, blocking: false }
     }
 }
 
@@ -57,26 +62,36 @@ impl SpinReceiver {
         mut op: impl FnMut(&UdpSocket) -> io::Result<T>,
     ) -> io::Result<Option<T>> {
         let start = std::time::Instant::now();
-        loop {
-            match op(socket) {
-                Ok(v) => return Ok(Some(v)),
-                Err(e) if is_transient(&e) => {}
-                Err(e) => return Err(e),
+        if self.spin {
+            self.set_blocking(socket, false)?;
+            loop {
+                match op(socket) {
+                    Ok(v) => return Ok(Some(v)),
+                    Err(e) if is_transient(&e) => {}
+                    Err(e) => return Err(e),
+                }
+                if start.elapsed() >= UDP_SPIN {
+                    break;
+                }
+                std::hint::spin_loop();
             }
-            if !self.spin || start.elapsed() >= UDP_SPIN {
-                break;
-            }
-            std::hint::spin_loop();
         }
-        socket.set_nonblocking(false)?;
+        self.set_blocking(socket, true)?;
         let result = op(socket);
-        socket.set_nonblocking(true)?;
         self.spin = start.elapsed() < UDP_SPIN_REARM;
         match result {
             Ok(v) => Ok(Some(v)),
             Err(e) if is_transient(&e) => Ok(None),
             Err(e) => Err(e),
         }
+    }
+
+    fn set_blocking(&mut self, socket: &UdpSocket, blocking: bool) -> io::Result<()> {
+        if self.blocking != blocking {
+            socket.set_nonblocking(!blocking)?;
+            self.blocking = blocking;
+        }
+        Ok(())
     }
 }
 
