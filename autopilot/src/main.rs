@@ -23,7 +23,7 @@ enum Estimator {
 #[derive(Parser)]
 #[command(name = "autopilot", version, about = "ACO quadrotor autopilot (MAVLink, HIL plant protocol)")]
 struct Cli {
-    /// Configuration file (TOML: [plant], [gcs], [log], [vehicle]).
+    /// Configuration file (TOML: [plant], [gcs], [log], [state], [vehicle]).
     #[arg(long)]
     config: Option<PathBuf>,
     /// Plant link: `udp://HOST:PORT` (default udp://127.0.0.1:4560+N) or `serial:DEVICE:BAUD`.

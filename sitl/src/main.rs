@@ -191,7 +191,7 @@ struct BenchArgs {
 /// The plant options `sitl run` and `sitl serve` share.
 #[derive(Args)]
 struct PlantArgs {
-    /// Plant configuration file (TOML: [airframe], [wind], [sensors], [ground], integrator_step_s);
+    /// Plant configuration file (TOML: [airframe], [wind], [sensors], [ground], [battery], integrator_step_s);
     /// default: the nominal plant with modest sensor noise.
     #[arg(long)]
     config: Option<PathBuf>,
