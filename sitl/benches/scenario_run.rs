@@ -7,12 +7,12 @@
 
 use std::hint::black_box;
 
-use autopilot::core::control::{ControlInput, ControllerKind, LoopRates, Reference, new_controller};
+use autopilot::core::control::{ControllerKind, LoopRates, Reference, new_controller};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use nalgebra::Vector3;
 use sitl::plant::sensors::StateNoise;
 use sitl::plant::{InitialState, Plant};
-use sitl::scenario::runner::{RunOptions, plant_config, run};
+use sitl::scenario::runner::{RunOptions, control_input, plant_config, run};
 use sitl::scenario::{BUILT_INS, Scenario};
 
 fn scenario_run(c: &mut Criterion) {
@@ -51,14 +51,7 @@ fn tick_floor(c: &mut Criterion) {
             b.iter(|| {
                 let truth = plant.truth();
                 let state = plant.sample_state_of(&truth, &noise);
-                let input = ControlInput {
-                    pos_ned_m: state.pos_ned_m,
-                    vel_ned_mps: state.vel_ned_mps,
-                    euler_rad: state.euler_rad,
-                    rate_frd_radps: state.rate_frd_radps,
-                    specific_force_frd_mps2: state.specific_force_frd_mps2,
-                };
-                let pwm_us = controller.update(&input, black_box(&reference));
+                let pwm_us = controller.update(&control_input(&state), black_box(&reference));
                 plant.step(pwm_us, dt_us);
             });
         });

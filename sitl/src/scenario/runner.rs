@@ -16,6 +16,7 @@ use serde::Serialize;
 use super::metrics::{self, GustMetrics, SegmentMetrics, StepSegment, TrackMetrics};
 use super::reference::{ReferenceGen, ReferenceMode, ReferenceSpec, TrackGen};
 use super::{MetricKind, OverrideValue, Scenario, ScenarioError};
+use crate::plant::sensors::NoisyState;
 use crate::plant::{AirframeConfig, GroundConfig, InitialState, Plant, PlantConfig};
 
 /// What varies between runs of one scenario.
@@ -169,6 +170,18 @@ pub fn plant_config(scenario: &Scenario, preset: Option<&str>) -> Result<PlantCo
     Ok(PlantConfig { airframe, wind: scenario.wind.clone(), ground, ..PlantConfig::default() })
 }
 
+/// What the controller sees of the paper's truth-fed (optionally noisy) state.
+#[must_use]
+pub fn control_input(state: &NoisyState) -> ControlInput {
+    ControlInput {
+        pos_ned_m: state.pos_ned_m,
+        vel_ned_mps: state.vel_ned_mps,
+        euler_rad: state.euler_rad,
+        rate_frd_radps: state.rate_frd_radps,
+        specific_force_frd_mps2: state.specific_force_frd_mps2,
+    }
+}
+
 /// Runs one scenario with one controller on one plant, in lockstep.
 ///
 /// # Errors
@@ -227,14 +240,7 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
         let r = reference.at(t_s);
         let truth = plant.truth();
         let state = plant.sample_state_of(&truth, &noise);
-        let input = ControlInput {
-            pos_ned_m: state.pos_ned_m,
-            vel_ned_mps: state.vel_ned_mps,
-            euler_rad: state.euler_rad,
-            rate_frd_radps: state.rate_frd_radps,
-            specific_force_frd_mps2: state.specific_force_frd_mps2,
-        };
-        let pwm_us = controller.update(&input, &r);
+        let pwm_us = controller.update(&control_input(&state), &r);
         non_finite |= pwm_us.iter().any(|p| !p.is_finite())
             || !(truth
                 .pos_ned_m
