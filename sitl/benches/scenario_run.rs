@@ -12,7 +12,7 @@ use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use nalgebra::Vector3;
 use sitl::plant::sensors::StateNoise;
 use sitl::plant::{InitialState, Plant};
-use sitl::scenario::runner::{RunOptions, control_input, plant_config, run};
+use sitl::scenario::runner::{RunOptions, control_input, lockstep_plant_config, run};
 use sitl::scenario::{BUILT_INS, Scenario};
 
 fn scenario_run(c: &mut Criterion) {
@@ -21,11 +21,11 @@ fn scenario_run(c: &mut Criterion) {
     group.sample_size(20);
     for (name, _) in BUILT_INS {
         let scenario = Scenario::load(name).expect("built-in scenarios load");
-        for mode in scenario.reference_modes() {
+        let modes = scenario.reference_modes();
+        group.throughput(Throughput::Elements((scenario.duration_s * 1000.0).round() as u64));
+        for &mode in &modes {
             let opts = RunOptions { mode, ..RunOptions::new(ControllerKind::Aco) };
-            let sim_ms = (scenario.duration_s * 1000.0).round() as u64;
-            group.throughput(Throughput::Elements(sim_ms));
-            let id = if scenario.reference_modes().len() > 1 { format!("{name}/{mode}") } else { (*name).to_owned() };
+            let id = if modes.len() > 1 { format!("{name}/{mode}") } else { (*name).to_owned() };
             group.bench_function(id, |b| b.iter(|| black_box(run(black_box(&scenario), &opts).expect("runs"))));
         }
     }
@@ -40,8 +40,7 @@ fn tick_floor(c: &mut Criterion) {
     // One tick is 1000 / inner_hz simulated milliseconds (2 at 500 Hz).
     group.throughput(Throughput::Elements(u64::from(1000 / rates.inner_hz)));
     for (name, noise) in [("noise-free", StateNoise::none()), ("paper-noise", StateNoise::paper())] {
-        let mut config = plant_config(&scenario, None).expect("the gust-hover plant builds");
-        config.battery.enabled = false;
+        let config = lockstep_plant_config(&scenario, None).expect("the gust-hover plant builds");
         let hover = Vector3::new(0.0, 0.0, -1.5);
         let initial = InitialState { pos_ned_m: hover, ..InitialState::default() };
         let mut plant = Plant::new(config, &initial, 1).expect("the plant builds");

@@ -170,6 +170,18 @@ pub fn plant_config(scenario: &Scenario, preset: Option<&str>) -> Result<PlantCo
     Ok(PlantConfig { airframe, wind: scenario.wind.clone(), ground, ..PlantConfig::default() })
 }
 
+/// [`plant_config`] as the in-process runner flies it: without a battery. No metric or trace reads the
+/// pack, and the lift does not depend on it, so draining one every tick would only cost time. (A
+/// two-process run keeps it: the autopilot monitors it.)
+///
+/// # Errors
+/// As [`plant_config`].
+pub fn lockstep_plant_config(scenario: &Scenario, preset: Option<&str>) -> Result<PlantConfig, ScenarioError> {
+    let mut config = plant_config(scenario, preset)?;
+    config.battery.enabled = false;
+    Ok(config)
+}
+
 /// What the controller sees of the paper's truth-fed (optionally noisy) state.
 #[must_use]
 pub fn control_input(state: &NoisyState) -> ControlInput {
@@ -200,10 +212,7 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
     controller_config.rates.validate().map_err(|e| ScenarioError::Controller(e.to_string()))?;
     let mut controller = new_controller(opts.controller, &controller_config);
 
-    let mut config = plant_config(scenario, opts.plant.as_deref())?;
-    // No metric or trace reads the pack, and the lift does not depend on it: draining one every tick
-    // would only cost time. (A two-process run keeps it: the autopilot monitors it.)
-    config.battery.enabled = false;
+    let config = lockstep_plant_config(scenario, opts.plant.as_deref())?;
     let plant_name = scenario.plant_label(opts.plant.as_deref());
     let init = &scenario.initial;
     let initial = InitialState {
