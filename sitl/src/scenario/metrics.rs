@@ -1,5 +1,5 @@
-//! Scenario metrics over recorded truth: step response (overshoot, 2 % settling, steady-state error, RMS),
-//! gust recovery and cross-track error.
+//! Scenario metrics over recorded truth: step response (overshoot, 2 % settling, steady-state error, RMS,
+//! IAE, ITAE), gust recovery and its integrals, cross-track error, and the control effort of every run.
 //!
 //! In: sample times (s) and truth series (m, rad). Out: serialisable metric records. Definitions, checked
 //! against the reference prototype's golden traces (they reproduce its table to its printed precision):
@@ -8,6 +8,17 @@
 //! - sse: largest |error| over the last 0.5 s of the segment;
 //! - rms: root mean square of the error against the active setpoint;
 //! - gust recovery: time from onset (or release) until the horizontal error stays below 0.10 m.
+//!
+//! Banded times (settling, recovery) jump when an error grazes the band: a run that peaks at 0.099 m
+//! recovers in 0 s, one at 0.101 m in a second or more. So every run also has continuous metrics:
+//! - IAE = ∫ |e| dt and ITAE = ∫ (t - t0) |e| dt over each step segment, over the gust's onset window
+//!   `[onset, release)` and its release window `[release, end]`, and of the cross-track error over a track;
+//! - the time the horizontal error spends within 0.05, 0.10 and 0.20 m from the gust's onset to the end;
+//! - control effort ([`EffortMetrics`]): ∫ mean over rotors of (PWM - the plant's hover PWM)² dt, the mean
+//!   |PWM rate| and the time any rotor sits at a PWM limit.
+//!
+//! Integrals are left Riemann sums over the samples (one per control tick): sample k weighs the time to
+//! sample k + 1, the last one the period before it.
 //!
 //! The fixed windows (the sse window, the gust's steady-error window, and the whole run for the gust peak
 //! and RMS) are a scenario's defaults; its `[metric_windows]` table ([`MetricWindows`]) may set others.
@@ -90,7 +101,14 @@ pub struct SegmentMetrics {
     pub settling_s: Option<f64>,
     pub sse: f64,
     pub rms: f64,
+    /// ∫ |e| dt over the segment (m·s or rad·s).
+    pub iae: f64,
+    /// ∫ (t - t0) |e| dt over the segment (m·s² or rad·s²).
+    pub itae: f64,
 }
+
+/// The horizontal-error bands whose occupancy a gust run reports (m).
+pub const GUST_BANDS_M: [f64; 3] = [0.05, 0.10, 0.20];
 
 /// The workspace's one angle wrap, to (-pi, pi], re-exported: metric users (the golden-trace tests) name it
 /// here.
@@ -106,6 +124,27 @@ fn in_window(t: &[f64], t0: f64, t1: f64) -> std::ops::Range<usize> {
 fn rms(values: impl Iterator<Item = f64>) -> f64 {
     let (sum, n) = values.fold((0.0, 0usize), |(s, n), v| (s + v * v, n + 1));
     if n == 0 { 0.0 } else { (sum / n as f64).sqrt() }
+}
+
+/// The time each sample `k` of `t` stands for: `t[k+1] - t[k]`, the last one the period before it.
+fn sample_weights_s(t: &[f64]) -> impl Iterator<Item = f64> + '_ {
+    let last = if t.len() >= 2 { t[t.len() - 1] - t[t.len() - 2] } else { 0.0 };
+    t.windows(2).map(|w| w[1] - w[0]).chain((!t.is_empty()).then_some(last))
+}
+
+/// IAE = ∫ |e| dt and ITAE = ∫ (t - t0) |e| dt of the samples `abs_err` at times `t` (left Riemann sums).
+#[must_use]
+pub fn iae_itae(t: &[f64], abs_err: &[f64], t0: f64) -> (f64, f64) {
+    t.iter()
+        .zip(abs_err)
+        .zip(sample_weights_s(t))
+        .fold((0.0, 0.0), |(iae, itae), ((&tk, &e), dt)| (iae + e * dt, itae + (tk - t0) * e * dt))
+}
+
+/// The time (s) the samples `abs_err` at times `t` spend within `band` (`|e| <= band`).
+#[must_use]
+pub fn time_within(t: &[f64], abs_err: &[f64], band: f64) -> f64 {
+    abs_err.iter().zip(sample_weights_s(t)).filter(|(e, _)| **e <= band).map(|(_, dt)| dt).sum()
 }
 
 /// The time from `t0` until `|e|` stays within `band` for the rest of the window: `Some(0)` if it never
@@ -135,6 +174,7 @@ pub fn step_metrics_in(t: &[f64], y: &[f64], seg: &StepSegment, sse_window_s: f6
     let past = errors.iter().map(|e| e * step.signum()).fold(0.0_f64, f64::max);
     let abs_err: Vec<f64> = errors.iter().map(|e| e.abs()).collect();
     let sse_from = in_window(tt, seg.t1_s - sse_window_s, seg.t1_s).start;
+    let (iae, itae) = iae_itae(tt, &abs_err, seg.t0_s);
     SegmentMetrics {
         axis: seg.axis,
         t0_s: seg.t0_s,
@@ -143,6 +183,8 @@ pub fn step_metrics_in(t: &[f64], y: &[f64], seg: &StepSegment, sse_window_s: f6
         settling_s: time_to_stay_within(tt, &abs_err, seg.t0_s, SETTLING_BAND * step.abs()),
         sse: abs_err[sse_from..].iter().copied().fold(0.0, f64::max),
         rms: rms(errors.into_iter()),
+        iae,
+        itae,
     }
 }
 
@@ -161,6 +203,18 @@ pub struct GustMetrics {
     pub rms_xy_m: f64,
     pub steady_err_m: f64,
     pub rms_z_m: f64,
+    /// ∫ horizontal error dt over `[onset, release)` (m·s).
+    pub iae_onset_m_s: f64,
+    /// ∫ horizontal error dt over `[release, end]` (m·s).
+    pub iae_release_m_s: f64,
+    /// ∫ (t - onset) horizontal error dt over `[onset, release)` (m·s²).
+    pub itae_onset_m_s2: f64,
+    /// ∫ (t - release) horizontal error dt over `[release, end]` (m·s²).
+    pub itae_release_m_s2: f64,
+    /// Time within each of [`GUST_BANDS_M`] from the onset to the end (s).
+    pub within_5cm_s: f64,
+    pub within_10cm_s: f64,
+    pub within_20cm_s: f64,
 }
 
 /// `err_xy_m` is the horizontal distance to the hover point, `err_z_m` the vertical error, both from
@@ -190,6 +244,11 @@ pub fn gust_metrics_in(
         let n = r.len();
         if n == 0 { 0.0 } else { err_xy_m[r].iter().sum::<f64>() / n as f64 }
     };
+    let (iae_onset_m_s, itae_onset_m_s2) = iae_itae(&t[during.clone()], &err_xy_m[during.clone()], onset_s);
+    let (iae_release_m_s, itae_release_m_s2) = iae_itae(&t[after.clone()], &err_xy_m[after.clone()], release_s);
+    let disturbed = during.start..after.end.max(during.end);
+    let within = |band: f64| time_within(&t[disturbed.clone()], &err_xy_m[disturbed.clone()], band);
+    let [within_5cm_s, within_10cm_s, within_20cm_s] = GUST_BANDS_M.map(within);
     GustMetrics {
         recovery_onset_s: time_to_stay_within(&t[during.clone()], &err_xy_m[during], onset_s, RECOVERY_BAND_M),
         recovery_release_s: time_to_stay_within(&t[after.clone()], &err_xy_m[after], release_s, RECOVERY_BAND_M),
@@ -197,6 +256,13 @@ pub fn gust_metrics_in(
         rms_xy_m: rms(err_xy_m[rms_r.clone()].iter().copied()),
         steady_err_m: mean(steady),
         rms_z_m: rms(err_z_m[rms_r].iter().copied()),
+        iae_onset_m_s,
+        iae_release_m_s,
+        itae_onset_m_s2,
+        itae_release_m_s2,
+        within_5cm_s,
+        within_10cm_s,
+        within_20cm_s,
     }
 }
 
@@ -223,15 +289,90 @@ pub struct TrackMetrics {
     pub cross_track_rms_m: f64,
     pub cross_track_max_m: f64,
     pub alt_rms_m: f64,
+    /// ∫ cross-track error dt over the active window (m·s).
+    pub cross_track_iae_m_s: f64,
 }
 
-/// `cross_track_m` and `alt_err_m` are per-sample errors already restricted to the active window.
+/// `t`, `cross_track_m` and `alt_err_m` are per-sample times and errors already restricted to the active
+/// window.
 #[must_use]
-pub fn track_metrics(cross_track_m: &[f64], alt_err_m: &[f64]) -> TrackMetrics {
+pub fn track_metrics(t: &[f64], cross_track_m: &[f64], alt_err_m: &[f64]) -> TrackMetrics {
     TrackMetrics {
         cross_track_rms_m: rms(cross_track_m.iter().copied()),
         cross_track_max_m: cross_track_m.iter().copied().fold(0.0, f64::max),
         alt_rms_m: rms(alt_err_m.iter().copied()),
+        cross_track_iae_m_s: iae_itae(t, cross_track_m, t.first().copied().unwrap_or(0.0)).0,
+    }
+}
+
+/// What the controller asked of the rotors over a run.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct EffortMetrics {
+    /// ∫ mean over rotors of (PWM - the plant's hover PWM)² dt (µs²·s).
+    pub pwm_dev_sq_us2_s: f64,
+    /// Mean over ticks and rotors of |PWM change| per second (µs/s).
+    pub pwm_rate_mean_us_per_s: f64,
+    /// Time with any rotor at its least or greatest PWM (s).
+    pub saturation_s: f64,
+}
+
+/// Accumulates [`EffortMetrics`] one control tick at a time, so a run need not keep its PWM history.
+#[derive(Debug, Clone, Copy)]
+pub struct EffortAccumulator {
+    hover_pwm_us: f64,
+    pwm_limits_us: [f64; 2],
+    last_pwm_us: Option<[f64; 4]>,
+    dev_sq_us2_s: f64,
+    rate_sum_us_per_s: f64,
+    rate_samples: u64,
+    saturation_s: f64,
+}
+
+impl EffortAccumulator {
+    /// Deviations are taken from `hover_pwm_us`; a rotor at or beyond `pwm_limits_us` (least, greatest) is
+    /// saturated.
+    #[must_use]
+    pub fn new(hover_pwm_us: f64, pwm_limits_us: [f64; 2]) -> Self {
+        Self {
+            hover_pwm_us,
+            pwm_limits_us,
+            last_pwm_us: None,
+            dev_sq_us2_s: 0.0,
+            rate_sum_us_per_s: 0.0,
+            rate_samples: 0,
+            saturation_s: 0.0,
+        }
+    }
+
+    /// One tick's command, held for `dt_s`.
+    pub fn add(&mut self, pwm_us: &[f64; 4], dt_s: f64) {
+        let dev_sq = pwm_us.iter().map(|p| (p - self.hover_pwm_us).powi(2)).sum::<f64>() / 4.0;
+        self.dev_sq_us2_s += dev_sq * dt_s;
+        let [lo, hi] = self.pwm_limits_us;
+        if pwm_us.iter().any(|&p| p <= lo || p >= hi) {
+            self.saturation_s += dt_s;
+        }
+        if let Some(prev) = self.last_pwm_us
+            && dt_s > 0.0
+        {
+            self.rate_sum_us_per_s += prev.iter().zip(pwm_us).map(|(a, b)| (a - b).abs()).sum::<f64>() / 4.0 / dt_s;
+            self.rate_samples += 1;
+        }
+        self.last_pwm_us = Some(*pwm_us);
+    }
+
+    /// The run's effort so far.
+    #[must_use]
+    pub fn metrics(&self) -> EffortMetrics {
+        EffortMetrics {
+            pwm_dev_sq_us2_s: self.dev_sq_us2_s,
+            pwm_rate_mean_us_per_s: if self.rate_samples == 0 {
+                0.0
+            } else {
+                self.rate_sum_us_per_s / self.rate_samples as f64
+            },
+            saturation_s: self.saturation_s,
+        }
     }
 }
 
@@ -362,5 +503,69 @@ mod tests {
         let bad = MetricWindows { gust_steady_s: f64::INFINITY, ..MetricWindows::default() };
         assert!(bad.validate().unwrap_err().contains("metric_windows.gust_steady_s"));
         assert!(MetricWindows::default().validate().is_ok());
+    }
+
+    #[test]
+    fn given_a_constant_error_then_iae_is_error_times_duration_and_itae_half_that_times_duration() {
+        let t = times(1001, 1e-3);
+        let e = vec![0.2; t.len()];
+        let (iae, itae) = iae_itae(&t, &e, 0.0);
+        // 1001 samples of 1 ms each: 1.001 s of 0.2.
+        assert!((iae - 0.2 * 1.001).abs() < 1e-12, "{iae}");
+        assert!((itae - 0.2 * (0..1001).map(|k| k as f64 * 1e-3 * 1e-3).sum::<f64>()).abs() < 1e-12, "{itae}");
+        assert!((itae - 0.2 * 0.5).abs() < 2e-3, "{itae}");
+    }
+
+    #[test]
+    fn given_an_error_that_grazes_the_recovery_band_then_recovery_jumps_and_iae_does_not() {
+        // Two gust responses peaking just under and just over 0.10 m: the banded recovery jumps from 0 s
+        // to the time spent above the band, the IAE and the peak move by about 2 %.
+        let t = times(2001, 0.01);
+        let bump =
+            |peak: f64| -> Vec<f64> {
+                t.iter()
+                    .map(|&x| {
+                        if (5.0..7.0).contains(&x) {
+                            peak * (std::f64::consts::PI * (x - 5.0) / 2.0).sin()
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect()
+            };
+        let z = vec![0.0; t.len()];
+        let (under, over) =
+            (gust_metrics(&t, &bump(0.099), &z, 5.0, 15.0), gust_metrics(&t, &bump(0.101), &z, 5.0, 15.0));
+        assert_eq!(under.recovery_onset_s, Some(0.0));
+        assert!(over.recovery_onset_s.unwrap() > 1.0, "{over:?}");
+        assert!((over.iae_onset_m_s / under.iae_onset_m_s - 0.101 / 0.099).abs() < 1e-9);
+        assert!((over.iae_onset_m_s - 0.101 * 4.0 / std::f64::consts::PI).abs() < 1e-3, "{}", over.iae_onset_m_s);
+        assert_eq!(under.iae_release_m_s, 0.0);
+        // Within the bands from the onset (5 s) to the end (20 s): 15.01 s of samples in all.
+        assert!((under.within_20cm_s - 15.01).abs() < 1e-9, "{}", under.within_20cm_s);
+        assert!(under.within_5cm_s < under.within_10cm_s && under.within_10cm_s == under.within_20cm_s);
+    }
+
+    #[test]
+    fn given_pwm_at_hover_then_no_effort_and_a_saturated_swing_counts_deviation_rate_and_time() {
+        let mut quiet = EffortAccumulator::new(1500.0, [1000.0, 2000.0]);
+        for _ in 0..100 {
+            quiet.add(&[1500.0; 4], 0.002);
+        }
+        assert_eq!(
+            quiet.metrics(),
+            EffortMetrics { pwm_dev_sq_us2_s: 0.0, pwm_rate_mean_us_per_s: 0.0, saturation_s: 0.0 }
+        );
+        let mut busy = EffortAccumulator::new(1500.0, [1000.0, 2000.0]);
+        for k in 0..100 {
+            let p = if k % 2 == 0 { 2000.0 } else { 1400.0 };
+            busy.add(&[p, 1500.0, 1500.0, 1500.0], 0.002);
+        }
+        let m = busy.metrics();
+        // Half the ticks 500 us off on one rotor of four, half 100 us off: mean (500² + 100²)/2/4 over 0.2 s.
+        assert!((m.pwm_dev_sq_us2_s - (500.0_f64.powi(2) + 100.0_f64.powi(2)) / 2.0 / 4.0 * 0.2).abs() < 1e-6, "{m:?}");
+        // Every change is 600 us on one rotor in 2 ms: 75,000 us/s averaged over four rotors.
+        assert!((m.pwm_rate_mean_us_per_s - 600.0 / 4.0 / 0.002).abs() < 1e-6, "{m:?}");
+        assert!((m.saturation_s - 50.0 * 0.002).abs() < 1e-12, "{m:?}");
     }
 }

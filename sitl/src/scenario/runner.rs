@@ -9,11 +9,12 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::time::Instant;
 
+use autopilot::core::control::distributor::{PWM_MAX_US, PWM_MIN_US};
 use autopilot::core::control::{ControlInput, ControllerKind, LoopRates, new_controller};
 use nalgebra::{Vector2, Vector3};
 use serde::Serialize;
 
-use super::metrics::{self, GustMetrics, SegmentMetrics, StepSegment, TrackMetrics};
+use super::metrics::{self, EffortAccumulator, EffortMetrics, GustMetrics, SegmentMetrics, StepSegment, TrackMetrics};
 use super::reference::{ReferenceGen, ReferenceMode, ReferenceSpec, TrackGen};
 use super::{MetricKind, OverrideValue, Scenario, ScenarioError};
 use crate::plant::sensors::NoisyState;
@@ -73,6 +74,8 @@ pub struct RunMetrics {
     pub non_finite: bool,
     /// Mean |PWM change| per tick over the run and rotors (us): actuator activity.
     pub pwm_activity_us: f64,
+    /// Control effort over the run: squared PWM deviation from the plant's hover, PWM rate, saturation.
+    pub effort: EffortMetrics,
     pub sim_s: f64,
     pub wall_s: f64,
     pub realtime_factor: f64,
@@ -222,6 +225,7 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
         rate_frd_radps: Vector3::from(init.rate_frd_radps),
         rotor_lift_n: None,
     };
+    let mut effort = EffortAccumulator::new(config.airframe.hover_pwm_us(), [PWM_MIN_US, PWM_MAX_US]);
     let mut plant = Plant::new(config, &initial, opts.seed)?;
     let noise = scenario.state_noise()?;
     let mut reference = ReferenceGen::new(&scenario.reference, opts.mode);
@@ -261,6 +265,7 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
             pwm_change_sum += prev.iter().zip(&pwm_us).map(|(a, b)| (a - b).abs()).sum::<f64>() / 4.0;
         }
         last_pwm = Some(pwm_us);
+        effort.add(&pwm_us, dt_us as f64 * 1e-6);
 
         let ref_euler = r.attitude_rad.unwrap_or_else(|| Vector3::new(0.0, 0.0, r.yaw_rad));
         series.t.push(t_s);
@@ -306,6 +311,7 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
         weights_at_bounds: controller.weights_at_bounds(),
         non_finite,
         pwm_activity_us: pwm_change_sum / (ticks.saturating_sub(1).max(1)) as f64,
+        effort: effort.metrics(),
         sim_s,
         wall_s: 0.0,
         realtime_factor: 0.0,
@@ -332,6 +338,7 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
         let (t0, t1) = (spec.start_s, track.end_s());
         let mut cross = Vec::new();
         let mut alt = Vec::new();
+        let mut t_on_track_s = Vec::new();
         // The vehicle's own nearest point is followed along the path (it moves a few mm per tick), so a
         // point near the crossing stays on its branch; the first is sought near the reference.
         let mut nearest_s: Option<f64> = None;
@@ -347,8 +354,9 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
             nearest_s = Some(s);
             cross.push(d);
             alt.push(series.pos[2][k] - series.ref_pos[2][k]);
+            t_on_track_s.push(series.t[k]);
         }
-        m.track = Some(metrics::track_metrics(&cross, &alt));
+        m.track = Some(metrics::track_metrics(&t_on_track_s, &cross, &alt));
     }
     m.wall_s = wall_start.elapsed().as_secs_f64();
     m.realtime_factor = if m.wall_s > 0.0 { sim_s / m.wall_s } else { f64::INFINITY };

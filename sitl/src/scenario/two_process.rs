@@ -484,6 +484,7 @@ fn run_track(
     let finished = AtomicBool::new(false);
     let mut cross = Vec::new();
     let mut alt = Vec::new();
+    let mut track_t_s = Vec::new();
     let mut nearest_s: Option<f64> = None;
     let mut non_finite = false;
     let mut last_pwm: Option<[f64; 4]> = None;
@@ -527,6 +528,7 @@ fn run_track(
                     nearest_s = Some(s.min(lap_m * f64::from(track.laps)));
                     cross.push(d);
                     alt.push(p.z - track.pos_d_m);
+                    track_t_s.push(plant.time_us() as f64 * 1e-6);
                 }
             })
         });
@@ -557,7 +559,7 @@ fn run_track(
         estimator: format!("{:?}", estimator_of(scenario, opts)).to_lowercase(),
         processes: 2,
         gust: None,
-        track: (!cross.is_empty()).then(|| metrics::track_metrics(&cross, &alt)),
+        track: (!cross.is_empty()).then(|| metrics::track_metrics(&track_t_s, &cross, &alt)),
         items_reached: Some((items_reached, items.len())),
         non_finite,
         pwm_activity_us: pwm_change_sum / ticks.saturating_sub(1).max(1) as f64,

@@ -24,16 +24,30 @@ pub struct Row {
     pub metrics: Vec<Option<f64>>,
 }
 
-const GUST_COLUMNS: [&str; 6] = [
+const GUST_COLUMNS: [&str; 13] = [
     "gust_recovery_onset_s",
     "gust_recovery_release_s",
     "gust_peak_m",
     "gust_rms_xy_m",
     "gust_steady_err_m",
     "gust_rms_z_m",
+    "gust_iae_onset_m_s",
+    "gust_iae_release_m_s",
+    "gust_itae_onset_m_s2",
+    "gust_itae_release_m_s2",
+    "gust_within_5cm_s",
+    "gust_within_10cm_s",
+    "gust_within_20cm_s",
 ];
-const TRACK_COLUMNS: [&str; 3] = ["cross_track_rms_m", "cross_track_max_m", "alt_rms_m"];
-const COMMON_COLUMNS: [&str; 3] = ["weights_at_bounds", "non_finite", "pwm_activity_us"];
+const TRACK_COLUMNS: [&str; 4] = ["cross_track_rms_m", "cross_track_max_m", "alt_rms_m", "cross_track_iae_m_s"];
+const COMMON_COLUMNS: [&str; 6] = [
+    "weights_at_bounds",
+    "non_finite",
+    "pwm_activity_us",
+    "effort_pwm_sq_us2_s",
+    "pwm_rate_mean_us_per_s",
+    "saturation_s",
+];
 /// The case's airframe: its total lift with every rotor at full PWM, and at the least PWM, over its
 /// weight. The paper's lift curve spans only 11.28-14.48 N a rotor, so at `thrust_scale` 1 an airframe
 /// of more than 5.90 kg cannot hover (max under 1) and one of less than 4.60 kg cannot descend (min
@@ -48,6 +62,14 @@ fn step_rms_columns(scenario: &Scenario) -> [&'static str; 3] {
     }
 }
 
+/// The step segments' summed IAE and ITAE column names of a scenario (with their unit).
+fn step_integral_columns(scenario: &Scenario) -> [&'static str; 2] {
+    match scenario.reference {
+        ReferenceSpec::Attitude { .. } => ["steps_iae_rad_s", "steps_itae_rad_s2"],
+        _ => ["steps_iae_m_s", "steps_itae_m_s2"],
+    }
+}
+
 /// The metric columns of a scenario's rows, in order.
 #[must_use]
 pub fn metric_columns(scenario: &Scenario) -> Vec<String> {
@@ -55,6 +77,7 @@ pub fn metric_columns(scenario: &Scenario) -> Vec<String> {
     if scenario.metrics.contains(&MetricKind::Steps) {
         columns.extend(["max_overshoot_pct", "max_settling_s"]);
         columns.extend(step_rms_columns(scenario));
+        columns.extend(step_integral_columns(scenario));
     }
     if scenario.metrics.contains(&MetricKind::Gust) {
         columns.extend(GUST_COLUMNS);
@@ -80,20 +103,28 @@ pub fn metric_values(scenario: &Scenario, thrust_to_weight: [f64; 2], m: &RunMet
             _ => ["n", "e", "d"],
         };
         v.extend(axes.iter().map(|a| rms.and_then(|r| r.get(a).copied())));
+        v.push(Some(segments.iter().map(|s| s.iae).sum()));
+        v.push(Some(segments.iter().map(|s| s.itae).sum()));
     }
     if scenario.metrics.contains(&MetricKind::Gust) {
         let g = m.gust.as_ref();
         v.push(g.and_then(|g| g.recovery_onset_s));
         v.push(g.and_then(|g| g.recovery_release_s));
         v.extend([g.map(|g| g.peak_m), g.map(|g| g.rms_xy_m), g.map(|g| g.steady_err_m), g.map(|g| g.rms_z_m)]);
+        v.extend([g.map(|g| g.iae_onset_m_s), g.map(|g| g.iae_release_m_s)]);
+        v.extend([g.map(|g| g.itae_onset_m_s2), g.map(|g| g.itae_release_m_s2)]);
+        v.extend([g.map(|g| g.within_5cm_s), g.map(|g| g.within_10cm_s), g.map(|g| g.within_20cm_s)]);
     }
     if scenario.metrics.contains(&MetricKind::Track) {
         let t = m.track.as_ref();
         v.extend([t.map(|t| t.cross_track_rms_m), t.map(|t| t.cross_track_max_m), t.map(|t| t.alt_rms_m)]);
+        v.push(t.map(|t| t.cross_track_iae_m_s));
     }
     v.push(Some(f64::from(u8::from(m.weights_at_bounds))));
     v.push(Some(f64::from(u8::from(m.non_finite))));
     v.push(Some(m.pwm_activity_us));
+    let e = &m.effort;
+    v.extend([Some(e.pwm_dev_sq_us2_s), Some(e.pwm_rate_mean_us_per_s), Some(e.saturation_s)]);
     v
 }
 
