@@ -44,6 +44,59 @@ fn scenario_prints_one_metrics_object_per_run_and_writes_trace_and_plot() {
     let _ = std::fs::remove_dir_all(&out);
 }
 
+/// A short hover with every `[airframe]` field set: its label has eleven overrides, far past a file name.
+const EVERY_AIRFRAME_FIELD: &str = r#"
+name = "every-airframe-field"
+duration_s = 3.0
+plant = "mismatch"
+metrics = ["steps"]
+[initial]
+pos_ned_m = [0.0, 0.0, -1.5]
+[reference]
+kind = "position"
+steps = [{ t_s = 0.0, pos_ned_m = [0.2, 0.0, -1.5] }]
+[airframe]
+mass_kg = 5.25
+inertia_kgm2 = [0.081, 0.082, 0.121]
+arm_m = 0.241
+yaw_moment_m = 0.0271
+motor_tau_s = 0.041
+thrust_scale = 1.01
+rotor_health = [1.0, 0.99, 1.0, 0.98]
+disturbance_torque_frd_nm = [0.001, -0.002, 0.0005]
+drag_cda_m2 = 0.011
+air_density_kgpm3 = 1.2
+gravity_mps2 = 9.81
+"#;
+
+#[test]
+fn a_scenario_with_every_airframe_field_set_runs_and_writes_files_named_within_64_bytes_of_label() {
+    let out = temp_dir("every-airframe");
+    let file = out.join("every.toml");
+    std::fs::write(&file, EVERY_AIRFRAME_FIELD).unwrap();
+    let o =
+        sitl(&["scenario", file.to_str().unwrap(), "--controller", "aco", "--json", "--out", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let line: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON line");
+    // The whole label stays in the JSON.
+    let label = line["plant"].as_str().unwrap();
+    assert!(
+        label.starts_with("mismatch+mass_kg=5.25+inertia_kgm2=") && label.ends_with("+gravity_mps2=9.81"),
+        "{label}"
+    );
+    assert_eq!(line["airframe_overrides"].as_object().map(serde_json::Map::len), Some(11), "{line}");
+    let dir = out.join("every-airframe-field");
+    let names: Vec<String> =
+        std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    let short = sitl::scenario::file_label(label);
+    assert!(short.starts_with("mismatch+") && short.len() <= sitl::scenario::FILE_LABEL_MAX_LEN, "{short}");
+    for expected in [format!("aco_{short}_seed1_500hz.csv"), format!("translation_{short}_seed1_500hz.png")] {
+        assert!(names.contains(&expected), "{expected} not in {names:?}");
+    }
+    assert!(names.iter().all(|n| n.len() < 100 && !n.ends_with(".tmp")), "{names:?}");
+    let _ = std::fs::remove_dir_all(&out);
+}
+
 #[test]
 fn unknown_scenario_and_bad_options_fail_with_a_clear_message() {
     let o = sitl(&["scenario", "no-such-thing", "--no-plots"]);

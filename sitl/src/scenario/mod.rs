@@ -283,9 +283,9 @@ impl Scenario {
         }
     }
 
-    /// The plant's label in metrics, file names and figures: the preset (`preset`, or else the scenario's
+    /// The plant's label in metrics and figure titles: the preset (`preset`, or else the scenario's
     /// `plant`), then `+key=value` for each `[airframe]` override (array elements joined by commas), e.g.
-    /// `mismatch+mass_kg=5.3`.
+    /// `mismatch+mass_kg=5.3`. File names take it through [`file_label`].
     #[must_use]
     pub fn plant_label(&self, preset: Option<&str>) -> String {
         let mut label = preset.unwrap_or(&self.plant).to_owned();
@@ -316,6 +316,27 @@ impl Scenario {
             _ => vec![ReferenceMode::FeedForward],
         }
     }
+}
+
+/// The longest plant label a file name carries whole (bytes). A run's file name adds at most about 60
+/// more (controller, reference mode, seed, rate, kind and extension), well within the 255 bytes a file
+/// name may have.
+pub const FILE_LABEL_MAX_LEN: usize = 64;
+
+/// A plant label ([`Scenario::plant_label`]) as it goes into a file name: the label itself when it is at
+/// most [`FILE_LABEL_MAX_LEN`] bytes, else its preset, `+`, and eight hex digits of a hash of the whole
+/// label (64-bit FNV-1a, folded to 32 bits), so distinct overrides keep distinct files. The whole label
+/// stays in the JSON metrics and the figure titles.
+#[must_use]
+pub fn file_label(plant_label: &str) -> String {
+    if plant_label.len() <= FILE_LABEL_MAX_LEN {
+        return plant_label.to_owned();
+    }
+    let hash =
+        plant_label.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3));
+    let preset = plant_label.split('+').next().unwrap_or(plant_label);
+    let preset = if preset.len() > FILE_LABEL_MAX_LEN - 9 { &preset[..FILE_LABEL_MAX_LEN - 9] } else { preset };
+    format!("{preset}+{:08x}", (hash >> 32) ^ (hash & 0xffff_ffff))
 }
 
 #[cfg(test)]
@@ -415,5 +436,18 @@ mod tests {
         let o = s.airframe_overrides().unwrap();
         assert_eq!(o["motor_tau_s"], OverrideValue::Scalar(0.06));
         assert_eq!(o["disturbance_torque_frd_nm"], OverrideValue::Array(vec![0.1, 0.0, -0.05]));
+    }
+
+    #[test]
+    fn given_a_label_over_64_bytes_then_its_file_label_is_the_preset_and_a_hash_of_at_most_64_bytes() {
+        assert_eq!(file_label("mismatch+mass_kg=5.3"), "mismatch+mass_kg=5.3");
+        let long = format!("mismatch+inertia_kgm2={}+mass_kg=5.2512345", ["0.081234567"; 3].join(","));
+        let long2 = long.replace("0.081234567", "0.081234568");
+        assert!(long.len() > FILE_LABEL_MAX_LEN);
+        let (a, b) = (file_label(&long), file_label(&long2));
+        assert!(a.starts_with("mismatch+") && a.len() == "mismatch+".len() + 8, "{a}");
+        assert_ne!(a, b, "distinct overrides, distinct files");
+        assert_eq!(a, file_label(&long), "the same label, the same file");
+        assert!(file_label(&"x".repeat(300)).len() <= FILE_LABEL_MAX_LEN);
     }
 }
