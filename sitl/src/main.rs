@@ -33,7 +33,7 @@ use sitl::scenario::plot::{self, Panel, Run};
 use sitl::scenario::reference::{ReferenceMode, ReferenceSpec, SplinePath};
 use sitl::scenario::runner::{self, RunOptions, RunOutput};
 use sitl::scenario::two_process::{self, TwoProcessOptions};
-use sitl::scenario::{BUILT_INS, MetricKind, Scenario};
+use sitl::scenario::{BUILT_INS, MetricKind, Scenario, file_label};
 use sitl::sim_params::SimParamLink;
 use sitl::sweep::Sweep;
 use std::ffi::OsString;
@@ -61,9 +61,10 @@ enum Command {
     /// Sweep a scenario over airframes, winds, seeds and controllers (a Monte Carlo or grid study):
     /// every run in-process in lockstep across all cores; one row per run, a robustness table, plots.
     Sweep(SweepArgs),
-    /// Tune one controller's gains (CMA-ES, a budget of evaluations, a seed) on a training cost with
-    /// guards, every evaluation's runs in parallel; write the gains as a [controller] block and a parameter
-    /// file, the trace, and a held-out report. With --evaluate: fly gain files on the spec's held-out set.
+    /// Tune one controller's gains (CMA-ES, a budget of evaluations per seed, one or more seeds) on a
+    /// training cost with guards, every evaluation's runs in parallel; write the best safe gains as a
+    /// [controller] block and a parameter file (or say "no safe gains"), the trace, the convergence curves
+    /// and a held-out report. With --evaluate: fly gain files on the spec's held-out set.
     Tune(TuneArgs),
 }
 
@@ -520,26 +521,30 @@ fn tune(args: &TuneArgs) -> Result<()> {
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(format!("tune-{}{suffix}", spec.name)));
     let mut gain_sets = Vec::new();
     if args.evaluate.is_empty() {
-        let mut progress = Progress::new("sitl tune", spec.budget as u64, "evaluations");
+        let total = spec.budget * spec.seeds.len();
+        let mut progress = Progress::new("sitl tune", total as u64, "evaluations");
         let start = std::time::Instant::now();
-        let outcome = spec.run(&pool, |n| progress.set(n as u64));
+        let tuning = spec.run(&pool, |n| progress.set(n as u64));
         progress.finish();
         let wall_s = start.elapsed().as_secs_f64();
-        let n = outcome.evaluations.len();
+        let n = tuning.evaluations();
         eprintln!(
             "sitl: {n} evaluations in {wall_s:.1} s on {threads} thread{}: {:.1} evaluations/s",
             if threads == 1 { "" } else { "s" },
             n as f64 / wall_s
         );
-        for path in output::write_tuning(&out, &spec, &outcome)? {
+        for path in output::write_tuning(&out, &spec, &tuning)? {
             eprintln!("sitl: wrote {}", path.display());
         }
-        print_stdout(&output::Summary::of(&spec, &outcome).text())?;
-        // The held-out set flies the file just written, so the report is of what a user takes away.
-        let file = out.join("controller.toml");
-        let text = std::fs::read_to_string(&file).with_context(|| format!("reading {}", file.display()))?;
+        print_stdout(&output::Summary::of(&spec, &tuning).text())?;
         gain_sets.push(GainSet::defaults(spec.controller));
-        gain_sets.push(GainSet::from_toml(&text, &format!("{} (tuned)", spec.controller))?);
+        // The held-out set flies the file just written, so the report is of what a user takes away; with
+        // no safe gains there is no tuned file, and only the defaults fly.
+        if tuning.result().is_some() {
+            let file = out.join("controller.toml");
+            let text = std::fs::read_to_string(&file).with_context(|| format!("reading {}", file.display()))?;
+            gain_sets.push(GainSet::from_toml(&text, &format!("{} (tuned)", spec.controller))?);
+        }
     } else {
         for item in &args.evaluate {
             match item.parse::<ControllerKind>() {
@@ -619,12 +624,15 @@ fn metric_axis_label(metric: &str) -> String {
 fn run_stem(out: &RunOutput, mode: ReferenceMode, scenario: &Scenario) -> String {
     let m = &out.metrics;
     let mode = if scenario.reference_modes().len() > 1 { format!("_{mode}") } else { String::new() };
-    format!("{}_{}{}_seed{}_{}hz", m.controller, m.plant, mode, m.seed, m.rate_hz)
+    format!("{}_{}{}_seed{}_{}hz", m.controller, file_label(&m.plant), mode, m.seed, m.rate_hz)
 }
 
-/// Writes via a temporary file and a rename, so a reader never sees a half-written file.
+/// Writes via a temporary file and a rename, so a reader never sees a half-written file. The temporary
+/// file is the whole name plus `.tmp`, so `x.csv` and `x.json` never share one.
 fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
-    let tmp = path.with_extension("tmp");
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".tmp");
+    let tmp = PathBuf::from(tmp);
     std::fs::write(&tmp, bytes).with_context(|| format!("writing {}", tmp.display()))?;
     std::fs::rename(&tmp, path).with_context(|| format!("renaming to {}", path.display()))?;
     Ok(())
@@ -635,19 +643,27 @@ fn gust_track_lines(gust: Option<&GustMetrics>, track: Option<&TrackMetrics>) ->
     let mut s = String::new();
     if let Some(g) = gust {
         s += &format!(
-            "\n  gust: recovery {} / {}  peak {:.3} m  steady {:.3} m  rms xy {:.3} m  rms z {:.4} m",
+            "\n  gust: recovery {} / {}  peak {:.3} m  steady {:.3} m  rms xy {:.3} m  rms z {:.4} m\
+             \n  gust: iae {:.3} / {:.3} m s  itae {:.3} / {:.3} m s^2  within 5 / 10 / 20 cm {:.2} / {:.2} / {:.2} s",
             fmt_seconds(g.recovery_onset_s),
             fmt_seconds(g.recovery_release_s),
             g.peak_m,
             g.steady_err_m,
             g.rms_xy_m,
-            g.rms_z_m
+            g.rms_z_m,
+            g.iae_onset_m_s,
+            g.iae_release_m_s,
+            g.itae_onset_m_s2,
+            g.itae_release_m_s2,
+            g.within_5cm_s,
+            g.within_10cm_s,
+            g.within_20cm_s
         );
     }
     if let Some(t) = track {
         s += &format!(
-            "\n  track: cross-track rms {:.3} m  max {:.3} m  alt rms {:.4} m",
-            t.cross_track_rms_m, t.cross_track_max_m, t.alt_rms_m
+            "\n  track: cross-track rms {:.3} m  max {:.3} m  iae {:.3} m s  alt rms {:.4} m",
+            t.cross_track_rms_m, t.cross_track_max_m, t.cross_track_iae_m_s, t.alt_rms_m
         );
     }
     s
@@ -671,13 +687,14 @@ fn summary(out: &RunOutput) -> String {
     }
     for seg in m.segments.iter().flatten() {
         s += &format!(
-            "\n  {:5} t0 {:5.1} s: overshoot {:5.2} %  settling {:>7}  sse {:.1e} {}",
+            "\n  {:5} t0 {:5.1} s: overshoot {:5.2} %  settling {:>7}  sse {:.1e} {unit}  iae {:.4} {unit} s",
             seg.axis,
             seg.t0_s,
             seg.overshoot_pct,
             fmt_seconds(seg.settling_s),
             seg.sse,
-            axis_unit(seg.axis)
+            seg.iae,
+            unit = axis_unit(seg.axis),
         );
     }
     if let Some(rms) = &m.rms {
@@ -691,6 +708,10 @@ fn summary(out: &RunOutput) -> String {
         "\n  weights at bounds: {}  non-finite: {}  pwm activity {:.2} us/tick  {:.1} sim s in {:.3} s wall ({:.0}x real time)",
         m.weights_at_bounds, m.non_finite, m.pwm_activity_us, m.sim_s, m.wall_s, m.realtime_factor
     );
+    s += &format!(
+        "\n  effort: pwm deviation from hover {:.4e} us^2 s  pwm rate {:.1} us/s  saturated {:.2} s",
+        m.effort.pwm_dev_sq_us2_s, m.effort.pwm_rate_mean_us_per_s, m.effort.saturation_s
+    );
     s
 }
 
@@ -700,7 +721,8 @@ fn plots(scenario: &Scenario, dir: &Path, outputs: &[RunOutput], mode: Reference
     let labels: Vec<String> = outputs.iter().map(|o| o.metrics.controller.to_uppercase()).collect();
     let m = &first.metrics;
     let suffix = if scenario.reference_modes().len() > 1 { format!("_{mode}") } else { String::new() };
-    let file = |kind: &str| dir.join(format!("{kind}_{}{suffix}_seed{}_{}hz.png", m.plant, m.seed, m.rate_hz));
+    let plant = file_label(&m.plant);
+    let file = |kind: &str| dir.join(format!("{kind}_{plant}{suffix}_seed{}_{}hz.png", m.seed, m.rate_hz));
     let mut written = Vec::new();
     // Each figure is a PNG and an SVG of the same name.
     let mut written_file = |kind: &str| {

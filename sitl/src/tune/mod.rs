@@ -1,7 +1,11 @@
 //! Gain tuning with guarded costs (`sitl tune SPEC.toml`): one controller, the gains to tune with their
 //! bounds and scale, a training set of scenario runs with a weighted cost on their metrics, guard runs
 //! whose limits a result must keep (overshoot, settling, weights at bounds, non-finite values), a CMA-ES
-//! ([`cmaes`]) with a budget of evaluations and a seed, and a held-out set to report on.
+//! ([`cmaes`]) with a budget of evaluations and one or more seeds (a whole search per seed, each with the
+//! whole budget, so a result's spread over seeds shows how much of it is luck), and a held-out set to
+//! report on. The result is the best safe evaluation of any seed; a tuning in which no evaluation kept
+//! every guard has no result ("no safe gains in N evaluations", with the guards that limited it), and
+//! writes no gains to fly.
 //!
 //! Every evaluation flies its runs in-process in lockstep (the sweep's runner and metric columns,
 //! [`crate::sweep::run_metric_values`]); a generation's candidates times their runs are flown in parallel
@@ -104,6 +108,14 @@ fn first_seed() -> Vec<u64> {
     vec![1]
 }
 
+/// The optimizer's seed: one, or a list (one whole search each).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(untagged)]
+enum SeedFile {
+    One(u64),
+    Many(Vec<u64>),
+}
+
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct OptimizerFile {
@@ -137,7 +149,7 @@ struct SpecFile {
     description: String,
     controller: ControllerKind,
     budget: usize,
-    seed: u64,
+    seed: SeedFile,
     #[serde(default)]
     rate_hz: Option<u32>,
     #[serde(default)]
@@ -150,8 +162,25 @@ struct SpecFile {
     heldout: Vec<RunFile>,
 }
 
-/// The most evaluations one tuning may spend.
+/// The most evaluations one tuning may spend per seed.
 pub const MAX_BUDGET: usize = 100_000;
+
+/// The most optimizer seeds one tuning may list.
+pub const MAX_SEEDS: usize = 100;
+
+/// Training-cost metrics that are times to enter or stay in a band: they jump when an error grazes the
+/// band (a gust peaking at 0.099 m "recovers" in 0 s, one at 0.101 m in seconds), so an optimizer
+/// rewards grazing, not rejection. A cost takes the continuous metrics instead (IAE, ITAE, peak, RMS);
+/// these stay allowed as guard limits.
+pub const BANDED_METRICS: [&str; 7] = [
+    "max_settling_s",
+    "gust_recovery_onset_s",
+    "gust_recovery_release_s",
+    "gust_within_5cm_s",
+    "gust_within_10cm_s",
+    "gust_within_20cm_s",
+    "saturation_s",
+];
 
 /// The penalised cost of an unsafe candidate starts here, above any safe cost the optimizer should meet.
 pub const UNSAFE_COST: f64 = 1e6;
@@ -233,8 +262,10 @@ pub struct Tune {
     pub name: String,
     pub description: String,
     pub controller: ControllerKind,
+    /// Evaluations per seed.
     pub budget: usize,
-    pub seed: u64,
+    /// The optimizer's seeds, one whole search each, in the spec's order (distinct).
+    pub seeds: Vec<u64>,
     pub rates: LoopRates,
     pub sigma0: f64,
     pub population: Option<usize>,
@@ -336,6 +367,16 @@ impl Tune {
         if spec.budget == 0 || spec.budget > MAX_BUDGET {
             return invalid(format!("budget = {} must be in 1..={MAX_BUDGET} evaluations", spec.budget));
         }
+        let seeds = match &spec.seed {
+            SeedFile::One(seed) => vec![*seed],
+            SeedFile::Many(seeds) => seeds.clone(),
+        };
+        if seeds.is_empty() || seeds.len() > MAX_SEEDS {
+            return invalid(format!("seed: give one seed or a list of 1 to {MAX_SEEDS}, got {}", seeds.len()));
+        }
+        if let Some(dup) = seeds.iter().enumerate().find(|(i, s)| seeds[..*i].contains(s)) {
+            return invalid(format!("seed: {} is listed twice (each seed is one whole search)", dup.1));
+        }
         if spec.optimizer.kind != "cma-es" {
             return invalid(format!("optimizer.kind = `{}`: the one optimizer is \"cma-es\"", spec.optimizer.kind));
         }
@@ -397,7 +438,7 @@ impl Tune {
             description: spec.description,
             controller: spec.controller,
             budget: spec.budget,
-            seed: spec.seed,
+            seeds,
             rates,
             sigma0,
             population: spec.optimizer.population,
@@ -493,18 +534,28 @@ impl Tune {
         verdicts
     }
 
-    /// Tunes: the start point, then CMA-ES generations until the budget is spent. `progress` is told the
-    /// number of evaluations done after each generation.
+    /// Tunes: for each seed, the start point, then CMA-ES generations until the budget is spent.
+    /// `progress` is told the number of evaluations done (over all seeds) after each generation.
     #[must_use]
-    pub fn run(&self, pool: &rayon::ThreadPool, mut progress: impl FnMut(usize)) -> Outcome {
+    pub fn run(&self, pool: &rayon::ThreadPool, mut progress: impl FnMut(usize)) -> Tuning {
+        let mut done = 0;
+        let outcomes = self
+            .seeds
+            .iter()
+            .map(|&seed| {
+                let outcome = self.run_seed(seed, pool, |n| progress(done + n));
+                done += outcome.evaluations.len();
+                outcome
+            })
+            .collect();
+        Tuning { outcomes }
+    }
+
+    /// One whole search from `seed`.
+    fn run_seed(&self, seed: u64, pool: &rayon::ThreadPool, mut progress: impl FnMut(usize)) -> Outcome {
         let x0: Vec<f64> = self.gains.iter().map(|g| g.unit_of(g.start)).collect();
-        let settings = cmaes::Settings {
-            x0,
-            sigma0: self.sigma0,
-            population: self.population,
-            budget: self.budget,
-            seed: self.seed,
-        };
+        let settings =
+            cmaes::Settings { x0, sigma0: self.sigma0, population: self.population, budget: self.budget, seed };
         let mut verdicts: Vec<Verdict> = Vec::new();
         let trace = cmaes::minimize(&settings, |points| {
             let candidates: Vec<Vec<f64>> = points.iter().map(|x| self.gains_at(x)).collect();
@@ -533,7 +584,7 @@ impl Tune {
                 ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1)).then(a.index.cmp(&b.index))
             })
             .map_or(0, |e| e.index);
-        Outcome { evaluations, best }
+        Outcome { seed, evaluations, best }
     }
 
     /// The `[controller]` block of gain values: the controller's table with every tuned field (an array
@@ -789,6 +840,12 @@ fn parse_run_set(r: &RunFile, dir: &Path, key: &str, rates: LoopRates) -> Result
         if !(w.is_finite() && w > 0.0) {
             return invalid(format!("{key}: cost.{metric} = {w}: a weight must be finite and > 0"));
         }
+        if BANDED_METRICS.contains(&metric.as_str()) {
+            return invalid(format!(
+                "{key}: cost.{metric}: a banded time jumps when an error grazes its band, so a cost takes a \
+                 continuous metric (e.g. gust_iae_onset_m_s, steps_iae_m_s, gust_peak_m); keep {metric} as a limit"
+            ));
+        }
         cost.push((column(metric, "cost")?, w));
     }
     let mut limits = Vec::new();
@@ -982,15 +1039,18 @@ pub struct Evaluated {
     pub verdict: Verdict,
 }
 
-/// A finished tuning.
+/// One seed's finished search.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Outcome {
+    /// The optimizer's seed.
+    pub seed: u64,
     pub evaluations: Vec<Evaluated>,
-    /// The index of the result: the best safe evaluation, or the least unsafe if none is safe.
+    /// The index of this search's best: its best safe evaluation, or its least unsafe if none is safe.
     pub best: usize,
 }
 
 impl Outcome {
+    /// This search's best: its best safe evaluation, or its least unsafe if none is safe.
     #[must_use]
     pub fn result(&self) -> &Evaluated {
         &self.evaluations[self.best]
@@ -1001,6 +1061,102 @@ impl Outcome {
     pub fn start(&self) -> &Evaluated {
         &self.evaluations[0]
     }
+
+    /// The lowest training cost among the safe evaluations up to each evaluation (`None` until the first
+    /// safe one): the search's convergence curve.
+    #[must_use]
+    pub fn best_safe_cost_so_far(&self) -> Vec<Option<f64>> {
+        let mut best: Option<f64> = None;
+        self.evaluations
+            .iter()
+            .map(|e| {
+                if e.verdict.safe() {
+                    best = Some(best.map_or(e.verdict.cost, |b| b.min(e.verdict.cost)));
+                }
+                best
+            })
+            .collect()
+    }
+}
+
+/// A finished tuning: one search per seed, in the spec's seed order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Tuning {
+    pub outcomes: Vec<Outcome>,
+}
+
+/// A guard and how many of a tuning's evaluations broke it.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Limiting {
+    /// The guard as "set: metric" (plant and seed dropped, so one guard counts once per evaluation).
+    pub guard: String,
+    /// Evaluations that broke it, and all evaluations.
+    pub broken_by: usize,
+    pub of: usize,
+}
+
+impl Tuning {
+    /// Every evaluation of every seed.
+    #[must_use]
+    pub fn evaluations(&self) -> usize {
+        self.outcomes.iter().map(|o| o.evaluations.len()).sum()
+    }
+
+    /// The result: the best safe evaluation of any seed (lowest cost, then the earlier seed), with its
+    /// search; `None` when no evaluation kept every guard.
+    #[must_use]
+    pub fn result(&self) -> Option<(&Outcome, &Evaluated)> {
+        self.outcomes
+            .iter()
+            .map(|o| (o, o.result()))
+            .filter(|(_, e)| e.verdict.safe())
+            .min_by(|a, b| a.1.verdict.cost.total_cmp(&b.1.verdict.cost))
+    }
+
+    /// The least unsafe evaluation of any seed (for a tuning without a result: what came closest).
+    #[must_use]
+    pub fn least_unsafe(&self) -> (&Outcome, &Evaluated) {
+        self.outcomes
+            .iter()
+            .map(|o| (o, o.result()))
+            .min_by(|a, b| a.1.verdict.penalised.total_cmp(&b.1.verdict.penalised))
+            .expect("a tuning has at least one seed")
+    }
+
+    /// The start point (the same gains in every search; the first seed's evaluation).
+    #[must_use]
+    pub fn start(&self) -> &Evaluated {
+        self.outcomes[0].start()
+    }
+
+    /// The guards broken by the most evaluations, most first (ties by name), at most `n`.
+    #[must_use]
+    pub fn limiting(&self, n: usize) -> Vec<Limiting> {
+        let mut counts: BTreeMap<String, usize> = BTreeMap::new();
+        for e in self.outcomes.iter().flat_map(|o| &o.evaluations) {
+            let mut guards: Vec<String> = e.verdict.violations.iter().map(|v| guard_of(v)).collect();
+            guards.sort();
+            guards.dedup();
+            for g in guards {
+                *counts.entry(g).or_default() += 1;
+            }
+        }
+        let mut ranked: Vec<(String, usize)> = counts.into_iter().collect();
+        ranked.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
+        let of = self.evaluations();
+        ranked.into_iter().take(n).map(|(guard, broken_by)| Limiting { guard, broken_by, of }).collect()
+    }
+}
+
+/// A violation ("set plant seed N: metric = v > limit") as its guard ("set: metric"): the set name, then
+/// the metric's name (the first word after the colon when it names a metric column, else the reason
+/// itself, e.g. "adaptive weights at their bounds").
+fn guard_of(violation: &str) -> String {
+    let (run, why) = violation.split_once(": ").unwrap_or((violation, ""));
+    let set = run.split(' ').next().unwrap_or(run);
+    let first = why.split([' ', '=']).next().unwrap_or(why);
+    let metric = if first.contains('_') { first } else { why.split(':').next().unwrap_or(why) };
+    format!("{set}: {metric}")
 }
 
 /// One gain set's held-out results: per set its report metrics (means over the runs; `None` where some

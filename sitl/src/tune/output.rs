@@ -1,5 +1,7 @@
-//! What `sitl tune` writes: the optimizer's trace (CSV), the result as a `[controller]` block and as an
-//! autopilot parameter file, a result summary (JSON), and the held-out report (table, JSON, CSV). Every
+//! What `sitl tune` writes: the optimizer's trace (CSV, every seed), the result as a `[controller]` block
+//! and as an autopilot parameter file (only when some evaluation was safe: otherwise the least unsafe
+//! gains go to `least-unsafe.toml`, for inspection, never to be flown as "tuned"), a result summary
+//! (JSON), the convergence curves (SVG and PNG), and the held-out report (table, JSON, CSV). Every
 //! number is the shortest decimal that reads back as the same float, so the files of two runs of one spec
 //! compare byte for byte; every file is written to a temporary file and renamed into place.
 
@@ -8,7 +10,8 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use super::{HeldOut, Outcome, Tune, TuneError};
+use super::{Evaluated, HeldOut, Limiting, Outcome, Tune, TuneError, Tuning};
+use crate::scenario::plot;
 
 /// A float as its shortest round-trip decimal.
 #[must_use]
@@ -21,18 +24,19 @@ fn csv_cell(text: &str) -> String {
     if text.contains([',', '"', '\n']) { format!("\"{}\"", text.replace('"', "\"\"")) } else { text.to_owned() }
 }
 
-/// The trace: one row per evaluation, `evaluation,generation,<gains>,cost,penalised_cost,safe,violations`
-/// (violations joined by `; `, empty when safe).
+/// The trace: one row per evaluation of every seed,
+/// `seed,evaluation,generation,<gains>,cost,penalised_cost,safe,violations` (violations joined by `; `,
+/// empty when safe).
 #[must_use]
-pub fn trace_csv(tune: &Tune, outcome: &Outcome) -> String {
-    let mut out = String::from("evaluation,generation");
+pub fn trace_csv(tune: &Tune, tuning: &Tuning) -> String {
+    let mut out = String::from("seed,evaluation,generation");
     for g in &tune.gains {
         out.push(',');
         out.push_str(&csv_cell(&g.label));
     }
     out.push_str(",cost,penalised_cost,safe,violations\n");
-    for e in &outcome.evaluations {
-        let _ = write!(out, "{},{}", e.index, e.generation);
+    for (seed, e) in tuning.outcomes.iter().flat_map(|o| o.evaluations.iter().map(|e| (o.seed, e))) {
+        let _ = write!(out, "{seed},{},{}", e.index, e.generation);
         for v in &e.gains {
             let _ = write!(out, ",{}", short(*v));
         }
@@ -54,17 +58,32 @@ pub fn trace_csv(tune: &Tune, outcome: &Outcome) -> String {
 pub struct Summary {
     pub name: String,
     pub controller: String,
-    pub seed: u64,
+    /// The optimizer's seeds, one whole search each.
+    pub seeds: Vec<u64>,
+    /// Evaluations per seed.
     pub budget: usize,
+    /// Evaluations over every seed.
     pub evaluations: usize,
+    /// "tuned" when some evaluation kept every guard, else "no safe gains in N evaluations".
+    pub verdict: String,
     pub gains: Vec<String>,
     pub start: Point,
-    pub result: Point,
+    /// The best safe evaluation of any seed; `None`: no safe gains.
+    pub result: Option<Point>,
+    /// Without a result: the least unsafe evaluation (not a tuning result; never to be flown as one).
+    pub least_unsafe: Option<Point>,
+    /// Each seed's search: its best safe cost (`None`: none safe) and when it was found.
+    pub per_seed: Vec<SeedSummary>,
+    /// The best safe costs of the seeds that found one: least, median, greatest.
+    pub spread: Option<[f64; 3]>,
+    /// The guards broken by the most evaluations.
+    pub limiting: Vec<Limiting>,
 }
 
 /// One evaluation in the summary.
 #[derive(Debug, Clone, Serialize)]
 pub struct Point {
+    pub seed: u64,
     pub evaluation: usize,
     pub gains: Vec<f64>,
     pub cost: f64,
@@ -72,37 +91,93 @@ pub struct Point {
     pub violations: Vec<String>,
 }
 
+/// One seed's search in the summary.
+#[derive(Debug, Clone, Serialize)]
+pub struct SeedSummary {
+    pub seed: u64,
+    pub best_safe_cost: Option<f64>,
+    pub best_evaluation: usize,
+    pub safe_evaluations: usize,
+}
+
+fn point(seed: u64, e: &Evaluated) -> Point {
+    Point {
+        seed,
+        evaluation: e.index,
+        gains: e.gains.clone(),
+        cost: e.verdict.cost,
+        safe: e.verdict.safe(),
+        violations: e.verdict.violations.clone(),
+    }
+}
+
+/// "no safe gains in N evaluations".
+#[must_use]
+pub fn no_safe_gains(evaluations: usize) -> String {
+    format!("no safe gains in {evaluations} evaluations")
+}
+
 impl Summary {
     #[must_use]
-    pub fn of(tune: &Tune, outcome: &Outcome) -> Self {
-        let point = |e: &super::Evaluated| Point {
-            evaluation: e.index,
-            gains: e.gains.clone(),
-            cost: e.verdict.cost,
-            safe: e.verdict.safe(),
-            violations: e.verdict.violations.clone(),
-        };
+    pub fn of(tune: &Tune, tuning: &Tuning) -> Self {
+        let result = tuning.result().map(|(o, e)| point(o.seed, e));
+        let least_unsafe = result.is_none().then(|| {
+            let (o, e) = tuning.least_unsafe();
+            point(o.seed, e)
+        });
+        let per_seed: Vec<SeedSummary> = tuning
+            .outcomes
+            .iter()
+            .map(|o: &Outcome| SeedSummary {
+                seed: o.seed,
+                best_safe_cost: o.result().verdict.safe().then_some(o.result().verdict.cost),
+                best_evaluation: o.best,
+                safe_evaluations: o.evaluations.iter().filter(|e| e.verdict.safe()).count(),
+            })
+            .collect();
+        let mut costs: Vec<f64> = per_seed.iter().filter_map(|s| s.best_safe_cost).collect();
+        costs.sort_by(f64::total_cmp);
+        let spread = (!costs.is_empty()).then(|| [costs[0], costs[(costs.len() - 1) / 2], costs[costs.len() - 1]]);
+        let evaluations = tuning.evaluations();
         Self {
             name: tune.name.clone(),
             controller: tune.controller.to_string(),
-            seed: tune.seed,
+            seeds: tune.seeds.clone(),
             budget: tune.budget,
-            evaluations: outcome.evaluations.len(),
+            evaluations,
+            verdict: if result.is_some() { "tuned".to_owned() } else { no_safe_gains(evaluations) },
             gains: tune.gains.iter().map(|g| g.label.clone()).collect(),
-            start: point(outcome.start()),
-            result: point(outcome.result()),
+            start: point(tuning.outcomes[0].seed, tuning.start()),
+            result,
+            least_unsafe,
+            per_seed,
+            spread,
+            limiting: tuning.limiting(3),
         }
     }
 
     /// The lines printed at the end of a tuning.
     #[must_use]
     pub fn text(&self) -> String {
-        let mut s =
-            format!("{} ({}): {} evaluations, seed {}\n", self.name, self.controller, self.evaluations, self.seed);
-        for (label, p) in [("start", &self.start), ("result", &self.result)] {
+        let seeds: Vec<String> = self.seeds.iter().map(u64::to_string).collect();
+        let mut s = format!(
+            "{} ({}): {} evaluations ({} per seed, seed{} {}): {}\n",
+            self.name,
+            self.controller,
+            self.evaluations,
+            self.budget,
+            if self.seeds.len() == 1 { "" } else { "s" },
+            seeds.join(", "),
+            self.verdict
+        );
+        let mut points = vec![("start", &self.start)];
+        points.extend(self.result.iter().map(|p| ("result", p)));
+        points.extend(self.least_unsafe.iter().map(|p| ("least unsafe", p)));
+        for (label, p) in points {
             let _ = writeln!(
                 s,
-                "  {label:6} evaluation {:>4}: cost {:.6}  {}",
+                "  {label:12} seed {} evaluation {:>4}: cost {:.6}  {}",
+                p.seed,
                 p.evaluation,
                 p.cost,
                 if p.safe { "safe".to_owned() } else { format!("UNSAFE ({} guards broken)", p.violations.len()) }
@@ -116,6 +191,23 @@ impl Summary {
             if p.violations.len() > 5 {
                 let _ = writeln!(s, "    ... and {} more", p.violations.len() - 5);
             }
+        }
+        for seed in &self.per_seed {
+            let best = seed.best_safe_cost.map_or_else(|| "none safe".to_owned(), |c| format!("best safe cost {c:.6}"));
+            let _ = writeln!(
+                s,
+                "  seed {}: {best} ({} of {} evaluations safe)",
+                seed.seed, seed.safe_evaluations, self.budget
+            );
+        }
+        if let Some([lo, mid, hi]) = self.spread {
+            let _ = writeln!(
+                s,
+                "  spread of the seeds' best safe costs: {lo:.6} / {mid:.6} / {hi:.6} (least / median / greatest)"
+            );
+        }
+        for l in &self.limiting {
+            let _ = writeln!(s, "  limiting: {} broken by {} of {} evaluations", l.guard, l.broken_by, l.of);
         }
         s
     }
@@ -179,43 +271,93 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), TuneError> {
     std::fs::rename(&tmp, path).map_err(io)
 }
 
-/// Writes a tuning's files into `dir`: `trace.csv`, `controller.toml`, `params.txt`, `result.json`.
-/// Returns their paths.
+/// The convergence figure of a tuning (`path` PNG and its `.svg`): per seed, the best safe training cost
+/// found so far against the evaluation, on a log10 scale; a seed with no safe evaluation draws nothing
+/// and says so in the legend.
 ///
 /// # Errors
-/// The file system's, or gains that make no configuration (not for an outcome of [`Tune::run`]).
-pub fn write_tuning(dir: &Path, tune: &Tune, outcome: &Outcome) -> Result<Vec<PathBuf>, TuneError> {
+/// A drawing failure (e.g. the directory is not writable).
+pub fn convergence_figure(path: &Path, tune: &Tune, tuning: &Tuning) -> Result<(), TuneError> {
+    let curves: Vec<(String, Vec<(f64, f64)>)> = tuning
+        .outcomes
+        .iter()
+        .map(|o| {
+            let points: Vec<(f64, f64)> = o
+                .best_safe_cost_so_far()
+                .into_iter()
+                .enumerate()
+                .filter_map(|(i, c)| c.filter(|c| *c > 0.0).map(|c| (i as f64, c.log10())))
+                .collect();
+            let label =
+                if points.is_empty() { format!("seed {} (none safe)", o.seed) } else { format!("seed {}", o.seed) };
+            (label, points)
+        })
+        .collect();
+    let verdict = if tuning.result().is_some() { "tuned".to_owned() } else { no_safe_gains(tuning.evaluations()) };
+    let title = format!("sitl tune {} ({}): best safe training cost so far, {verdict}", tune.name, tune.controller);
+    plot::convergence(path, &title, "evaluation", "log10 best safe training cost", &curves)
+        .map_err(|e| TuneError::Invalid(format!("{}: {e}", path.display())))
+}
+
+/// Writes a tuning's files into `dir`: `trace.csv`, `result.json`, `convergence.svg` and `.png`, and
+/// either `controller.toml` and `params.txt` (the result) or, with no safe gains, `least-unsafe.toml`
+/// (any `controller.toml` and `params.txt` of an earlier tuning there are removed, so nothing stale is
+/// flown as tuned). Returns the paths written.
+///
+/// # Errors
+/// The file system's, or gains that make no configuration (not for a tuning from [`Tune::run`]).
+pub fn write_tuning(dir: &Path, tune: &Tune, tuning: &Tuning) -> Result<Vec<PathBuf>, TuneError> {
     std::fs::create_dir_all(dir).map_err(|source| TuneError::Io { path: dir.display().to_string(), source })?;
-    let result = outcome.result();
-    let verdict = if result.verdict.safe() { "safe on every guard" } else { "UNSAFE: no evaluation kept every guard" };
-    let header = format!(
-        "sitl tune {name}: {controller}, evaluation {index} of {n} (seed {seed}), training cost {cost} \
-         (start: {start}), {verdict}",
-        name = tune.name,
-        controller = tune.controller,
-        index = result.index,
-        n = outcome.evaluations.len(),
-        seed = tune.seed,
-        cost = short(result.verdict.cost),
-        start = short(outcome.start().verdict.cost),
-    );
+    let n = tuning.evaluations();
+    let seeds: Vec<String> = tune.seeds.iter().map(u64::to_string).collect();
+    let header = |seed: u64, e: &Evaluated, verdict: &str| {
+        format!(
+            "sitl tune {name}: {controller}, seed {seed} evaluation {index} ({n} evaluations over seeds {seeds}), \
+             training cost {cost} (start: {start}), {verdict}",
+            name = tune.name,
+            controller = tune.controller,
+            index = e.index,
+            seeds = seeds.join(", "),
+            cost = short(e.verdict.cost),
+            start = short(tuning.start().verdict.cost),
+        )
+    };
     let invalid = |e: String| TuneError::Invalid(e);
-    let block = tune.controller_block(&result.gains).map_err(invalid)?;
-    let files = [
-        ("trace.csv", trace_csv(tune, outcome)),
-        ("controller.toml", format!("# {header}\n{block}")),
-        ("params.txt", tune.param_file(&result.gains, &header).map_err(invalid)?),
+    let mut files = vec![
+        ("trace.csv", trace_csv(tune, tuning)),
         (
             "result.json",
-            serde_json::to_string_pretty(&Summary::of(tune, outcome)).map_err(|e| invalid(e.to_string()))? + "\n",
+            serde_json::to_string_pretty(&Summary::of(tune, tuning)).map_err(|e| invalid(e.to_string()))? + "\n",
         ),
     ];
+    let stale: &[&str] = if let Some((o, e)) = tuning.result() {
+        let header = header(o.seed, e, "safe on every guard");
+        files.push(("controller.toml", format!("# {header}\n{}", tune.controller_block(&e.gains).map_err(invalid)?)));
+        files.push(("params.txt", tune.param_file(&e.gains, &header).map_err(invalid)?));
+        &["least-unsafe.toml"]
+    } else {
+        let (o, e) = tuning.least_unsafe();
+        let header = header(o.seed, e, &format!("{}: the least unsafe, NOT a tuning result", no_safe_gains(n)));
+        files.push(("least-unsafe.toml", format!("# {header}\n{}", tune.controller_block(&e.gains).map_err(invalid)?)));
+        &["controller.toml", "params.txt"]
+    };
+    for name in stale {
+        match std::fs::remove_file(dir.join(name)) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                return Err(TuneError::Io { path: dir.join(name).display().to_string(), source: e });
+            }
+            _ => {}
+        }
+    }
     let mut written = Vec::new();
     for (name, text) in files {
         let path = dir.join(name);
         write_atomically(&path, text.as_bytes())?;
         written.push(path);
     }
+    let figure = dir.join("convergence.png");
+    convergence_figure(&figure, tune, tuning)?;
+    written.extend([figure.with_extension("svg"), figure]);
     Ok(written)
 }
 

@@ -58,7 +58,7 @@ scale = "log"
 [[train]]
 scenario = "short-gust.toml"
 seeds = [1, 2]
-cost = { gust_peak_m = 10.0, gust_recovery_release_s = 1.0 }
+cost = { gust_peak_m = 10.0, gust_iae_release_m_s = 1.0 }
 [[guard]]
 scenario = "short-step.toml"
 limits = { max_overshoot_pct = 15.0 }
@@ -107,8 +107,8 @@ fn the_same_spec_and_seed_write_the_same_files_byte_for_byte_on_one_thread_or_tw
     let spec = tune(SPEC, &dir).unwrap();
     let write = |threads: usize, name: &str| {
         let out = dir.join(name);
-        let outcome = spec.run(&pool(threads), |_| {});
-        output::write_tuning(&out, &spec, &outcome).unwrap();
+        let outcome = spec.run(&pool(threads), |_| {}).outcomes.remove(0);
+        output::write_tuning(&out, &spec, &Tuning { outcomes: vec![outcome.clone()] }).unwrap();
         let text = std::fs::read_to_string(out.join("controller.toml")).unwrap();
         let sets = [GainSet::defaults(spec.controller), GainSet::from_toml(&text, "tuned").unwrap()];
         output::write_heldout(&out, &spec, &spec.evaluate_heldout(&sets, &pool(threads))).unwrap();
@@ -118,7 +118,17 @@ fn the_same_spec_and_seed_write_the_same_files_byte_for_byte_on_one_thread_or_tw
     let (_, two) = write(2, "two");
     assert_eq!(
         one.keys().collect::<Vec<_>>(),
-        ["controller.toml", "heldout.csv", "heldout.json", "heldout.txt", "params.txt", "result.json", "trace.csv"]
+        [
+            "controller.toml",
+            "convergence.png",
+            "convergence.svg",
+            "heldout.csv",
+            "heldout.json",
+            "heldout.txt",
+            "params.txt",
+            "result.json",
+            "trace.csv"
+        ]
     );
     for (name, bytes) in &one {
         assert!(bytes == &two[name], "{name} differs between one and two threads");
@@ -127,14 +137,88 @@ fn the_same_spec_and_seed_write_the_same_files_byte_for_byte_on_one_thread_or_tw
     assert_eq!(outcome.evaluations.len(), 10);
     let trace = String::from_utf8(one["trace.csv"].clone()).unwrap();
     assert_eq!(trace.lines().count(), 11, "{trace}");
-    assert!(trace.starts_with("evaluation,generation,aco.kp_pos_per_s,aco.kv_vel_per_s,cost,"), "{trace}");
+    assert!(trace.starts_with("seed,evaluation,generation,aco.kp_pos_per_s,aco.kv_vel_per_s,cost,"), "{trace}");
     assert_eq!(outcome.start().gains, [0.6667, 2.16]);
     assert!(outcome.start().verdict.safe(), "{:?}", outcome.start().verdict);
     assert!(outcome.result().verdict.safe());
     assert!(outcome.result().verdict.cost <= outcome.start().verdict.cost);
     // Another seed searches elsewhere.
-    let other = tune(&SPEC.replace("seed = 7", "seed = 8"), &dir).unwrap().run(&pool(2), |_| {});
+    let other = tune(&SPEC.replace("seed = 7", "seed = 8"), &dir).unwrap().run(&pool(2), |_| {}).outcomes.remove(0);
     assert_ne!(other.evaluations[1].gains, outcome.evaluations[1].gains);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn given_two_seeds_then_each_searches_its_whole_budget_and_the_result_is_the_best_safe_of_both() {
+    let dir = scenario_dir("seeds");
+    let spec = tune(&SPEC.replace("seed = 7", "seed = [7, 8]"), &dir).unwrap();
+    let tuning = spec.run(&pool(2), |_| {});
+    assert_eq!(tuning.outcomes.iter().map(|o| (o.seed, o.evaluations.len())).collect::<Vec<_>>(), [(7, 10), (8, 10)]);
+    // Each seed's search is the one a single-seed spec gives, bit for bit.
+    let alone = tune(&SPEC.replace("seed = 7", "seed = 8"), &dir).unwrap().run(&pool(1), |_| {});
+    assert_eq!(tuning.outcomes[1], alone.outcomes[0]);
+    let (best, result) = tuning.result().expect("a safe result");
+    let best_of = |o: &Outcome| o.result().verdict.cost;
+    assert_eq!(result.verdict.cost, best_of(&tuning.outcomes[0]).min(best_of(&tuning.outcomes[1])));
+    let out = dir.join("out");
+    output::write_tuning(&out, &spec, &tuning).unwrap();
+    let summary: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("result.json")).unwrap()).unwrap();
+    assert_eq!(summary["verdict"], "tuned");
+    assert_eq!(summary["evaluations"], 20);
+    assert_eq!(summary["result"]["seed"], best.seed);
+    let spread = summary["spread"].as_array().unwrap();
+    assert!(spread[0].as_f64() <= spread[2].as_f64(), "{summary}");
+    let trace = std::fs::read_to_string(out.join("trace.csv")).unwrap();
+    assert_eq!(trace.lines().filter(|l| l.starts_with("8,")).count(), 10);
+    assert!(std::fs::read_to_string(out.join("convergence.svg")).unwrap().contains("seed 8"));
+    assert!(tune(&SPEC.replace("seed = 7", "seed = [7, 7]"), &dir).unwrap_err().to_string().contains("twice"));
+    assert!(tune(&SPEC.replace("seed = 7", "seed = []"), &dir).is_err());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn given_a_guard_no_candidate_keeps_then_no_safe_gains_are_written_and_the_limiting_guard_is_named() {
+    let dir = scenario_dir("nosafe");
+    // Every hover in the gust is pushed more than a millimetre.
+    let text = SPEC.replace(
+        "[[guard]]\nscenario = \"short-step.toml\"",
+        "[[guard]]\nscenario = \"short-gust.toml\"\nlimits = { gust_peak_m = 0.001 }\n[[guard]]\nscenario = \"short-step.toml\"",
+    );
+    let spec = tune(&text, &dir).unwrap();
+    let tuning = spec.run(&pool(2), |_| {});
+    assert!(tuning.result().is_none());
+    let limiting = tuning.limiting(3);
+    assert_eq!(
+        (limiting[0].guard.as_str(), limiting[0].broken_by, limiting[0].of),
+        ("short-gust: gust_peak_m", 10, 10)
+    );
+    let out = dir.join("out");
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::write(out.join("controller.toml"), "# a stale result\n").unwrap();
+    let written = output::write_tuning(&out, &spec, &tuning).unwrap();
+    assert!(!out.join("controller.toml").exists() && !out.join("params.txt").exists(), "nothing to fly as tuned");
+    assert!(written.contains(&out.join("least-unsafe.toml")));
+    let least = std::fs::read_to_string(out.join("least-unsafe.toml")).unwrap();
+    assert!(least.starts_with("# ") && least.contains("no safe gains in 10 evaluations"), "{least}");
+    let summary = output::Summary::of(&spec, &tuning);
+    assert_eq!(summary.verdict, "no safe gains in 10 evaluations");
+    assert!(summary.result.is_none() && summary.spread.is_none() && summary.least_unsafe.is_some());
+    assert!(
+        summary.text().contains("limiting: short-gust: gust_peak_m broken by 10 of 10 evaluations"),
+        "{}",
+        summary.text()
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn given_a_banded_time_in_a_cost_then_the_spec_is_refused_naming_it_and_a_continuous_metric() {
+    let dir = scenario_dir("banded");
+    for metric in ["gust_recovery_release_s", "max_settling_s", "gust_within_10cm_s"] {
+        let text = SPEC.replace("gust_iae_release_m_s = 1.0", &format!("{metric} = 1.0"));
+        let e = tune(&text, &dir).unwrap_err().to_string();
+        assert!(e.contains(metric) && e.contains("continuous"), "{e}");
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -273,7 +357,7 @@ fn a_bad_spec_is_refused_at_load_naming_what_is_wrong() {
         (SPEC.replace("seeds = [1, 2]", "seeds = []"), vec!["train[0]", "seeds"]),
         (SPEC.replace("seeds = [1, 2]", "plants = [\"heavy\"]"), vec!["train[0]", "heavy"]),
         (SPEC.replace("short-gust.toml\"\nseeds", "no-such.toml\"\nseeds"), vec!["train[0]", "no-such.toml"]),
-        (SPEC.replace("cost = { gust_peak_m = 10.0, gust_recovery_release_s = 1.0 }", ""), vec!["train[0]", "cost"]),
+        (SPEC.replace("cost = { gust_peak_m = 10.0, gust_iae_release_m_s = 1.0 }", ""), vec!["train[0]", "cost"]),
         (SPEC.replace("gust_peak_m = 10.0", "gust_peak_m = -1.0"), vec!["gust_peak_m", "weight"]),
     ];
     for (text, needles) in &cases {
