@@ -1129,6 +1129,32 @@ impl Tuning {
         self.outcomes[0].start()
     }
 
+    /// For each training and guard set of `tune`, how many evaluations kept every limit of it (on every
+    /// plant and seed) and the first that did: a set no evaluation kept is one this controller may not be
+    /// able to keep at all, and a comparison should say so or change it.
+    #[must_use]
+    pub fn sets_kept(&self, tune: &Tune) -> Vec<SetKept> {
+        tune.train
+            .iter()
+            .chain(&tune.guards)
+            .map(|set| {
+                let prefix = format!("{} ", set.name);
+                let mut kept = self
+                    .outcomes
+                    .iter()
+                    .flat_map(|o| o.evaluations.iter().map(move |e| (o.seed, e)))
+                    .filter(|(_, e)| !e.verdict.violations.iter().any(|v| v.starts_with(&prefix)));
+                let first = kept.next().map(|(seed, e)| (seed, e.index));
+                SetKept {
+                    set: set.name.clone(),
+                    kept_by: usize::from(first.is_some()) + kept.count(),
+                    of: self.evaluations(),
+                    first,
+                }
+            })
+            .collect()
+    }
+
     /// The guards broken by the most evaluations, most first (ties by name), at most `n`.
     #[must_use]
     pub fn limiting(&self, n: usize) -> Vec<Limiting> {
@@ -1146,6 +1172,16 @@ impl Tuning {
         let of = self.evaluations();
         ranked.into_iter().take(n).map(|(guard, broken_by)| Limiting { guard, broken_by, of }).collect()
     }
+}
+
+/// A training or guard set and the evaluations that kept all its limits.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct SetKept {
+    pub set: String,
+    pub kept_by: usize,
+    pub of: usize,
+    /// The first evaluation (seed, index) that kept it.
+    pub first: Option<(u64, usize)>,
 }
 
 /// A violation ("set plant seed N: metric = v > limit") as its guard ("set: metric"): the set name, then

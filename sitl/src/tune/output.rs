@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use super::{Evaluated, HeldOut, Limiting, Outcome, Tune, TuneError, Tuning};
+use super::{Evaluated, HeldOut, Limiting, Outcome, SetKept, Tune, TuneError, Tuning};
 use crate::scenario::plot;
 
 /// A float as its shortest round-trip decimal.
@@ -78,6 +78,9 @@ pub struct Summary {
     pub spread: Option<[f64; 3]>,
     /// The guards broken by the most evaluations.
     pub limiting: Vec<Limiting>,
+    /// Per training and guard set, the evaluations that kept all its limits (a set none kept may be
+    /// beyond this controller).
+    pub sets_kept: Vec<SetKept>,
 }
 
 /// One evaluation in the summary.
@@ -153,6 +156,7 @@ impl Summary {
             per_seed,
             spread,
             limiting: tuning.limiting(3),
+            sets_kept: tuning.sets_kept(tune),
         }
     }
 
@@ -208,6 +212,10 @@ impl Summary {
         }
         for l in &self.limiting {
             let _ = writeln!(s, "  limiting: {} broken by {} of {} evaluations", l.guard, l.broken_by, l.of);
+        }
+        for k in &self.sets_kept {
+            let first = k.first.map_or_else(String::new, |(seed, i)| format!(", first seed {seed} evaluation {i}"));
+            let _ = writeln!(s, "  set {} kept by {} of {} evaluations{first}", k.set, k.kept_by, k.of);
         }
         s
     }

@@ -182,7 +182,7 @@ fn given_a_guard_no_candidate_keeps_then_no_safe_gains_are_written_and_the_limit
     // Every hover in the gust is pushed more than a millimetre.
     let text = SPEC.replace(
         "[[guard]]\nscenario = \"short-step.toml\"",
-        "[[guard]]\nscenario = \"short-gust.toml\"\nlimits = { gust_peak_m = 0.001 }\n[[guard]]\nscenario = \"short-step.toml\"",
+        "[[guard]]\nname = \"tight-gust\"\nscenario = \"short-gust.toml\"\nlimits = { gust_peak_m = 0.001 }\n[[guard]]\nscenario = \"short-step.toml\"",
     );
     let spec = tune(&text, &dir).unwrap();
     let tuning = spec.run(&pool(2), |_| {});
@@ -190,7 +190,7 @@ fn given_a_guard_no_candidate_keeps_then_no_safe_gains_are_written_and_the_limit
     let limiting = tuning.limiting(3);
     assert_eq!(
         (limiting[0].guard.as_str(), limiting[0].broken_by, limiting[0].of),
-        ("short-gust: gust_peak_m", 10, 10)
+        ("tight-gust: gust_peak_m", 10, 10)
     );
     let out = dir.join("out");
     std::fs::create_dir_all(&out).unwrap();
@@ -204,10 +204,16 @@ fn given_a_guard_no_candidate_keeps_then_no_safe_gains_are_written_and_the_limit
     assert_eq!(summary.verdict, "no safe gains in 10 evaluations");
     assert!(summary.result.is_none() && summary.spread.is_none() && summary.least_unsafe.is_some());
     assert!(
-        summary.text().contains("limiting: short-gust: gust_peak_m broken by 10 of 10 evaluations"),
+        summary.text().contains("limiting: tight-gust: gust_peak_m broken by 10 of 10 evaluations"),
         "{}",
         summary.text()
     );
+    // The tight guard is kept by none; the training set (no limits) and the step guard (kept by the
+    // defaults) by some.
+    let kept: Vec<(&str, usize)> = summary.sets_kept.iter().map(|k| (k.set.as_str(), k.kept_by)).collect();
+    assert_eq!(kept, [("short-gust", 10), ("tight-gust", 0), ("short-step", kept[2].1)]);
+    assert!(kept[2].1 > 0, "{kept:?}");
+    assert!(summary.sets_kept[1].first.is_none() && summary.sets_kept[2].first == Some((7, 0)));
     let _ = std::fs::remove_dir_all(&dir);
 }
 
