@@ -93,3 +93,12 @@ fn given_truth_estimator_when_gcs_takes_off_holds_and_lands_then_hover_within_1_
     assert!(f.hover_est_err_m <= 0.01, "estimated hover error {f:?}");
     assert!(f.hover_truth_err_m <= 0.01, "truth error {f:?}");
 }
+
+#[test]
+fn given_the_same_fused_flight_twice_then_every_figure_is_bit_identical() {
+    // docs/design.md: the lockstep rig is bit-reproducible (seeded noise, no clocks in the core).
+    let bits =
+        |f: &Flight| [f.converge_s, f.climb_s, f.hover_est_err_m, f.hover_truth_err_m, f.land_s].map(f64::to_bits);
+    let (a, b) = (fly(EstimatorSource::Fused), fly(EstimatorSource::Fused));
+    assert_eq!(bits(&a), bits(&b), "{a:?} against {b:?}");
+}
