@@ -2,7 +2,7 @@
 //! acceptance checks of spec (e), the baselines' sanity ranges, and bit-reproducibility.
 
 use autopilot::core::control::ControllerKind::{Aco, Ca, Pid};
-use sitl::scenario::ReferenceMode::{FeedForward, PositionOnly};
+use sitl::scenario::ReferenceMode::{FeedForward, FeedForwardJerk, PositionOnly};
 use sitl::scenario::metrics::GustMetrics;
 use tests::cached;
 
@@ -75,6 +75,26 @@ fn aco_flies_the_figure_8() {
         aco.cross_track_rms_m,
         ca.cross_track_rms_m
     );
+}
+
+/// The README's "at 0.9 m/s ACO needs the reference's jerk" (`figure8-fast`, mismatch plant, noise on):
+/// measured ACO 0.279 m cross-track RMS with velocity and acceleration feed-forward, 0.062 m with the jerk
+/// added (`cargo test -p tests --test disturbance_and_tracking fast -- --nocapture` prints all three
+/// controllers). Held at 0.07 m with the jerk, and at most a quarter of the RMS without it.
+#[test]
+fn aco_on_the_fast_figure_8_tracks_within_7_cm_rms_with_the_jerk_and_4x_better_than_without() {
+    let track =
+        |c, mode| cached("figure8-fast", c, "mismatch", 1, 500, mode).metrics.track.clone().expect("track metrics");
+    for (name, c) in [("ACO", Aco), ("CA", Ca), ("PID", Pid)] {
+        let (ff, jerk) = (track(c, FeedForward), track(c, FeedForwardJerk));
+        println!(
+            "figure8-fast {name}: feed-forward {:.3} / {:.3} m, with jerk {:.3} / {:.3} m cross-track RMS / max",
+            ff.cross_track_rms_m, ff.cross_track_max_m, jerk.cross_track_rms_m, jerk.cross_track_max_m
+        );
+    }
+    let (ff, jerk) = (track(Aco, FeedForward).cross_track_rms_m, track(Aco, FeedForwardJerk).cross_track_rms_m);
+    assert!(jerk <= 0.07, "with the jerk: cross-track rms {jerk:.3} m");
+    assert!(jerk <= 0.25 * ff, "with the jerk {jerk:.3} m against {ff:.3} m without");
 }
 
 #[test]

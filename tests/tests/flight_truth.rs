@@ -96,16 +96,16 @@ fn climb(plant: &str, alt_m: f64) -> (Armed, Climb) {
 }
 
 #[test]
-fn takeoff_to_1_5_m_then_a_20_s_hover_stays_within_5_cm_of_home_plus_1_5_m_on_the_truth() {
+fn takeoff_to_1_5_m_then_a_20_s_hover_stays_within_6_cm_of_home_plus_1_5_m_on_the_truth() {
     for plant in ["nominal", "mismatch"] {
         let (mut a, _) = climb(plant, 1.5);
         let target = a.home_truth_ned_m - Vector3::new(0.0, 0.0, 1.5);
         let mut worst = 0.0_f64;
         a.rig.run_s(20.0, |r| worst = worst.max((r.plant.truth().pos_ned_m - target).norm()));
         println!("{plant} 20 s hover at 1.5 m: worst {worst:.4} m from home + 1.5 m");
-        // The fused estimator's GPS noise sets this (0.050 m worst on the nominal plant, measured); the
-        // issue's 0.05 m is for a truth-fed vehicle through `sitl run`.
-        assert!(worst <= 0.08, "{plant} hover error {worst} m");
+        // The fused estimator's GPS noise sets this (measured: 0.0507 m worst on the nominal plant, 0.0508 m
+        // on the mismatch plant); the 0.05 m is for a truth-fed vehicle through `sitl run`.
+        assert!(worst <= 0.06, "{plant} hover error {worst} m");
     }
 }
 

@@ -63,7 +63,7 @@ fn check_equivalence(row: &ReferenceRow, out: &RunOutput, attitude: bool) -> Vec
 }
 
 #[test]
-fn aco_matches_the_reference_results_on_both_plants() {
+fn aco_matches_the_reference_results_on_both_plants_within_1_point_0_3_s_and_5_percent() {
     let mut bad = Vec::new();
     for row in ATTITUDE_TABLE.iter().filter(|r| r.controller == Aco) {
         bad.extend(check_equivalence(row, &att(row.controller, row.plant), true));
@@ -75,7 +75,7 @@ fn aco_matches_the_reference_results_on_both_plants() {
 }
 
 #[test]
-fn baselines_match_the_reference_translation_results_on_both_plants() {
+fn baselines_match_the_reference_translation_results_on_both_plants_within_1_point_0_3_s_and_5_percent() {
     let mut bad = Vec::new();
     for row in TRANSLATION_TABLE.iter().filter(|r| r.controller != Aco) {
         bad.extend(check_equivalence(row, &trans(row.controller, row.plant), false));
@@ -84,7 +84,7 @@ fn baselines_match_the_reference_translation_results_on_both_plants() {
 }
 
 #[test]
-fn baselines_match_the_reference_attitude_results_on_both_plants() {
+fn baselines_match_the_reference_attitude_results_on_both_plants_within_1_point_0_3_s_and_5_percent() {
     let mut bad = Vec::new();
     for row in ATTITUDE_TABLE.iter().filter(|r| r.controller != Aco) {
         bad.extend(check_equivalence(row, &att(row.controller, row.plant), true));
@@ -92,8 +92,77 @@ fn baselines_match_the_reference_attitude_results_on_both_plants() {
     assert!(bad.is_empty(), "baselines depart from the reference results:\n{}", bad.join("\n"));
 }
 
+/// Every cell of the reference tables that the tests hold (overshoot, settling, worst later overshoot,
+/// RMS), as (row and cell, ours, the prototype's), each printed to the prototype's digits.
+fn printed_cells() -> Vec<(String, String, String)> {
+    let mut cells = Vec::new();
+    for (table, attitude) in [(ATTITUDE_TABLE, true), (TRANSLATION_TABLE, false)] {
+        let axes: &[&str] = if attitude { &["roll", "pitch", "yaw"] } else { &["n", "e", "d up", "d down"] };
+        for row in table {
+            let out = if attitude { att(row.controller, row.plant) } else { trans(row.controller, row.plant) };
+            let who = format!("{} {} {:?}", out.metrics.scenario, row.plant, row.controller);
+            for ((seg, want), axis) in table_segments(&out, attitude).iter().zip(row.steps).zip(axes) {
+                cells.push((
+                    format!("{who} {axis} overshoot %"),
+                    format!("{:.1}", seg.overshoot_pct),
+                    format!("{:.1}", want.overshoot_pct),
+                ));
+                let print = |t: Option<f64>| t.map_or_else(|| "never".to_owned(), |t| format!("{t:.2}"));
+                cells.push((format!("{who} {axis} settling s"), print(seg.settling_s), print(want.settling_s)));
+            }
+            if let Some(w) = row.worst_later_overshoot_pct {
+                cells.push((
+                    format!("{who} worst overshoot on the 6/10 s steps %"),
+                    format!("{:.1}", later_worst_overshoot(&out)),
+                    format!("{w:.1}"),
+                ));
+            }
+            let rms_axes: [&str; 3] = if attitude { ATT_AXES } else { ["n", "e", "d"] };
+            for (axis, want) in rms_axes.iter().zip(row.rms) {
+                cells.push((format!("{who} {axis} rms"), format!("{:.3}", rms(&out, axis)), format!("{want:.3}")));
+            }
+        }
+    }
+    cells
+}
+
+/// The cells where our figure, printed to the prototype's digits, differs from its table: (row and cell,
+/// ours, the prototype's). Each is one unit in the last printed digit.
+const CELLS_OFF_BY_A_PRINTED_DIGIT: [(&str, &str, &str); 8] = [
+    ("paper-attitude mismatch Aco roll rms", "0.065", "0.066"),
+    ("paper-attitude mismatch Pid pitch overshoot %", "6.9", "6.8"),
+    ("paper-attitude mismatch Pid pitch settling s", "1.78", "1.77"),
+    ("paper-attitude mismatch Pid yaw settling s", "4.68", "4.67"),
+    ("paper-attitude mismatch Pid worst overshoot on the 6/10 s steps %", "12.9", "12.8"),
+    ("paper-attitude nominal Pid roll settling s", "1.31", "1.30"),
+    ("paper-attitude nominal Pid worst overshoot on the 6/10 s steps %", "3.4", "3.3"),
+    ("paper-translation mismatch Pid e settling s", "7.65", "7.64"),
+];
+
+/// The README's claim, cell by cell: of the 126 overshoot, settling and RMS cells of the prototype's
+/// attitude and translation tables (ACO, CA and PID, both plants), every one prints as the prototype's
+/// but exactly the eight listed, whose last printed digit differs by one. A cell that starts or stops
+/// matching fails this test, so the list in the README stays exact.
 #[test]
-fn aco_follows_the_golden_traces_within_2_cm_and_10_mrad() {
+fn the_reference_tables_match_to_the_printed_digit_in_all_but_8_of_126_cells() {
+    let cells = printed_cells();
+    assert_eq!(cells.len(), 126, "cells compared");
+    let off: Vec<(&str, &str, &str)> = cells
+        .iter()
+        .filter(|(_, ours, theirs)| ours != theirs)
+        .map(|(w, o, t)| (w.as_str(), o.as_str(), t.as_str()))
+        .collect();
+    assert_eq!(off, CELLS_OFF_BY_A_PRINTED_DIGIT, "cells whose printed digits differ from the prototype's");
+}
+
+/// ACO against the prototype's four golden traces (50 Hz samples of NED position and Euler angles): the
+/// largest gap is 1.50 mm and 1.96e-5 rad, on the nominal attitude run (`cargo test -p tests --test
+/// paper_scenarios golden -- --nocapture` prints each trace's). Held at 2 mm and 3e-5 rad (30 µrad), a
+/// hundred times tighter than the spec's stretch goal of 0.02 m and 0.01 rad.
+#[test]
+fn aco_follows_the_golden_traces_within_2_mm_and_30_urad() {
+    const POS_TOL_M: f64 = 0.002;
+    const ANGLE_TOL_RAD: f64 = 3e-5;
     let mut worst = Vec::new();
     for plant in PLANTS {
         for (scenario, file) in [("paper-attitude", "att"), ("paper-translation", "pos")] {
@@ -110,13 +179,14 @@ fn aco_follows_the_golden_traces_within_2_cm_and_10_mrad() {
                     da = da.max(sitl::scenario::metrics::wrap_pi(row[i] - g[i]).abs());
                 }
             }
+            println!("{scenario} {plant}: max |d pos| {:.3} mm, max |d angle| {da:.2e} rad", dp * 1e3);
             worst.push((scenario, plant, dp, da));
         }
     }
     for (scenario, plant, dp, da) in &worst {
         assert!(
-            *dp <= 0.02 && *da <= 0.01,
-            "{scenario} {plant}: max |dp| {dp:.4} m, max |d angle| {da:.4} rad (all: {worst:?})"
+            *dp <= POS_TOL_M && *da <= ANGLE_TOL_RAD,
+            "{scenario} {plant}: max |dp| {dp:.2e} m, max |d angle| {da:.2e} rad (all: {worst:?})"
         );
     }
 }
@@ -183,7 +253,7 @@ fn aco_translation_meets_its_acceptance_checks() {
 }
 
 #[test]
-fn aco_stays_finite_inside_its_weight_bounds_and_is_no_busier_than_pid() {
+fn aco_stays_finite_inside_its_weight_bounds_and_its_pwm_at_most_1_2x_as_busy_as_pid() {
     for plant in PLANTS {
         for scenario in ["paper-attitude", "paper-translation"] {
             let aco = cached(scenario, Aco, plant, 1, 500, FeedForward);
@@ -209,7 +279,7 @@ fn baselines_are_the_specified_ones_on_the_mismatch_plant() {
 /// "Every metric within 10 % or 0.2 s of its 500 Hz value": times within max(10 %, 0.2 s), overshoot within
 /// max(10 %, 0.2 points), RMS within 10 %.
 #[test]
-fn aco_is_loop_rate_invariant_at_250_and_1000_hz() {
+fn aco_paper_metrics_at_250_and_1000_hz_stay_within_10_percent_or_0_2_s_of_their_500_hz_values() {
     let mut bad = Vec::new();
     for scenario in ["paper-attitude", "paper-translation"] {
         for plant in PLANTS {
@@ -236,4 +306,84 @@ fn aco_is_loop_rate_invariant_at_250_and_1000_hz() {
         }
     }
     assert!(bad.is_empty(), "loop-rate dependence:\n{}", bad.join("\n"));
+}
+
+/// Why the baselines' roll/pitch saturation freezes are off by default: with them acting, as the spec's
+/// text reads, every initial roll and pitch settling time of CA and PID (both plants) misses the
+/// prototype's by more than 0.2 s (CA mismatch roll 4.93 s against 1.10 s), and three of the four
+/// baseline attitude rows leave the spec's tolerances (CA nominal stays inside, 0.26 s off).
+#[test]
+fn with_the_roll_pitch_freezes_acting_every_baseline_roll_and_pitch_settling_misses_the_prototype_by_over_0_2_s() {
+    let mut s = sitl::scenario::Scenario::load("paper-attitude").expect("built-in");
+    s.controller.mrac.freeze_roll_pitch = true;
+    s.controller.pid.freeze_roll_pitch = true;
+    let mut rows_outside = Vec::new();
+    for row in ATTITUDE_TABLE.iter().filter(|r| r.controller != Aco) {
+        let out = tests::run_scenario(&s, row.controller, row.plant, 1, 500, FeedForward);
+        for (seg, want) in table_segments(&out, true).iter().zip(row.steps).take(2) {
+            let (got, want) = (seg.settling_s.unwrap_or(f64::INFINITY), want.settling_s.expect("the table's"));
+            println!("frozen {} {:?} {}: settling {got:.3} s against {want:.2} s", row.plant, row.controller, seg.axis);
+            assert!(
+                (got - want).abs() > 0.2,
+                "{} {:?} {}: {got:.3} s against {want} s",
+                row.plant,
+                row.controller,
+                seg.axis
+            );
+        }
+        if !check_equivalence(row, &out, true).is_empty() {
+            rows_outside.push((row.plant, row.controller));
+        }
+    }
+    assert_eq!(rows_outside, [("mismatch", Ca), ("mismatch", Pid), ("nominal", Pid)], "rows outside the tolerances");
+}
+
+/// The metric definitions checked on data they did not produce: applied to the prototype's own golden
+/// traces (ACO, 50 Hz samples), they give every overshoot of its ACO rows to the printed digit, and every
+/// settling time within one 20 ms sample of its figure (its table came from finer samples: yaw 2.90
+/// against 2.89 s, for example).
+#[test]
+fn metrics_of_the_golden_traces_give_the_prototypes_overshoots_to_the_printed_digit_and_settling_within_20_ms() {
+    use sitl::scenario::metrics::{StepSegment, step_metrics};
+    let step = |axis, t0_s, t1_s, start, target| StepSegment { axis, t0_s, t1_s, start, target, wrap: axis == "yaw" };
+    let mut bad = Vec::new();
+    for row in ATTITUDE_TABLE.iter().chain(TRANSLATION_TABLE).filter(|r| r.controller == Aco) {
+        let attitude = row.worst_later_overshoot_pct.is_some();
+        let file = if attitude { "att" } else { "pos" };
+        let gold = golden(&format!("golden_ACO_paper_{file}_{}.csv", row.plant));
+        let t: Vec<f64> = gold.iter().map(|g| g[0]).collect();
+        // (golden column, the step) as the scenario files set them: attitude from (0.4, -0.5, -0.4) rad to
+        // level until 6 s; translation from the origin to (1, -1, -3) m, then D to -2 m at 10 s.
+        let segments = if attitude {
+            vec![
+                (4, step("roll", 0.0, 6.0, 0.4, 0.0)),
+                (5, step("pitch", 0.0, 6.0, -0.5, 0.0)),
+                (6, step("yaw", 0.0, 6.0, -0.4, 0.0)),
+            ]
+        } else {
+            vec![
+                (1, step("n", 0.0, 22.0, 0.0, 1.0)),
+                (2, step("e", 0.0, 22.0, 0.0, -1.0)),
+                (3, step("d", 0.0, 10.0, 0.0, -3.0)),
+                (3, step("d", 10.0, 22.0, -3.0, -2.0)),
+            ]
+        };
+        for ((column, seg), want) in segments.iter().zip(row.steps) {
+            let y: Vec<f64> = gold.iter().map(|g| g[*column]).collect();
+            let m = step_metrics(&t, &y, seg);
+            let who = format!("{file} {} {} t0 {}", row.plant, seg.axis, seg.t0_s);
+            let (got, want_s) = (m.settling_s.unwrap_or(f64::INFINITY), want.settling_s.expect("the table's"));
+            println!(
+                "{who}: overshoot {:.3} % ({:.1}), settling {got:.2} s ({want_s:.2})",
+                m.overshoot_pct, want.overshoot_pct
+            );
+            if format!("{:.1}", m.overshoot_pct) != format!("{:.1}", want.overshoot_pct) {
+                bad.push(format!("{who}: overshoot {:.3} % against {:.1} %", m.overshoot_pct, want.overshoot_pct));
+            }
+            if (got - want_s).abs() > 0.02 + 1e-9 {
+                bad.push(format!("{who}: settling {got:.3} s against {want_s:.2} s"));
+            }
+        }
+    }
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
 }

@@ -51,7 +51,8 @@ fn fly(source: EstimatorSource) -> Flight {
     let mut hover = rig.vehicle.estimate().pos_ned_m;
     hover.z = target_d_m;
     let (mut est_err, mut truth_err) = (0.0_f64, 0.0_f64);
-    // AND holds, for 20 s, within 0.10 m of its own estimate of the point and near home + 1.5 m on the truth.
+    // AND holds for 20 s near its own estimate of the point and near home + 1.5 m on the truth (the callers
+    // judge how near).
     rig.run_s(20.0, |r| {
         est_err = est_err.max((r.vehicle.estimate().pos_ned_m - hover).norm());
         truth_err = truth_err.max((r.plant.truth().pos_ned_m - truth_hover).norm());
@@ -68,24 +69,36 @@ fn fly(source: EstimatorSource) -> Flight {
     assert!((rig.plant.truth().pos_ned_m.z).abs() < 0.05, "on the ground: {}", rig.plant.truth().pos_ned_m.z);
     let f = Flight { converge_s, climb_s, hover_est_err_m: est_err, hover_truth_err_m: truth_err, land_s };
     println!("{source:?}: {f:?}");
-    assert!(f.hover_est_err_m <= 0.10, "estimated hover error > 0.10 m: {f:?}");
     assert!(f.converge_s < 30.0 && f.climb_s > 1.0 && f.land_s > 1.0, "implausible phase times: {f:?}");
     f
 }
 
 #[test]
-fn given_fused_estimator_when_gcs_takes_off_holds_and_lands_then_hover_within_10cm_and_auto_disarm() {
+fn given_fused_estimator_when_gcs_takes_off_holds_and_lands_then_hover_within_5_cm_and_auto_disarm() {
     let wall = WallClock::now();
     let f = fly(EstimatorSource::Fused);
     println!("fused flight: {f:?}, wall {:.2} s", wall.elapsed().as_secs_f64());
-    // GPS and baro noise set this: the estimate wanders a few centimetres about the truth.
-    assert!(f.hover_truth_err_m <= 0.08, "truth error {f:?}");
+    // GPS and baro noise set this: the estimate wanders a few centimetres about the truth (measured: 0.039 m
+    // from its own estimate of the point, 0.044 m from it on the truth).
+    assert!(f.hover_est_err_m <= 0.05, "estimated hover error {f:?}");
+    assert!(f.hover_truth_err_m <= 0.05, "truth error {f:?}");
 }
 
 #[test]
-fn given_truth_estimator_when_gcs_takes_off_holds_and_lands_then_hover_within_10cm_and_auto_disarm() {
+fn given_truth_estimator_when_gcs_takes_off_holds_and_lands_then_hover_within_1_cm_and_auto_disarm() {
     let wall = WallClock::now();
     let f = fly(EstimatorSource::Truth);
     println!("truth flight: {f:?}, wall {:.2} s", wall.elapsed().as_secs_f64());
-    assert!(f.hover_truth_err_m <= 0.05, "truth error {f:?}");
+    // Measured: 0.0025 m, the controller's own error with a perfect state.
+    assert!(f.hover_est_err_m <= 0.01, "estimated hover error {f:?}");
+    assert!(f.hover_truth_err_m <= 0.01, "truth error {f:?}");
+}
+
+#[test]
+fn given_the_same_fused_flight_twice_then_every_figure_is_bit_identical() {
+    // docs/design.md: the lockstep rig is bit-reproducible (seeded noise, no clocks in the core).
+    let bits =
+        |f: &Flight| [f.converge_s, f.climb_s, f.hover_est_err_m, f.hover_truth_err_m, f.land_s].map(f64::to_bits);
+    let (a, b) = (fly(EstimatorSource::Fused), fly(EstimatorSource::Fused));
+    assert_eq!(bits(&a), bits(&b), "{a:?} against {b:?}");
 }
