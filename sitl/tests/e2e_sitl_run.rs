@@ -55,8 +55,8 @@ struct Seen {
     acks: Vec<(MavCmd, MavResult)>,
 }
 
-/// A client of the plant's SIM_ port (UDP 19550+N): it says HEARTBEAT once per wall second (so the plant
-/// keeps it as a peer) and collects the plant's truth, SIM_STATE at 50 Hz of plant time, each after a
+/// A client of the plant's SIM_ port (UDP 19550+N): it says HEARTBEAT once per wall second, every 20 ms
+/// until the truth flows (so the plant keeps it as a peer), and collects the plant's truth, SIM_STATE at 50 Hz of plant time, each after a
 /// SYSTEM_TIME with its plant time (the vehicle's `time_boot_ms` clock). Positions are NED (m) about the
 /// first sample's point, through the autopilot's geodetic map (the plant's GPS map).
 struct TruthLink {
@@ -383,13 +383,16 @@ fn fly(extra_args: &[&str]) {
     let hover_end_ms = gcs.seen.time_ms;
     gcs.truth_at(hover_end_ms);
     // The truth over the hover window: SIM_STATE at 50 Hz of plant time, so about 1000 samples in 20 s.
-    let window: Vec<f64> = gcs
+    let offsets: Vec<Vector3<f64>> = gcs
         .truth
         .samples
         .iter()
         .filter(|(t, _)| (hover_start_ms..=hover_end_ms).contains(t))
-        .map(|(_, p)| (p - hover_truth_ned_m).norm())
+        .map(|(_, p)| p - hover_truth_ned_m)
         .collect();
+    let window: Vec<f64> = offsets.iter().map(Vector3::norm).collect();
+    let horizontal_m = offsets.iter().map(|d| d.xy().norm()).fold(0.0_f64, f64::max);
+    let vertical_m = offsets.iter().map(|d| d.z.abs()).fold(0.0_f64, f64::max);
     let expected = (hover_end_ms - hover_start_ms) / 20;
     assert!(
         window.len() as u32 * 10 >= expected * 9,
@@ -425,7 +428,7 @@ fn fly(extra_args: &[&str]) {
     let sim_s = f64::from(gcs.seen.time_ms - gcs.first_time_ms.unwrap_or(0)) * 1e-3;
     println!(
         "e2e instance {n} {extra_args:?}: converge {converge_s:.1} s, climb {climb_s:.1} s, truth hover error max \
-         {hover_err_m:.3} m over {} samples (the estimate's from its own home {estimate_err_m:.3} m), land {land_s:.1} s; \
+         {hover_err_m:.3} m over {} samples (horizontal {horizontal_m:.3}, vertical {vertical_m:.3}; the estimate's from its own home {estimate_err_m:.3} m), land {land_s:.1} s; \
          {sim_s:.1} sim s in {wall_s:.1} s wall = {:.1}x real time ({:.0} steps/s at 500 Hz)",
         window.len(),
         sim_s / wall_s,
