@@ -1,6 +1,7 @@
 """The plumbing every pymavlink script shares: the SITL instance's ports, a link to the vehicle that keeps
 its clock (the largest `time_boot_ms` seen) and its state from telemetry, waits measured on that clock,
-COMMAND_LONG with its ACK, the parameter protocol, the plant's SIM_ parameter link, and the exit codes.
+COMMAND_LONG with its ACK, the parameter protocol, the plant's SIM_ parameter link and its truth stream
+(`PlantTruth`), and the exit codes.
 
 Time: every wait in a flight is measured on the vehicle's clock, so a script behaves the same whether
 the SITL runs at real time (`sitl run`'s default) or at `--speed 30`. Protocol timeouts (an ACK, a
@@ -15,7 +16,8 @@ sends to UDP 127.0.0.1:14550 (QGroundControl's, shared; system id N+1 tells them
 API port (`api_port(N)`: 14540+N, 14541+N from N = 10 so as to skip 14550), and listens on 18570+N. A
 script listens on the API port (`udpin:`), takes only system N+1's messages (`--sysid` for another) and
 sends to 18570+N explicitly. The plant answers its SIM_ parameters on 127.0.0.1:19550+N as system N+1,
-component 51.
+component 51, and streams its true state there (SIM_STATE at 50 Hz of plant time) to every client that
+spoke in the last 10 s.
 
 Exit codes: 0 success, 1 a failed flight check (or the hang guard), 2 no vehicle (no HEARTBEAT in time).
 """
@@ -39,6 +41,7 @@ MAX_INSTANCE = 254  # system id N+1 is a byte
 AUTOPILOT_PORT = 18570
 PLANT_PARAM_PORT = 19550
 PLANT_COMPONENT = 51
+EARTH_RADIUS_M = 6_378_137.0  # flat-Earth maps about a point a few metres across
 AUTOPILOT_COMPONENT = 1
 GCS_SYSTEM = 255
 GCS_COMPONENT = 190  # MAV_COMP_ID_MISSIONPLANNER, as QGroundControl and MAVProxy
@@ -647,6 +650,98 @@ class Plant(Link):
             f"no plant HEARTBEAT on udp 127.0.0.1:{self.port} within {timeout_s:g} s "
             f"(is `sitl run -i {self.instance}` running, with SIM_ parameters?)"
         )
+
+
+def ned_from_geodetic(origin, lat_deg, lon_deg, alt_amsl_m):
+    """(north, east, down) m of a point about `origin` = (lat_deg, lon_deg, alt_amsl_m): flat Earth on a
+    sphere, whose scale differs from WGS-84's by under 0.7 %, a millimetre over the 0.1 m a hover strays."""
+    lat0, lon0, alt0 = origin
+    north = math.radians(lat_deg - lat0) * EARTH_RADIUS_M
+    east = math.radians(lon_deg - lon0) * EARTH_RADIUS_M * math.cos(math.radians(lat0))
+    return north, east, alt0 - alt_amsl_m
+
+
+class PlantTruth:
+    """The plant's true state from its SIM_ port (`sitl run -i N`: UDP 127.0.0.1:19550+N, system N+1,
+    component 51), to judge a flight by what happened rather than by what the vehicle estimates. The plant
+    streams to every client that spoke in the last 10 s: one datagram per sample at 50 Hz of plant time,
+    SYSTEM_TIME (`time_boot_ms`: the plant time, which is the vehicle's clock) then SIM_STATE (the truth;
+    `lat_int`/`lon_int` degE7, `alt` m AMSL). This client says HEARTBEAT (every 20 ms of wall time until the
+    truth flows, then every second) and keeps each sample as (t_s, (north, east, down) m about the first
+    sample's point). It only reads when `drain` is called: call it often (as a listener of the vehicle's
+    link), or the kernel drops what does not fit its buffer."""
+
+    def __init__(self, connect, system_id):
+        self.connect = connect
+        self.system_id = system_id
+        try:
+            self.conn = mavutil.mavlink_connection(connect, source_system=GCS_SYSTEM, source_component=GCS_COMPONENT)
+        except OSError as e:
+            raise GcsError(f"cannot open {connect}: {e}") from e
+        self.origin = None
+        self.samples = []  # (t_s, (n, e, d))
+        self._time_ms = None
+        self._last_hello = -1e9
+
+    def drain(self):
+        """Say HEARTBEAT if due, then read every message waiting."""
+        now = time.monotonic()
+        if now - self._last_hello >= (1.0 if self.samples else 0.02):
+            self._last_hello = now
+            with contextlib.suppress(OSError):
+                self.conn.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+        while True:
+            try:
+                msg = self.conn.recv_match(blocking=False)
+            except OSError:
+                return  # the port is not there (yet): the waits time out and say so
+            if msg is None:
+                return
+            if msg.get_srcSystem() != self.system_id or msg.get_srcComponent() != PLANT_COMPONENT:
+                continue
+            kind = msg.get_type()
+            if kind == "SYSTEM_TIME":
+                self._time_ms = msg.time_boot_ms
+            elif kind == "SIM_STATE" and self._time_ms is not None:
+                lat = msg.lat_int * 1e-7 if msg.lat_int else msg.lat
+                lon = msg.lon_int * 1e-7 if msg.lon_int else msg.lon
+                if self.origin is None:
+                    self.origin = (lat, lon, msg.alt)
+                self.samples.append((self._time_ms / 1000.0, ned_from_geodetic(self.origin, lat, lon, msg.alt)))
+                self._time_ms = None
+
+    def at(self, t_s):
+        """The last sample's position at or before vehicle time `t_s`, once a later sample has come (the truth
+        trails the telemetry by up to a poll of the plant); None until then."""
+        if not self.samples or self.samples[-1][0] <= t_s:
+            return None
+        before = [pos for (t, pos) in self.samples if t <= t_s]
+        if not before:
+            first_s = self.samples[0][0]
+            raise CheckFailed(f"no truth sample at or before t = {t_s:.2f} s (the first is at {first_s:.2f} s)")
+        return before[-1]
+
+    def wait_at(self, vehicle, t_s, seconds=10.0):
+        """`at(t_s)`, pumping `vehicle` (its listeners drain this) for up to `seconds` of vehicle time."""
+        vehicle.wait_until(
+            seconds,
+            f"the plant's truth past t = {t_s:.2f} s on {self.connect}",
+            lambda: self.samples and self.samples[-1][0] > t_s,
+        )
+        return self.at(t_s)
+
+    def wait_flowing(self, vehicle, seconds=10.0):
+        """Pump `vehicle` (its listeners drain this) until the first sample, for up to `seconds` of vehicle
+        time; returns the vehicle time of the first sample."""
+        vehicle.wait_until(seconds, f"the plant's truth (SIM_STATE) on {self.connect}", lambda: bool(self.samples))
+        return self.samples[0][0]
+
+    def window(self, t0_s, t1_s):
+        """The positions sampled in [t0_s, t1_s] of vehicle time."""
+        return [pos for (t, pos) in self.samples if t0_s <= t <= t1_s]
+
+    def close(self):
+        self.conn.close()
 
 
 def positive_float(text):

@@ -170,13 +170,22 @@ def wait_vehicle_time(instance, seconds, wall_s=60):
         conn.close()
 
 
-def test_takeoff_hover_land_joining_a_vehicle_up_for_a_minute_then_tlog_plot(sitl, tmp_path):
+def test_takeoff_hover_land_joining_a_vehicle_up_for_a_minute_holds_the_truth_within_0_10_m_then_tlog_plot(
+    sitl, tmp_path
+):
     # A script started against a SITL that has run for a while: its 30 s waits start from the vehicle's
-    # clock as it is then, not from zero.
+    # clock as it is then, not from zero. Graded on the plant's truth from its SIM_ port (SIM_STATE)
+    # against the commanded point: the true ground point before the takeoff + 1.5 m up.
     wait_vehicle_time(sitl.instance, 60)
-    code, out, err = run_script("takeoff_hover_land", "--instance", sitl.instance, "--hold", 10)
+    code, out, err = run_script("takeoff_hover_land", "--instance", sitl.instance, "--hold", 10, "--truth")
     assert code == 0, err
     assert "hover error over 10 s: max" in out and "landed and disarmed" in out
+    assert f"truth from udpout:127.0.0.1:{19550 + sitl.instance}" in out, out
+    truth_line = next(line for line in out.splitlines() if line.startswith("truth hover error over 10 s: max"))
+    truth_err_m = float(truth_line.split("max ")[1].split(" m")[0])
+    samples = int(truth_line.split("(")[1].split(" samples")[0])
+    assert truth_err_m <= 0.10, truth_line
+    assert samples >= 450, f"50 Hz of plant time over the 10 s hold: {truth_line}"
     sitl.stop()  # the autopilot closes its .tlog
     tlogs = sitl.tlogs()
     assert len(tlogs) == 1, list(sitl.log_dir.iterdir())

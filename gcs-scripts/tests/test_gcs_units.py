@@ -1,9 +1,12 @@
 """The scripts' pure parts, without a vehicle: parameter files, REAL32 formatting and PX4's bytewise INT32
-encoding, the figure-8 mission's geometry, the gust metrics and the instance's ports."""
+encoding, the figure-8 mission's geometry, the gust metrics, the instance's ports and the plant's truth
+client."""
 
 import argparse
 import math
+import socket
 import struct
+import time
 from pathlib import Path
 
 import pytest
@@ -115,3 +118,51 @@ def test_the_tests_import_the_installed_package():
 
     assert importlib.metadata.distribution("aco-gcs-scripts").metadata["Name"] == "aco-gcs-scripts"
     assert Path(link.__file__).resolve().parent == Path(__file__).resolve().parents[1] / "aco_gcs"
+
+
+def test_plant_truth_pairs_each_sim_state_with_its_plant_time_and_maps_it_about_the_first_sample():
+    # GIVEN a stand-in for the plant's SIM_ port (system 3, component 51) and a truth client of it.
+    plant = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    plant.bind(("127.0.0.1", 0))
+    plant.settimeout(5.0)
+    truth = link.PlantTruth(f"udpout:127.0.0.1:{plant.getsockname()[1]}", 3)
+    try:
+        truth.drain()  # says HEARTBEAT: the plant learns where to send
+        _, client = plant.recvfrom(2048)
+        mav = link.mavlink.MAVLink(None, srcSystem=3, srcComponent=link.PLANT_COMPONENT)
+        lat0, lon0, alt0 = 47.3977420, 8.5455940, 488.0
+
+        def sample(t_ms, north_m, east_m, up_m, v1=False):
+            lat = lat0 + math.degrees(north_m / link.EARTH_RADIUS_M)
+            lon = lon0 + math.degrees(east_m / (link.EARTH_RADIUS_M * math.cos(math.radians(lat0))))
+            state = mav.sim_state_encode(
+                1, 0, 0, 0, 0, 0, 0, 0, 0, -9.81, 0, 0, 0, lat, lon, alt0 + up_m, 0, 0, 0, 0, 0,
+                0 if v1 else round(lat * 1e7), 0 if v1 else round(lon * 1e7),
+            )  # fmt: skip
+            return mav.system_time_encode(0, t_ms).pack(mav) + state.pack(mav)
+
+        # WHEN it sends samples at 20, 40 and 60 ms (the last without the degE7 fields, as on MAVLink 1),
+        # and another component's SIM_STATE in between.
+        plant.sendto(sample(20, 0.0, 0.0, 0.0), client)
+        other = link.mavlink.MAVLink(None, srcSystem=3, srcComponent=1)
+        plant.sendto(other.sim_state_encode(*[0.0] * 21, 0, 0).pack(other), client)
+        plant.sendto(sample(40, 0.03, -0.04, 1.5), client)
+        plant.sendto(sample(60, 1.0, 2.0, 1.5, v1=True), client)
+        deadline = time.monotonic() + 5.0
+        while len(truth.samples) < 3 and time.monotonic() < deadline:
+            truth.drain()
+        # THEN three samples at their plant times, NED about the first: degE7 to a centimetre, and the
+        # f32-degree fallback to its half-metre resolution.
+        assert [t for (t, _) in truth.samples] == [0.02, 0.04, 0.06]
+        assert truth.samples[0][1] == (0.0, 0.0, 0.0)
+        assert math.dist(truth.samples[1][1], (0.03, -0.04, -1.5)) < 0.012
+        assert math.dist(truth.samples[2][1], (1.0, 2.0, -1.5)) < 0.6
+        # AND `at` gives the last sample at or before a time once a later one has come.
+        assert truth.at(0.05) == truth.samples[1][1]
+        assert truth.at(0.06) is None, "none later yet: a sample at 0.06 may still be coming"
+        with pytest.raises(link.CheckFailed):
+            truth.at(0.01)
+        assert truth.window(0.03, 0.06) == [truth.samples[1][1], truth.samples[2][1]]
+    finally:
+        truth.close()
+        plant.close()

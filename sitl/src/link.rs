@@ -24,7 +24,8 @@
 //! steps. It is polled every [`HOOK_EVERY_STEPS`] plant steps (0.1 s of plant time at 2 ms), and at
 //! least every [`HOOK_WAIT_INTERVAL`] of wall time while the server waits (for the autopilot's reply, its
 //! first datagram, or the real-time pacing): never once per step, which would cost the lockstep loop a
-//! system call per step.
+//! system call per step. After every step it is told the step happened ([`PlantHook::stepped`], no system
+//! call), so that it can sample the plant on plant time (the SIM_ port's truth stream).
 
 use std::io;
 use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
@@ -68,6 +69,11 @@ pub trait PlantHook: Send + std::fmt::Debug {
     /// # Errors
     /// An I/O error that is not transient; it ends the server's run as [`LinkError::Hook`].
     fn poll(&mut self, plant: &mut Plant) -> io::Result<()>;
+
+    /// Called after every plant step with the plant as it now is, to take samples on plant time (the
+    /// SIM_ port's truth stream). It must be cheap and make no system call: what it takes goes out at
+    /// the next [`PlantHook::poll`].
+    fn stepped(&mut self, _plant: &Plant) {}
 }
 
 /// UDP: bound to the plant's port, sending to the autopilot that spoke last.
@@ -523,6 +529,9 @@ impl<T: Transport> PlantServer<T> {
         self.plant.step(command.effective_pwm_us(), self.config.dt_us);
         self.stats.steps += 1;
         self.last_command = Some(command);
+        if let Some((hook, _)) = &mut self.hook {
+            hook.stepped(&self.plant);
+        }
         if self.hook.is_some() && self.stats.steps.is_multiple_of(HOOK_EVERY_STEPS) {
             self.poll_hook(Instant::now())?;
         }
@@ -818,25 +827,41 @@ mod tests {
         assert!(server.stats().resends >= 3, "{:?}", server.stats());
     }
 
-    /// A hook that counts its polls and sets a steady wind at its first.
+    /// A hook that counts its polls and sets a steady wind at its first, and counts the steps it is told
+    /// of with the plant time after the last.
     #[derive(Debug)]
-    struct CountingHook(Arc<std::sync::atomic::AtomicU64>);
+    struct CountingHook {
+        polls: Arc<std::sync::atomic::AtomicU64>,
+        steps: Arc<std::sync::atomic::AtomicU64>,
+        last_step_us: Arc<std::sync::atomic::AtomicU64>,
+    }
 
     impl PlantHook for CountingHook {
         fn poll(&mut self, plant: &mut Plant) -> io::Result<()> {
-            if self.0.fetch_add(1, Ordering::Relaxed) == 0 {
+            if self.polls.fetch_add(1, Ordering::Relaxed) == 0 {
                 plant.wind_mut().set_steady_ned_mps(Vector3::new(0.0, 3.0, 0.0));
             }
             Ok(())
         }
+
+        fn stepped(&mut self, plant: &Plant) {
+            self.steps.fetch_add(1, Ordering::Relaxed);
+            self.last_step_us.store(plant.time_us(), Ordering::Relaxed);
+        }
     }
 
     #[test]
-    fn link_polls_its_hook_every_50_steps_and_while_waiting() {
+    fn link_polls_its_hook_every_50_steps_and_while_waiting_and_tells_it_of_every_step() {
         let polls = Arc::new(std::sync::atomic::AtomicU64::new(0));
+        let steps = Arc::new(std::sync::atomic::AtomicU64::new(0));
+        let last_step_us = Arc::new(std::sync::atomic::AtomicU64::new(0));
         let config = LinkConfig { connect_timeout: Some(Duration::from_millis(100)), ..LinkConfig::default() };
         let mut server = PlantServer::bind_udp(hover_plant(), "127.0.0.1:0", config).expect("bind plant");
-        server.set_hook(Box::new(CountingHook(polls.clone())));
+        server.set_hook(Box::new(CountingHook {
+            polls: polls.clone(),
+            steps: steps.clone(),
+            last_step_us: last_step_us.clone(),
+        }));
         // No autopilot yet: polled every 20 ms of the 100 ms wait.
         assert!(matches!(server.step(&AtomicBool::new(false)), Err(LinkError::NoPeer { .. })));
         let waiting = polls.load(Ordering::Relaxed);
@@ -854,6 +879,9 @@ mod tests {
         let waits = (elapsed.as_secs_f64() / HOOK_WAIT_INTERVAL.as_secs_f64()).ceil() as u64;
         assert!(stepping >= 4 && stepping <= 4 + waits, "{stepping} polls in 200 steps ({elapsed:?})");
         assert_eq!(server.plant().truth().wind_ned_mps, Vector3::new(0.0, 3.0, 0.0));
+        // Told of each step once, after it: the last at the plant's time after 200 steps of 2 ms.
+        assert_eq!(steps.load(Ordering::Relaxed), 200);
+        assert_eq!(last_step_us.load(Ordering::Relaxed), 400_000);
     }
 
     #[test]

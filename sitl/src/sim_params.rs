@@ -1,5 +1,6 @@
 //! The plant as its own MAVLink component: SIM_ parameters that change the wind while the SITL runs, as
-//! ArduPilot users set `SIM_*` parameters (e.g. a Beaufort-4 gust from a ground-station script).
+//! ArduPilot users set `SIM_*` parameters (e.g. a Beaufort-4 gust from a ground-station script), and the
+//! plant's true state (SIM_STATE, 50 Hz of plant time) for any client to judge a flight by.
 //!
 //! In: MAVLink datagrams on UDP 127.0.0.1:[`SIM_PARAM_PORT_BASE`] + N (instance N) addressed to system
 //! N+1 (or 0), component [`crate::link::PLANT_COMPONENT_ID`] (or 0): PARAM_REQUEST_LIST, PARAM_REQUEST_READ
@@ -48,6 +49,23 @@
 //! SIM_GUST_ON = 1 only if a configured gust blows at that moment, SIM_TURB = 1 if any turbulence model is
 //! on.
 //!
+//! The truth: the plant publishes its true state on the same port, so any client can judge a flight
+//! against it (the estimate the autopilot reports is not the truth). To every live peer (one that spoke in
+//! the last [`PEER_EXPIRY`]), at [`TRUTH_RATE_HZ`] = 50 Hz of plant time (after each plant step that
+//! reaches a multiple of [`TRUTH_PERIOD_US`] = 20 ms; none while the plant waits for its autopilot), one
+//! datagram of two messages in the peer's MAVLink version: SYSTEM_TIME (`time_boot_ms` = the plant time in
+//! ms, which is the autopilot's `time_boot_ms` clock, so a client pairs the truth with the vehicle's
+//! telemetry; `time_unix_usec` = 0, unknown) and then SIM_STATE (id 108) of the plant at that time:
+//! `q1..q4` the attitude quaternion NED <- FRD (Hamilton, w x y z), `roll/pitch/yaw` its ZYX Euler angles
+//! (rad), `xacc/yacc/zacc` the specific force in FRD (m/s², what an ideal accelerometer reads: -9.81 on
+//! `zacc` at rest), `xgyro/ygyro/zgyro` the body rates FRD (rad/s), `lat/lon` (deg, f32, about 0.4 m
+//! resolution) and the extension fields `lat_int/lon_int` (degE7, about 1 cm; MAVLink 2 only, 0 on a
+//! MAVLink 1 link), `alt` (m AMSL), `vn/ve/vd` the velocity NED (m/s), and `std_dev_horz = std_dev_vert =
+//! 0` (the truth, not an estimate). The position is the plant's local NED mapped to WGS-84 about the
+//! plant's home (`[sensors.home]`) by the map its GPS uses, [`geodetic_from_ned`], so a fix and the
+//! truth agree to the GPS noise. Samples taken between two polls go out at the next poll (every
+//! [`crate::link::HOOK_EVERY_STEPS`] steps, or every 20 ms of wall time while the plant waits), in order.
+//!
 //! The pack: SIM_BAT_DRAIN (s, PX4's) > 0 drains it linearly from full to empty in that time while the
 //! motors run (0: by the current the rotors draw, the default), SIM_BAT_MIN_PCT (%, PX4's; default 0
 //! here, 50 in PX4) is the floor its state of charge never falls below; both act from the next step and
@@ -60,13 +78,16 @@ use std::time::{Duration, Instant};
 use autopilot::core::hil::{FrameDecoder, encode_frame_v1, encode_frame_v2};
 use autopilot::core::mavlink::params::{Applied, ParamService};
 use autopilot::core::params::{ParamDef, ParamKind, ParamStore};
-use mavlink::dialects::common::{HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavState, MavType};
+use mavlink::dialects::common::{
+    HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavState, MavType, SIM_STATE_DATA, SYSTEM_TIME_DATA,
+};
 use mavlink::{MavHeader, MavlinkVersion};
 use nalgebra::Vector3;
 
 use crate::link::{PLANT_COMPONENT_ID, PlantHook};
+use crate::plant::sensors::{HomeConfig, geodetic_from_ned};
 use crate::plant::wind::{BEAUFORT, GaussMarkovConfig, beaufort};
-use crate::plant::{GustConfig, Plant, TurbulenceConfig, Wind};
+use crate::plant::{GustConfig, Plant, Truth, TurbulenceConfig, Wind};
 
 /// Instance N's SIM_ parameter port is this + N (on 127.0.0.1; the instance port scheme is
 /// `autopilot::runtime::ports`).
@@ -75,6 +96,10 @@ pub use autopilot::runtime::ports::SIM_PARAM_PORT_BASE;
 pub const PEER_EXPIRY: Duration = Duration::from_secs(10);
 /// Wall time between two heartbeats to the peers.
 pub const HEARTBEAT_PERIOD: Duration = Duration::from_secs(1);
+/// Rate of the truth stream (SIM_STATE), in plant time.
+pub const TRUTH_RATE_HZ: u64 = 50;
+/// Plant time between two SIM_STATE (µs).
+pub const TRUTH_PERIOD_US: u64 = 1_000_000 / TRUTH_RATE_HZ;
 /// Plant time of a gust that is installed but never blows (s): a gust must exist for the turbulence to
 /// be scaled by it, and "no gust yet" is a gust whose onset is 30 years away.
 const DORMANT_ONSET_S: f64 = 1e9;
@@ -366,6 +391,91 @@ pub fn heartbeat() -> MavMessage {
     })
 }
 
+/// The plant's truth as SIM_STATE (see the module documentation for the fields, frames and units): the
+/// position mapped to WGS-84 about `home` by the map the plant's GPS uses.
+#[must_use]
+pub fn sim_state(truth: &Truth, home: &HomeConfig) -> SIM_STATE_DATA {
+    let q = truth.q_ned_frd.quaternion();
+    let geo = geodetic_from_ned(home, &truth.pos_ned_m);
+    let (euler, acc, rate, vel) =
+        (truth.euler_rad, truth.specific_force_frd_mps2, truth.rate_frd_radps, truth.vel_ned_mps);
+    SIM_STATE_DATA {
+        q1: q.w as f32,
+        q2: q.i as f32,
+        q3: q.j as f32,
+        q4: q.k as f32,
+        roll: euler.x as f32,
+        pitch: euler.y as f32,
+        yaw: euler.z as f32,
+        xacc: acc.x as f32,
+        yacc: acc.y as f32,
+        zacc: acc.z as f32,
+        xgyro: rate.x as f32,
+        ygyro: rate.y as f32,
+        zgyro: rate.z as f32,
+        lat: geo.lat_deg as f32,
+        lon: geo.lon_deg as f32,
+        alt: geo.alt_amsl_m as f32,
+        std_dev_horz: 0.0,
+        std_dev_vert: 0.0,
+        vn: vel.x as f32,
+        ve: vel.y as f32,
+        vd: vel.z as f32,
+        lat_int: deg_e7(geo.lat_deg),
+        lon_int: deg_e7(geo.lon_deg),
+    }
+}
+
+/// An angle (deg) in degE7, as MAVLink's integer latitudes and longitudes.
+fn deg_e7(angle_deg: f64) -> i32 {
+    (angle_deg * 1e7).round() as i32
+}
+
+/// One truth sample as it goes out, in this order in one datagram: SYSTEM_TIME (`time_boot_ms` = the
+/// plant time in ms) and SIM_STATE ([`sim_state`]).
+#[must_use]
+pub fn truth_messages(truth: &Truth, home: &HomeConfig) -> [MavMessage; 2] {
+    let time = SYSTEM_TIME_DATA { time_unix_usec: 0, time_boot_ms: (truth.time_us / 1000) as u32 };
+    [MavMessage::SYSTEM_TIME(time), MavMessage::SIM_STATE(sim_state(truth, home))]
+}
+
+/// The truth samples due on plant time: [`TruthStream::stepped`], after each plant step, takes one when
+/// the step crossed into a new [`TRUTH_PERIOD_US`] period (at most one per step); [`TruthStream::take`]
+/// hands over those taken since the last call, oldest first.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TruthStream {
+    /// The period (plant time / [`TRUTH_PERIOD_US`]) of the last step seen.
+    period: u64,
+    pending: Vec<[MavMessage; 2]>,
+}
+
+impl TruthStream {
+    /// A stream for a plant at plant time `now_us`: the first sample is at the next multiple of
+    /// [`TRUTH_PERIOD_US`].
+    #[must_use]
+    pub fn new(now_us: u64) -> Self {
+        Self { period: now_us / TRUTH_PERIOD_US, pending: Vec::new() }
+    }
+
+    /// After a plant step: take a sample of `plant` if the step entered a new period and someone is
+    /// `listening` (a sample nobody would receive is not built).
+    pub fn stepped(&mut self, plant: &Plant, listening: bool) {
+        let period = plant.time_us() / TRUTH_PERIOD_US;
+        if period == self.period {
+            return;
+        }
+        self.period = period;
+        if listening {
+            self.pending.push(truth_messages(&plant.truth(), &plant.config().sensors.home));
+        }
+    }
+
+    /// The samples taken since the last call, oldest first.
+    pub fn take(&mut self) -> Vec<[MavMessage; 2]> {
+        std::mem::take(&mut self.pending)
+    }
+}
+
 /// A client that spoke to the plant.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Peer {
@@ -375,13 +485,15 @@ struct Peer {
 }
 
 /// The SIM_ parameter service on its UDP socket (non-blocking): each [`SimParamLink::poll`] reads every
-/// datagram waiting, answers it, and sends the heartbeat when due.
+/// datagram waiting, answers it, sends the truth samples taken since the last poll and the heartbeat when
+/// due.
 #[derive(Debug)]
 pub struct SimParamLink {
     socket: UdpSocket,
     service: SimParamService,
     decoder: FrameDecoder,
     peers: Vec<Peer>,
+    truth: TruthStream,
     next_heartbeat: Instant,
     sequence: u8,
     buf: Vec<u8>,
@@ -401,6 +513,7 @@ impl SimParamLink {
             service: SimParamService::new(system_id, plant),
             decoder: FrameDecoder::new(),
             peers: Vec::new(),
+            truth: TruthStream::new(plant.time_us()),
             next_heartbeat: Instant::now(),
             sequence: 0,
             buf: vec![0; 65_536],
@@ -422,16 +535,24 @@ impl SimParamLink {
     }
 
     fn send(&mut self, msg: &MavMessage, to: SocketAddr, version: MavlinkVersion) -> io::Result<()> {
-        let header = MavHeader {
-            system_id: self.service.system_id.into(),
-            component_id: PLANT_COMPONENT_ID,
-            sequence: self.sequence,
-        };
-        self.sequence = self.sequence.wrapping_add(1);
-        let bytes = match version {
-            MavlinkVersion::V1 => encode_frame_v1(header, msg).unwrap_or_else(|| encode_frame_v2(header, msg)),
-            MavlinkVersion::V2 => encode_frame_v2(header, msg),
-        };
+        self.send_all(std::slice::from_ref(msg), to, version)
+    }
+
+    /// `msgs` in one datagram, in order.
+    fn send_all(&mut self, msgs: &[MavMessage], to: SocketAddr, version: MavlinkVersion) -> io::Result<()> {
+        let mut bytes = Vec::with_capacity(128 * msgs.len());
+        for msg in msgs {
+            let header = MavHeader {
+                system_id: self.service.system_id.into(),
+                component_id: PLANT_COMPONENT_ID,
+                sequence: self.sequence,
+            };
+            self.sequence = self.sequence.wrapping_add(1);
+            bytes.extend(match version {
+                MavlinkVersion::V1 => encode_frame_v1(header, msg).unwrap_or_else(|| encode_frame_v2(header, msg)),
+                MavlinkVersion::V2 => encode_frame_v2(header, msg),
+            });
+        }
         match self.socket.send_to(&bytes, to) {
             Ok(_) => Ok(()),
             Err(e) if autopilot::runtime::transport::is_transient(&e) => Ok(()),
@@ -439,7 +560,8 @@ impl SimParamLink {
         }
     }
 
-    /// Read and answer everything waiting, then send the heartbeat to the live peers if it is due.
+    /// Read and answer everything waiting, send the truth samples taken since the last poll to the peers
+    /// (one datagram each), then the heartbeat to the live peers if it is due.
     ///
     /// # Errors
     /// A socket error that is not transient (a client gone away is transient).
@@ -466,6 +588,12 @@ impl SimParamLink {
                 }
             }
         }
+        let samples = self.truth.take();
+        for p in self.peers.clone() {
+            for sample in &samples {
+                self.send_all(sample, p.addr, p.version)?;
+            }
+        }
         let now = Instant::now();
         if now >= self.next_heartbeat {
             self.next_heartbeat = now + HEARTBEAT_PERIOD;
@@ -482,6 +610,10 @@ impl SimParamLink {
 impl PlantHook for SimParamLink {
     fn poll(&mut self, plant: &mut Plant) -> io::Result<()> {
         SimParamLink::poll(self, plant)
+    }
+
+    fn stepped(&mut self, plant: &Plant) {
+        self.truth.stepped(plant, !self.peers.is_empty());
     }
 }
 
@@ -805,6 +937,193 @@ mod tests {
         plant.step([1000.0; 4], 2000);
         plant.step([1000.0; 4], 2000);
         assert!(plant.truth().wind_ned_mps.x.abs() < 1e-12);
+    }
+
+    /// A plant in the air away from home, moving, tilted and turning (motors running).
+    fn flying_plant() -> Plant {
+        let start = InitialState {
+            pos_ned_m: Vector3::new(120.5, -80.25, -30.0),
+            vel_ned_mps: Vector3::new(1.5, -0.7, 0.3),
+            euler_rad: Vector3::new(0.1, -0.05, 1.2),
+            rate_frd_radps: Vector3::new(0.2, -0.1, 0.3),
+            ..InitialState::default()
+        };
+        let mut plant = Plant::new(PlantConfig::default(), &start, 1).expect("plant");
+        plant.set_motors_running(true);
+        plant
+    }
+
+    /// `(time_boot_ms, SIM_STATE)` of each truth sample, checking each is SYSTEM_TIME then SIM_STATE.
+    fn samples(taken: &[[MavMessage; 2]]) -> Vec<(u32, SIM_STATE_DATA)> {
+        taken
+            .iter()
+            .map(|pair| match pair {
+                [MavMessage::SYSTEM_TIME(t), MavMessage::SIM_STATE(s)] => (t.time_boot_ms, s.clone()),
+                other => panic!("not SYSTEM_TIME then SIM_STATE: {other:?}"),
+            })
+            .collect()
+    }
+
+    /// The position of a SIM_STATE in the plant's NED, through the inverse of the GPS map.
+    fn sim_state_ned_m(s: &SIM_STATE_DATA, home: &HomeConfig) -> Vector3<f64> {
+        let geo = crate::plant::sensors::Geodetic {
+            lat_deg: f64::from(s.lat_int) * 1e-7,
+            lon_deg: f64::from(s.lon_int) * 1e-7,
+            alt_amsl_m: f64::from(s.alt),
+        };
+        crate::plant::sensors::ned_from_geodetic(home, &geo)
+    }
+
+    #[test]
+    fn given_a_flying_plant_then_sim_state_is_its_truth_to_f32_and_its_position_to_a_centimetre_in_the_gps_map() {
+        let mut plant = flying_plant();
+        for _ in 0..250 {
+            plant.step([1600.0, 1550.0, 1500.0, 1450.0], 2000);
+        }
+        let truth = plant.truth();
+        let home = plant.config().sensors.home;
+        let s = sim_state(&truth, &home);
+        let close = |got: f32, want: f64, what: &str| {
+            assert!((f64::from(got) - want).abs() <= 1e-6 * want.abs().max(1.0), "{what}: {got} vs {want}");
+        };
+        let q = truth.q_ned_frd.quaternion();
+        for (got, want, what) in [
+            (s.q1, q.w, "q1 = w"),
+            (s.q2, q.i, "q2 = x"),
+            (s.q3, q.j, "q3 = y"),
+            (s.q4, q.k, "q4 = z"),
+            (s.roll, truth.euler_rad.x, "roll"),
+            (s.pitch, truth.euler_rad.y, "pitch"),
+            (s.yaw, truth.euler_rad.z, "yaw"),
+            (s.xacc, truth.specific_force_frd_mps2.x, "xacc"),
+            (s.yacc, truth.specific_force_frd_mps2.y, "yacc"),
+            (s.zacc, truth.specific_force_frd_mps2.z, "zacc"),
+            (s.xgyro, truth.rate_frd_radps.x, "xgyro"),
+            (s.ygyro, truth.rate_frd_radps.y, "ygyro"),
+            (s.zgyro, truth.rate_frd_radps.z, "zgyro"),
+            (s.vn, truth.vel_ned_mps.x, "vn"),
+            (s.ve, truth.vel_ned_mps.y, "ve"),
+            (s.vd, truth.vel_ned_mps.z, "vd"),
+        ] {
+            close(got, want, what);
+        }
+        // Something moved, so the comparison above is not of zeros.
+        assert!(truth.rate_frd_radps.norm() > 0.05 && truth.vel_ned_mps.norm() > 0.5, "{truth:?}");
+        // The position is the GPS model's map of the truth: the f32 degrees as it gives them, the degE7
+        // to 1e-7 deg, and back through its inverse within a centimetre.
+        let geo = geodetic_from_ned(&home, &truth.pos_ned_m);
+        assert_eq!((s.lat, s.lon, s.alt), (geo.lat_deg as f32, geo.lon_deg as f32, geo.alt_amsl_m as f32));
+        assert!((f64::from(s.lat_int) * 1e-7 - geo.lat_deg).abs() <= 0.5e-7);
+        assert!((f64::from(s.lon_int) * 1e-7 - geo.lon_deg).abs() <= 0.5e-7);
+        let back = sim_state_ned_m(&s, &home);
+        assert!((back - truth.pos_ned_m).norm() < 0.01, "{back} vs {}", truth.pos_ned_m);
+        assert!((f64::from(s.alt) - (home.alt_amsl_m - truth.pos_ned_m.z)).abs() < 1e-4, "alt AMSL");
+        assert_eq!((s.std_dev_horz, s.std_dev_vert), (0.0, 0.0), "the truth, exact");
+        // At rest on the ground an ideal accelerometer reads -g on z.
+        let rest = sim_state(&calm_plant().truth(), &home);
+        assert!((rest.zacc + 9.81).abs() < 0.01 && rest.xacc.abs() < 1e-6, "{rest:?}");
+    }
+
+    #[test]
+    fn given_plant_steps_then_the_truth_is_sampled_every_20_ms_of_plant_time_and_only_for_listeners() {
+        // GIVEN the stream of a plant at t = 0 stepping at 2 ms (500 Hz).
+        let mut plant = flying_plant();
+        let home = plant.config().sensors.home;
+        let mut stream = TruthStream::new(plant.time_us());
+        let mut truths = Vec::new();
+        // WHEN it steps 2 s of plant time with a listener.
+        while plant.time_us() < 2_000_000 {
+            plant.step([1550.0; 4], 2000);
+            stream.stepped(&plant, true);
+            truths.push(plant.truth());
+        }
+        // THEN there is one sample per 20 ms at t = 20, 40, ... 2000 ms, each the truth at that time.
+        let got = samples(&stream.take());
+        assert_eq!(got.len(), 100);
+        for (k, (t_ms, s)) in got.iter().enumerate() {
+            let want_ms = 20 * (k as u32 + 1);
+            assert_eq!(*t_ms, want_ms);
+            let truth = truths.iter().find(|t| t.time_us == u64::from(want_ms) * 1000).expect("a step there");
+            assert_eq!(*s, sim_state(truth, &home));
+        }
+        assert!(stream.take().is_empty(), "handed over once");
+
+        // AND with a 3 ms step it samples at the first step of each 20 ms period (21, 42, 60, 81, ...).
+        let mut plant = flying_plant();
+        let mut stream = TruthStream::new(plant.time_us());
+        while plant.time_us() < 120_000 {
+            plant.step([1550.0; 4], 3000);
+            stream.stepped(&plant, true);
+        }
+        let times: Vec<u32> = samples(&stream.take()).iter().map(|(t, _)| *t).collect();
+        assert_eq!(times, [21, 42, 60, 81, 102, 120]);
+
+        // AND nobody listening: nothing is built.
+        let mut stream = TruthStream::new(plant.time_us());
+        for _ in 0..50 {
+            plant.step([1550.0; 4], 2000);
+            stream.stepped(&plant, false);
+        }
+        assert!(stream.take().is_empty());
+    }
+
+    #[test]
+    fn given_peers_of_both_versions_then_each_gets_the_truth_at_50_hz_in_its_version_and_v1_lacks_lat_int() {
+        // GIVEN the service with a MAVLink 2 and a MAVLink 1 client that said HEARTBEAT.
+        let mut plant = flying_plant();
+        let home = plant.config().sensors.home;
+        let mut link = SimParamLink::bind("127.0.0.1:0", SYS, &plant).expect("bind");
+        let addr = link.local_addr().expect("addr");
+        let gcs = MavHeader { system_id: 255, component_id: 190, sequence: 0 };
+        let v2 = UdpSocket::bind("127.0.0.1:0").expect("client");
+        let v1 = UdpSocket::bind("127.0.0.1:0").expect("client");
+        v2.send_to(&encode_frame_v2(gcs, &heartbeat()), addr).expect("send");
+        v1.send_to(&encode_frame_v1(gcs, &heartbeat()).expect("v1"), addr).expect("send");
+        std::thread::sleep(Duration::from_millis(50));
+        link.poll(&mut plant).expect("poll");
+        // WHEN the plant steps 0.2 s (100 steps at 2 ms) as the plant server steps it, polled every 50.
+        let mut truths = Vec::new();
+        for step in 1..=100 {
+            plant.step([1550.0; 4], 2000);
+            PlantHook::stepped(&mut link, &plant);
+            truths.push(plant.truth());
+            if step % 50 == 0 {
+                link.poll(&mut plant).expect("poll");
+            }
+        }
+        // THEN each client has 10 datagrams of SYSTEM_TIME then SIM_STATE at t = 20..200 ms, in its
+        // version, from (SYS, 51); the MAVLink 1 one without the degE7 extension fields.
+        for (client, version) in [(&v2, MavlinkVersion::V2), (&v1, MavlinkVersion::V1)] {
+            client.set_read_timeout(Some(Duration::from_millis(500))).expect("timeout");
+            let mut decoder = FrameDecoder::new();
+            let mut buf = [0u8; 2048];
+            let mut got = Vec::new();
+            while got.len() < 10 {
+                let (n, _) = client.recv_from(&mut buf).expect("a datagram");
+                let frames = decoder.decode_datagram(&buf[..n]);
+                if matches!(frames[0].message, MavMessage::HEARTBEAT(_)) {
+                    continue;
+                }
+                assert!(frames.iter().all(|f| f.version == version
+                    && f.header.system_id == u32::from(SYS)
+                    && f.header.component_id == PLANT_COMPONENT_ID));
+                let pair: [MavMessage; 2] = [frames[0].message.clone(), frames[1].message.clone()];
+                assert_eq!(frames.len(), 2, "one sample per datagram");
+                got.extend(samples(&[pair]));
+            }
+            let times: Vec<u32> = got.iter().map(|(t, _)| *t).collect();
+            assert_eq!(times, (1..=10).map(|k| 20 * k).collect::<Vec<u32>>());
+            for (t_ms, s) in &got {
+                let truth = truths.iter().find(|t| t.time_us == u64::from(*t_ms) * 1000).expect("a step");
+                let want = sim_state(truth, &home);
+                match version {
+                    MavlinkVersion::V2 => assert_eq!(*s, want),
+                    MavlinkVersion::V1 => {
+                        assert_eq!(*s, SIM_STATE_DATA { lat_int: 0, lon_int: 0, ..want });
+                    }
+                }
+            }
+        }
     }
 
     #[test]
