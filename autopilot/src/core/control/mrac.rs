@@ -24,9 +24,7 @@ use super::distributor::{
     limit_thrust_vector,
 };
 use super::frames::{body_to_euler_rates, wrap_pi};
-use super::{
-    Airframe, ControlInput, Controller, ControllerKind, LoopRates, Reference, inputs_finite, tilt_lead_mps2,
-};
+use super::{Airframe, ControlInput, Controller, ControllerKind, LoopRates, Reference, inputs_finite, tilt_lead_mps2};
 
 /// MRAC baseline settings (spec (c)). Default = "CA" as the reference prototype flew it (see
 /// `freeze_roll_pitch`); `freeze_on_saturation = false` gives "CA-raw",
@@ -127,7 +125,7 @@ impl MracConfig {
             gamma_theta_att: 100.0,
             feed_forward: true,
             wi_att_radps: 2.0,
-            wi_pos_radps: 0.5,
+            wi_pos_radps: 0.0,
             e_mod_sigma: 0.1,
             hedging: true,
             ..Self::default()
@@ -408,8 +406,9 @@ impl MracChannel {
                 self.e_int = (self.e_int + e1 * dt_s).max(-limit).min(limit);
             }
         }
-        let xm_ddot =
-            self.wn * self.wn * (r - self.xm) - 2.0 * self.zeta * self.wn * self.xm_dot - std::mem::take(&mut self.hedge);
+        let xm_ddot = self.wn * self.wn * (r - self.xm)
+            - 2.0 * self.zeta * self.wn * self.xm_dot
+            - std::mem::take(&mut self.hedge);
         self.xm_dot += dt_s * xm_ddot;
         self.xm += dt_s * self.xm_dot;
         v

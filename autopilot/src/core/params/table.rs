@@ -806,7 +806,14 @@ pub static PARAMS: &[ParamDef] = &[
         0.0,
         [0.0, 10.0],
         "",
-        "e-modification σ: adaptive parameters leak toward their initial values at Γσ|s| (0: none).",
+        "e-modification σ: adaptive parameters leak toward their initial values at Γσ times the error signal s in size (0: none).",
         control.mrac.e_mod_sigma
+    ),
+    flag!(
+        Mrac,
+        "MRAC_HEDGE",
+        0.0,
+        "Hedge each reference model by the demand the actuators could not give (0: the paper's CA).",
+        control.mrac.hedging
     ),
 ];
