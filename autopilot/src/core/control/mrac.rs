@@ -117,7 +117,7 @@ impl Default for MracConfig {
 impl MracConfig {
     /// The competent CA of docs/controller.md §4.3: [`MracConfig::default`] with the feed-forward, the
     /// integral poles, the e-modification and the hedging on, and attitude adaptation rates of 100
-    /// instead of 1000 (at 1000 the yaw channel limit-cycles against the rotor lag, ±6 mrad at 1.6 Hz).
+    /// instead of 1000 (at 1000 the yaw channel limit-cycles against the rotor lag, ±5 mrad at about 1.7 Hz).
     #[must_use]
     pub fn competent() -> Self {
         Self {
