@@ -983,6 +983,7 @@ mod tests {
         };
         let paper = lag(&MracConfig::default());
         let ff = lag(&MracConfig { feed_forward: true, ..MracConfig::default() });
+        // Measured: 0.753 m for the paper's CA, 7 mm with the feed-forward.
         assert!(paper > 0.5, "the paper's CA lags a 0.5 m/s ramp by 2ζ/ωn x 0.5 = 0.75 m: {paper}");
         assert!(ff.abs() < 0.1 * paper, "feed-forward lag {ff} m vs paper {paper} m");
     }
