@@ -15,6 +15,12 @@
 //!
 //! [`MracController::reconfigure`] takes new reference models, adaptation rates, bounds, limits and
 //! nominal model while flying and keeps every channel's adapted gains and reference-model state.
+//!
+//! Beside the paper's CA, off by default and documented in docs/controller.md §4.3, the options of a
+//! competent MRAC ([`MracConfig::competent`]): the reference's velocity, acceleration and jerk through the
+//! position reference models (`feed_forward`), an integral of the model-following error with error
+//! feedback placing its pole (`wi_att_radps`, `wi_pos_radps`), e-modification (`e_mod_sigma`) and
+//! pseudo-control hedging of the reference models against saturation (`hedging`).
 
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
