@@ -154,6 +154,9 @@ struct SpecFile {
     rate_hz: Option<u32>,
     #[serde(default)]
     optimizer: OptimizerFile,
+    /// Settings every candidate flies with, under its gains: a `[base.<table>]` of the spec's controller.
+    #[serde(default)]
+    base: Option<Value>,
     gain: Vec<GainFile>,
     train: Vec<RunFile>,
     #[serde(default)]
@@ -269,6 +272,11 @@ pub struct Tune {
     pub rates: LoopRates,
     pub sigma0: f64,
     pub population: Option<usize>,
+    /// The configuration the gains are set in: the autopilot's defaults with the spec's `[base]` over them.
+    pub base: ControllerConfig,
+    /// The spec's `[base]` as written (`{"mrac": {"feed_forward": true}}`; empty without one): part of
+    /// every candidate's overrides and of the result's `[controller]` block.
+    pub base_overrides: Value,
     pub gains: Vec<Gain>,
     pub train: Vec<RunSet>,
     pub guards: Vec<RunSet>,
@@ -392,12 +400,13 @@ impl Tune {
             rates = LoopRates { inner_hz: hz, position_hz: hz / 5 };
         }
         rates.validate().map_err(|e| TuneError::Invalid(format!("rate_hz: {e}")))?;
+        let (base, base_overrides) = parse_base(spec.base.as_ref(), spec.controller, rates)?;
         if spec.gain.is_empty() {
             return invalid("no [[gain]]: name at least one gain to tune".into());
         }
         let mut gains = Vec::new();
         for g in &spec.gain {
-            let gain = parse_gain(g, spec.controller, rates)?;
+            let gain = parse_gain(g, spec.controller, rates, &base)?;
             if gains.iter().any(|o: &Gain| o.path == gain.path && overlap(&o.axes, &gain.axes)) {
                 return invalid(format!("[[gain]] {} is given twice", gain.label));
             }
@@ -442,6 +451,8 @@ impl Tune {
             rates,
             sigma0,
             population: spec.optimizer.population,
+            base,
+            base_overrides,
             gains,
             train,
             guards,
@@ -481,8 +492,8 @@ impl Tune {
         let configs: Vec<Result<GainSet, String>> = candidates
             .iter()
             .map(|values| {
-                let config = with_gains(&ControllerConfig::default(), &self.gains, values)?;
-                GainSet::from_config(self.controller, &config, &self.gains)
+                let config = with_gains(&self.base, &self.gains, values)?;
+                GainSet::from_config(self.controller, &config, &self.gains, &self.base_overrides)
             })
             .collect();
         let results: Vec<Result<Vec<Option<f64>>, String>> = pool.install(|| {
@@ -593,9 +604,13 @@ impl Tune {
     /// # Errors
     /// Values that do not make a configuration (not for values from [`Tune::run`]).
     pub fn controller_block(&self, values: &[f64]) -> Result<String, String> {
-        let config = with_gains(&ControllerConfig::default(), &self.gains, values)?;
+        let config = with_gains(&self.base, &self.gains, values)?;
         let tree = serde_json::to_value(&config).map_err(|e| e.to_string())?;
-        let mut table = toml::map::Map::new();
+        // The spec's [base] first, so the block flies the controller that was tuned.
+        let mut table = match serde_json::from_value::<toml::Value>(self.base_overrides.clone()) {
+            Ok(toml::Value::Table(t)) => t,
+            Ok(_) | Err(_) => toml::map::Map::new(),
+        };
         for gain in &self.gains {
             let Some(value) = at(&tree, &gain.path) else { continue };
             let value: toml::Value = serde_json::from_value(value.clone()).map_err(|e| e.to_string())?;
@@ -619,7 +634,7 @@ impl Tune {
     /// # Errors
     /// As [`Tune::controller_block`].
     pub fn param_file(&self, values: &[f64], header: &str) -> Result<String, String> {
-        let control = with_gains(&ControllerConfig::default(), &self.gains, values)?;
+        let control = with_gains(&self.base, &self.gains, values)?;
         let vehicle = VehicleConfig { controller: self.controller, control, ..VehicleConfig::default() };
         let store = ParamStore::from_config(&vehicle);
         let mut out = String::new();
@@ -648,7 +663,35 @@ fn overlap(a: &Option<Vec<usize>>, b: &Option<Vec<usize>>) -> bool {
     }
 }
 
-fn parse_gain(g: &GainFile, controller: ControllerKind, rates: LoopRates) -> Result<Gain, TuneError> {
+/// The spec's `[base]`: one table, the controller's (`mrac` for CA), whose keys are all fields of its
+/// configuration; returns the defaults with it merged in, and the block as written.
+fn parse_base(
+    base: Option<&Value>,
+    controller: ControllerKind,
+    rates: LoopRates,
+) -> Result<(ControllerConfig, Value), TuneError> {
+    let Some(base) = base else { return Ok((ControllerConfig::default(), Value::Object(serde_json::Map::new()))) };
+    let table = table_name(controller);
+    let root = base.as_object().ok_or_else(|| TuneError::Invalid("[base] must be a table".into()))?;
+    if let Some(key) = root.keys().find(|k| *k != table) {
+        return invalid(format!("[base.{key}]: the base of a {controller} tuning is its [base.{table}] alone"));
+    }
+    let defaults = serde_json::to_value(ControllerConfig::default()).map_err(|e| TuneError::Invalid(e.to_string()))?;
+    check_known(base, &defaults, "base").map_err(TuneError::Invalid)?;
+    let mut config: ControllerConfig =
+        serde_json::from_value(merge(&defaults, base)).map_err(|e| TuneError::Invalid(format!("[base]: {e}")))?;
+    config.rates = rates;
+    config.validate().map_err(|e| TuneError::Invalid(format!("[base]: {e}")))?;
+    config.rates = ControllerConfig::default().rates;
+    Ok((config, base.clone()))
+}
+
+fn parse_gain(
+    g: &GainFile,
+    controller: ControllerKind,
+    rates: LoopRates,
+    base: &ControllerConfig,
+) -> Result<Gain, TuneError> {
     let table = table_name(controller);
     let label = match &g.axes {
         Some(axes) => {
@@ -663,7 +706,7 @@ fn parse_gain(g: &GainFile, controller: ControllerKind, rates: LoopRates) -> Res
             g.name
         ));
     }
-    let defaults = serde_json::to_value(ControllerConfig::default()).map_err(|e| TuneError::Invalid(e.to_string()))?;
+    let defaults = serde_json::to_value(base).map_err(|e| TuneError::Invalid(e.to_string()))?;
     let default = match (at(&defaults, &path), &g.axes) {
         (Some(Value::Number(n)), None) => n.as_f64(),
         (Some(Value::Array(items)), Some(axes)) => {
@@ -711,7 +754,7 @@ fn parse_gain(g: &GainFile, controller: ControllerKind, rates: LoopRates) -> Res
     if !(lo..=hi).contains(&start) {
         return invalid(format!(
             "gain `{label}`: the start {start}{} is outside its bounds {:?}",
-            if g.start.is_some() { "" } else { " (the autopilot's default)" },
+            if g.start.is_some() { "" } else { " (the autopilot's default, or the spec's [base])" },
             g.bounds
         ));
     }
@@ -726,8 +769,7 @@ fn parse_gain(g: &GainFile, controller: ControllerKind, rates: LoopRates) -> Res
     };
     // Every value the search can take must make a configuration the controller accepts.
     for v in [lo, hi, start] {
-        let mut config =
-            with_gains(&ControllerConfig::default(), std::slice::from_ref(&gain), &[v]).map_err(TuneError::Invalid)?;
+        let mut config = with_gains(base, std::slice::from_ref(&gain), &[v]).map_err(TuneError::Invalid)?;
         config.rates = rates;
         if let Err(e) = config.validate() {
             return invalid(format!("gain `{label}` = {v} (within its bounds) makes no controller: {e}"));
@@ -879,10 +921,15 @@ pub struct GainSet {
 }
 
 impl GainSet {
-    /// The gains of a tuned candidate as overrides.
-    fn from_config(controller: ControllerKind, config: &ControllerConfig, gains: &[Gain]) -> Result<Self, String> {
+    /// The gains of a tuned candidate as overrides, over the spec's `[base]`.
+    fn from_config(
+        controller: ControllerKind,
+        config: &ControllerConfig,
+        gains: &[Gain],
+        base: &Value,
+    ) -> Result<Self, String> {
         let tree = serde_json::to_value(config).map_err(|e| e.to_string())?;
-        let mut overrides = Value::Object(serde_json::Map::new());
+        let mut overrides = base.clone();
         for gain in gains {
             let value = at(&tree, &gain.path).cloned().ok_or_else(|| format!("{}: no such field", gain.label))?;
             let mut node = &mut overrides;

@@ -399,3 +399,58 @@ fn the_example_specs_load_with_a_300_evaluation_budget() {
         assert!(!spec.guards.is_empty() && !spec.heldout.is_empty(), "{name}");
     }
 }
+
+/// A CA spec with a `[base.mrac]`: the start flies with it, the gains start from its values, the
+/// `[controller]` block and the parameter file carry it, and a candidate flies it (its trajectory differs
+/// from the same gains without the base).
+const CA_BASE_SPEC: &str = r#"
+name = "ca-base"
+controller = "ca"
+budget = 2
+seed = 7
+[base.mrac]
+feed_forward = true
+gamma_theta_att = 100.0
+wi_att_radps = 2.0
+hedging = true
+[[gain]]
+name = "mrac.wi_att_radps"
+bounds = [0.5, 4.0]
+[[gain]]
+name = "mrac.gamma_theta_pos"
+bounds = [0.1, 20.0]
+scale = "log"
+[[train]]
+scenario = "short-step.toml"
+cost = { max_settling_s = 1.0 }
+"#;
+
+#[test]
+fn a_base_block_is_flown_by_every_candidate_and_written_with_the_result() {
+    let dir = scenario_dir("base");
+    let spec = tune(CA_BASE_SPEC, &dir).unwrap();
+    assert!(spec.base.mrac.feed_forward && spec.base.mrac.hedging);
+    assert_eq!(spec.start(), vec![2.0, 1.0], "a gain starts from the base's value, else the default");
+    let block = spec.controller_block(&spec.start()).unwrap();
+    let gains = GainSet::from_toml(&block, "result").unwrap();
+    let config = gains.config(&Scenario::load(dir.join("short-step.toml").to_str().unwrap()).unwrap(), spec.rates);
+    let config = config.unwrap();
+    assert!(config.mrac.feed_forward && config.mrac.hedging, "{block}");
+    assert_eq!((config.mrac.gamma_theta_att, config.mrac.wi_att_radps), (100.0, 2.0), "{block}");
+    let params = spec.param_file(&spec.start(), "t").unwrap();
+    for line in ["MRAC_FF\t1", "MRAC_HEDGE\t1", "MRAC_WI_ATT\t2", "MRAC_GAM_TH_ATT\t100"] {
+        assert!(params.contains(line), "{line} in\n{params}");
+    }
+    // The same gains without the base fly another controller: another cost.
+    let plain = CA_BASE_SPEC
+        .replace("[base.mrac]\nfeed_forward = true\ngamma_theta_att = 100.0\nwi_att_radps = 2.0\nhedging = true\n", "");
+    let plain = tune(&plain.replace("bounds = [0.5, 4.0]", "bounds = [0.0, 4.0]"), &dir).unwrap();
+    let with_base = spec.evaluate(&[spec.start()], &pool(1));
+    let without = plain.evaluate(&[vec![2.0, 1.0]], &pool(1));
+    assert_ne!(with_base[0].cost.to_bits(), without[0].cost.to_bits());
+    // A base of another controller's table, or an unknown key, is refused by name.
+    let other = CA_BASE_SPEC.replace("[base.mrac]", "[base.aco]");
+    assert!(tune(&other, &dir).unwrap_err().to_string().contains("[base.aco]"));
+    let unknown = CA_BASE_SPEC.replace("hedging = true", "hedge = true");
+    assert!(tune(&unknown, &dir).unwrap_err().to_string().contains("base.mrac.hedge"));
+}

@@ -774,4 +774,46 @@ pub static PARAMS: &[ParamDef] = &[
         description: "When the onboard ULog flight log is written: -1 never, 0 from arming until disarming (PX4's default; PX4's other modes are not offered). Read at each arming.",
         binding: Binding::StoreOnly,
     },
+    // The competent CA (docs/controller.md §4.3); all off by default, the paper's CA.
+    flag!(
+        Mrac,
+        "MRAC_FF",
+        0.0,
+        "Feed the reference's velocity, acceleration and jerk through the position reference models (0: the paper's CA).",
+        control.mrac.feed_forward
+    ),
+    real!(
+        Mrac,
+        "MRAC_WI_ATT",
+        0.0,
+        [0.0, 50.0],
+        "rad/s",
+        "Pole of the attitude channels' integral of the model-following error (0: none, the paper's CA).",
+        control.mrac.wi_att_radps
+    ),
+    real!(
+        Mrac,
+        "MRAC_WI_POS",
+        0.0,
+        [0.0, 20.0],
+        "rad/s",
+        "Pole of the position channels' integral of the model-following error (0: none, the paper's CA).",
+        control.mrac.wi_pos_radps
+    ),
+    real!(
+        Mrac,
+        "MRAC_EMOD",
+        0.0,
+        [0.0, 10.0],
+        "",
+        "e-modification σ: adaptive parameters leak toward their initial values at Γσ times the error signal s in size (0: none).",
+        control.mrac.e_mod_sigma
+    ),
+    flag!(
+        Mrac,
+        "MRAC_HEDGE",
+        0.0,
+        "Hedge each reference model by the demand the actuators could not give (0: the paper's CA).",
+        control.mrac.hedging
+    ),
 ];
