@@ -422,7 +422,7 @@ bounds = [0.1, 20.0]
 scale = "log"
 [[train]]
 scenario = "short-step.toml"
-cost = { max_settling_s = 1.0 }
+cost = { steps_iae_m_s = 1.0 }
 "#;
 
 #[test]
