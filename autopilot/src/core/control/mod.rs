@@ -311,6 +311,8 @@ pub enum ConfigError {
     FilterCutoff { name: &'static str, value_hz: f64, max_hz: f64, inner_hz: u32 },
     #[error("{name}.{field} = {value} must be finite and positive")]
     NotPositive { name: &'static str, field: &'static str, value: f64 },
+    #[error("{name}.{field} = {value} must be finite and >= 0 (0: off)")]
+    Negative { name: &'static str, field: &'static str, value: f64 },
 }
 
 impl ControllerConfig {
@@ -345,6 +347,15 @@ impl ControllerConfig {
                 if !(value.is_finite() && value > 0.0) {
                     return Err(ConfigError::NotPositive { name, field: what, value });
                 }
+            }
+        }
+        for (field, value) in [
+            ("wi_att_radps", self.mrac.wi_att_radps),
+            ("wi_pos_radps", self.mrac.wi_pos_radps),
+            ("e_mod_sigma", self.mrac.e_mod_sigma),
+        ] {
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(ConfigError::Negative { name: "mrac", field, value });
             }
         }
         if !(self.aco.alpha_ref_radps2.is_finite() && self.aco.alpha_ref_radps2 > 0.0) {
@@ -528,6 +539,18 @@ mod tests {
         let cfg =
             ControllerConfig { rates: LoopRates { inner_hz: 500, position_hz: 7 }, ..ControllerConfig::default() };
         assert!(matches!(try_new_controller(ControllerKind::Aco, &cfg), Err(ConfigError::LoopRates(_))));
+    }
+
+    #[test]
+    fn given_negative_or_nan_competent_ca_option_when_validated_then_rejected_by_name() {
+        let mut cfg = ControllerConfig::default();
+        cfg.mrac.wi_att_radps = -1.0;
+        assert_eq!(cfg.validate(), Err(ConfigError::Negative { name: "mrac", field: "wi_att_radps", value: -1.0 }));
+        cfg.mrac.wi_att_radps = 0.0;
+        cfg.mrac.e_mod_sigma = f64::NAN;
+        assert!(matches!(cfg.validate(), Err(ConfigError::Negative { field: "e_mod_sigma", .. })));
+        let competent = ControllerConfig { mrac: MracConfig::competent(), ..ControllerConfig::default() };
+        assert_eq!(competent.validate(), Ok(()));
     }
 
     #[test]
