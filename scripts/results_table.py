@@ -263,7 +263,8 @@ def gust_iae(sets):
 
 def tuned_tables(dirs):
     """The held-out comparison of `sitl tune` outputs (each DIR holds a result.json and a heldout.json):
-    every controller at its default gains and, where the tuning found safe gains, at the best of them;
+    every controller at its start point (the defaults, with the spec's [base] block: the competent CA's
+    switches) and, where the tuning found safe gains, at the best of them;
     a tuning without safe gains is a row that says so and why, and takes part in no verdict."""
     rows, tuned = [], {}
     for d in dirs:
@@ -272,7 +273,7 @@ def tuned_tables(dirs):
         for entry in heldout:
             is_tuned = entry["gains"].endswith("(tuned)")
             sets = {s["name"]: s["metrics"] for s in entry["sets"]}
-            rows.append((ctrl, "tuned" if is_tuned else "defaults", result, entry, sets))
+            rows.append((ctrl, "tuned" if is_tuned else "start", result, entry, sets))
             if is_tuned:
                 tuned[ctrl] = sets
         if result["result"] is None:
@@ -308,7 +309,7 @@ def tuned_tables(dirs):
         held = "safe" if entry["safe"] else "unsafe: " + entry["violations"][0]
         spread = result["spread"]
         cost = " / ".join(f"{c:.3f}" for c in spread) if kind == "tuned" and spread else ""
-        tuning = result["verdict"] if kind == "tuned" else ("start point" + ("" if result["start"]["safe"] else ", breaks guards"))
+        tuning = result["verdict"] if kind == "tuned" else ("keeps the guards" if result["start"]["safe"] else "breaks guards")
         w(
             f"| {ctrl.upper()} | {kind} | {tuning} | {cost} | {held} | "
             f"{fmt(f8.get('cross_track_rms_m'), 3)} / {fmt(f8.get('cross_track_max_m'), 3)} | "

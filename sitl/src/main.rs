@@ -537,7 +537,11 @@ fn tune(args: &TuneArgs) -> Result<()> {
             eprintln!("sitl: wrote {}", path.display());
         }
         print_stdout(&output::Summary::of(&spec, &tuning).text())?;
-        gain_sets.push(GainSet::defaults(spec.controller));
+        // The start point (the autopilot's defaults with the spec's [base] block, if any): what the search
+        // started from, so a controller switched to another variant by its base is not judged by the
+        // plain defaults'.
+        let start = spec.controller_block(&spec.start()).map_err(|e| anyhow::anyhow!(e))?;
+        gain_sets.push(GainSet::from_toml(&start, &format!("{} (start)", spec.controller))?);
         // The held-out set flies the file just written, so the report is of what a user takes away; with
         // no safe gains there is no tuned file, and only the defaults fly.
         if tuning.result().is_some() {

@@ -333,7 +333,7 @@ fn tune_writes_the_same_files_on_one_thread_and_two_and_evaluate_flies_them_held
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let stdout = String::from_utf8_lossy(&o.stdout);
         assert!(stdout.contains("tiny (pid): 8 evaluations") && stdout.contains("held out:"), "{stdout}");
-        assert!(stdout.contains("pid (defaults) [pid]") && stdout.contains("pid (tuned) [pid]"), "{stdout}");
+        assert!(stdout.contains("pid (start) [pid]") && stdout.contains("pid (tuned) [pid]"), "{stdout}");
         let files: Vec<Vec<u8>> = ["trace.csv", "controller.toml", "params.txt", "result.json", "heldout.json"]
             .iter()
             .map(|f| std::fs::read(out.join(f)).unwrap_or_else(|e| panic!("{f}: {e}")))
