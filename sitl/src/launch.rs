@@ -19,7 +19,8 @@ use std::time::{Duration, Instant};
 use autopilot::core::hil::ActuatorCommand;
 use autopilot::runtime::ports::{InstanceOutOfRange, InstancePorts};
 
-use crate::link::{LinkError, LinkStats, PlantServer, UdpTransport};
+use crate::link::{LinkError, LinkStats, Pacing, PlantServer, UdpTransport};
+use crate::pacer::Pacer;
 use crate::plant::Plant;
 
 /// Why a launch failed.
@@ -380,6 +381,16 @@ pub fn run_swarm(
 ) -> Result<SwarmReport, LaunchError> {
     let halt = AtomicBool::new(false);
     let mut children = children;
+    // One pacer for every plant (each server then runs in lockstep): paced one by one, each would take its
+    // own origin a batch after the one before it and sleep in turn.
+    let mut pacer = match servers.first().map(PlantServer::pacing) {
+        Some(Pacing::RealTime { speed }) => Some(Pacer::new(speed)),
+        _ => None,
+    };
+    for server in servers.iter_mut() {
+        server.set_pacing(Pacing::Lockstep);
+    }
+    let dt_us = servers.first().map_or(2_000, PlantServer::dt_us);
     let (result, exit) = std::thread::scope(|scope| {
         let plants = scope.spawn(|| -> Result<(f64, bool), LinkError> {
             let mut first: Option<Instant> = None;
@@ -387,6 +398,16 @@ pub fn run_swarm(
                 let t = servers.first().map_or(0, |s| s.plant().time_us());
                 if duration_us.is_some_and(|d| t >= d) {
                     break Ok((first.map_or(0.0, |t0| t0.elapsed().as_secs_f64()), false));
+                }
+                // The tick from t to t + dt, when it is due (after the first: its origin is the first
+                // replies, when every autopilot is up).
+                if let Some(pacer) = pacer.as_mut().filter(|_| first.is_some()) {
+                    while let Some(wake) = pacer.wait(t, t + dt_us, Instant::now()) {
+                        if halt.load(Ordering::Relaxed) {
+                            return Ok((first.map_or(0.0, |t0| t0.elapsed().as_secs_f64()), true));
+                        }
+                        std::thread::sleep(wake.saturating_duration_since(Instant::now()));
+                    }
                 }
                 for server in servers.iter_mut() {
                     server.begin_step()?;

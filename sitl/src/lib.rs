@@ -3,6 +3,7 @@
 
 pub mod launch;
 pub mod link;
+pub mod pacer;
 pub mod plant;
 pub mod progress;
 pub mod scenario;

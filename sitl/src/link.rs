@@ -11,8 +11,9 @@
 //! counted. No reply within `resend_timeout` (wall clock, default 1 s): the same datagram is resent and
 //! counted. No reply within `link_lost_timeout` (default 5 s): [`LinkError::LinkLost`]; the autopilot
 //! does the same on its side and commands the motors to minimum. [`Pacing::RealTime`] keeps the
-//! handshake and also holds plant time at or below `speed` times wall time (if the autopilot is slower,
-//! the simulation lags; it never drops a step).
+//! handshake and also holds plant time at or below `speed` times wall time, on absolute deadlines from
+//! the first step, in batches of 20 ms of wall time, catching up after a stall at most 10x `speed` and
+//! never dropping a step ([`crate::pacer`]).
 //!
 //! Who binds (as PX4's simulator interface): the plant LISTENS on UDP 127.0.0.1:4560
 //! ([`autopilot::core::hil::DEFAULT_PLANT_PORT`]); the autopilot binds any port and announces itself by
@@ -43,6 +44,7 @@ use mavlink::MavHeader;
 use mavlink::dialects::common::{MavBatteryChargeState, MavMessage};
 use nalgebra::UnitQuaternion;
 
+use crate::pacer::Pacer;
 use crate::plant::sensors::HomeConfig;
 use crate::plant::sensors::NoisyState;
 use crate::plant::{BatteryReading, GpsSample, Plant, SensorSample, StateNoise, Truth};
@@ -340,8 +342,8 @@ pub struct PlantServer<T: Transport> {
     /// The sensor datagram of the current plant time, kept until the plant steps (a `step` retried after
     /// an error resends it rather than sampling the sensors twice).
     pending: Option<(u64, Vec<u8>)>,
-    /// Wall time and plant time at the first paced step.
-    pace_origin: Option<(Instant, u64)>,
+    /// The real-time pacer, from the first paced step.
+    pacer: Option<Pacer>,
     /// Polled between steps (see [`PlantHook`]), with the wall time of its last poll.
     hook: Option<(Box<dyn PlantHook>, Instant)>,
 }
@@ -370,9 +372,28 @@ impl<T: Transport> PlantServer<T> {
             sequence: 0,
             last_command: None,
             pending: None,
-            pace_origin: None,
+            pacer: None,
             hook: None,
         }
+    }
+
+    /// The plant step (µs).
+    #[must_use]
+    pub fn dt_us(&self) -> u64 {
+        self.config.dt_us
+    }
+
+    /// How plant time relates to wall time.
+    #[must_use]
+    pub fn pacing(&self) -> Pacing {
+        self.config.pacing
+    }
+
+    /// Pace by `pacing` from the next step on (a swarm paces its plants on one clock of its own and runs
+    /// each server in lockstep).
+    pub fn set_pacing(&mut self, pacing: Pacing) {
+        self.config.pacing = pacing;
+        self.pacer = None;
     }
 
     /// Poll `hook` between steps from now on (replacing any earlier one).
@@ -609,23 +630,19 @@ impl<T: Transport> PlantServer<T> {
         }
     }
 
-    /// Real-time pacing: sleep until plant time `t + dt` is due at `speed` times wall time (polling the
-    /// hook through a long sleep).
+    /// Real-time pacing: sleep until the step from plant time `t` to `t + dt` is due at `speed` times wall
+    /// time, by the [`Pacer`]'s rules (absolute deadlines, batches, bounded catch-up), polling the hook
+    /// through a long sleep.
     fn pace(&mut self, t: u64) -> Result<(), LinkError> {
         let Pacing::RealTime { speed } = self.config.pacing else { return Ok(()) };
-        if !(speed.is_finite() && speed > 0.0) {
-            return Ok(());
-        }
-        let (wall0, t0) = *self.pace_origin.get_or_insert((Instant::now(), t));
-        let due_s = (t + self.config.dt_us).saturating_sub(t0) as f64 * 1e-6 / speed;
-        let due = wall0 + Duration::from_secs_f64(due_s);
+        let to = t + self.config.dt_us;
         loop {
             let now = Instant::now();
-            if due <= now {
+            let Some(wake) = self.pacer.get_or_insert_with(|| Pacer::new(speed)).wait(t, to, now) else {
                 return Ok(());
-            }
-            let sleep = if self.hook.is_some() { (due - now).min(HOOK_WAIT_INTERVAL) } else { due - now };
-            std::thread::sleep(sleep);
+            };
+            let sleep = wake.saturating_duration_since(now);
+            std::thread::sleep(if self.hook.is_some() { sleep.min(HOOK_WAIT_INTERVAL) } else { sleep });
             self.poll_hook_if_due(Instant::now())?;
         }
     }
