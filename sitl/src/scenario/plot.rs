@@ -327,6 +327,24 @@ trait Figure {
 
 type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 
+/// A chart over `x` and `y` on `area` with every figure's margins, `y_label_px` layout pixels for the y
+/// tick labels, at scale `s`.
+fn cartesian<'a, DB: DrawingBackend>(
+    area: &'a DrawingArea<DB, Shift>,
+    x: Range<f64>,
+    y: Range<f64>,
+    y_label_px: f64,
+    s: f64,
+) -> Result<Chart<'a, DB>, String> {
+    ChartBuilder::on(area)
+        .margin(px(6.0 * s))
+        .margin_right(px(20.0 * s))
+        .x_label_area_size(px(44.0 * s))
+        .y_label_area_size(px(y_label_px * s))
+        .build_cartesian_2d(x, y)
+        .map_err(e2s)
+}
+
 /// Data to device pixels of a chart's plotting area, in floating point (dash lengths).
 #[derive(Debug, Clone)]
 struct PixelMap {
@@ -473,13 +491,7 @@ impl Figure for TimePanels {
             let x = 0.0..panel.t_max.max(1e-3);
             let series: Vec<&[(f64, f64)]> = panel.lines.iter().map(|l| l.points.as_slice()).collect();
             let y = y_range(&series, panel.settle_s);
-            let mut chart = ChartBuilder::on(area)
-                .margin(px(6.0 * s))
-                .margin_right(px(20.0 * s))
-                .x_label_area_size(px(44.0 * s))
-                .y_label_area_size(px(78.0 * s))
-                .build_cartesian_2d(x.clone(), y.clone())
-                .map_err(e2s)?;
+            let mut chart = cartesian(area, x.clone(), y.clone(), 78.0, s)?;
             draw_mesh(&mut chart, &x, &y, "time (s)", &panel.y_label, s)?;
             let clipped =
                 |t: f64| panel.lines.iter().flat_map(|l| &l.points).any(|p| p.0 < t && (p.1 < y.start || p.1 > y.end));
@@ -635,15 +647,7 @@ impl Figure for TrackFigure {
         let root = titled(root, &self.title, s)?;
         let (legend, body) = root.split_vertically(px(LEGEND_ROW * s));
         draw_legend(&legend, &self.legend, s)?;
-        let build = |x: Range<f64>, y: Range<f64>| {
-            ChartBuilder::on(&body)
-                .margin(px(6.0 * s))
-                .margin_right(px(20.0 * s))
-                .x_label_area_size(px(44.0 * s))
-                .y_label_area_size(px(70.0 * s))
-                .build_cartesian_2d(x, y)
-                .map_err(e2s)
-        };
+        let build = |x: Range<f64>, y: Range<f64>| cartesian(&body, x, y, 70.0, s);
         // Equal scales: widen the range of the axis with room to spare to the plotting area's shape.
         let (w, h) = build(self.x.clone(), self.y.clone())?.plotting_area().dim_in_pixel();
         let per_px = ((self.x.end - self.x.start) / f64::from(w)).max((self.y.end - self.y.start) / f64::from(h));
@@ -717,17 +721,8 @@ impl Figure for DistributionFigure {
         draw_legend(&legend, &self.legend, s)?;
         let (left, right) = body.split_horizontally(px(f64::from(body.dim_in_pixel().0) / 2.0));
         let x = self.x.clone();
-        let build = |area: &DrawingArea<DB, Shift>, y: Range<f64>, y_area: f64| {
-            ChartBuilder::on(area)
-                .margin(px(6.0 * s))
-                .margin_right(px(20.0 * s))
-                .x_label_area_size(px(44.0 * s))
-                .y_label_area_size(px(y_area * s))
-                .build_cartesian_2d(x.clone(), y)
-                .map_err(e2s)
-        };
         let y = 0.0..1.02;
-        let mut chart = build(&left, y.clone(), 70.0)?;
+        let mut chart = cartesian(&left, x.clone(), y.clone(), 70.0, s)?;
         draw_mesh(&mut chart, &x, &y, &self.x_label, "fraction of runs", s)?;
         let map = PixelMap::new(&chart, x.clone(), y);
         for line in &self.cdfs {
@@ -735,7 +730,7 @@ impl Figure for DistributionFigure {
         }
         let n = self.boxes.len();
         let y = -0.5..(n as f64 - 0.5);
-        let mut chart = build(&right, y.clone(), 60.0)?;
+        let mut chart = cartesian(&right, x.clone(), y.clone(), 60.0, s)?;
         let names: Vec<String> = self.boxes.iter().map(|b| b.0.clone()).collect();
         let name_of = move |v: &f64| {
             let i = v.round();
@@ -857,13 +852,7 @@ impl Figure for LineFigure {
         let root = titled(root, &self.title, s)?;
         let (legend, body) = root.split_vertically(px(LEGEND_ROW * s));
         draw_legend(&legend, &self.legend, s)?;
-        let mut chart = ChartBuilder::on(&body)
-            .margin(px(6.0 * s))
-            .margin_right(px(20.0 * s))
-            .x_label_area_size(px(44.0 * s))
-            .y_label_area_size(px(70.0 * s))
-            .build_cartesian_2d(self.x.clone(), self.y.clone())
-            .map_err(e2s)?;
+        let mut chart = cartesian(&body, self.x.clone(), self.y.clone(), 70.0, s)?;
         draw_mesh(&mut chart, &self.x, &self.y, &self.x_label, &self.y_label, s)?;
         let map = PixelMap::new(&chart, self.x.clone(), self.y.clone());
         for line in &self.lines {
