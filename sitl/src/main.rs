@@ -634,12 +634,8 @@ fn run_stem(out: &RunOutput, mode: ReferenceMode, scenario: &Scenario) -> String
 /// Writes via a temporary file and a rename, so a reader never sees a half-written file. The temporary
 /// file is the whole name plus `.tmp`, so `x.csv` and `x.json` never share one.
 fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".tmp");
-    let tmp = PathBuf::from(tmp);
-    std::fs::write(&tmp, bytes).with_context(|| format!("writing {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("renaming to {}", path.display()))?;
-    Ok(())
+    autopilot::runtime::persist::write_file_atomically(path, bytes)
+        .with_context(|| format!("writing {}", path.display()))
 }
 
 /// The gust and track metric lines of a summary (each starting with a newline), for the runs that have them.

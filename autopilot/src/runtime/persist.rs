@@ -36,22 +36,34 @@ pub enum PersistError {
     },
 }
 
-/// Write `contents` to `dir/name` atomically (temporary file, sync, rename).
+/// Write `contents` to `dir/name` atomically (see [`write_file_atomically`]).
 ///
 /// # Errors
 /// [`PersistError::Write`] naming the file; the previous file, if any, is then unchanged.
 pub fn save_atomically(dir: &Path, name: &str, contents: &str) -> Result<(), PersistError> {
     let path = dir.join(name);
-    let tmp = dir.join(format!("{name}.tmp"));
+    write_file_atomically(&path, contents.as_bytes()).map_err(|source| PersistError::Write { path, source })
+}
+
+/// The workspace's one atomic file writer: `bytes` go to the whole name plus `.tmp` (so `x.csv` and
+/// `x.json` never share a temporary file), are synced to disk, and the temporary file is renamed over
+/// `path`, so a reader (or a crash) never sees half a file. The autopilot's state and the simulator's
+/// outputs (traces, figures, sweep rows, tuning results) are all written through it.
+///
+/// # Errors
+/// The file system's; the temporary file is then removed and the previous file, if any, is unchanged.
+pub fn write_file_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".tmp");
+    let tmp = PathBuf::from(tmp);
     let write = || -> std::io::Result<()> {
         let mut file = std::fs::File::create(&tmp)?;
-        file.write_all(contents.as_bytes())?;
+        file.write_all(bytes)?;
         file.sync_all()?;
-        std::fs::rename(&tmp, &path)
+        std::fs::rename(&tmp, path)
     };
-    write().map_err(|source| {
+    write().inspect_err(|_| {
         let _ = std::fs::remove_file(&tmp);
-        PersistError::Write { path, source }
     })
 }
 
@@ -217,6 +229,19 @@ mod tests {
         std::fs::create_dir_all(dir.join("params.txt.tmp")).expect("blocker");
         assert!(save_atomically(&dir, "params.txt", "NEW\t2\n").is_err());
         assert_eq!(load(&dir, "params.txt").expect("read"), Some("OLD\t1\n".into()));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn given_x_csv_and_x_json_then_each_has_its_own_temporary_file_and_none_is_left() {
+        let dir = temp_dir("names");
+        std::fs::create_dir_all(&dir).expect("dir");
+        // A blocker where x.json's temporary file goes fails x.json alone: x.csv's is another file.
+        std::fs::create_dir_all(dir.join("x.json.tmp")).expect("blocker");
+        write_file_atomically(&dir.join("x.csv"), b"a,b\n").expect("x.csv");
+        assert!(write_file_atomically(&dir.join("x.json"), b"{}").is_err());
+        assert_eq!(std::fs::read(dir.join("x.csv")).expect("read"), b"a,b\n");
+        assert!(!dir.join("x.csv.tmp").exists() && !dir.join("x.json").exists());
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

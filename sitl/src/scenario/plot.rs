@@ -19,6 +19,7 @@ use std::ops::Range;
 use std::path::Path;
 use std::sync::Once;
 
+use autopilot::runtime::persist::write_file_atomically;
 use image::ImageEncoder;
 use plotters::coord::Shift;
 use plotters::coord::ranged1d::Ranged;
@@ -573,10 +574,7 @@ fn downsample(buf: &[u8], stride: usize, k: usize, (w, h): (usize, usize)) -> Ve
 }
 
 fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), String> {
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".tmp");
-    std::fs::write(&tmp, bytes).map_err(|e| format!("writing {}: {e}", Path::new(&tmp).display()))?;
-    std::fs::rename(&tmp, path).map_err(|e| format!("renaming to {}: {e}", path.display()))
+    write_file_atomically(path, bytes).map_err(|e| format!("writing {}: {e}", path.display()))
 }
 
 /// Legend entries: the runs in their given order, then the reference if the figure has one.

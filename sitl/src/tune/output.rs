@@ -273,10 +273,8 @@ pub fn heldout_csv(tune: &Tune, results: &[HeldOut]) -> String {
 /// # Errors
 /// The file system's.
 pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), TuneError> {
-    let io = |source| TuneError::Io { path: path.display().to_string(), source };
-    let tmp = path.with_extension(format!("{}.tmp", path.extension().and_then(|e| e.to_str()).unwrap_or("")));
-    std::fs::write(&tmp, bytes).map_err(io)?;
-    std::fs::rename(&tmp, path).map_err(io)
+    autopilot::runtime::persist::write_file_atomically(path, bytes)
+        .map_err(|source| TuneError::Io { path: path.display().to_string(), source })
 }
 
 /// The convergence figure of a tuning (`path` PNG and its `.svg`): per seed, the best safe training cost
