@@ -75,7 +75,7 @@ use std::io;
 use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
 use std::time::{Duration, Instant};
 
-use autopilot::core::hil::{FrameDecoder, encode_frame_v1, encode_frame_v2};
+use autopilot::core::hil::{FrameDecoder, deg_to_dege7, encode_frame_v1, encode_frame_v2};
 use autopilot::core::mavlink::params::{Applied, ParamService};
 use autopilot::core::params::{ParamDef, ParamKind, ParamStore};
 use mavlink::dialects::common::{
@@ -421,14 +421,9 @@ pub fn sim_state(truth: &Truth, home: &HomeConfig) -> SIM_STATE_DATA {
         vn: vel.x as f32,
         ve: vel.y as f32,
         vd: vel.z as f32,
-        lat_int: deg_e7(geo.lat_deg),
-        lon_int: deg_e7(geo.lon_deg),
+        lat_int: deg_to_dege7(geo.lat_deg),
+        lon_int: deg_to_dege7(geo.lon_deg),
     }
-}
-
-/// An angle (deg) in degE7, as MAVLink's integer latitudes and longitudes.
-fn deg_e7(angle_deg: f64) -> i32 {
-    (angle_deg * 1e7).round() as i32
 }
 
 /// One truth sample as it goes out, in this order in one datagram: SYSTEM_TIME (`time_boot_ms` = the
