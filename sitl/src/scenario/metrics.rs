@@ -324,8 +324,9 @@ pub struct EffortAccumulator {
     pwm_limits_us: [f64; 2],
     last_pwm_us: Option<[f64; 4]>,
     dev_sq_us2_s: f64,
+    change_sum_us: f64,
     rate_sum_us_per_s: f64,
-    rate_samples: u64,
+    changes: u64,
     saturation_s: f64,
 }
 
@@ -339,8 +340,9 @@ impl EffortAccumulator {
             pwm_limits_us,
             last_pwm_us: None,
             dev_sq_us2_s: 0.0,
+            change_sum_us: 0.0,
             rate_sum_us_per_s: 0.0,
-            rate_samples: 0,
+            changes: 0,
             saturation_s: 0.0,
         }
     }
@@ -353,13 +355,21 @@ impl EffortAccumulator {
         if pwm_us.iter().any(|&p| p <= lo || p >= hi) {
             self.saturation_s += dt_s;
         }
-        if let Some(prev) = self.last_pwm_us
-            && dt_s > 0.0
-        {
-            self.rate_sum_us_per_s += prev.iter().zip(pwm_us).map(|(a, b)| (a - b).abs()).sum::<f64>() / 4.0 / dt_s;
-            self.rate_samples += 1;
+        if let Some(prev) = self.last_pwm_us {
+            let change_us = prev.iter().zip(pwm_us).map(|(a, b)| (a - b).abs()).sum::<f64>() / 4.0;
+            self.change_sum_us += change_us;
+            if dt_s > 0.0 {
+                self.rate_sum_us_per_s += change_us / dt_s;
+            }
+            self.changes += 1;
         }
         self.last_pwm_us = Some(*pwm_us);
+    }
+
+    /// Mean over the ticks and rotors of |PWM change| per tick (µs): the runs' `pwm_activity_us`.
+    #[must_use]
+    pub fn pwm_activity_us(&self) -> f64 {
+        self.change_sum_us / self.changes.max(1) as f64
     }
 
     /// The run's effort so far.
@@ -367,11 +377,7 @@ impl EffortAccumulator {
     pub fn metrics(&self) -> EffortMetrics {
         EffortMetrics {
             pwm_dev_sq_us2_s: self.dev_sq_us2_s,
-            pwm_rate_mean_us_per_s: if self.rate_samples == 0 {
-                0.0
-            } else {
-                self.rate_sum_us_per_s / self.rate_samples as f64
-            },
+            pwm_rate_mean_us_per_s: if self.changes == 0 { 0.0 } else { self.rate_sum_us_per_s / self.changes as f64 },
             saturation_s: self.saturation_s,
         }
     }

@@ -245,8 +245,6 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
         v.reserve(n);
     }
     let mut non_finite = false;
-    let mut last_pwm: Option<[f64; 4]> = None;
-    let mut pwm_change_sum = 0.0;
 
     for k in 0..ticks {
         let t_s = (k * dt_us) as f64 * 1e-6;
@@ -261,10 +259,6 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
                 .chain(truth.vel_ned_mps.iter())
                 .chain(truth.euler_rad.iter())
                 .all(|v| v.is_finite()));
-        if let Some(prev) = last_pwm {
-            pwm_change_sum += prev.iter().zip(&pwm_us).map(|(a, b)| (a - b).abs()).sum::<f64>() / 4.0;
-        }
-        last_pwm = Some(pwm_us);
         effort.add(&pwm_us, dt_us as f64 * 1e-6);
 
         let ref_euler = r.attitude_rad.unwrap_or_else(|| Vector3::new(0.0, 0.0, r.yaw_rad));
@@ -310,7 +304,7 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
         track: None,
         weights_at_bounds: controller.weights_at_bounds(),
         non_finite,
-        pwm_activity_us: pwm_change_sum / (ticks.saturating_sub(1).max(1)) as f64,
+        pwm_activity_us: effort.pwm_activity_us(),
         effort: effort.metrics(),
         sim_s,
         wall_s: 0.0,
