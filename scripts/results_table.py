@@ -266,9 +266,10 @@ def tuned_tables(dirs):
     every controller at its start point (the defaults, with the spec's [base] block: the competent CA's
     switches) and, where the tuning found safe gains, at the best of them;
     a tuning without safe gains is a row that says so and why, and takes part in no verdict."""
-    rows, tuned = [], {}
+    rows, tuned, budgets = [], {}, set()
     for d in dirs:
         result, heldout = load_tuning(d)
+        budgets.add((result["budget"], tuple(result["seeds"])))
         ctrl = result["controller"]
         for entry in heldout:
             is_tuned = entry["gains"].endswith("(tuned)")
@@ -278,7 +279,10 @@ def tuned_tables(dirs):
                 tuned[ctrl] = sets
         if result["result"] is None:
             rows.append((ctrl, "none", result, None, None))
-        budget, seeds = result["budget"], result["seeds"]
+    if len(budgets) != 1:
+        # A comparison is fair only under one budget and one set of optimizer seeds.
+        sys.exit(f"results_table: the tunings differ in budget or seeds: {sorted(budgets)}")
+    budget, seeds = next(iter(budgets))
     out = []
     w = out.append
 

@@ -67,3 +67,20 @@ def test_lower_leaves_out_baselines_without_safe_gains_and_never_meets_without_a
     assert rt.rule_lower(0.5, [None, 0.7]) == MET
     assert rt.rule_lower(0.5, [None, None]) == "no tuned baseline"
     assert rt.rule_lower(None, [0.9]) == NOT_MET
+
+
+def test_tunings_under_different_budgets_or_seeds_are_refused_not_compared(tmp_path):
+    import json
+    import shutil
+
+    import pytest
+
+    for ctrl in ("aco", "pid"):
+        shutil.copytree(ROOT / "docs" / "tuning" / ctrl, tmp_path / ctrl)
+    dirs = [str(tmp_path / "aco"), str(tmp_path / "pid")]
+    assert any("Tuned against tuned" in line for line in rt.tuned_tables(dirs))
+    result = json.loads((tmp_path / "pid" / "result.json").read_text())
+    result["budget"] = 200
+    (tmp_path / "pid" / "result.json").write_text(json.dumps(result))
+    with pytest.raises(SystemExit, match="differ in budget or seeds"):
+        rt.tuned_tables(dirs)
