@@ -58,10 +58,9 @@ pub const DEFAULT_PLANT_PORT: u16 = 4560;
 /// Standard gravity (m/s²) per g, for the milli-g fields of `HIL_STATE_QUATERNION`.
 pub const MPS2_PER_G: f64 = 9.806_65;
 
-/// Lowest and highest motor command (µs); `controls[i] = (pwm_us - PWM_MIN_US) / (PWM_MAX_US - PWM_MIN_US)`.
-pub const PWM_MIN_US: f64 = 1000.0;
-/// See [`PWM_MIN_US`].
-pub const PWM_MAX_US: f64 = 2000.0;
+/// The motor command range (µs), the distributor's: `controls[i] = (pwm_us - PWM_MIN_US) / (PWM_MAX_US -
+/// PWM_MIN_US)`.
+pub use crate::core::control::distributor::{PWM_MAX_US, PWM_MIN_US};
 
 /// `MAV_MODE_FLAG_SAFETY_ARMED` in `HIL_ACTUATOR_CONTROLS.mode`.
 pub const MODE_FLAG_SAFETY_ARMED: u8 = 128;

@@ -44,10 +44,8 @@ use crate::core::mission::{Mission, MissionError, XY_UNSET, items_to_wpl};
 use crate::core::navigator::{AutoMode, MAX_SETPOINT_FROM_HOME_M, NavEvent, NavInput, Navigator, Task, nav_items};
 use crate::core::params::ParamStore;
 
-/// Motor command with the motors stopped (µs).
-pub const PWM_MIN_US: f64 = 1000.0;
-/// Largest motor command (µs).
-pub const PWM_MAX_US: f64 = 2000.0;
+/// The motor command range (µs): one definition, the distributor's.
+pub use crate::core::control::distributor::{PWM_MAX_US, PWM_MIN_US};
 
 /// One step's sensor inputs (any may be absent).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

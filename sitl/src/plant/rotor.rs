@@ -10,10 +10,9 @@ use nalgebra::Vector3;
 
 use super::airframe::Airframe;
 
-/// Lowest PWM the rotors accept (µs); lower, NaN and ±inf commands are read as this.
-pub const PWM_MIN_US: f64 = 1000.0;
-/// Highest PWM the rotors accept (µs); higher commands are clamped to it.
-pub const PWM_MAX_US: f64 = 2000.0;
+/// The PWM range the rotors accept (µs), the autopilot's: lower, NaN and ±inf commands are read as
+/// `PWM_MIN_US`; higher ones are clamped to `PWM_MAX_US`.
+pub use autopilot::core::control::distributor::{PWM_MAX_US, PWM_MIN_US};
 
 /// Array index of paper rotor 1, on the right arm (+y).
 pub const ROTOR_RIGHT: usize = 0;
