@@ -358,3 +358,33 @@ fn given_offboard_attitude_with_thrust_then_the_thrust_climbs_and_sinks_and_with
     assert!((held_m - dropped_m).abs() < 0.15, "held {held_m} m, thrust dropped at {dropped_m} m");
     assert!(rig.plant.truth().vel_ned_mps.z.abs() < 0.1, "settled: {:?}", rig.plant.truth().vel_ned_mps);
 }
+
+/// QGroundControl and MAVSDK upload a takeoff and a land "here" with latitude and longitude 0: the one
+/// resolver reads (0, 0) as here for flying and for the mission check alike, so the mission is accepted,
+/// started and flown (before, the check placed (0, 0) in the Gulf of Guinea and refused the start as
+/// "over 10 km from home" while the navigator would have flown it here).
+#[test]
+fn given_takeoff_and_land_items_at_lat_lon_0_0_when_the_mission_is_flown_then_it_climbs_here_flies_and_lands_within_0_15_m_of_the_waypoint()
+ {
+    let mut rig = rig();
+    rig.wait_until(30.0, "estimator convergence", |r| r.vehicle.estimate().flags.converged);
+    rig.run_s(1.0, |_| {});
+    let (lat, lon) = at(&rig, [3.0, 0.0]);
+    let items = [
+        mission_item(0, MavCmd::MAV_CMD_NAV_TAKEOFF, [0.0, 0.0, 0.0, NAN], 0.0, 0.0, 2.0),
+        mission_item(1, MavCmd::MAV_CMD_NAV_WAYPOINT, [0.0, 0.0, 0.0, NAN], lat, lon, 2.0),
+        mission_item(2, MavCmd::MAV_CMD_NAV_LAND, [0.0, 0.0, 0.0, NAN], 0.0, 0.0, 0.0),
+    ];
+    rig.start_mission(&items);
+    let start = rig.now_us;
+    let mut max_alt_m: f64 = 0.0;
+    while rig.armed() || rig.now_us - start < 1_000_000 {
+        assert!(rig.now_us - start < 60_000_000, "not landed and disarmed within 60 s: {:?}", reached(&rig.messages));
+        rig.tick();
+        max_alt_m = max_alt_m.max(-rig.plant.truth().pos_ned_m.z);
+    }
+    let p = rig.plant.truth().pos_ned_m;
+    assert_eq!(reached(&rig.take_messages()), vec![0, 1, 2], "every item reached in order");
+    assert!((max_alt_m - 2.0).abs() < 0.1, "took off here to 2 m: {max_alt_m}");
+    assert!((p.xy() - Vector2::new(3.0, 0.0)).norm() < 0.15 && p.z.abs() < 0.05, "landed at the waypoint: {p:?}");
+}

@@ -11,6 +11,7 @@ pub mod mavlink;
 pub mod mission;
 pub mod navigator;
 pub mod params;
+pub mod plan;
 pub mod vehicle;
 
 /// Seconds to whole microseconds of vehicle time: negative and NaN to 0, beyond `u64` (a hold of 1e30 s)

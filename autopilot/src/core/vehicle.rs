@@ -16,7 +16,7 @@
 //! the ground; it is clamped to [1000, 2000] and never NaN.
 
 use ::mavlink::MavHeader;
-use ::mavlink::dialects::common::{MISSION_CURRENT_DATA, MISSION_ITEM_REACHED_DATA, MavFrame, MavMessage, MavSeverity};
+use ::mavlink::dialects::common::{MISSION_CURRENT_DATA, MISSION_ITEM_REACHED_DATA, MavMessage, MavSeverity};
 use nalgebra::Vector3;
 
 use crate::core::battery::{BatterySample, BatteryStatus};
@@ -40,9 +40,10 @@ use crate::core::mavlink::{
     VehicleCommand, command_replies, housekeeping, plant_lost_heartbeat, statustext, statustext_chunks,
     sys_status_plant_lost,
 };
-use crate::core::mission::{Mission, MissionError, XY_UNSET, items_to_wpl};
-use crate::core::navigator::{AutoMode, MAX_SETPOINT_FROM_HOME_M, NavEvent, NavInput, Navigator, Task, nav_items};
+use crate::core::mission::{Mission, MissionError, NavTarget, items_to_wpl};
+use crate::core::navigator::{AutoMode, NavEvent, NavInput, Navigator, Task, nav_items};
 use crate::core::params::ParamStore;
+use crate::core::plan::{self, Frame, SetpointGuard, Unresolved};
 
 /// The motor command range (µs): one definition, the distributor's.
 pub use crate::core::control::distributor::{PWM_MAX_US, PWM_MIN_US};
@@ -172,10 +173,6 @@ impl std::fmt::Debug for Vehicle {
             .field("pwm_us", &self.pwm_us)
             .finish_non_exhaustive()
     }
-}
-
-fn finite3(v: &Vector3<f64>) -> bool {
-    v.iter().all(|x| x.is_finite())
 }
 
 impl Vehicle {
@@ -446,19 +443,44 @@ impl Vehicle {
         }
     }
 
-    /// A geodetic point of a command in local NED (altitude NaN: the vehicle's).
+    /// A geodetic point of a command in local NED (altitude NaN: the vehicle's), by the one resolver.
     fn local_point(&self, point: &CommandPoint) -> Result<Vector3<f64>, Option<String>> {
-        let est = self.estimator.state();
-        let origin = est.origin.ok_or_else(|| Some("No global position yet".to_owned()))?;
-        let alt_amsl_m = if point.alt_m.is_nan() {
-            origin.alt_amsl_m - est.pos_ned_m.z
-        } else if point.relative_alt {
-            self.home_alt_amsl_m().ok_or_else(|| Some("No home altitude yet".to_owned()))? + point.alt_m
-        } else {
-            point.alt_m
+        let target = NavTarget::Global {
+            lat_deg: point.lat_deg,
+            lon_deg: point.lon_deg,
+            alt_m: point.alt_m,
+            relative: point.relative_alt,
         };
-        let p = origin.ned_from_geodetic(point.lat_deg, point.lon_deg, alt_amsl_m);
-        if finite3(&p) { Ok(p) } else { Err(Some("Invalid position".to_owned())) }
+        plan::resolve(&target, &self.frame(), self.estimator.state().pos_ned_m).map_err(|why| {
+            Some(
+                match why {
+                    Unresolved::NoOrigin => "No global position yet",
+                    Unresolved::NoHomeAltitude => "No home altitude yet",
+                    Unresolved::Invalid => "Invalid position",
+                }
+                .to_owned(),
+            )
+        })
+    }
+
+    /// The frame targets are read in: the origin, home's altitude (or the ground under the vehicle's), the
+    /// ground.
+    fn frame(&self) -> Frame {
+        Frame {
+            origin: self.estimator.state().origin,
+            home_alt_amsl_m: self.home_alt_amsl_m(),
+            ground_d_m: self.home.map_or(0.0, |h| h.pos_ned_m.z),
+        }
+    }
+
+    /// The checks of targets against home and the geofence, as of now.
+    fn guard(&self) -> SetpointGuard<'_> {
+        SetpointGuard {
+            fence: self.missions.fence(),
+            config: &self.config.commander.geofence,
+            origin: self.estimator.state().origin.as_ref(),
+            home_ned_m: self.home.map(|h| h.pos_ned_m),
+        }
     }
 
     /// A command the vehicle answers itself; `extra` gets the messages it asked for (sent after the ACK).
@@ -647,62 +669,28 @@ impl Vehicle {
         (self.missions.fence(), self.missions.rally())
     }
 
-    /// Why the vehicle will not fly to `pos_ned_m` (NED m): farther than
-    /// [`MAX_SETPOINT_FROM_HOME_M`] from home, or outside the geofence.
+    /// Why the vehicle will not fly to `pos_ned_m` (NED m): see [`SetpointGuard::check`].
     fn check_setpoint(&self, pos_ned_m: &Vector3<f64>) -> Result<(), String> {
-        let home = self.home.map(|h| h.pos_ned_m);
-        if let Some(home) = home
-            && (pos_ned_m - home).norm() > MAX_SETPOINT_FROM_HOME_M
-        {
-            return Err(format!("over {:.0} km from home", MAX_SETPOINT_FROM_HOME_M / 1000.0));
-        }
-        let origin = self.estimator.state().origin;
-        match self.missions.fence().violation(&self.config.commander.geofence, origin.as_ref(), home, pos_ned_m) {
-            Some(v) => Err(v.to_string()),
-            None => Ok(()),
-        }
+        self.guard().check(pos_ned_m)
     }
 
-    /// The geofence breach predicted from the estimate (see `core::geofence`), braking as the navigator
-    /// brakes (MPC_ACC_HOR, MPC_JERK_AUTO).
+    /// The geofence breach predicted from the estimate, braking as the navigator brakes (MPC_ACC_HOR,
+    /// MPC_JERK_AUTO).
     fn fence_breach(&self, state: &EstimatorState) -> Option<Violation> {
         if !state.flags.position_valid {
             return None;
         }
         let nav = &self.config.navigator;
-        self.missions.fence().predicted_breach(
-            &self.config.commander.geofence,
-            state.origin.as_ref(),
-            self.home.map(|h| h.pos_ned_m),
-            &state.pos_ned_m,
-            &state.vel_ned_mps,
-            nav.acc_hor_mps2,
-            nav.jerk_mps3,
-        )
+        self.guard().predicted_breach(&state.pos_ned_m, &state.vel_ned_mps, nav.acc_hor_mps2, nav.jerk_mps3)
     }
 
-    /// Why the mission cannot be flown: an item whose position is outside the geofence (or too far).
-    // The *_INT frames are deprecated in the dialect, but ground stations upload them.
-    #[allow(deprecated)]
+    /// Why the mission cannot be flown: an item, resolved as the navigator flies it, outside the geofence
+    /// or too far.
     fn check_mission(&self) -> Result<(), String> {
-        let Some(origin) = self.estimator.state().origin else { return Ok(()) };
-        let home_alt = self.home_alt_amsl_m();
-        for item in &self.missions.mission().items {
-            if !item.has_position() || item.x == XY_UNSET || item.y == XY_UNSET {
-                continue;
-            }
-            let relative = matches!(
-                item.frame,
-                MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT | MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
-            );
-            let z = f64::from(item.z);
-            let alt_amsl_m = if relative { home_alt.map_or(origin.alt_amsl_m + z, |h| h + z) } else { z };
-            let p = origin.ned_from_geodetic(f64::from(item.x) * 1e-7, f64::from(item.y) * 1e-7, alt_amsl_m);
-            if let Err(why) = self.check_setpoint(&p) {
-                return Err(format!("Mission: item {} {why}", item.seq));
-            }
+        if self.estimator.state().origin.is_none() {
+            return Ok(());
         }
-        Ok(())
+        self.guard().check_mission(&nav_items(self.missions.mission()), &self.frame())
     }
 
     /// The mission as uploaded.

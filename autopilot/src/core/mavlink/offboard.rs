@@ -19,7 +19,9 @@ use nalgebra::{Quaternion, Rotation3, UnitQuaternion, Vector3};
 use super::addressed_to_us;
 use crate::core::estimator::GeoOrigin;
 use crate::core::hil::dege7_to_deg;
+use crate::core::mission::NavTarget;
 use crate::core::navigator::OffboardSetpoint;
+use crate::core::plan::{self, Frame, Unresolved};
 
 /// What the decoder needs to know of the vehicle.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -73,19 +75,24 @@ pub fn decode(sysid: u8, msg: &MavMessage, ctx: &OffboardContext) -> Option<Resu
                     | PositionTargetTypemask::POSITION_TARGET_TYPEMASK_Z_IGNORE,
             );
             let pos = if wants_position {
-                let Some(origin) = ctx.origin else {
-                    return Some(Err("Offboard: no global position yet".into()));
+                let target = NavTarget::Global {
+                    lat_deg: dege7_to_deg(m.lat_int),
+                    lon_deg: dege7_to_deg(m.lon_int),
+                    alt_m: f64::from(m.alt),
+                    relative,
                 };
-                let alt = f64::from(m.alt);
-                let alt_amsl_m = if relative {
-                    match ctx.home_alt_amsl_m {
-                        Some(h) => h + alt,
-                        None => return Some(Err("Offboard: no home for a relative altitude".into())),
+                let frame = Frame { origin: ctx.origin, home_alt_amsl_m: ctx.home_alt_amsl_m, ground_d_m: 0.0 };
+                // An offboard setpoint has no "current altitude": a NaN altitude resolves to a point that is
+                // not finite, refused below with the rest.
+                match plan::resolve(&target, &frame, Vector3::repeat(f64::NAN)) {
+                    Ok(p) => Some(p),
+                    Err(Unresolved::NoOrigin) => return Some(Err("Offboard: no global position yet".into())),
+                    Err(Unresolved::NoHomeAltitude) => {
+                        return Some(Err("Offboard: no home for a relative altitude".into()));
                     }
-                } else {
-                    alt
-                };
-                Some(origin.ned_from_geodetic(dege7_to_deg(m.lat_int), dege7_to_deg(m.lon_int), alt_amsl_m))
+                    // A non-finite point is refused where every setpoint is checked.
+                    Err(Unresolved::Invalid) => Some(Vector3::repeat(f64::NAN)),
+                }
             } else {
                 None
             };

@@ -11,7 +11,7 @@ use crate::core::control::frames::wrap_pi;
 /// A position in a mission item.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum NavTarget {
-    /// Latitude, longitude (deg), altitude (m) above home (`relative`) or AMSL.
+    /// Latitude, longitude (deg), altitude (m) above home (`relative`) or AMSL; a NaN altitude keeps the current one.
     Global { lat_deg: f64, lon_deg: f64, alt_m: f64, relative: bool },
     /// Here: the current position (a zero or missing latitude/longitude), at this relative altitude if given.
     Here { alt_rel_m: Option<f64> },

@@ -28,6 +28,7 @@ use nalgebra::Vector3;
 use super::leg::{Leg, LegPath, MIN_LEG_M, Motion3};
 use super::spline::SplinePath;
 use super::{Climb, NavCommand, NavEvent, NavInput, NavItem, NavTarget, Planner, rtl, still};
+use crate::core::plan;
 use crate::core::seconds_to_us;
 
 /// Runs hold at most this many waypoints (the spline is solved once per run).
@@ -533,19 +534,9 @@ fn rest_limits(p: &Planner) -> super::trajectory::Limits {
     }
 }
 
-/// The local NED point of `target`, with `here` for "here".
+/// The local NED point of `target`, with `here` for "here" (the one resolver, `core::plan`).
 pub(crate) fn resolve(input: &NavInput, target: &NavTarget, here: Vector3<f64>) -> Option<Vector3<f64>> {
-    match *target {
-        NavTarget::Here { alt_rel_m } => {
-            Some(Vector3::new(here.x, here.y, alt_rel_m.map_or(here.z, |a| input.ground_d_m() - a)))
-        }
-        NavTarget::Global { lat_deg, lon_deg, alt_m, relative } => {
-            let origin = input.origin?;
-            let alt_amsl_m = if relative { input.home_alt_amsl_m? + alt_m } else { alt_m };
-            let pt = origin.ned_from_geodetic(lat_deg, lon_deg, alt_amsl_m);
-            pt.iter().all(|x| x.is_finite()).then_some(pt)
-        }
-    }
+    plan::resolve(target, &input.frame(), here).ok()
 }
 
 /// A leg through `points` (the first is the start): a line for two, a spline for more.

@@ -48,10 +48,7 @@ use leg::{Leg, LegPath, MIN_LEG_M, Motion3};
 pub use offboard::OffboardSetpoint;
 use trajectory::Limits;
 
-/// The farthest from home (m, in 3D) a commanded position may be: an offboard position setpoint or a
-/// DO_REPOSITION beyond it is refused with a reason, not flown (a setpoint of 1e30 m is finite, but no
-/// flight of this airframe goes there).
-pub const MAX_SETPOINT_FROM_HOME_M: f64 = 10_000.0;
+pub use crate::core::plan::MAX_SETPOINT_FROM_HOME_M;
 
 /// The navigator's parameters (PX4 names in the field docs).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -223,6 +220,16 @@ impl NavInput {
     #[must_use]
     pub fn ground_d_m(&self) -> f64 {
         self.home_ned_m.map_or(0.0, |h| h.z)
+    }
+
+    /// The frame mission targets are read in.
+    #[must_use]
+    pub fn frame(&self) -> crate::core::plan::Frame {
+        crate::core::plan::Frame {
+            origin: self.origin,
+            home_alt_amsl_m: self.home_alt_amsl_m,
+            ground_d_m: self.ground_d_m(),
+        }
     }
 }
 

@@ -1,0 +1,8 @@
+//! The plans the vehicle flies and where their points are: the resolver of every commanded target
+//! ([`resolve`]) and the guard that checks targets against home and the geofence ([`SetpointGuard`]).
+
+mod guard;
+mod resolve;
+
+pub use guard::{MAX_SETPOINT_FROM_HOME_M, SetpointGuard};
+pub use resolve::{Frame, Unresolved, resolve};
