@@ -7,6 +7,7 @@ pub mod control;
 pub mod estimator;
 pub mod geofence;
 pub mod hil;
+pub mod intent;
 pub mod mavlink;
 pub mod mission;
 pub mod navigator;

@@ -17,7 +17,7 @@
 
 use std::fmt;
 
-use nalgebra::{Vector2, Vector3};
+use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
@@ -36,7 +36,7 @@ pub use state_machine::{Conditions, State};
 
 use crate::core::battery::{BatteryConfig, BatteryMonitor, BatterySample, BatteryStatus, BatteryWarning};
 use crate::core::geofence::{GeofenceConfig, Violation};
-use crate::core::navigator::{AutoMode, NavStatus, Task};
+use crate::core::intent::{AutoMode, HoldAt, Intent, Progress};
 use land_detector::{LandDetectorSample, Phase};
 
 use crate::core::seconds_to_us;
@@ -197,14 +197,23 @@ pub struct CommanderInputs {
     pub estimate: Estimate,
     /// The controller's collective thrust is at its minimum.
     pub throttle_low: bool,
-    /// The navigator's status of the previous step (mission valid and done, landing, offboard fresh).
-    pub nav: NavStatus,
+    /// What the vehicle knows of its plans and setpoint streams now.
+    pub facts: Facts,
     /// When a ground station (MAV_TYPE_GCS) last sent a HEARTBEAT (µs of vehicle time).
     pub gcs_heartbeat_us: Option<u64>,
     /// A reading of the pack that arrived this step.
     pub battery: Option<BatterySample>,
     /// The geofence is breached, or will be before the vehicle can stop (see `core::geofence`).
     pub fence_breach: Option<Violation>,
+}
+
+/// What the vehicle knows, outside the commander, that the transitions read: whether a mission can be
+/// flown (one is loaded and the estimator has a geodetic origin) and whether offboard setpoints flow
+/// (one younger than COM_OF_LOSS_T).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Facts {
+    pub mission_valid: bool,
+    pub offboard_fresh: bool,
 }
 
 /// What a ground station (through the MAVLink handlers) asks of the commander.
@@ -385,7 +394,7 @@ pub struct CommanderOutput {
     pub armed: bool,
     pub motors_enabled: bool,
     /// What the navigator is to fly.
-    pub task: Task,
+    pub intent: Intent,
     /// The pack's latest reading and warning level.
     pub battery: BatteryStatus,
     /// What happened since the previous step (requests included), in order.
@@ -403,7 +412,10 @@ pub struct Commander {
     pending_takeoff_alt_m: Option<f64>,
     /// Mission mode asked for while disarmed: the mission starts on arming.
     pending_mission: bool,
-    nav: NavStatus,
+    facts: Facts,
+    /// The navigator's progress: the mission flew its last item; an automatic mode descends to land.
+    mission_done: bool,
+    auto_landing: bool,
     land_detector: LandDetector,
     /// The latest finite estimate.
     est: Estimate,
@@ -411,11 +423,12 @@ pub struct Commander {
     home_ned_m: Option<Vector3<f64>>,
     /// The ground's down coordinate when there is no home: where the vehicle was while disarmed.
     arm_ground_d_m: f64,
-    takeoff_target_ned_m: Vector3<f64>,
-    /// The point Hold holds (None: where the reference stops).
-    hold_ned_m: Option<Vector3<f64>>,
-    land_ne_m: Vector2<f64>,
-    yaw_sp_rad: f64,
+    /// The takeoff's altitude above the ground (m) and the down coordinate it reaches (m), as it started.
+    takeoff_alt_m: f64,
+    takeoff_d_m: f64,
+    /// Where Hold holds, and a reposition's yaw (rad; None: keep).
+    hold_at: HoldAt,
+    hold_yaw_rad: Option<f64>,
     armed_idle_since_us: u64,
     touchdown_us: Option<u64>,
     /// The ground-station link counts as lost (a datalink failsafe episode is under way).
@@ -440,16 +453,18 @@ impl Commander {
             hold_mode: FlightMode::Hold,
             pending_takeoff_alt_m: None,
             pending_mission: false,
-            nav: NavStatus::default(),
+            facts: Facts::default(),
+            mission_done: false,
+            auto_landing: false,
             land_detector: LandDetector::new(config.land_detector),
             est: Estimate::default(),
             est_ok: false,
             home_ned_m: None,
             arm_ground_d_m: 0.0,
-            takeoff_target_ned_m: Vector3::zeros(),
-            hold_ned_m: None,
-            land_ne_m: Vector2::zeros(),
-            yaw_sp_rad: 0.0,
+            takeoff_alt_m: 0.0,
+            takeoff_d_m: 0.0,
+            hold_at: HoldAt::Stop,
+            hold_yaw_rad: None,
             armed_idle_since_us: 0,
             touchdown_us: None,
             datalink_lost: false,
@@ -528,7 +543,7 @@ impl Commander {
         let phase = match self.state {
             State::Takeoff => Phase::Takeoff,
             State::Land => Phase::Landing,
-            State::Mission | State::Rtl if self.nav.landing => Phase::Landing,
+            State::Mission | State::Rtl if self.auto_landing => Phase::Landing,
             _ => Phase::Other,
         };
         if self.state == State::Disarmed { LandedState::OnGround } else { self.land_detector.landed_state(phase) }
@@ -536,44 +551,46 @@ impl Commander {
 
     /// What the navigator is to fly.
     #[must_use]
-    pub fn task(&self) -> Task {
-        let yaw_rad = self.yaw_sp_rad;
+    pub fn intent(&self) -> Intent {
         match self.state {
-            State::Disarmed | State::ArmedIdle | State::Killed => Task::Idle,
-            State::Takeoff => Task::Takeoff { pos_ned_m: self.takeoff_target_ned_m, yaw_rad },
-            State::Hold => Task::Hold { pos_ned_m: self.hold_ned_m, yaw_rad },
-            State::Land if self.land_detector.landed() => Task::Idle,
-            State::Land => Task::Land { pos_ne_m: self.land_ne_m, yaw_rad },
-            State::Mission => Task::Auto(AutoMode::Mission),
-            State::Rtl => Task::Auto(AutoMode::ReturnToLaunch),
-            State::Offboard => Task::Auto(AutoMode::Offboard),
+            State::Disarmed | State::ArmedIdle | State::Killed => Intent::Idle,
+            State::Takeoff => Intent::Takeoff { alt_m: self.takeoff_alt_m },
+            State::Hold => Intent::Hold { at: self.hold_at, yaw_rad: self.hold_yaw_rad },
+            State::Land if self.land_detector.landed() => Intent::Idle,
+            State::Land => Intent::Land,
+            State::Mission => Intent::Auto(AutoMode::Mission),
+            State::Rtl => Intent::Auto(AutoMode::ReturnToLaunch),
+            State::Offboard => Intent::Auto(AutoMode::Offboard),
         }
     }
 
-    /// Starts armed in Hold at `hold_ned_m` (m, NED) and `yaw_rad`, instead of disarmed on the ground:
-    /// for experiments that begin in the air, as the paper's do (`sitl run --scenario`). Call before the
-    /// first step; no Armed event is raised (there was no arming), the first HEARTBEAT shows it armed.
-    pub fn start_airborne(&mut self, hold_ned_m: Vector3<f64>, yaw_rad: f64) {
+    /// Starts armed in Hold above `hold_ned_m` (m, NED; home below it), instead of disarmed on the
+    /// ground: for experiments that begin in the air, as the paper's do (`sitl run --scenario`); the
+    /// navigator holds the point (its own airborne start). Call before the first step; no Armed event is
+    /// raised (there was no arming), the first HEARTBEAT shows it armed.
+    pub fn start_airborne(&mut self, hold_ned_m: Vector3<f64>) {
         self.home_ned_m = Some(Vector3::new(hold_ned_m.x, hold_ned_m.y, 0.0));
         self.state = State::Hold;
-        self.hold_ned_m = Some(hold_ned_m);
-        self.yaw_sp_rad = yaw_rad;
+        self.hold_at = HoldAt::Stop;
         self.hold_mode = FlightMode::Hold;
         self.set_mode(FlightMode::Hold);
     }
 
-    /// The navigator's status now (a mission just uploaded, a first offboard setpoint), for a request
-    /// that comes before the next step.
-    pub fn set_nav_status(&mut self, nav: NavStatus) {
-        self.nav = nav;
+    /// The navigator's progress (events, in order), read by the transitions from the next step or request.
+    pub fn on_progress(&mut self, progress: Progress) {
+        match progress {
+            Progress::MissionDone(done) => self.mission_done = done,
+            Progress::Landing(landing) => self.auto_landing = landing,
+        }
     }
 
-    /// Handles a request at `now_us`, at once.
+    /// Handles a request at `now_us`, at once, with what the vehicle knows now (`facts`).
     ///
     /// # Errors
     /// [`Refusal`] saying why; the commander is then exactly as before.
-    pub fn request(&mut self, now_us: u64, req: Request) -> Result<(), Refusal> {
+    pub fn request(&mut self, now_us: u64, facts: Facts, req: Request) -> Result<(), Refusal> {
         let mut next = self.clone();
+        next.facts = facts;
         next.apply(now_us, req)?;
         *self = next;
         Ok(())
@@ -596,7 +613,7 @@ impl Commander {
             self.events.push(Event::Landed);
         }
         let landing =
-            self.state == State::Land || (matches!(self.state, State::Mission | State::Rtl) && self.nav.landing);
+            self.state == State::Land || (matches!(self.state, State::Mission | State::Rtl) && self.auto_landing);
         self.touchdown_us = if landing && landed { Some(self.touchdown_us.unwrap_or(now)) } else { None };
         self.datalink_failsafe(now, inputs.gcs_heartbeat_us);
         self.battery_failsafe(now, inputs.battery);
@@ -616,7 +633,7 @@ impl Commander {
             landed: self.landed_state(),
             armed: self.armed(),
             motors_enabled: self.armed(),
-            task: self.task(),
+            intent: self.intent(),
             battery: self.battery.status(now),
             events: std::mem::take(&mut self.events),
         }
@@ -699,7 +716,7 @@ impl Commander {
     }
 
     fn take_estimate(&mut self, inputs: &CommanderInputs) {
-        self.nav = inputs.nav;
+        self.facts = inputs.facts;
         let e = &inputs.estimate;
         let finite = e.pos_ned_m.iter().chain(e.vel_ned_mps.iter()).all(|x| x.is_finite());
         if finite {
@@ -738,7 +755,7 @@ impl Commander {
             _ => false,
         };
         let alt_reached = self.state == State::Takeoff
-            && (self.est.pos_ned_m.z - self.takeoff_target_ned_m.z).abs() <= self.config.takeoff_acceptance_m;
+            && (self.est.pos_ned_m.z - self.takeoff_d_m).abs() <= self.config.takeoff_acceptance_m;
         C::NONE
             .with(C::TAKEOFF_REQUESTED, self.pending_takeoff_alt_m.is_some())
             .with(C::LANDED, self.land_detector.landed())
@@ -746,11 +763,11 @@ impl Commander {
             .with(C::ESTIMATOR_OK, self.est_ok)
             .with(C::AUTO_DISARM_EXPIRED, auto_disarm)
             .with(C::MISSION_REQUESTED, self.pending_mission)
-            .with(C::MISSION_VALID, self.nav.mission_valid)
-            .with(C::MISSION_DONE, self.nav.mission_done)
-            .with(C::OFFBOARD_OK, self.nav.offboard_fresh)
-            .with(C::OFFBOARD_LOST, !self.nav.offboard_fresh)
-            .with(C::AUTO_LANDING, self.nav.landing)
+            .with(C::MISSION_VALID, self.facts.mission_valid)
+            .with(C::MISSION_DONE, self.mission_done)
+            .with(C::OFFBOARD_OK, self.facts.offboard_fresh)
+            .with(C::OFFBOARD_LOST, !self.facts.offboard_fresh)
+            .with(C::AUTO_LANDING, self.auto_landing)
     }
 
     fn apply(&mut self, now: u64, req: Request) -> Result<(), Refusal> {
@@ -816,7 +833,7 @@ impl Commander {
             Request::Mission => match state {
                 State::Mission => Ok(()),
                 State::Killed => Err(Refusal::NotInState { action: Action::Mission, state }),
-                State::Disarmed if !self.nav.mission_valid => Err(Refusal::NoMission(Action::Mission)),
+                State::Disarmed if !self.facts.mission_valid => Err(Refusal::NoMission(Action::Mission)),
                 State::Disarmed => {
                     self.pending_takeoff_alt_m = None;
                     self.pending_mission = true;
@@ -848,10 +865,9 @@ impl Commander {
                 }
                 self.set_mode(FlightMode::Hold);
                 // No point (QGroundControl's pause): stop and hold where the vehicle stops.
-                self.hold_ned_m = pos_ned_m.filter(|p| p.iter().all(|x| x.is_finite()));
-                if let Some(y) = yaw_rad.filter(|y| y.is_finite()) {
-                    self.yaw_sp_rad = y;
-                }
+                self.hold_at =
+                    pos_ned_m.filter(|p| p.iter().all(|x| x.is_finite())).map_or(HoldAt::Stop, HoldAt::Point);
+                self.hold_yaw_rad = yaw_rad.filter(|y| y.is_finite());
                 Ok(())
             }
         }
@@ -910,9 +926,6 @@ impl Commander {
         use Conditions as C;
         let from = self.state;
         let pos = self.est.pos_ned_m;
-        if !from.is_armed() || from == State::ArmedIdle {
-            self.yaw_sp_rad = self.est.yaw_rad;
-        }
         if to != State::ArmedIdle && to != State::Takeoff {
             self.pending_takeoff_alt_m = None;
         }
@@ -944,19 +957,20 @@ impl Commander {
                 self.events.push(Event::Armed { forced: c.contains(C::FORCE) });
             }
             State::Takeoff => {
-                let alt = self.pending_takeoff_alt_m.take().unwrap_or(self.config.takeoff_alt_m);
-                let ne = if from == State::Takeoff { self.takeoff_target_ned_m.xy() } else { pos.xy() };
-                self.takeoff_target_ned_m = Vector3::new(ne.x, ne.y, self.ground_d_m() - alt);
+                // The altitude is the commander's (the request's); the navigator latches where it climbs.
+                self.takeoff_alt_m = self.pending_takeoff_alt_m.take().unwrap_or(self.config.takeoff_alt_m);
+                self.takeoff_d_m = self.ground_d_m() - self.takeoff_alt_m;
                 self.set_mode(FlightMode::Takeoff);
             }
             State::Hold => {
+                self.hold_yaw_rad = None;
                 if from == State::Takeoff && !c.contains(C::HOLD_REQUESTED) {
-                    self.hold_ned_m = Some(self.takeoff_target_ned_m);
+                    self.hold_at = HoldAt::TakeoffPoint;
                     self.hold_mode = FlightMode::Hold;
                     self.events.push(Event::TakeoffComplete);
                 } else {
                     // Stop and hold where the vehicle stops, as PX4's Hold does.
-                    self.hold_ned_m = None;
+                    self.hold_at = HoldAt::Stop;
                 }
                 if from == State::Offboard && c.contains(C::OFFBOARD_LOST) && !c.contains(C::HOLD_REQUESTED) {
                     self.hold_mode = FlightMode::Hold;
@@ -966,7 +980,6 @@ impl Commander {
                 self.set_mode(self.hold_mode);
             }
             State::Land => {
-                self.land_ne_m = pos.xy();
                 self.touchdown_us = self.land_detector.landed().then_some(now);
                 self.set_mode(FlightMode::Land);
             }

@@ -4,7 +4,7 @@
 use nalgebra::Vector3;
 
 use super::*;
-use crate::core::navigator::{AutoMode, NavStatus, Task};
+use crate::core::intent::{AutoMode, HoldAt, Intent, Progress};
 
 const STEP_US: u64 = 10_000;
 const G: f64 = 9.81;
@@ -18,7 +18,12 @@ struct Sim {
     vel_d_mps: f64,
     converged: bool,
     throttle_low: bool,
-    nav: NavStatus,
+    /// The vehicle's facts (a mission to fly, offboard setpoints).
+    facts: Facts,
+    /// The navigator's part: an automatic mode descends to land.
+    landing: bool,
+    /// The takeoff altitude the navigator latched (m above the ground at D = 0).
+    takeoff_alt_m: f64,
     gcs_heartbeat_us: Option<u64>,
     /// The pack's state of charge the monitor reads every step (None: no pack).
     battery_remaining: Option<f64>,
@@ -34,7 +39,9 @@ impl Sim {
             vel_d_mps: 0.0,
             converged: true,
             throttle_low: true,
-            nav: NavStatus::default(),
+            facts: Facts::default(),
+            landing: false,
+            takeoff_alt_m: 0.0,
             gcs_heartbeat_us: None,
             battery_remaining: None,
             fence_breach: None,
@@ -53,7 +60,7 @@ impl Sim {
                 has_origin: true,
             },
             throttle_low: self.throttle_low,
-            nav: self.nav,
+            facts: self.facts,
             gcs_heartbeat_us: self.gcs_heartbeat_us,
             battery: self.battery_remaining.map(|r| crate::core::battery::BatterySample {
                 voltage_v: 6.0 * 3.8,
@@ -67,16 +74,20 @@ impl Sim {
     /// Advances one step under `out`.
     fn advance(&mut self, out: &CommanderOutput) {
         let dt = STEP_US as f64 * 1e-6;
-        let vel_cmd = match out.task {
-            Task::Hold { pos_ned_m: Some(pos_ned_m), .. } | Task::Takeoff { pos_ned_m, .. } => {
-                Some((1.5 * (pos_ned_m.z - self.pos_d_m)).clamp(-1.5, 1.5))
-            }
+        // The navigator's part: latch the takeoff's altitude, fly to points, stop, descend.
+        if let Intent::Takeoff { alt_m } = out.intent {
+            self.takeoff_alt_m = alt_m;
+        }
+        let to_d_m = |d_m: f64| Some((1.5 * (d_m - self.pos_d_m)).clamp(-1.5, 1.5));
+        let vel_cmd = match out.intent {
+            Intent::Takeoff { .. } | Intent::Hold { at: HoldAt::TakeoffPoint, .. } => to_d_m(-self.takeoff_alt_m),
+            Intent::Hold { at: HoldAt::Point(p), .. } => to_d_m(p.z),
             // Hold where it stops: the vertical speed decays.
-            Task::Hold { pos_ned_m: None, .. } => Some(0.0),
-            Task::Land { .. } => Some(0.7),
-            // The navigator's part: descend while it lands, hold the altitude otherwise.
-            Task::Auto(_) => Some(if self.nav.landing { 0.7 } else { 0.0 }),
-            Task::Idle => None,
+            Intent::Hold { at: HoldAt::Stop, .. } => Some(0.0),
+            Intent::Land => Some(0.7),
+            // Descend while it lands, hold the altitude otherwise.
+            Intent::Auto(_) => Some(if self.landing { 0.7 } else { 0.0 }),
+            Intent::Idle => None,
         };
         let acc = match vel_cmd {
             Some(v) if out.motors_enabled => (4.0 * (v - self.vel_d_mps)).clamp(-G, G),
@@ -136,14 +147,14 @@ fn commander() -> Commander {
 fn armed_on_ground(sim: &mut Sim) -> Commander {
     let mut c = commander();
     sim.run(&mut c, 1);
-    c.request(sim.now_us, Request::Arm { force: false }).expect("arm");
+    c.request(sim.now_us, sim.facts, Request::Arm { force: false }).expect("arm");
     c
 }
 
 /// A commander holding at the takeoff altitude.
 fn holding(sim: &mut Sim) -> Commander {
     let mut c = armed_on_ground(sim);
-    c.request(sim.now_us, Request::Takeoff { alt_rel_m: None }).expect("takeoff");
+    c.request(sim.now_us, sim.facts, Request::Takeoff { alt_rel_m: None }).expect("takeoff");
     sim.run_until(&mut c, 20.0, |o| o.state == State::Hold);
     c
 }
@@ -159,19 +170,19 @@ fn given_an_unconverged_estimator_when_arming_then_refused_in_words_and_nothing_
     let mut c = commander();
     sim.run(&mut c, 10);
     let before = c.clone();
-    let err = c.request(sim.now_us, Request::Arm { force: false }).unwrap_err();
+    let err = c.request(sim.now_us, sim.facts, Request::Arm { force: false }).unwrap_err();
     assert_eq!(err.to_string(), "Arming denied: estimator not converged");
     assert_eq!(c, before);
     assert!(!c.armed());
 
     sim.converged = true;
     sim.run(&mut c, 1);
-    c.request(sim.now_us, Request::Arm { force: false }).expect("arm once converged");
+    c.request(sim.now_us, sim.facts, Request::Arm { force: false }).expect("arm once converged");
     let out = sim.run(&mut c, 1).remove(0);
     assert_eq!(out.state, State::ArmedIdle);
     assert!(out.armed && out.motors_enabled);
     assert_eq!(out.events, vec![Event::Armed { forced: false }]);
-    assert_eq!(out.task, Task::Idle);
+    assert_eq!(out.intent, Intent::Idle);
     assert_eq!(out.status, SystemStatus::Active);
     assert!(out.armed);
 }
@@ -182,7 +193,7 @@ fn given_an_unconverged_estimator_when_arming_with_force_then_armed() {
     sim.converged = false;
     let mut c = commander();
     sim.run(&mut c, 1);
-    c.request(sim.now_us, Request::Arm { force: true }).expect("forced arm");
+    c.request(sim.now_us, sim.facts, Request::Arm { force: true }).expect("forced arm");
     let out = sim.run(&mut c, 1).remove(0);
     assert_eq!(out.state, State::ArmedIdle);
     assert_eq!(out.events, vec![Event::Armed { forced: true }]);
@@ -195,10 +206,10 @@ fn given_hold_in_the_air_when_disarming_then_refused_unless_forced() {
     let mut sim = Sim::new();
     let mut c = holding(&mut sim);
     let before = c.clone();
-    let err = c.request(sim.now_us, Request::Disarm { force: false }).unwrap_err();
+    let err = c.request(sim.now_us, sim.facts, Request::Disarm { force: false }).unwrap_err();
     assert_eq!(err.to_string(), "Disarming denied: in air (use force)");
     assert_eq!(c, before);
-    c.request(sim.now_us, Request::Disarm { force: true }).expect("forced disarm");
+    c.request(sim.now_us, sim.facts, Request::Disarm { force: true }).expect("forced disarm");
     let out = sim.run(&mut c, 1).remove(0);
     assert_eq!(out.state, State::Disarmed);
     assert!(!out.motors_enabled);
@@ -210,7 +221,7 @@ fn given_armed_on_the_ground_when_disarming_then_accepted() {
     let mut sim = Sim::new();
     let mut c = armed_on_ground(&mut sim);
     sim.run(&mut c, 50);
-    c.request(sim.now_us, Request::Disarm { force: false }).expect("disarm on the ground");
+    c.request(sim.now_us, sim.facts, Request::Disarm { force: false }).expect("disarm on the ground");
     let out = sim.run(&mut c, 1).remove(0);
     assert_eq!(out.state, State::Disarmed);
     assert_eq!(out.events, vec![Event::Disarmed { reason: DisarmReason::Requested }]);
@@ -221,11 +232,11 @@ fn given_armed_on_the_ground_when_disarming_then_accepted() {
 fn given_each_state_when_killed_then_motors_stop_at_once_and_only_a_disarm_resets() {
     let mut sim_takeoff = Sim::new();
     let mut taking_off = armed_on_ground(&mut sim_takeoff);
-    taking_off.request(sim_takeoff.now_us, Request::Takeoff { alt_rel_m: None }).expect("takeoff");
+    taking_off.request(sim_takeoff.now_us, sim_takeoff.facts, Request::Takeoff { alt_rel_m: None }).expect("takeoff");
     sim_takeoff.run(&mut taking_off, 50);
     let mut sim_land = Sim::new();
     let mut landing = holding(&mut sim_land);
-    landing.request(sim_land.now_us, Request::Land).expect("land");
+    landing.request(sim_land.now_us, sim_land.facts, Request::Land).expect("land");
     sim_land.run(&mut landing, 10);
     let mut sim_hold = Sim::new();
     let mut sim_idle = Sim::new();
@@ -242,15 +253,15 @@ fn given_each_state_when_killed_then_motors_stop_at_once_and_only_a_disarm_reset
     let mut seen = Vec::new();
     for (_, mut c) in cases {
         seen.push(c.state());
-        c.request(0, Request::Kill).expect("kill is never refused");
+        c.request(0, Facts::default(), Request::Kill).expect("kill is never refused");
         assert_eq!(c.state(), State::Killed);
         assert!(!c.armed());
-        assert_eq!(c.task(), Task::Idle);
+        assert_eq!(c.intent(), Intent::Idle);
         assert_eq!(c.system_status(), SystemStatus::Emergency);
         assert!(!c.armed());
-        let err = c.request(0, Request::Arm { force: true }).unwrap_err();
+        let err = c.request(0, Facts::default(), Request::Arm { force: true }).unwrap_err();
         assert_eq!(err.to_string(), "Arming denied: kill engaged (disarm to reset)");
-        c.request(0, Request::Disarm { force: false }).expect("disarm resets a kill");
+        c.request(0, Facts::default(), Request::Disarm { force: false }).expect("disarm resets a kill");
         assert_eq!(c.state(), State::Disarmed);
     }
     assert_eq!(seen, [State::Disarmed, State::ArmedIdle, State::Takeoff, State::Hold, State::Land]);
@@ -260,7 +271,7 @@ fn given_each_state_when_killed_then_motors_stop_at_once_and_only_a_disarm_reset
 fn given_a_kill_in_the_air_then_the_vehicle_falls_with_motors_off() {
     let mut sim = Sim::new();
     let mut c = holding(&mut sim);
-    c.request(sim.now_us, Request::Kill).expect("kill");
+    c.request(sim.now_us, sim.facts, Request::Kill).expect("kill");
     let outs = sim.run(&mut c, 10);
     assert_eq!(outs[0].events, vec![Event::Disarmed { reason: DisarmReason::Kill }, Event::Killed]);
     assert!(outs.iter().all(|o| !o.motors_enabled && o.state == State::Killed));
@@ -272,21 +283,20 @@ fn given_takeoff_requested_while_disarmed_when_armed_then_climbs_and_holds_at_th
     let mut sim = Sim::new();
     let mut c = commander();
     sim.run(&mut c, 1);
-    c.request(sim.now_us, Request::Takeoff { alt_rel_m: None }).expect("takeoff accepted while disarmed");
+    c.request(sim.now_us, sim.facts, Request::Takeoff { alt_rel_m: None }).expect("takeoff accepted while disarmed");
     assert_eq!(c.state(), State::Disarmed);
     assert_eq!(c.pending_takeoff_alt_m(), Some(2.5));
     let out = sim.run(&mut c, 1).remove(0);
     assert_eq!(out.mode, AUTO_TAKEOFF);
     assert_eq!(out.events, vec![Event::ModeChanged { mode: FlightMode::Takeoff }]);
-    assert_eq!(out.task, Task::Idle, "nothing moves before arming");
+    assert_eq!(out.intent, Intent::Idle, "nothing moves before arming");
 
-    c.request(sim.now_us, Request::Arm { force: false }).expect("arm");
+    c.request(sim.now_us, sim.facts, Request::Arm { force: false }).expect("arm");
     let out = sim.run(&mut c, 1).remove(0);
     assert_eq!(out.state, State::Takeoff);
     assert_eq!(out.mode, AUTO_TAKEOFF);
     assert_eq!(out.landed, LandedState::Takeoff);
-    let target = Vector3::new(1.0, -2.0, -2.5);
-    assert_eq!(out.task, Task::Takeoff { pos_ned_m: target, yaw_rad: 0.3 });
+    assert_eq!(out.intent, Intent::Takeoff { alt_m: 2.5 });
 
     let outs = sim.run(&mut c, 1000);
     let first_hold = outs.iter().position(|o| o.state == State::Hold).expect("takeoff completes");
@@ -295,7 +305,7 @@ fn given_takeoff_requested_while_disarmed_when_armed_then_climbs_and_holds_at_th
     assert_eq!(done.mode, AUTO_LOITER);
     assert_eq!(done.landed, LandedState::InAir);
     assert_eq!(done.events, vec![Event::TakeoffComplete, Event::ModeChanged { mode: FlightMode::Hold }]);
-    assert_eq!(done.task, Task::Hold { pos_ned_m: Some(target), yaw_rad: 0.3 });
+    assert_eq!(done.intent, Intent::Hold { at: HoldAt::TakeoffPoint, yaw_rad: None });
     assert!((sim.pos_d_m + 2.5).abs() < 0.05, "holding at D {}", sim.pos_d_m);
     assert!(outs[first_hold..].iter().all(|o| o.state == State::Hold && o.landed == LandedState::InAir));
 }
@@ -306,12 +316,12 @@ fn given_a_takeoff_altitude_when_requested_then_it_is_the_target_and_a_bad_one_i
     let mut c = armed_on_ground(&mut sim);
     let before = c.clone();
     for bad in [0.0, -1.0, f64::NAN] {
-        let err = c.request(sim.now_us, Request::Takeoff { alt_rel_m: Some(bad) }).unwrap_err();
+        let err = c.request(sim.now_us, sim.facts, Request::Takeoff { alt_rel_m: Some(bad) }).unwrap_err();
         assert!(matches!(err, Refusal::InvalidAltitude(_)), "{bad}");
         assert_eq!(c, before);
     }
-    c.request(sim.now_us, Request::Takeoff { alt_rel_m: Some(5.0) }).expect("takeoff");
-    assert!(matches!(c.task(), Task::Takeoff { pos_ned_m, .. } if pos_ned_m.z == -5.0));
+    c.request(sim.now_us, sim.facts, Request::Takeoff { alt_rel_m: Some(5.0) }).expect("takeoff");
+    assert!(matches!(c.intent(), Intent::Takeoff { alt_m } if alt_m == 5.0));
 }
 
 #[test]
@@ -319,11 +329,11 @@ fn given_hold_when_landing_then_descends_detects_touchdown_and_disarms_exactly_a
     let mut sim = Sim::new();
     let mut c = holding(&mut sim);
     sim.run(&mut c, 100);
-    c.request(sim.now_us, Request::Land).expect("land");
+    c.request(sim.now_us, sim.facts, Request::Land).expect("land");
     let out = sim.run(&mut c, 1).remove(0);
     assert_eq!(out.mode, AUTO_LAND);
     assert_eq!(out.landed, LandedState::Landing);
-    assert_eq!(out.task, Task::Land { pos_ne_m: Vector2::new(1.0, -2.0), yaw_rad: 0.3 });
+    assert_eq!(out.intent, Intent::Land);
     sim.run(&mut c, 300);
     assert!((sim.vel_d_mps - 0.7).abs() < 0.05, "descending at {} m/s", sim.vel_d_mps);
 
@@ -339,7 +349,7 @@ fn given_hold_when_landing_then_descends_detects_touchdown_and_disarms_exactly_a
     let landed_at_us = sim.now_us - STEP_US;
     assert_eq!(landed.landed, LandedState::OnGround);
     assert!(landed.armed);
-    assert_eq!(landed.task, Task::Idle);
+    assert_eq!(landed.intent, Intent::Idle);
     assert_eq!(landed_at_us, touchdown_sim_us + 500_000, "landed after the 0.5 s dwell on the ground");
 
     // Armed for exactly COM_DISARM_LAND (2 s = 200 steps) after the detection, then disarmed.
@@ -379,26 +389,26 @@ fn given_set_mode_requests_then_supported_modes_switch_and_others_are_refused_in
         (FlightMode::ReturnToLaunch, "RTL denied: landed"),
     ];
     for (mode, text) in cases {
-        let err = c.request(sim.now_us, Request::SetMode(mode)).unwrap_err();
+        let err = c.request(sim.now_us, sim.facts, Request::SetMode(mode)).unwrap_err();
         assert_eq!(err.to_string(), text);
         assert!(text.len() <= 50);
         assert_eq!(c, before);
     }
-    assert!(c.request(sim.now_us, Request::ReturnToLaunch).is_err());
+    assert!(c.request(sim.now_us, sim.facts, Request::ReturnToLaunch).is_err());
 
-    c.request(sim.now_us, Request::SetMode(FlightMode::Position)).expect("POSCTL on the ground");
+    c.request(sim.now_us, sim.facts, Request::SetMode(FlightMode::Position)).expect("POSCTL on the ground");
     assert_eq!((c.state(), c.mode()), (State::ArmedIdle, FlightMode::Position));
-    c.request(sim.now_us, Request::SetMode(FlightMode::Takeoff)).expect("AUTO TAKEOFF");
+    c.request(sim.now_us, sim.facts, Request::SetMode(FlightMode::Takeoff)).expect("AUTO TAKEOFF");
     assert_eq!((c.state(), c.mode()), (State::Takeoff, AUTO_TAKEOFF));
     sim.run(&mut c, 60);
-    c.request(sim.now_us, Request::SetMode(FlightMode::Altitude)).expect("ALTCTL during takeoff");
+    c.request(sim.now_us, sim.facts, Request::SetMode(FlightMode::Altitude)).expect("ALTCTL during takeoff");
     assert_eq!((c.state(), c.mode()), (State::Hold, FlightMode::Altitude));
-    assert_eq!(c.task(), Task::Hold { pos_ned_m: None, yaw_rad: 0.3 }, "held where it stops");
-    c.request(sim.now_us, Request::SetMode(FlightMode::Hold)).expect("AUTO LOITER");
+    assert_eq!(c.intent(), Intent::Hold { at: HoldAt::Stop, yaw_rad: None }, "held where it stops");
+    c.request(sim.now_us, sim.facts, Request::SetMode(FlightMode::Hold)).expect("AUTO LOITER");
     assert_eq!((c.state(), c.mode()), (State::Hold, AUTO_LOITER));
-    c.request(sim.now_us, Request::SetMode(FlightMode::Land)).expect("AUTO LAND");
+    c.request(sim.now_us, sim.facts, Request::SetMode(FlightMode::Land)).expect("AUTO LAND");
     assert_eq!((c.state(), c.mode()), (State::Land, AUTO_LAND));
-    c.request(sim.now_us, Request::Hold).expect("hold aborts the landing");
+    c.request(sim.now_us, sim.facts, Request::Hold).expect("hold aborts the landing");
     assert_eq!((c.state(), c.mode()), (State::Hold, AUTO_LOITER));
 }
 
@@ -407,11 +417,11 @@ fn given_a_disarmed_vehicle_when_asked_to_land_then_refused_and_a_later_hold_can
     let mut sim = Sim::new();
     let mut c = commander();
     sim.run(&mut c, 1);
-    assert_eq!(c.request(0, Request::Land).unwrap_err().to_string(), "Land denied: vehicle disarmed");
-    c.request(0, Request::Takeoff { alt_rel_m: Some(3.0) }).expect("takeoff");
-    c.request(0, Request::Hold).expect("hold");
+    assert_eq!(c.request(0, Facts::default(), Request::Land).unwrap_err().to_string(), "Land denied: vehicle disarmed");
+    c.request(0, Facts::default(), Request::Takeoff { alt_rel_m: Some(3.0) }).expect("takeoff");
+    c.request(0, Facts::default(), Request::Hold).expect("hold");
     assert_eq!(c.pending_takeoff_alt_m(), None);
-    c.request(sim.now_us, Request::Arm { force: false }).expect("arm");
+    c.request(sim.now_us, sim.facts, Request::Arm { force: false }).expect("arm");
     let outs = sim.run(&mut c, 10);
     assert!(outs.iter().all(|o| o.state == State::ArmedIdle));
 }
@@ -436,7 +446,7 @@ fn given_the_preflight_delay_disabled_when_armed_long_then_stays_armed() {
     let mut sim = Sim::new();
     let mut c = Commander::new(CommanderConfig { disarm_preflight_s: -1.0, ..CommanderConfig::default() }).unwrap();
     sim.run(&mut c, 1);
-    c.request(sim.now_us, Request::Arm { force: false }).unwrap();
+    c.request(sim.now_us, sim.facts, Request::Arm { force: false }).unwrap();
     assert!(sim.run(&mut c, 2000).iter().all(|o| o.armed));
 }
 
@@ -445,12 +455,12 @@ fn whole_flight() -> (Vec<CommanderOutput>, Sim) {
     let mut sim = Sim::new();
     let mut c = commander();
     let mut outs = sim.run(&mut c, 100);
-    c.request(sim.now_us, Request::Arm { force: false }).expect("arm");
+    c.request(sim.now_us, sim.facts, Request::Arm { force: false }).expect("arm");
     outs.extend(sim.run(&mut c, 100));
-    c.request(sim.now_us, Request::Takeoff { alt_rel_m: None }).expect("takeoff");
+    c.request(sim.now_us, sim.facts, Request::Takeoff { alt_rel_m: None }).expect("takeoff");
     outs.extend(sim.run_until(&mut c, 20.0, |o| o.events.contains(&Event::TakeoffComplete)));
     outs.extend(sim.run(&mut c, 2000));
-    c.request(sim.now_us, Request::Land).expect("land");
+    c.request(sim.now_us, sim.facts, Request::Land).expect("land");
     outs.extend(sim.run_until(&mut c, 30.0, |o| !o.armed));
     (outs, sim)
 }
@@ -509,16 +519,16 @@ fn given_a_mission_asked_for_while_disarmed_when_armed_then_it_starts_and_withou
     let mut sim = Sim::new();
     let mut c = commander();
     sim.run(&mut c, 1);
-    let err = c.request(sim.now_us, Request::Mission).unwrap_err();
+    let err = c.request(sim.now_us, sim.facts, Request::Mission).unwrap_err();
     assert_eq!(err.to_string(), "Mission denied: no mission");
-    sim.nav.mission_valid = true;
+    sim.facts.mission_valid = true;
     sim.run(&mut c, 1);
-    c.request(sim.now_us, Request::Mission).expect("pending mission");
+    c.request(sim.now_us, sim.facts, Request::Mission).expect("pending mission");
     assert_eq!((c.state(), c.mode()), (State::Disarmed, FlightMode::Mission));
-    c.request(sim.now_us, Request::Arm { force: false }).expect("arm");
+    c.request(sim.now_us, sim.facts, Request::Arm { force: false }).expect("arm");
     let outs = sim.run(&mut c, 2);
     assert_eq!(outs[1].state, State::Mission);
-    assert_eq!(outs[1].task, Task::Auto(AutoMode::Mission));
+    assert_eq!(outs[1].intent, Intent::Auto(AutoMode::Mission));
     assert!(outs[1].armed, "armed");
 }
 
@@ -526,17 +536,18 @@ fn given_a_mission_asked_for_while_disarmed_when_armed_then_it_starts_and_withou
 fn given_a_mission_when_done_in_the_air_then_hold_and_when_it_lands_then_disarm_after_com_disarm_land() {
     let mut sim = Sim::new();
     let mut c = holding(&mut sim);
-    sim.nav.mission_valid = true;
+    sim.facts.mission_valid = true;
     sim.run(&mut c, 1);
-    c.request(sim.now_us, Request::Mission).expect("mission from hold");
+    c.request(sim.now_us, sim.facts, Request::Mission).expect("mission from hold");
     sim.run(&mut c, 5);
     assert_eq!(c.state(), State::Mission);
-    sim.nav.mission_done = true;
+    c.on_progress(Progress::MissionDone(true));
     let out = sim.run(&mut c, 2).pop().expect("outputs");
     assert_eq!((out.state, out.mode), (State::Hold, AUTO_LOITER));
-    sim.nav.mission_done = false;
-    c.request(sim.now_us, Request::Mission).expect("again");
-    sim.nav.landing = true;
+    c.on_progress(Progress::MissionDone(false));
+    c.request(sim.now_us, sim.facts, Request::Mission).expect("again");
+    sim.landing = true;
+    c.on_progress(Progress::Landing(true));
     let outs = sim.run_until(&mut c, 30.0, |o| o.state == State::Disarmed);
     let landed_at = outs.iter().position(|o| o.events.contains(&Event::Landed)).expect("touchdown");
     let disarmed_after_s = (outs.len() - 1 - landed_at) as f64 * STEP_US as f64 * 1e-6;
@@ -548,14 +559,17 @@ fn given_a_mission_when_done_in_the_air_then_hold_and_when_it_lands_then_disarm_
 fn given_return_to_launch_then_refused_landed_accepted_in_the_air_and_interrupted_by_hold() {
     let mut sim = Sim::new();
     let mut c = armed_on_ground(&mut sim);
-    assert_eq!(c.request(sim.now_us, Request::ReturnToLaunch).unwrap_err().to_string(), "RTL denied: landed");
+    assert_eq!(
+        c.request(sim.now_us, sim.facts, Request::ReturnToLaunch).unwrap_err().to_string(),
+        "RTL denied: landed"
+    );
     let mut c2 = holding(&mut sim);
-    c2.request(sim.now_us, Request::SetMode(FlightMode::ReturnToLaunch)).expect("RTL mode");
+    c2.request(sim.now_us, sim.facts, Request::SetMode(FlightMode::ReturnToLaunch)).expect("RTL mode");
     assert_eq!((c2.state(), c2.mode()), (State::Rtl, FlightMode::ReturnToLaunch));
-    assert_eq!(c2.task(), Task::Auto(AutoMode::ReturnToLaunch));
-    c2.request(sim.now_us, Request::Hold).expect("pause");
+    assert_eq!(c2.intent(), Intent::Auto(AutoMode::ReturnToLaunch));
+    c2.request(sim.now_us, sim.facts, Request::Hold).expect("pause");
     assert_eq!(c2.state(), State::Hold);
-    c.request(sim.now_us, Request::Disarm { force: false }).expect("disarm on the ground");
+    c.request(sim.now_us, sim.facts, Request::Disarm { force: false }).expect("disarm on the ground");
 }
 
 #[test]
@@ -563,16 +577,16 @@ fn given_offboard_then_only_with_fresh_setpoints_and_back_to_hold_when_they_stop
     let mut sim = Sim::new();
     let mut c = holding(&mut sim);
     let before = c.clone();
-    let err = c.request(sim.now_us, Request::Offboard).unwrap_err();
+    let err = c.request(sim.now_us, sim.facts, Request::Offboard).unwrap_err();
     assert_eq!(err.to_string(), "Offboard denied: no offboard setpoints");
     assert_eq!(c, before);
-    sim.nav.offboard_fresh = true;
+    sim.facts.offboard_fresh = true;
     sim.run(&mut c, 1);
-    c.request(sim.now_us, Request::SetMode(FlightMode::Offboard)).expect("offboard");
+    c.request(sim.now_us, sim.facts, Request::SetMode(FlightMode::Offboard)).expect("offboard");
     assert_eq!((c.state(), c.mode()), (State::Offboard, FlightMode::Offboard));
     sim.run(&mut c, 10);
     assert_eq!(c.state(), State::Offboard);
-    sim.nav.offboard_fresh = false;
+    sim.facts.offboard_fresh = false;
     let out = sim.run(&mut c, 1).pop().expect("out");
     assert_eq!((out.state, out.mode), (State::Hold, AUTO_LOITER));
 }
@@ -582,16 +596,17 @@ fn given_a_reposition_then_hold_at_the_new_point_in_the_air_only() {
     let mut sim = Sim::new();
     let mut ground = armed_on_ground(&mut sim);
     let target = Vector3::new(5.0, 6.0, -3.0);
-    let err = ground.request(sim.now_us, Request::Goto { pos_ned_m: Some(target), yaw_rad: None }).unwrap_err();
+    let err =
+        ground.request(sim.now_us, sim.facts, Request::Goto { pos_ned_m: Some(target), yaw_rad: None }).unwrap_err();
     assert_eq!(err.to_string(), "Reposition denied: landed");
     let mut c = holding(&mut sim);
-    c.request(sim.now_us, Request::Goto { pos_ned_m: Some(target), yaw_rad: Some(1.0) }).expect("goto");
-    assert_eq!(c.task(), Task::Hold { pos_ned_m: Some(target), yaw_rad: 1.0 });
+    c.request(sim.now_us, sim.facts, Request::Goto { pos_ned_m: Some(target), yaw_rad: Some(1.0) }).expect("goto");
+    assert_eq!(c.intent(), Intent::Hold { at: HoldAt::Point(target), yaw_rad: Some(1.0) });
     // QGroundControl's pause: no point, hold where it is.
-    sim.nav.mission_valid = true;
+    sim.facts.mission_valid = true;
     sim.run(&mut c, 1);
-    c.request(sim.now_us, Request::Mission).expect("mission");
-    c.request(sim.now_us, Request::Goto { pos_ned_m: None, yaw_rad: None }).expect("pause");
+    c.request(sim.now_us, sim.facts, Request::Mission).expect("mission");
+    c.request(sim.now_us, sim.facts, Request::Goto { pos_ned_m: None, yaw_rad: None }).expect("pause");
     assert_eq!(c.state(), State::Hold);
 }
 
@@ -610,13 +625,13 @@ fn given_a_converged_global_position_then_home_is_set_on_the_ground_moved_at_arm
     // WHEN it arms somewhere else (the estimate drifted) THEN home moves there.
     sim.pos_d_m = -0.01;
     sim.run(&mut c, 1);
-    c.request(sim.now_us, Request::Arm { force: false }).expect("arm");
+    c.request(sim.now_us, sim.facts, Request::Arm { force: false }).expect("arm");
     assert_eq!(c.home_ned_m(), Some(Vector3::new(1.0, -2.0, -0.01)));
     // WHEN DO_SET_HOME names a point THEN home is there; a non-finite one is refused, home unchanged.
     let there = Vector3::new(5.0, 6.0, -1.0);
-    c.request(sim.now_us, Request::SetHome { pos_ned_m: Some(there) }).expect("set home");
+    c.request(sim.now_us, sim.facts, Request::SetHome { pos_ned_m: Some(there) }).expect("set home");
     assert_eq!(c.home_ned_m(), Some(there));
-    let err = c.request(sim.now_us, Request::SetHome { pos_ned_m: Some(Vector3::new(f64::NAN, 0.0, 0.0)) });
+    let err = c.request(sim.now_us, sim.facts, Request::SetHome { pos_ned_m: Some(Vector3::new(f64::NAN, 0.0, 0.0)) });
     assert_eq!(err.unwrap_err().to_string(), "Set home: no position");
     assert_eq!(c.home_ned_m(), Some(there));
 }
@@ -631,10 +646,10 @@ fn given_a_low_pack_on_the_ground_then_arming_is_refused_with_the_charge_unless_
     sim.battery_remaining = Some(0.12);
     let mut c = commander();
     sim.run(&mut c, 1);
-    let refusal = c.request(sim.now_us, Request::Arm { force: false }).unwrap_err();
+    let refusal = c.request(sim.now_us, sim.facts, Request::Arm { force: false }).unwrap_err();
     assert_eq!(refusal.to_string(), "Arming denied: battery 12% below 15%");
     assert_eq!(c.state(), State::Disarmed);
-    c.request(sim.now_us, Request::Arm { force: true }).expect("a forced arm skips the check, as PX4's");
+    c.request(sim.now_us, sim.facts, Request::Arm { force: true }).expect("a forced arm skips the check, as PX4's");
 }
 
 #[test]
@@ -695,7 +710,7 @@ fn given_gf_action_hold_when_a_breach_starts_in_the_air_then_hold_once_and_rearm
     let outs = sim.run(&mut c, 3);
     assert_eq!(texts(&outs), ["Failsafe: fence, beyond GF_MAX_HOR_DIST, returning", "Mode: Return"]);
     // Back inside, then out again: acted on again.
-    c.request(sim.now_us, Request::Hold).unwrap();
+    c.request(sim.now_us, sim.facts, Request::Hold).unwrap();
     sim.fence_breach = None;
     sim.run(&mut c, 1);
     sim.fence_breach = Some(Violation::InsideExclusion);

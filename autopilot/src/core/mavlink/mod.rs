@@ -15,6 +15,7 @@
 //!   are what the vehicle reports instead, on the shell's wall-clock cadence (`Vehicle::plant_lost_telemetry`).
 
 use ::mavlink::dialects::common::MavMessage;
+use nalgebra::Vector3;
 
 use crate::core::commander::Event;
 
@@ -68,13 +69,15 @@ pub struct MavlinkService {
     sysid: u8,
     heartbeat_due_us: Option<u64>,
     streams: StreamScheduler,
+    /// The home (NED m) last announced with HOME_POSITION.
+    announced_home_ned_m: Option<Vector3<f64>>,
 }
 
 impl MavlinkService {
     /// A service for system `sysid` with the default stream rates.
     #[must_use]
     pub fn new(sysid: u8) -> Self {
-        Self { sysid, heartbeat_due_us: None, streams: StreamScheduler::default() }
+        Self { sysid, heartbeat_due_us: None, streams: StreamScheduler::default(), announced_home_ned_m: None }
     }
 
     #[must_use]
@@ -101,7 +104,25 @@ impl MavlinkService {
         if heartbeat {
             self.heartbeat_due_us = Some(next_due_us(self.heartbeat_due_us, now_us, HEARTBEAT_INTERVAL_US, changed));
         }
-        Due { heartbeat, streams: self.streams.due(now_us) }
+        Due { heartbeat, streams: self.streams.due(now_us), home: false }
+    }
+}
+
+impl MavlinkService {
+    /// Home (NED m) counts as announced: it is news only when it moves from here.
+    pub fn home_announced(&mut self, home_ned_m: Option<Vector3<f64>>) {
+        self.announced_home_ned_m = home_ned_m;
+    }
+
+    /// What is due at `now_us` (see [`Self::due`]), and HOME_POSITION when home (`home_ned_m`, NED m)
+    /// moved since it was last announced.
+    pub fn due_with_home(&mut self, now_us: u64, events: &[Event], home_ned_m: Option<Vector3<f64>>) -> Due {
+        let mut due = self.due(now_us, events);
+        if home_ned_m.is_some() && home_ned_m != self.announced_home_ned_m {
+            self.announced_home_ned_m = home_ned_m;
+            due.home = true;
+        }
+        due
     }
 }
 
@@ -110,10 +131,13 @@ impl MavlinkService {
 pub struct Due {
     heartbeat: bool,
     streams: Vec<Stream>,
+    /// HOME_POSITION, home having moved.
+    home: bool,
 }
 
 impl Due {
-    /// The messages: the HEARTBEAT if due, a STATUSTEXT per event, the due streams' messages.
+    /// The messages: the HEARTBEAT if due, a STATUSTEXT per event, the due streams' messages, then
+    /// HOME_POSITION if home moved.
     #[must_use]
     pub fn messages(&self, snapshot: &TelemetrySnapshot<'_>, events: &[Event]) -> Vec<MavMessage> {
         let mut out = Vec::new();
@@ -122,6 +146,9 @@ impl Due {
         }
         out.extend(events.iter().map(|e| statustext(telemetry::event_severity(e), &e.text())));
         out.extend(self.streams.iter().flat_map(|s| s.messages(snapshot)));
+        if self.home {
+            out.extend(Stream::HomePosition.message(snapshot));
+        }
         out
     }
 }

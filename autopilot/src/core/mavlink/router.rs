@@ -122,12 +122,21 @@ impl Microservice for Housekeeping {
 #[derive(Debug, Clone, Default)]
 pub struct OffboardReceiver {
     last_refusal: Option<String>,
+    /// When the vehicle last took a setpoint (µs of vehicle time).
+    taken_us: Option<u64>,
 }
 
 impl OffboardReceiver {
-    /// The vehicle flies the setpoint: the next refusal is said again.
-    pub fn taken(&mut self) {
+    /// The vehicle flies the setpoint received at `now_us`: the next refusal is said again.
+    pub fn taken(&mut self, now_us: u64) {
         self.last_refusal = None;
+        self.taken_us = Some(now_us);
+    }
+
+    /// Whether setpoints flow: the last one taken is younger than `timeout_s` (COM_OF_LOSS_T) at `now_us`.
+    #[must_use]
+    pub fn fresh(&self, now_us: u64, timeout_s: f64) -> bool {
+        self.taken_us.is_some_and(|t| now_us.saturating_sub(t) <= crate::core::seconds_to_us(timeout_s))
     }
 
     /// A refused setpoint's STATUSTEXT, once per run of the same refusal.
@@ -227,5 +236,17 @@ mod tests {
         assert_eq!(route(&mission), Some(Service::Mission));
         assert_eq!(route(&MavMessage::COMMAND_LONG(Default::default())), Some(Service::Command));
         assert_eq!(route(&MavMessage::SET_ATTITUDE_TARGET(Default::default())), Some(Service::Offboard));
+    }
+
+    #[test]
+    fn given_setpoints_taken_then_they_are_fresh_for_com_of_loss_t_of_vehicle_time_and_stale_after() {
+        let mut rx = OffboardReceiver::default();
+        assert!(!rx.fresh(0, 0.5), "none taken yet");
+        rx.taken(1_000_000);
+        assert!(rx.fresh(1_000_000, 0.5));
+        assert!(rx.fresh(1_500_000, 0.5), "fresh at exactly COM_OF_LOSS_T");
+        assert!(!rx.fresh(1_500_001, 0.5), "stale 1 µs after it");
+        rx.taken(1_600_000);
+        assert!(rx.fresh(2_000_000, 0.5), "a new setpoint is fresh again");
     }
 }

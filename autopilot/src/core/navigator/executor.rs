@@ -158,7 +158,7 @@ impl Executor {
 
     fn finish(&mut self, p: &mut Planner, input: &NavInput) -> Motion3 {
         self.phase = Phase::Done;
-        p.status.mission_done = true;
+        p.mission_done = true;
         self.current = self.items.len().saturating_sub(1);
         p.events.push(NavEvent::Text("Mission finished".into()));
         self.hold_here(p, input)
@@ -406,7 +406,7 @@ impl Executor {
         match &mut self.phase {
             Phase::Start | Phase::Done => self.hold_here(p, input),
             Phase::Landed { leg } => {
-                p.status.landing = true;
+                p.landing = true;
                 p.fly(leg, input)
             }
             Phase::Climb { leg, climb, item } => {
@@ -480,7 +480,7 @@ impl Executor {
             }
             Phase::Descend { leg, item } => {
                 let item = *item;
-                p.status.landing = true;
+                p.landing = true;
                 let m = p.fly(leg, input);
                 if input.landed {
                     self.landed_at_end(p, item);
@@ -492,7 +492,7 @@ impl Executor {
                 let mut state = rtl.take().map(|b| *b);
                 let m = rtl::step(&mut state, p, input);
                 *rtl = state.map(Box::new);
-                if p.status.landing && input.landed {
+                if p.landing && input.landed {
                     self.landed_at_end(p, Some(item));
                 }
                 m

@@ -31,6 +31,8 @@ use thiserror::Error;
 
 use crate::core::control::Reference;
 use crate::core::estimator::GeoOrigin;
+use crate::core::geofence::Rally;
+pub use crate::core::intent::{AutoMode, HoldAt, Intent, Progress};
 pub use crate::core::mission::{NavCommand, NavItem, NavTarget, nav_items};
 
 mod executor;
@@ -145,34 +147,6 @@ impl NavigatorConfig {
     }
 }
 
-/// What the commander asks the navigator to fly (NED m, rad).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Task {
-    /// Motors at minimum (armed on the ground) or off.
-    Idle,
-    /// Climb to this point (the takeoff target).
-    Takeoff { pos_ned_m: Vector3<f64>, yaw_rad: f64 },
-    /// Hold this point, flown to from where the reference is; `None`: stop and hold where it stops.
-    Hold { pos_ned_m: Option<Vector3<f64>>, yaw_rad: f64 },
-    /// Descend here at the land speed until landed.
-    Land { pos_ne_m: Vector2<f64>, yaw_rad: f64 },
-    /// The navigator decides (mission, return, offboard).
-    Auto(AutoMode),
-}
-
-/// What the commander's transitions read (from the previous step).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct NavStatus {
-    /// A mission is loaded and can be flown (the estimator has a geodetic origin).
-    pub mission_valid: bool,
-    /// The mission flew its last item (and did not land).
-    pub mission_done: bool,
-    /// Descending to land in an automatic mode (auto-disarm applies once landed).
-    pub landing: bool,
-    /// An offboard setpoint younger than the timeout.
-    pub offboard_fresh: bool,
-}
-
 /// Something the ground station hears about.
 #[derive(Debug, Clone, PartialEq)]
 pub enum NavEvent {
@@ -184,20 +158,10 @@ pub enum NavEvent {
     Text(String),
 }
 
-/// Which automatic behaviour the commander is in.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum AutoMode {
-    Mission,
-    ReturnToLaunch,
-    Offboard,
-}
-
 /// One step's inputs.
 #[derive(Debug, Clone, Copy)]
 pub struct NavInput {
     pub now_us: u64,
-    /// Time since the last step (s), for integrating velocity and yaw-rate setpoints.
-    pub dt_s: f64,
     pub pos_ned_m: Vector3<f64>,
     pub vel_ned_mps: Vector3<f64>,
     pub yaw_rad: f64,
@@ -206,8 +170,6 @@ pub struct NavInput {
     pub home_ned_m: Option<Vector3<f64>>,
     /// Home altitude (m AMSL), for AMSL targets.
     pub home_alt_amsl_m: Option<f64>,
-    /// Where a return goes when not home (a rally point; its down coordinate is the ground).
-    pub return_ned_m: Option<Vector3<f64>>,
     pub landed: bool,
     /// Default takeoff altitude above home (m; MIS_TAKEOFF_ALT).
     pub takeoff_alt_m: f64,
@@ -260,7 +222,8 @@ const RETARGET_CROSS_MPS: f64 = 0.5;
 const LIFTOFF_M: f64 = 0.05;
 
 /// What every part of the navigator shares: the parameters, the speed override, the held yaw, the
-/// reference's last motion, and the status and events for the commander and the ground station.
+/// reference's last motion, the step's time and return point, and the progress and events for the
+/// commander and the ground station.
 #[derive(Debug, Clone)]
 pub(crate) struct Planner {
     pub config: NavigatorConfig,
@@ -270,7 +233,15 @@ pub(crate) struct Planner {
     pub yaw_rad: f64,
     /// The reference's motion at the last step (None: idle, or attitude control).
     pub last: Option<Motion3>,
-    pub status: NavStatus,
+    /// Time since the last step (s), for integrating velocity and yaw-rate setpoints (at most 0.05).
+    pub dt_s: f64,
+    /// Where a return goes when not home (the rally point chosen as it started; its down coordinate is
+    /// the ground).
+    pub return_ned_m: Option<Vector3<f64>>,
+    /// Descending to land in an automatic mode, this step.
+    pub landing: bool,
+    /// The mission flew its last item (and did not land).
+    pub mission_done: bool,
     pub events: Vec<NavEvent>,
 }
 
@@ -442,6 +413,22 @@ pub struct Navigator {
     offboard: offboard::Offboard,
     direct: Option<Direct>,
     last_auto: Option<AutoMode>,
+    /// The commander's intent of the last step: the points below are latched when it changes.
+    intent: Intent,
+    /// Where a takeoff climbs (NED m), latched as it starts.
+    takeoff_ned_m: Vector3<f64>,
+    /// Where a landing descends (NE m), latched as it starts.
+    land_ne_m: Vector2<f64>,
+    /// The yaw the direct legs hold (rad): the vehicle's as it leaves the ground idle, or a reposition's.
+    yaw_sp_rad: f64,
+    /// When the last step was (µs of vehicle time).
+    last_update_us: Option<u64>,
+    /// Progress not yet taken, and the levels last reported.
+    progress: Vec<Progress>,
+    reported_landing: bool,
+    reported_done: bool,
+    /// The point an airborne start holds, until the intent changes.
+    start_point: Option<Vector3<f64>>,
 }
 
 /// The reference of a motion with a yaw.
@@ -463,7 +450,10 @@ impl Navigator {
                 speed_mps: None,
                 yaw_rad: 0.0,
                 last: None,
-                status: NavStatus::default(),
+                dt_s: 0.0,
+                return_ned_m: None,
+                landing: false,
+                mission_done: false,
                 events: Vec::new(),
             },
             mission: Executor::default(),
@@ -471,6 +461,15 @@ impl Navigator {
             offboard: offboard::Offboard::default(),
             direct: None,
             last_auto: None,
+            intent: Intent::Idle,
+            takeoff_ned_m: Vector3::zeros(),
+            land_ne_m: Vector2::zeros(),
+            yaw_sp_rad: 0.0,
+            last_update_us: None,
+            progress: Vec::new(),
+            reported_landing: false,
+            reported_done: false,
+            start_point: None,
         }
     }
 
@@ -487,13 +486,15 @@ impl Navigator {
     /// A new mission (replacing the old one), to start at its first item.
     pub fn set_mission(&mut self, items: Vec<NavItem>) {
         self.mission.set_items(items);
-        self.planner.status.mission_done = false;
+        self.planner.mission_done = false;
+        self.report();
     }
 
     /// Continue the mission at the item of sequence number `seq` (MISSION_SET_CURRENT, MISSION_START).
     pub fn set_current(&mut self, seq: u16) {
         self.mission.set_current(seq);
-        self.planner.status.mission_done = false;
+        self.planner.mission_done = false;
+        self.report();
     }
 
     /// The sequence number of the item the mission flies towards (or its last, once done).
@@ -507,9 +508,9 @@ impl Navigator {
         self.mission.len()
     }
 
-    /// The latest offboard setpoint, received at `now_us`.
-    pub fn set_offboard(&mut self, now_us: u64, setpoint: OffboardSetpoint) {
-        self.offboard.set(now_us, setpoint);
+    /// The latest offboard setpoint.
+    pub fn set_offboard(&mut self, setpoint: OffboardSetpoint) {
+        self.offboard.set(setpoint);
     }
 
     /// DO_CHANGE_SPEED outside a mission: the speed of the following legs.
@@ -517,52 +518,112 @@ impl Navigator {
         self.planner.speed_mps = speed_mps.filter(|s| s.is_finite() && *s > 0.0);
     }
 
-    /// What the commander reads.
-    #[must_use]
-    pub fn status(&self) -> NavStatus {
-        self.planner.status
+    /// The progress since the last call (for the commander), in order.
+    pub fn take_progress(&mut self) -> Vec<Progress> {
+        std::mem::take(&mut self.progress)
     }
 
-    /// The events since the last call.
+    /// The events since the last call (for the ground station).
     pub fn take_events(&mut self) -> Vec<NavEvent> {
         std::mem::take(&mut self.planner.events)
     }
 
-    /// Refreshes the status for the commander's next step: mission valid, offboard fresh.
-    pub fn refresh(&mut self, now_us: u64, origin: Option<GeoOrigin>) {
-        self.planner.status.mission_valid = self.mission.len() > 0 && origin.is_some();
-        self.planner.status.offboard_fresh = self.offboard.fresh(now_us, self.planner.config.offboard_timeout_s);
+    /// Queues the progress whose level changed since it was last reported.
+    fn report(&mut self) {
+        if self.planner.mission_done != self.reported_done {
+            self.reported_done = self.planner.mission_done;
+            self.progress.push(Progress::MissionDone(self.reported_done));
+        }
+        if self.planner.landing != self.reported_landing {
+            self.reported_landing = self.planner.landing;
+            self.progress.push(Progress::Landing(self.reported_landing));
+        }
     }
 
-    /// Starts holding exactly at `pos_ned_m` (an airborne start: not from a first, noisy estimate).
-    pub fn start_airborne(&mut self, pos_ned_m: Vector3<f64>) {
+    /// Starts holding exactly at `pos_ned_m` with `yaw_rad` (an airborne start: not from a first, noisy
+    /// estimate), as the commander's airborne start intends ([`HoldAt::Stop`] of a reference at rest
+    /// there).
+    pub fn start_airborne(&mut self, pos_ned_m: Vector3<f64>, yaw_rad: f64) {
         self.planner.last = Some(Motion3::rest(pos_ned_m));
+        self.intent = Intent::Hold { at: HoldAt::Stop, yaw_rad: None };
+        self.yaw_sp_rad = yaw_rad;
+        self.start_point = Some(pos_ned_m);
     }
 
-    /// The reference for this step (None: motors idle). See the module docs.
-    pub fn update(&mut self, task: Task, input: &NavInput) -> Option<Reference> {
-        self.planner.status.landing = false;
-        match task {
-            Task::Idle => {
+    /// The reference for this step (None: motors idle), for the commander's `intent`, with the rally
+    /// points a return may choose. See the module docs.
+    pub fn update(&mut self, intent: Intent, input: &NavInput, rally: &Rally) -> Option<Reference> {
+        self.planner.dt_s = self.last_update_us.map_or(0.0, |t| input.now_us.saturating_sub(t) as f64 * 1e-6).min(0.05);
+        self.last_update_us = Some(input.now_us);
+        if intent != self.intent {
+            self.latch(intent, input);
+            self.intent = intent;
+        }
+        // Where a return goes, chosen as it starts and kept until it ends: the nearest rally point when one
+        // is closer than home.
+        if intent != Intent::Auto(AutoMode::ReturnToLaunch) {
+            self.planner.return_ned_m = None;
+        } else if self.planner.return_ned_m.is_none()
+            && let Some(home) = input.home_ned_m
+        {
+            self.planner.return_ned_m = Some(rally.return_point(input.origin.as_ref(), home, &input.pos_ned_m));
+        }
+        self.planner.landing = false;
+        let yaw_rad = self.yaw_sp_rad;
+        let reference = match intent {
+            Intent::Idle => {
                 self.leave();
                 self.planner.last = None;
                 None
             }
-            Task::Takeoff { pos_ned_m, yaw_rad } => {
-                Some(self.direct(input, Aim::Point(pos_ned_m), Climb::Takeoff, yaw_rad))
+            Intent::Takeoff { .. } => Some(self.direct(input, Aim::Point(self.takeoff_ned_m), Climb::Takeoff, yaw_rad)),
+            Intent::Hold { at, .. } => {
+                let point = match at {
+                    // An airborne start holds exactly its point.
+                    HoldAt::Stop => self.start_point,
+                    HoldAt::TakeoffPoint => Some(self.takeoff_ned_m),
+                    HoldAt::Point(p) => Some(p).filter(|p| p.iter().all(|x| x.is_finite())),
+                };
+                match point {
+                    Some(p) => {
+                        // Holding the point a takeoff climbs to continues the takeoff's leg.
+                        let climb =
+                            self.direct.as_ref().filter(|d| d.aim == Aim::Point(p)).map_or(Climb::Move, |d| d.climb);
+                        Some(self.direct(input, Aim::Point(p), climb, yaw_rad))
+                    }
+                    None => Some(self.direct(input, Aim::Here, Climb::Move, yaw_rad)),
+                }
             }
-            Task::Hold { pos_ned_m: Some(p), yaw_rad } if p.iter().all(|x| x.is_finite()) => {
-                // Holding the point a takeoff climbs to continues the takeoff's leg.
-                let climb = self.direct.as_ref().filter(|d| d.aim == Aim::Point(p)).map_or(Climb::Move, |d| d.climb);
-                Some(self.direct(input, Aim::Point(p), climb, yaw_rad))
-            }
-            Task::Hold { yaw_rad, .. } => Some(self.direct(input, Aim::Here, Climb::Move, yaw_rad)),
-            Task::Land { pos_ne_m, yaw_rad } => {
-                self.planner.status.landing = true;
+            Intent::Land => {
+                self.planner.landing = true;
                 let floor = input.ground_d_m() + self.planner.config.land_below_ground_m;
-                Some(self.direct(input, Aim::Point(Vector3::new(pos_ne_m.x, pos_ne_m.y, floor)), Climb::Land, yaw_rad))
+                let to = Vector3::new(self.land_ne_m.x, self.land_ne_m.y, floor);
+                Some(self.direct(input, Aim::Point(to), Climb::Land, yaw_rad))
             }
-            Task::Auto(mode) => Some(self.auto(mode, input)),
+            Intent::Auto(mode) => Some(self.auto(mode, input)),
+        };
+        self.report();
+        reference
+    }
+
+    /// Latches the points a new intent flies to (see [`Intent`]).
+    fn latch(&mut self, intent: Intent, input: &NavInput) {
+        self.start_point = None;
+        if self.intent == Intent::Idle && intent != Intent::Idle && input.yaw_rad.is_finite() {
+            self.yaw_sp_rad = input.yaw_rad;
+        }
+        match intent {
+            Intent::Takeoff { alt_m } => {
+                let ne = if matches!(self.intent, Intent::Takeoff { .. }) {
+                    self.takeoff_ned_m.xy()
+                } else {
+                    input.pos_ned_m.xy()
+                };
+                self.takeoff_ned_m = Vector3::new(ne.x, ne.y, input.ground_d_m() - alt_m);
+            }
+            Intent::Hold { yaw_rad: Some(y), .. } if y.is_finite() => self.yaw_sp_rad = y,
+            Intent::Land => self.land_ne_m = input.pos_ned_m.xy(),
+            _ => {}
         }
     }
 

@@ -1,6 +1,7 @@
 //! Offboard control: the setpoints a companion computer or a script streams (SET_POSITION_TARGET_*,
 //! SET_ATTITUDE_TARGET), flown while they are fresh (younger than `offboard_timeout_s` of vehicle time).
-//! In: the latest [`OffboardSetpoint`] in local NED (m, m/s, m/s², rad) with its arrival time, and per
+//! In: the latest [`OffboardSetpoint`] in local NED (m, m/s, m/s², rad) (its freshness is the vehicle's
+//! offboard receiver's, read by the commander), and per
 //! step the [`Planner`] and [`NavInput`]. Out: the controller's reference.
 //!
 //! - A position alone is a target: flown to along a jerk-limited leg, replanned when it moves.
@@ -17,7 +18,6 @@ use super::leg::{Leg, MIN_LEG_M, Motion3};
 use super::{NavInput, Planner, track};
 use crate::core::control::Reference;
 use crate::core::control::frames::wrap_pi;
-use crate::core::seconds_to_us;
 
 /// How far a velocity setpoint's carrot may run ahead of the vehicle (m).
 const CARROT_MAX_M: f64 = 1.0;
@@ -40,7 +40,7 @@ pub struct OffboardSetpoint {
 /// Offboard state. See the module docs.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Offboard {
-    latest: Option<(u64, OffboardSetpoint)>,
+    latest: Option<OffboardSetpoint>,
     carrot_ned_m: Option<Vector3<f64>>,
     yaw_rad: Option<f64>,
     attitude_hold_d_m: Option<f64>,
@@ -49,13 +49,8 @@ pub(crate) struct Offboard {
 }
 
 impl Offboard {
-    pub fn set(&mut self, now_us: u64, setpoint: OffboardSetpoint) {
-        self.latest = Some((now_us, setpoint));
-    }
-
-    /// Whether the latest setpoint is younger than `timeout_s` at `now_us`.
-    pub fn fresh(&self, now_us: u64, timeout_s: f64) -> bool {
-        self.latest.is_some_and(|(t, _)| now_us.saturating_sub(t) <= seconds_to_us(timeout_s))
+    pub fn set(&mut self, setpoint: OffboardSetpoint) {
+        self.latest = Some(setpoint);
     }
 
     /// Offboard control ended: the next entry starts afresh from the vehicle.
@@ -67,7 +62,7 @@ impl Offboard {
     }
 
     pub fn step(&mut self, p: &mut Planner, input: &NavInput) -> Reference {
-        let Some((_, sp)) = self.latest else {
+        let Some(sp) = self.latest else {
             // Nothing streamed yet: stop where the reference is (the commander leaves on timeout).
             if self.target.is_none() {
                 self.target = Some((p.start(input).pos_ned_m, p.stop(input)));
@@ -89,7 +84,7 @@ impl Offboard {
         self.attitude_hold_d_m = None;
         let yaw = match (sp.yaw_rad, sp.yaw_rate_radps) {
             (Some(y), _) => y,
-            (None, Some(rate)) => wrap_pi(self.yaw_rad.unwrap_or(input.yaw_rad) + rate * input.dt_s),
+            (None, Some(rate)) => wrap_pi(self.yaw_rad.unwrap_or(input.yaw_rad) + rate * p.dt_s),
             (None, None) => self.yaw_rad.unwrap_or(input.yaw_rad),
         };
         self.yaw_rad = Some(yaw);
@@ -116,7 +111,7 @@ impl Offboard {
             (None, vel) => {
                 self.target = None;
                 let vel = vel.unwrap_or_else(Vector3::zeros);
-                let carrot = self.carrot_ned_m.unwrap_or(input.pos_ned_m) + vel * input.dt_s;
+                let carrot = self.carrot_ned_m.unwrap_or(input.pos_ned_m) + vel * p.dt_s;
                 let ahead = carrot - input.pos_ned_m;
                 let carrot = if ahead.norm() > CARROT_MAX_M {
                     input.pos_ned_m + ahead * (CARROT_MAX_M / ahead.norm())

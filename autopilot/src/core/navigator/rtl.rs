@@ -1,5 +1,5 @@
 //! Return to launch: climb to `rtl_return_alt_m` above home (if lower), fly level to above home (or to
-//! the rally point the vehicle chose, `NavInput::return_ned_m`), land there. In, per step: the [`Planner`] and the [`NavInput`]. Out: the reference's motion; the planner's
+//! the rally point the navigator chose as the return began, `Planner::return_ned_m`), land there. In, per step: the [`Planner`] and the [`NavInput`]. Out: the reference's motion; the planner's
 //! `landing` status while descending. Each phase is a jerk-limited leg that starts from the reference's
 //! motion, so the return is smooth from wherever it is entered (a mission, a hold, offboard).
 
@@ -28,12 +28,12 @@ impl Rtl {
 }
 
 /// Where the return goes (a rally point, or home), or the ground below the vehicle without either.
-fn home(input: &NavInput) -> Vector3<f64> {
-    input.return_ned_m.or(input.home_ned_m).unwrap_or(Vector3::new(input.pos_ned_m.x, input.pos_ned_m.y, 0.0))
+fn home(p: &Planner, input: &NavInput) -> Vector3<f64> {
+    p.return_ned_m.or(input.home_ned_m).unwrap_or(Vector3::new(input.pos_ned_m.x, input.pos_ned_m.y, 0.0))
 }
 
 fn return_leg(p: &Planner, input: &NavInput, from: Vector3<f64>) -> Rtl {
-    let h = home(input);
+    let h = home(p, input);
     let to = Vector3::new(h.x, h.y, from.z);
     if (to - from).xy().norm() < p.config.acceptance_radius_m {
         return Rtl::Descend(p.land(input, to.xy()));
@@ -45,7 +45,7 @@ fn return_leg(p: &Planner, input: &NavInput, from: Vector3<f64>) -> Rtl {
 pub(crate) fn step(rtl: &mut Option<Rtl>, p: &mut Planner, input: &NavInput) -> Motion3 {
     let phase = rtl.take().unwrap_or_else(|| {
         let here = p.start(input).pos_ned_m;
-        let return_d = (home(input).z - p.config.rtl_return_alt_m).min(here.z);
+        let return_d = (home(p, input).z - p.config.rtl_return_alt_m).min(here.z);
         if here.z > return_d + input.takeoff_acceptance_m {
             Rtl::Climb(p.line(input, Vector3::new(here.x, here.y, return_d), Climb::Move, None))
         } else {
@@ -71,7 +71,7 @@ pub(crate) fn step(rtl: &mut Option<Rtl>, p: &mut Planner, input: &NavInput) -> 
             }
         }
         Rtl::Descend(mut leg) => {
-            p.status.landing = true;
+            p.landing = true;
             let m = p.fly(&mut leg, input);
             (Rtl::Descend(leg), m)
         }

@@ -1,11 +1,12 @@
 //! The navigator flown by an ideal vehicle that is exactly where its reference says: missions, jumps,
 //! holds, the return and offboard, checked on the reference's own numbers (limits, continuity, events).
 
-use nalgebra::Vector3;
+use nalgebra::{Vector2, Vector3};
 
 use super::spline::SplinePath;
 use super::*;
 use crate::core::control::Reference;
+use crate::core::geofence::Rally;
 
 const ORIGIN: GeoOrigin = GeoOrigin { lat_deg: 47.397_742, lon_deg: 8.545_594, alt_amsl_m: 488.0 };
 const DT_S: f64 = 0.002;
@@ -17,26 +18,35 @@ struct Ideal {
     now_us: u64,
     events: Vec<NavEvent>,
     max_speed_mps: f64,
+    /// The levels the navigator's progress events last reported (what the commander reads).
+    done: bool,
+    landing: bool,
 }
 
 impl Ideal {
     fn new(items: Vec<NavItem>) -> Self {
         let mut nav = Navigator::new(NavigatorConfig::default());
         nav.set_mission(items);
-        Self { nav, pos: Vector3::zeros(), now_us: 0, events: Vec::new(), max_speed_mps: 0.0 }
+        Self {
+            nav,
+            pos: Vector3::zeros(),
+            now_us: 0,
+            events: Vec::new(),
+            max_speed_mps: 0.0,
+            done: false,
+            landing: false,
+        }
     }
 
     fn input(&self) -> NavInput {
         NavInput {
             now_us: self.now_us,
-            dt_s: DT_S,
             pos_ned_m: self.pos,
             vel_ned_mps: Vector3::zeros(),
             yaw_rad: 0.0,
             origin: Some(ORIGIN),
             home_ned_m: Some(Vector3::zeros()),
             home_alt_amsl_m: Some(ORIGIN.alt_amsl_m),
-            return_ned_m: None,
             landed: self.pos.z >= -1e-3,
             takeoff_alt_m: 2.5,
             takeoff_acceptance_m: 0.1,
@@ -44,8 +54,8 @@ impl Ideal {
     }
 
     fn step(&mut self, mode: AutoMode) -> Reference {
-        self.nav.refresh(self.now_us, Some(ORIGIN));
-        let sp = self.nav.update(Task::Auto(mode), &self.input()).expect("flying");
+        let sp = self.nav.update(Intent::Auto(mode), &self.input(), &Rally::default()).expect("flying");
+        self.take_progress();
         self.follow(&sp);
         self.now_us += 2_000;
         self.events.extend(self.nav.take_events());
@@ -58,6 +68,16 @@ impl Ideal {
             self.max_speed_mps = self.max_speed_mps.max(sp.vel_ned_mps.xy().norm());
             self.pos = sp.pos_ned_m;
             self.pos.z = self.pos.z.min(0.0);
+        }
+    }
+
+    /// The navigator's progress events, as the commander takes them.
+    fn take_progress(&mut self) {
+        for p in self.nav.take_progress() {
+            match p {
+                Progress::MissionDone(done) => self.done = done,
+                Progress::Landing(landing) => self.landing = landing,
+            }
         }
     }
 
@@ -113,7 +133,7 @@ fn given_takeoff_waypoints_and_land_when_flown_then_every_item_is_reached_in_ord
     v.run(AutoMode::Mission, 40.0);
     assert_eq!(v.reached(), vec![0, 1, 2, 3]);
     assert!((v.pos - Vector3::new(3.0, 4.0, 0.0)).norm() < 0.01, "landed at {:?}", v.pos);
-    assert!(!v.nav.status().mission_done, "a landed mission is not done in the air");
+    assert!(!v.done, "a landed mission is not done in the air");
     assert!(v.max_speed_mps <= NavigatorConfig::default().cruise_speed_mps + 1e-6, "{}", v.max_speed_mps);
     let current: Vec<u16> =
         v.events.iter().filter_map(|e| if let NavEvent::Current(s) = e { Some(*s) } else { None }).collect();
@@ -150,7 +170,7 @@ fn given_the_figure8_as_waypoints_when_flown_then_one_closed_spline_through_ever
     assert!(closest.iter().all(|d| *d < 1e-3), "passes through every waypoint: {closest:?}");
     assert!(min_speed_mid_run > 0.2, "does not stop at the waypoints: {min_speed_mid_run}");
     assert!((v.max_speed_mps - 0.3).abs() < 0.01, "DO_CHANGE_SPEED 0.3: {}", v.max_speed_mps);
-    assert!(v.nav.status().mission_done);
+    assert!(v.done);
 }
 
 #[test]
@@ -161,7 +181,7 @@ fn given_a_jump_repeated_twice_when_flown_then_its_run_is_flown_three_times() {
     let mut v = Ideal::new(items);
     v.run(AutoMode::Mission, 60.0);
     assert_eq!(v.reached(), vec![0, 1, 2, 3, 1, 2, 3, 1, 2, 3]);
-    assert!(v.nav.status().mission_done);
+    assert!(v.done);
 }
 
 /// The horizontal speed of each step and the reached events so far, over `seconds` of a mission.
@@ -190,7 +210,7 @@ fn given_the_figure8_repeated_by_a_jump_when_flown_then_the_laps_are_one_leg_thr
         want.extend(&lap);
     }
     assert_eq!(v.reached(), want);
-    assert!(v.nav.status().mission_done);
+    assert!(v.done);
     assert_eq!(v.nav.mission.jumps_left_of(11), Some(0));
     // AND it never slows down between leaving the first waypoint and the last lap's approach.
     let total = want.len();
@@ -213,7 +233,7 @@ fn given_a_jump_repeated_forever_when_flown_then_it_laps_on_without_stopping() {
     let log = fly_logging(&mut v, 200.0);
     let laps = v.reached().iter().filter(|&&s| s == 11).count();
     assert!(laps >= 7, "{laps} laps in 200 s");
-    assert!(!v.nav.status().mission_done);
+    assert!(!v.done);
     let min_speed = log.iter().filter(|(_, r)| *r >= 4).map(|(s, _)| *s).fold(f64::INFINITY, f64::min);
     assert!(min_speed > 0.2, "min speed {min_speed} m/s");
     assert_eq!(v.nav.mission.jumps_left_of(11), Some(-1));
@@ -269,7 +289,7 @@ fn given_return_to_launch_when_flown_then_it_climbs_returns_above_home_and_desce
     for _ in 0..(60.0 / DT_S) as usize {
         v.step(AutoMode::ReturnToLaunch);
         max_alt = max_alt.max(-v.pos.z);
-        landing_seen |= v.nav.status().landing;
+        landing_seen |= v.landing;
         if v.pos.z >= 0.0 {
             break;
         }
@@ -281,33 +301,27 @@ fn given_return_to_launch_when_flown_then_it_climbs_returns_above_home_and_desce
 }
 
 #[test]
-fn given_offboard_velocity_then_a_carrot_moves_and_setpoints_go_stale_after_the_timeout() {
+fn given_offboard_velocity_then_a_carrot_moves_at_that_velocity() {
     let mut v = Ideal::new(Vec::new());
     v.pos = Vector3::new(0.0, 0.0, -2.0);
-    v.nav.set_offboard(
-        0,
-        OffboardSetpoint {
-            vel_ned_mps: Some(Vector3::new(1.0, 0.0, 0.0)),
-            yaw_rad: Some(0.5),
-            ..OffboardSetpoint::default()
-        },
-    );
+    v.nav.set_offboard(OffboardSetpoint {
+        vel_ned_mps: Some(Vector3::new(1.0, 0.0, 0.0)),
+        yaw_rad: Some(0.5),
+        ..OffboardSetpoint::default()
+    });
     let sp = v.step(AutoMode::Offboard);
     assert_eq!((sp.vel_ned_mps, sp.yaw_rad), (Vector3::new(1.0, 0.0, 0.0), 0.5));
-    assert!(v.nav.status().offboard_fresh);
     v.run(AutoMode::Offboard, 0.4);
     assert!(v.pos.x > 0.39 && v.pos.x < 0.41, "carrot moved 1 m/s x 0.4 s: {}", v.pos.x);
-    v.run(AutoMode::Offboard, 0.2);
-    v.nav.refresh(v.now_us, Some(ORIGIN));
-    assert!(!v.nav.status().offboard_fresh, "stale after 0.5 s");
 }
 
 /// Flies `task` with the ideal vehicle for `seconds`; the references.
-fn fly_task(v: &mut Ideal, task: Task, seconds: f64) -> Vec<Reference> {
+fn fly_task(v: &mut Ideal, intent: Intent, seconds: f64) -> Vec<Reference> {
     let mut out = Vec::new();
     for _ in 0..(seconds / DT_S) as usize {
         let input = v.input();
-        let sp = v.nav.update(task, &input).expect("flying");
+        let sp = v.nav.update(intent, &input, &Rally::default()).expect("flying");
+        v.take_progress();
         v.follow(&sp);
         v.now_us += 2_000;
         out.push(sp);
@@ -320,7 +334,7 @@ fn given_a_new_hold_point_then_a_jerk_limited_leg_flies_there_within_the_limits_
     let mut v = Ideal::new(Vec::new());
     v.pos = Vector3::new(0.0, 0.0, -2.0);
     let target = Vector3::new(4.0, 3.0, -2.0);
-    let refs = fly_task(&mut v, Task::Hold { pos_ned_m: Some(target), yaw_rad: 0.0 }, 15.0);
+    let refs = fly_task(&mut v, Intent::Hold { at: HoldAt::Point(target), yaw_rad: None }, 15.0);
     let cfg = NavigatorConfig::default();
     let max_speed = refs.iter().map(|r| r.vel_ned_mps.norm()).fold(0.0, f64::max);
     let max_acc = refs.iter().map(|r| r.acc_ned_mps2.norm()).fold(0.0, f64::max);
@@ -339,8 +353,8 @@ fn given_a_new_hold_point_then_a_jerk_limited_leg_flies_there_within_the_limits_
 fn given_a_takeoff_then_hold_at_the_same_point_then_the_climb_goes_on_smoothly_at_the_takeoff_speed() {
     let mut v = Ideal::new(Vec::new());
     let target = Vector3::new(0.0, 0.0, -5.0);
-    let mut refs = fly_task(&mut v, Task::Takeoff { pos_ned_m: target, yaw_rad: 0.0 }, 2.0);
-    refs.extend(fly_task(&mut v, Task::Hold { pos_ned_m: Some(target), yaw_rad: 0.0 }, 8.0));
+    let mut refs = fly_task(&mut v, Intent::Takeoff { alt_m: 5.0 }, 2.0);
+    refs.extend(fly_task(&mut v, Intent::Hold { at: HoldAt::TakeoffPoint, yaw_rad: None }, 8.0));
     let cfg = NavigatorConfig::default();
     let max_climb = refs.iter().map(|r| -r.vel_ned_mps.z).fold(0.0, f64::max);
     assert!((max_climb - cfg.takeoff_speed_mps).abs() < 1e-9, "{max_climb}");
@@ -354,9 +368,9 @@ fn given_a_takeoff_then_hold_at_the_same_point_then_the_climb_goes_on_smoothly_a
 fn given_a_moving_reference_when_hold_here_then_it_stops_jerk_limited_and_stays() {
     let mut v = Ideal::new(Vec::new());
     v.pos = Vector3::new(0.0, 0.0, -2.0);
-    fly_task(&mut v, Task::Hold { pos_ned_m: Some(Vector3::new(20.0, 0.0, -2.0)), yaw_rad: 0.0 }, 5.0);
+    fly_task(&mut v, Intent::Hold { at: HoldAt::Point(Vector3::new(20.0, 0.0, -2.0)), yaw_rad: None }, 5.0);
     let moving_at = v.pos;
-    let refs = fly_task(&mut v, Task::Hold { pos_ned_m: None, yaw_rad: 0.0 }, 5.0);
+    let refs = fly_task(&mut v, Intent::Hold { at: HoldAt::Stop, yaw_rad: None }, 5.0);
     let cfg = NavigatorConfig::default();
     let max_jerk = refs.windows(2).map(|w| (w[1].acc_ned_mps2 - w[0].acc_ned_mps2).norm() / DT_S).fold(0.0, f64::max);
     assert!(max_jerk <= cfg.jerk_mps3 * 1.001, "{max_jerk}");
@@ -369,14 +383,13 @@ fn given_a_moving_reference_when_hold_here_then_it_stops_jerk_limited_and_stays(
 fn given_a_land_task_then_it_descends_at_the_land_speed_below_the_ground() {
     let mut v = Ideal::new(Vec::new());
     v.pos = Vector3::new(1.0, 2.0, -5.0);
-    let ne = v.pos.xy();
-    let refs = fly_task(&mut v, Task::Land { pos_ne_m: ne, yaw_rad: 0.0 }, 12.0);
+    let refs = fly_task(&mut v, Intent::Land, 12.0);
     let cfg = NavigatorConfig::default();
     let max_sink = refs.iter().map(|r| r.vel_ned_mps.z).fold(0.0, f64::max);
     assert!((max_sink - cfg.land_speed_mps).abs() < 1e-9, "{max_sink}");
     let last = refs.last().expect("refs").pos_ned_m;
     assert!((last.z - cfg.land_below_ground_m).abs() < 1e-9, "{last:?}");
-    assert!(v.nav.status().landing);
+    assert!(v.landing);
 }
 
 #[test]
@@ -407,7 +420,7 @@ fn given_an_offboard_position_stream_along_a_circle_then_the_reference_follows_w
         let target = Vector3::new(5.0 * angle.cos(), 5.0 * angle.sin(), -2.0);
         if k % 25 == 0 {
             let sp = OffboardSetpoint { pos_ned_m: Some(target), yaw_rad: Some(0.0), ..OffboardSetpoint::default() };
-            v.nav.set_offboard(v.now_us, sp);
+            v.nav.set_offboard(sp);
         }
         let sp = v.step(AutoMode::Offboard);
         if t_s > 5.0 {
@@ -420,4 +433,44 @@ fn given_an_offboard_position_stream_along_a_circle_then_the_reference_follows_w
     let slowest = speeds.iter().copied().fold(f64::INFINITY, f64::min);
     assert!(slowest > 0.3, "the reference stalls: {slowest} m/s");
     assert!(worst_gap < 0.8, "falls behind the stream: {worst_gap} m");
+}
+
+/// The navigator steps once with `intent` from where the ideal vehicle is, at `yaw_rad`.
+fn step_intent(v: &mut Ideal, intent: Intent, yaw_rad: f64) -> Reference {
+    let input = NavInput { yaw_rad, ..v.input() };
+    let sp = v.nav.update(intent, &input, &Rally::default()).expect("flying");
+    v.follow(&sp);
+    v.now_us += 2_000;
+    sp
+}
+
+#[test]
+fn given_intents_then_the_navigator_latches_the_takeoff_point_here_keeps_it_for_a_new_altitude_and_lands_here() {
+    let mut v = Ideal::new(Vec::new());
+    v.pos = Vector3::new(1.0, -2.0, 0.0);
+    // The yaw is the vehicle's as it leaves the ground idle, and stays while it turns.
+    assert_eq!(v.nav.update(Intent::Idle, &NavInput { yaw_rad: 0.7, ..v.input() }, &Rally::default()), None);
+    let sp = step_intent(&mut v, Intent::Takeoff { alt_m: 2.5 }, 0.7);
+    assert_eq!(sp.yaw_rad, 0.7);
+    for _ in 0..500 {
+        assert_eq!(step_intent(&mut v, Intent::Takeoff { alt_m: 2.5 }, 0.1).yaw_rad, 0.7);
+    }
+    // A new altitude while climbing keeps the point the takeoff latched (not where the climb is now).
+    v.pos.x += 0.3;
+    let refs: Vec<Reference> = (0..4000).map(|_| step_intent(&mut v, Intent::Takeoff { alt_m: 4.0 }, 0.1)).collect();
+    let end = refs.last().expect("refs").pos_ned_m;
+    assert_eq!(end, Vector3::new(1.0, -2.0, -4.0), "the takeoff's point, 4 m above the ground");
+    // The hold that ends a takeoff holds that point; a reposition's yaw is latched and kept.
+    assert_eq!(step_intent(&mut v, Intent::Hold { at: HoldAt::TakeoffPoint, yaw_rad: None }, 0.1).pos_ned_m, end);
+    let p = Vector3::new(3.0, 0.0, -4.0);
+    assert_eq!(step_intent(&mut v, Intent::Hold { at: HoldAt::Point(p), yaw_rad: Some(-1.0) }, 0.1).yaw_rad, -1.0);
+    assert_eq!(step_intent(&mut v, Intent::Hold { at: HoldAt::Stop, yaw_rad: None }, 0.1).yaw_rad, -1.0);
+    // A landing descends where the vehicle is as it starts.
+    v.pos = Vector3::new(2.0, 1.0, -4.0);
+    let sp = step_intent(&mut v, Intent::Land, 0.1);
+    assert_eq!(sp.pos_ned_m.xy(), Vector2::new(2.0, 1.0));
+    v.pos.y += 0.5;
+    for _ in 0..100 {
+        assert_eq!(step_intent(&mut v, Intent::Land, 0.1).pos_ned_m.xy(), Vector2::new(2.0, 1.0));
+    }
 }

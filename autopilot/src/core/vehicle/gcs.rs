@@ -1,0 +1,370 @@
+//! The vehicle's side of the ground-station conversation: a message in, applied at once (a command, a
+//! parameter, a mission transfer, an offboard setpoint, a HEARTBEAT) and answered to its sender; the
+//! plans loaded at start; the checks of commanded targets (through the one resolver and the setpoint
+//! guard). The vehicle's step is in `mod.rs`.
+
+use ::mavlink::MavHeader;
+use ::mavlink::dialects::common::{MISSION_CURRENT_DATA, MavMessage, MavSeverity};
+use nalgebra::Vector3;
+
+use super::{ShellEffect, Vehicle, weights_interval_us};
+use crate::core::commander::{FlightMode, Request};
+use crate::core::estimator::EstimatorState;
+use crate::core::geofence::{Fence, Rally, Violation};
+use crate::core::mavlink::command::{AUTOPILOT_VERSION_ID, InboundCommand};
+use crate::core::mavlink::mission::MissionEvent;
+use crate::core::mavlink::offboard::OffboardContext;
+use crate::core::mavlink::params::{ParamChange, param_value};
+use crate::core::mavlink::router::{
+    self, Commands, GcsHeartbeats, Housekeeping, MessageContext, Microservice, Service,
+};
+use crate::core::mavlink::{
+    CommandContext, CommandEffect, CommandPoint, Stream, VehicleCommand, command_replies, housekeeping, statustext,
+    statustext_chunks,
+};
+use crate::core::mission::{Mission, MissionError, NavTarget, items_to_wpl};
+use crate::core::navigator::nav_items;
+use crate::core::params::ParamStore;
+use crate::core::plan::{self, Unresolved};
+
+impl Vehicle {
+    /// A message from a ground station at `now_us`: commands are applied at once and answered (ACK, and
+    /// STATUSTEXT on refusal, then any message the command asked for) to the sender; PING and FTP get
+    /// their replies; offboard setpoints are taken; anything else, or anything for another system, gets
+    /// nothing.
+    pub fn handle_message(&mut self, now_us: u64, header: &MavHeader, msg: &MavMessage) -> Vec<MavMessage> {
+        let Some(service) = router::route(msg) else {
+            return Vec::new();
+        };
+        let est = *self.estimator.state();
+        let home_alt_amsl_m = self.home_alt_amsl_m();
+        let ctx = MessageContext {
+            now_us,
+            sysid: self.config.sysid,
+            header,
+            command: CommandContext { home_alt_amsl_m },
+            offboard: OffboardContext { origin: est.origin, home_alt_amsl_m, yaw_rad: est.euler_rad.z },
+        };
+        match service {
+            Service::Housekeeping => Housekeeping.handle(&ctx, msg, &mut ()).messages,
+            Service::Offboard => {
+                let mut reply = self.offboard.handle(&ctx, msg, &mut ());
+                if let Some(sp) = reply.effect {
+                    match sp.pos_ned_m.map(|p| self.check_setpoint(&p)) {
+                        Some(Err(why)) => {
+                            reply.messages.extend(self.offboard.refuse(format!("Offboard: setpoint {why}")))
+                        }
+                        _ => {
+                            self.offboard.taken(now_us);
+                            self.navigator.set_offboard(sp);
+                        }
+                    }
+                }
+                reply.messages
+            }
+            Service::Params => {
+                let before = self.params.clone();
+                let reply = self.param_service.handle(&ctx, msg, &mut self.params);
+                let Some(change) = reply.effect else { return reply.messages };
+                match self.on_param_change(&change) {
+                    Ok(extra) => reply.messages.into_iter().chain(extra).collect(),
+                    Err(text) => {
+                        // In range, but the configuration it makes is not flyable: undo it, in words (in
+                        // chunks when it is longer than one STATUSTEXT).
+                        self.params = before;
+                        self.text_id = self.text_id.wrapping_add(1).max(1);
+                        let mut messages = statustext_chunks(MavSeverity::MAV_SEVERITY_WARNING, &text, self.text_id);
+                        messages.extend(param_value(&self.params, change.index));
+                        messages
+                    }
+                }
+            }
+            Service::Mission => {
+                let reply = self.missions.handle(&ctx, msg, &mut ());
+                let mut messages = reply.messages;
+                if let Some(event) = reply.effect {
+                    messages.extend(self.on_mission_event(event));
+                }
+                messages
+            }
+            Service::Heartbeat => {
+                if let Some(t) = GcsHeartbeats.handle(&ctx, msg, &mut ()).effect {
+                    self.gcs_heartbeat_us = Some(t);
+                }
+                Vec::new()
+            }
+            Service::Command => match Commands.handle(&ctx, msg, &mut ()).effect {
+                Some(cmd) => self.apply_command(now_us, &cmd),
+                None => Vec::new(),
+            },
+        }
+    }
+
+    /// Applies a command and answers it: its ACK (and STATUSTEXT on refusal), then any message it asked
+    /// for.
+    fn apply_command(&mut self, now_us: u64, cmd: &InboundCommand) -> Vec<MavMessage> {
+        let mut extra = Vec::new();
+        let facts = self.facts(now_us);
+        let outcome = match cmd.effect.clone() {
+            CommandEffect::Request(req @ (Request::Mission | Request::SetMode(FlightMode::Mission))) => self
+                .check_mission()
+                .map_err(Some)
+                .and_then(|()| self.commander.request(now_us, facts, req).map_err(|r| Some(r.to_string()))),
+            CommandEffect::Request(req) => self.commander.request(now_us, facts, req).map_err(|r| Some(r.to_string())),
+            CommandEffect::Vehicle(command) => self.vehicle_command(now_us, command, &mut extra),
+            CommandEffect::Deny(text) => Err(Some(text)),
+            CommandEffect::Unsupported => Err(None),
+        };
+        let accepted = outcome.is_ok();
+        let mut replies = command_replies(cmd, outcome);
+        if accepted {
+            replies.extend(extra);
+        }
+        replies
+    }
+
+    /// A geodetic point of a command in local NED (altitude NaN: the vehicle's), by the one resolver.
+    fn local_point(&self, point: &CommandPoint) -> Result<Vector3<f64>, Option<String>> {
+        let target = NavTarget::Global {
+            lat_deg: point.lat_deg,
+            lon_deg: point.lon_deg,
+            alt_m: point.alt_m,
+            relative: point.relative_alt,
+        };
+        plan::resolve(&target, &self.frame(), self.estimator.state().pos_ned_m).map_err(|why| {
+            Some(
+                match why {
+                    Unresolved::NoOrigin => "No global position yet",
+                    Unresolved::NoHomeAltitude => "No home altitude yet",
+                    Unresolved::Invalid => "Invalid position",
+                }
+                .to_owned(),
+            )
+        })
+    }
+
+    /// A command the vehicle answers itself; `extra` gets the messages it asked for (sent after the ACK).
+    fn vehicle_command(
+        &mut self,
+        now_us: u64,
+        command: VehicleCommand,
+        extra: &mut Vec<MavMessage>,
+    ) -> Result<(), Option<String>> {
+        match command {
+            VehicleCommand::RequestMessage { message_id } => {
+                if message_id == AUTOPILOT_VERSION_ID {
+                    extra.push(housekeeping::autopilot_version(self.config.sysid));
+                    return Ok(());
+                }
+                let stream = Stream::of_message(message_id).ok_or(None)?;
+                let home = self.home();
+                let messages = stream.messages(&self.snapshot(now_us, home.as_ref()));
+                if messages.is_empty() {
+                    // Not yet (no home, no fix): DENIED, quietly (MAVSDK asks three times a second).
+                    return Err(Some(String::new()));
+                }
+                extra.extend(messages);
+                Ok(())
+            }
+            VehicleCommand::SetMessageInterval { message_id, interval_us } => {
+                let stream = Stream::of_message(message_id).ok_or(None)?;
+                let us = if interval_us < 0.0 {
+                    0
+                } else if interval_us == 0.0 {
+                    stream.default_interval_us()
+                } else {
+                    interval_us.round() as u64
+                };
+                self.mavlink.streams_mut().set_interval_us(stream, us);
+                Ok(())
+            }
+            VehicleCommand::GetMessageInterval { message_id } => {
+                let stream = Stream::of_message(message_id).ok_or(None)?;
+                extra
+                    .push(housekeeping::message_interval(message_id, Some(self.mavlink.streams().interval_us(stream))));
+                Ok(())
+            }
+            VehicleCommand::ChangeSpeed { speed_mps } => {
+                self.navigator.set_speed(speed_mps);
+                Ok(())
+            }
+            VehicleCommand::SetHome { point } => {
+                let pos_ned_m = point.map(|p| self.local_point(&p)).transpose()?;
+                let facts = self.facts(now_us);
+                self.commander.request(now_us, facts, Request::SetHome { pos_ned_m }).map_err(|r| Some(r.to_string()))
+            }
+            VehicleCommand::Reposition { point, yaw_rad } => {
+                let pos_ned_m = point.map(|p| self.local_point(&p)).transpose()?;
+                if let Some(p) = pos_ned_m {
+                    self.check_setpoint(&p).map_err(|why| Some(format!("Reposition: {why}")))?;
+                }
+                let facts = self.facts(now_us);
+                self.commander
+                    .request(now_us, facts, Request::Goto { pos_ned_m, yaw_rad })
+                    .map_err(|r| Some(r.to_string()))
+            }
+            VehicleCommand::MissionStart { first } => {
+                if self.navigator.mission_len() == 0 {
+                    return Err(Some("Mission start: no mission".to_owned()));
+                }
+                self.check_mission().map_err(Some)?;
+                self.navigator.set_current(first);
+                let facts = self.facts(now_us);
+                self.commander.request(now_us, facts, Request::Mission).map_err(|r| Some(r.to_string()))
+            }
+            VehicleCommand::Reboot => {
+                if self.commander.armed() {
+                    return Err(Some("Reboot denied: armed".to_owned()));
+                }
+                self.effects.push(ShellEffect::Reboot);
+                Ok(())
+            }
+            VehicleCommand::NoOp => Ok(()),
+        }
+    }
+
+    /// Applies a changed parameter from the next step (gains, rates, limits, timers, speeds; the loop
+    /// rates only after a restart), and asks for the parameters to be persisted. Returns the messages to
+    /// send (a STATUSTEXT when the change needs a restart).
+    ///
+    /// # Errors
+    /// The reason, when the configuration the parameter makes is not flyable; nothing changed then.
+    fn on_param_change(&mut self, change: &ParamChange) -> Result<Vec<MavMessage>, String> {
+        let mut next = self.config.clone();
+        self.params.apply(&mut next);
+        // Everything is checked now, the values that apply only after a restart (the loop rates) too:
+        // a value that would stop the next start is refused when it is set.
+        next.validate().map_err(|e| format!("{}: {e}", change.name))?;
+        // The loop rates apply only when the vehicle is rebuilt with the stored parameters (a restart).
+        next.control.rates = self.config.control.rates;
+        self.commander.set_config(next.commander).map_err(|e| format!("{}: {e}", change.name))?;
+        self.control.reconfigure(&next.control);
+        self.navigator.set_config(next.navigator);
+        self.mavlink
+            .streams_mut()
+            .set_interval_us(Stream::AdaptiveWeights, weights_interval_us(self.params.aco_weights_hz()));
+        self.config = next;
+        self.effects.push(ShellEffect::SaveParams(self.params.to_text()));
+        Ok(if change.restart_required {
+            vec![statustext(MavSeverity::MAV_SEVERITY_NOTICE, &format!("{} applies after a restart", change.name))]
+        } else {
+            Vec::new()
+        })
+    }
+
+    /// The parameters.
+    #[must_use]
+    pub fn params(&self) -> &ParamStore {
+        &self.params
+    }
+
+    /// Applies a mission upload, clear or set-current; returns the messages to send (MISSION_CURRENT).
+    fn on_mission_event(&mut self, event: MissionEvent) -> Vec<MavMessage> {
+        match event {
+            MissionEvent::Replaced(mission) => {
+                self.navigator.set_mission(nav_items(&mission));
+                self.missions.set_current_seq(0);
+                self.effects.push(ShellEffect::SaveMission(mission.to_wpl()));
+                // Accepted (it is a valid mission), but said now: it will not start while it leaves the fence.
+                self.check_mission()
+                    .err()
+                    .map(|why| statustext(MavSeverity::MAV_SEVERITY_WARNING, &why))
+                    .into_iter()
+                    .collect()
+            }
+            MissionEvent::Cleared => {
+                self.navigator.set_mission(Vec::new());
+                self.missions.set_current_seq(0);
+                self.effects.push(ShellEffect::SaveMission(self.missions.mission().to_wpl()));
+                Vec::new()
+            }
+            MissionEvent::FenceReplaced(fence) => {
+                self.effects.push(ShellEffect::SaveFence(items_to_wpl(fence.items())));
+                let mut out = Vec::new();
+                if let Err(why) = self.check_mission() {
+                    out.push(statustext(MavSeverity::MAV_SEVERITY_WARNING, &why));
+                }
+                out
+            }
+            MissionEvent::RallyReplaced(rally) => {
+                self.effects.push(ShellEffect::SaveRally(items_to_wpl(rally.items())));
+                Vec::new()
+            }
+            MissionEvent::ClearedAll => {
+                self.navigator.set_mission(Vec::new());
+                self.missions.set_current_seq(0);
+                self.effects.push(ShellEffect::SaveMission(self.missions.mission().to_wpl()));
+                self.effects.push(ShellEffect::SaveFence(items_to_wpl(&[])));
+                self.effects.push(ShellEffect::SaveRally(items_to_wpl(&[])));
+                Vec::new()
+            }
+            MissionEvent::SetCurrent(seq) => {
+                self.navigator.set_current(seq);
+                self.missions.set_current_seq(seq);
+                vec![MavMessage::MISSION_CURRENT(MISSION_CURRENT_DATA { seq, ..Default::default() })]
+            }
+        }
+    }
+
+    /// A mission loaded at start (persisted by an earlier run).
+    ///
+    /// # Errors
+    /// The mission's first invalid item; the vehicle then has no mission.
+    pub fn load_mission(&mut self, mission: Mission) -> Result<(), MissionError> {
+        let items = nav_items(&mission);
+        self.missions.set_mission(mission)?;
+        self.navigator.set_mission(items);
+        Ok(())
+    }
+
+    /// A geofence loaded at start (persisted by an earlier run).
+    pub fn load_fence(&mut self, fence: Fence) {
+        self.missions.set_fence(fence);
+    }
+
+    /// Rally points loaded at start (persisted by an earlier run).
+    pub fn load_rally(&mut self, rally: Rally) {
+        self.missions.set_rally(rally);
+    }
+
+    /// The geofence and the rally points as uploaded.
+    #[must_use]
+    pub fn fence_and_rally(&self) -> (&Fence, &Rally) {
+        (self.missions.fence(), self.missions.rally())
+    }
+
+    /// Why the vehicle will not fly to `pos_ned_m` (NED m): see [`SetpointGuard::check`].
+    fn check_setpoint(&self, pos_ned_m: &Vector3<f64>) -> Result<(), String> {
+        self.guard().check(pos_ned_m)
+    }
+
+    /// The geofence breach predicted from the estimate, braking as the navigator brakes (MPC_ACC_HOR,
+    /// MPC_JERK_AUTO).
+    pub(super) fn fence_breach(&self, state: &EstimatorState) -> Option<Violation> {
+        if !state.flags.position_valid {
+            return None;
+        }
+        let nav = &self.config.navigator;
+        self.guard().predicted_breach(&state.pos_ned_m, &state.vel_ned_mps, nav.acc_hor_mps2, nav.jerk_mps3)
+    }
+
+    /// Why the mission cannot be flown: an item, resolved as the navigator flies it, outside the geofence
+    /// or too far.
+    fn check_mission(&self) -> Result<(), String> {
+        if self.estimator.state().origin.is_none() {
+            return Ok(());
+        }
+        self.guard().check_mission(&nav_items(self.missions.mission()), &self.frame())
+    }
+
+    /// The mission as uploaded.
+    #[must_use]
+    pub fn mission(&self) -> &Mission {
+        self.missions.mission()
+    }
+
+    /// What the vehicle asks of the shell (restart, save parameters or the mission), since the last call.
+    pub fn take_effects(&mut self) -> Vec<ShellEffect> {
+        std::mem::take(&mut self.effects)
+    }
+}
