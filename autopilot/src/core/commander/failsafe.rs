@@ -18,7 +18,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::core::battery::BatteryWarning;
+use super::{Action, Conditions, Event, FlightMode, State};
+use crate::core::battery::{BatterySample, BatteryWarning};
 use crate::core::geofence::Violation;
 use crate::core::seconds_to_us;
 
@@ -130,6 +131,86 @@ impl Trigger {
 #[must_use]
 pub fn datalink_lost(now_us: u64, last_us: Option<u64>, timeout_s: f64) -> bool {
     last_us.is_some_and(|t| now_us.saturating_sub(t) > seconds_to_us(timeout_s))
+}
+
+/// The failsafe rows applied by the commander: each watches its condition every step and, when it starts
+/// while armed, says so and takes its action in the air.
+impl super::Commander {
+    /// The datalink row of the failsafe table ([`failsafe`]): on losing the link while armed, say so and,
+    /// in the air, take `NAV_DLL_ACT`'s action; on regaining it, say so (the mode stays).
+    pub(super) fn datalink_failsafe(&mut self, now: u64, gcs_heartbeat_us: Option<u64>) {
+        let lost = datalink_lost(now, gcs_heartbeat_us, self.config.datalink_loss_s);
+        if lost == self.datalink_lost {
+            return;
+        }
+        self.datalink_lost = lost;
+        if !self.state.is_armed() {
+            return;
+        }
+        let trigger = Trigger::DatalinkLost;
+        if !lost {
+            self.events.push(Event::FailsafeCleared { trigger });
+            return;
+        }
+        let action = FailsafeAction::from_px4(self.config.datalink_loss_action).ok().flatten();
+        self.fail(now, trigger, action);
+    }
+
+    /// The battery rows of the failsafe table: the monitor takes the reading; a level that rose while
+    /// armed is said (low) or acted on (critical, emergency: COM_LOW_BAT_ACT).
+    pub(super) fn battery_failsafe(&mut self, now: u64, sample: Option<BatterySample>) {
+        let before = self.battery.status(now).level;
+        self.battery.update(now, sample, self.state.is_armed());
+        let status = self.battery.status(now);
+        if status.level <= before || !self.state.is_armed() {
+            return;
+        }
+        let remaining_pct = status.remaining_pct().unwrap_or(0);
+        if status.level == BatteryWarning::Low {
+            self.events.push(Event::BatteryLow { remaining_pct });
+            return;
+        }
+        let trigger = Trigger::Battery { level: status.level, remaining_pct };
+        let action = low_battery_action(self.config.low_battery_action, status.level).ok().flatten();
+        self.fail(now, trigger, action);
+    }
+
+    /// The geofence row: a breach (or a predicted one) that starts while armed in the air is acted on per
+    /// GF_ACTION (0: not even said); it re-arms once the vehicle is inside again.
+    pub(super) fn geofence_failsafe(&mut self, now: u64, breach: Option<Violation>) {
+        let in_air = self.state.is_armed() && self.state != State::ArmedIdle && !self.land_detector.landed();
+        let breached = breach.is_some() && in_air;
+        if breached == self.fence_breached {
+            return;
+        }
+        self.fence_breached = breached;
+        let (Some(violation), true) = (breach, breached) else { return };
+        if let Ok(Some(action)) = geofence_action(self.config.geofence.action) {
+            self.fail(now, Trigger::Geofence(violation), action);
+        }
+    }
+
+    /// A failsafe fired: take `action` if the vehicle is in the air, and say so (what happened and what
+    /// the vehicle does, or only what happened).
+    fn fail(&mut self, now: u64, trigger: Trigger, action: Option<FailsafeAction>) {
+        let in_air = self.state != State::ArmedIdle && self.state != State::Killed && !self.land_detector.landed();
+        let Some(action) = action.filter(|_| in_air) else {
+            self.events.push(Event::Failsafe { trigger, action: None });
+            return;
+        };
+        self.events.push(Event::Failsafe { trigger, action: Some(action) });
+        let (request, what) = match action {
+            FailsafeAction::Hold => (Conditions::HOLD_REQUESTED, Action::Hold),
+            FailsafeAction::Return => (Conditions::RTL_REQUESTED, Action::Return),
+            FailsafeAction::Land => (Conditions::LAND_REQUESTED, Action::Land),
+            FailsafeAction::Terminate => (Conditions::KILL, Action::Disarm),
+        };
+        if action == FailsafeAction::Hold {
+            self.hold_mode = FlightMode::Hold;
+        }
+        // Already in that mode (holding, returning, landing): nothing to change.
+        let _ = self.transition(now, request, what);
+    }
 }
 
 #[cfg(test)]

@@ -1,27 +1,27 @@
 //! The commander: arming, flight modes and landing detection. In, once per control step (any rate, ~50-250
 //! Hz): [`CommanderInputs`] (vehicle time `now_us` in µs, the estimate in NED m and m/s with its health
-//! flags, whether the thrust is at its minimum, home). In, whenever a ground station asks: a [`Request`]
-//! (arm, disarm, kill, takeoff, land, hold, set mode), answered at once with `Ok` or a [`Refusal`] whose
-//! text fits a STATUSTEXT; a refused request changes nothing. Out, per step: a [`CommanderOutput`] with the
-//! [`State`], the flight mode, the health and the landed state (their wire numbers are the MAVLink layer's), the
-//! [`Task`] the navigator should fly, and the [`Event`]s since the last step (for an immediate
-//! HEARTBEAT and a STATUSTEXT).
+//! flags, whether the thrust is at its minimum, the vehicle's [`Facts`]: a mission to fly, offboard
+//! setpoints flowing). In, as they happen: the navigator's [`Progress`] (mission done, an automatic landing).
+//! In, whenever a ground station asks: a [`Request`] (arm, disarm, kill, takeoff, land, hold, set mode),
+//! answered at once with `Ok` or a [`Refusal`] whose text fits a STATUSTEXT; a refused request changes
+//! nothing. Out, per step: a [`CommanderOutput`] with the [`State`], the flight mode, the health and the
+//! landed state (their wire numbers are the MAVLink layer's), the [`Intent`] the navigator should fly, and
+//! the [`Event`]s since the last step (for an immediate HEARTBEAT and a STATUSTEXT).
 //!
 //! Decisions are made by the transition table of [`state_machine`] (`next(state, conditions)`); this
-//! module computes the conditions, runs entry actions (latching the takeoff target, the hold point, the
-//! landing spot) and keeps the flight mode alongside the state. All delays are measured on `now_us`, so they
+//! module computes the conditions, runs entry actions (the takeoff's altitude, where Hold holds, home) and
+//! keeps the flight mode alongside the state. It owns home; the navigator owns every point flown and the
+//! yaw (see `core::intent`). All delays are measured on `now_us`, so they
 //! hold at any simulation speed-up. Semantics follow PX4: takeoff may be asked for before arming and starts
 //! once armed; takeoff ends in Hold at the takeoff point; a landing disarms `disarm_land_s` after touchdown;
 //! an armed vehicle that has not taken off disarms after `disarm_preflight_s`; disarming in the air needs
 //! force; kill stops the motors from any state and stays until a disarm.
 
-use std::fmt;
-
 use nalgebra::Vector3;
-use serde::{Deserialize, Serialize};
-use thiserror::Error;
 
+mod config;
 pub mod failsafe;
+mod interface;
 pub mod land_detector;
 pub mod mode;
 pub mod state_machine;
@@ -29,377 +29,19 @@ pub mod state_machine;
 #[cfg(test)]
 mod tests;
 
+use config::BATTERY_ORDER;
+pub use config::{CommanderConfig, ConfigError};
 pub use failsafe::{FailsafeAction, Trigger};
+pub use interface::{Action, CommanderInputs, CommanderOutput, DisarmReason, Estimate, Event, Facts, Refusal, Request};
 pub use land_detector::{LandDetector, LandDetectorConfig, LandedState};
 pub use mode::{FlightMode, SystemStatus};
 pub use state_machine::{Conditions, State};
 
-use crate::core::battery::{BatteryConfig, BatteryMonitor, BatterySample, BatteryStatus, BatteryWarning};
-use crate::core::geofence::{GeofenceConfig, Violation};
+use crate::core::battery::{BatteryMonitor, BatteryWarning};
 use crate::core::intent::{AutoMode, HoldAt, Intent, Progress};
 use land_detector::{LandDetectorSample, Phase};
 
 use crate::core::seconds_to_us;
-
-/// The commander's parameters (PX4 names in the field docs).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct CommanderConfig {
-    /// Takeoff altitude above home when the request names none (m; MIS_TAKEOFF_ALT).
-    pub takeoff_alt_m: f64,
-    /// Disarm this long after touchdown (s; COM_DISARM_LAND; negative: never).
-    pub disarm_land_s: f64,
-    /// Disarm when armed this long without taking off (s; COM_DISARM_PRFLT; negative: never).
-    pub disarm_preflight_s: f64,
-    /// The takeoff is complete within this distance of its altitude (m).
-    pub takeoff_acceptance_m: f64,
-    /// The ground-station link is lost after this long without a GCS HEARTBEAT (s; COM_DL_LOSS_T).
-    pub datalink_loss_s: f64,
-    /// What the vehicle does when it is (PX4's NAV_DLL_ACT: 0 nothing, 1 hold, 2 return, 3 land, 5
-    /// terminate; see [`FailsafeAction::from_px4`]).
-    pub datalink_loss_action: u32,
-    /// What the vehicle does at the battery's critical and emergency levels (PX4's COM_LOW_BAT_ACT: 0
-    /// warn only, 2 land, 3 return at critical and land at emergency; see
-    /// [`failsafe::low_battery_action`]).
-    pub low_battery_action: u32,
-    /// The battery thresholds (BAT_LOW_THR, BAT_CRIT_THR, BAT_EMERGEN_THR).
-    pub battery: BatteryConfig,
-    /// The geofence's action and distance limits (GF_ACTION, GF_MAX_HOR_DIST, GF_MAX_VER_DIST).
-    pub geofence: GeofenceConfig,
-    pub land_detector: LandDetectorConfig,
-}
-
-impl Default for CommanderConfig {
-    fn default() -> Self {
-        Self {
-            takeoff_alt_m: 2.5,
-            disarm_land_s: 2.0,
-            disarm_preflight_s: 10.0,
-            takeoff_acceptance_m: 0.1,
-            datalink_loss_s: 10.0,
-            datalink_loss_action: 0,
-            low_battery_action: 3,
-            battery: BatteryConfig::default(),
-            geofence: GeofenceConfig::default(),
-            land_detector: LandDetectorConfig::default(),
-        }
-    }
-}
-
-/// The rule the battery thresholds follow.
-const BATTERY_ORDER: &str = "0 < BAT_EMERGEN_THR < BAT_CRIT_THR < BAT_LOW_THR < 1";
-
-/// A configuration value out of range.
-#[derive(Debug, Clone, PartialEq, Error)]
-#[error("commander config: {field} = {value} must be {must}")]
-pub struct ConfigError {
-    pub field: &'static str,
-    pub value: f64,
-    pub must: &'static str,
-}
-
-impl CommanderConfig {
-    /// # Errors
-    /// [`ConfigError`] naming the first field out of range (non-finite, or not positive where it must be).
-    pub fn validate(&self) -> Result<(), ConfigError> {
-        let ld = &self.land_detector;
-        let positive = [
-            ("takeoff_alt_m", self.takeoff_alt_m),
-            ("takeoff_acceptance_m", self.takeoff_acceptance_m),
-            ("datalink_loss_s", self.datalink_loss_s),
-            ("land_detector.max_vel_d_mps", ld.max_vel_d_mps),
-            ("land_detector.max_vel_ne_mps", ld.max_vel_ne_mps),
-            ("land_detector.ground_height_m", ld.ground_height_m),
-        ];
-        for (field, value) in positive {
-            if !(value.is_finite() && value > 0.0) {
-                return Err(ConfigError { field, value, must: "finite and positive" });
-            }
-        }
-        let finite = [
-            ("disarm_land_s", self.disarm_land_s),
-            ("disarm_preflight_s", self.disarm_preflight_s),
-            ("land_detector.dwell_s", ld.dwell_s),
-        ];
-        for (field, value) in finite {
-            if !value.is_finite() {
-                return Err(ConfigError { field, value, must: "finite" });
-            }
-        }
-        if self.battery.validate().is_err() {
-            return Err(ConfigError { field: "battery", value: self.battery.low_thr, must: BATTERY_ORDER });
-        }
-        if failsafe::low_battery_action(self.low_battery_action, BatteryWarning::Emergency).is_err() {
-            return Err(ConfigError {
-                field: "low_battery_action",
-                value: f64::from(self.low_battery_action),
-                must: "0 (warn), 2 land or 3 return then land",
-            });
-        }
-        let gf = &self.geofence;
-        for (field, value) in
-            [("geofence.max_hor_dist_m", gf.max_hor_dist_m), ("geofence.max_ver_dist_m", gf.max_ver_dist_m)]
-        {
-            if !(value.is_finite() && value >= 0.0) {
-                return Err(ConfigError { field, value, must: "finite and >= 0 (0: no limit)" });
-            }
-        }
-        if failsafe::geofence_action(gf.action).is_err() {
-            return Err(ConfigError {
-                field: "geofence.action",
-                value: f64::from(gf.action),
-                must: "0 none, 1 warning, 2 hold, 3 return, 4 terminate or 5 land",
-            });
-        }
-        if let Err(n) = FailsafeAction::from_px4(self.datalink_loss_action) {
-            return Err(ConfigError {
-                field: "datalink_loss_action",
-                value: f64::from(n),
-                must: "0 (off), 1 hold, 2 return, 3 land or 5 terminate",
-            });
-        }
-        Ok(())
-    }
-}
-
-/// The estimate as the commander needs it (NED about the estimator's origin).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Estimate {
-    pub pos_ned_m: Vector3<f64>,
-    pub vel_ned_mps: Vector3<f64>,
-    pub yaw_rad: f64,
-    /// Position (and velocity) usable for control.
-    pub position_valid: bool,
-    /// The estimator's converged flag: the arming check.
-    pub converged: bool,
-    /// The estimate has a geodetic origin (a global position): home can be set.
-    pub has_origin: bool,
-}
-
-impl Default for Estimate {
-    fn default() -> Self {
-        Self {
-            pos_ned_m: Vector3::zeros(),
-            vel_ned_mps: Vector3::zeros(),
-            yaw_rad: 0.0,
-            position_valid: false,
-            converged: false,
-            has_origin: false,
-        }
-    }
-}
-
-/// One step's inputs.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct CommanderInputs {
-    /// Vehicle time (µs).
-    pub now_us: u64,
-    pub estimate: Estimate,
-    /// The controller's collective thrust is at its minimum.
-    pub throttle_low: bool,
-    /// What the vehicle knows of its plans and setpoint streams now.
-    pub facts: Facts,
-    /// When a ground station (MAV_TYPE_GCS) last sent a HEARTBEAT (µs of vehicle time).
-    pub gcs_heartbeat_us: Option<u64>,
-    /// A reading of the pack that arrived this step.
-    pub battery: Option<BatterySample>,
-    /// The geofence is breached, or will be before the vehicle can stop (see `core::geofence`).
-    pub fence_breach: Option<Violation>,
-}
-
-/// What the vehicle knows, outside the commander, that the transitions read: whether a mission can be
-/// flown (one is loaded and the estimator has a geodetic origin) and whether offboard setpoints flow
-/// (one younger than COM_OF_LOSS_T).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct Facts {
-    pub mission_valid: bool,
-    pub offboard_fresh: bool,
-}
-
-/// What a ground station (through the MAVLink handlers) asks of the commander.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Request {
-    /// ARM_DISARM param1 1; `force` is param2 = 21196.
-    Arm { force: bool },
-    /// ARM_DISARM param1 0 without the force magic; `force` disarms in the air (for callers other than
-    /// ARM_DISARM, which sends param1 0 with force as a [`Request::Kill`]). Also resets a kill.
-    Disarm { force: bool },
-    /// ARM_DISARM param1 0, param2 21196 (MAVSDK `kill()`): stop the motors now, from any state; stays
-    /// killed (arming refused) until a [`Request::Disarm`].
-    Kill,
-    /// NAV_TAKEOFF, to `alt_rel_m` above home (None: `takeoff_alt_m`). Accepted while disarmed: remembered
-    /// and started on arming.
-    Takeoff { alt_rel_m: Option<f64> },
-    /// NAV_LAND here.
-    Land,
-    /// Hold here (AUTO LOITER).
-    Hold,
-    /// DO_SET_MODE / SET_MODE: a mode this vehicle flies (the MAVLink layer decodes and refuses the rest).
-    SetMode(FlightMode),
-    /// NAV_RETURN_TO_LAUNCH or AUTO RTL: climb, return, land (from the air).
-    ReturnToLaunch,
-    /// AUTO MISSION or MISSION_START: fly the mission (asked for while disarmed: starts on arming).
-    Mission,
-    /// OFFBOARD: follow the streamed setpoints (only while they flow).
-    Offboard,
-    /// DO_SET_HOME: home at `pos_ned_m` (None: where the vehicle is).
-    SetHome { pos_ned_m: Option<Vector3<f64>> },
-    /// DO_REPOSITION: hold at `pos_ned_m` (None: here, QGroundControl's pause) with `yaw_rad` (None:
-    /// keep), flown to from where the vehicle is; in the air only.
-    Goto { pos_ned_m: Option<Vector3<f64>>, yaw_rad: Option<f64> },
-}
-
-/// What was refused, for the words of a [`Refusal`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Action {
-    Arm,
-    Disarm,
-    Takeoff,
-    Land,
-    Hold,
-    Mission,
-    Return,
-    Offboard,
-    Reposition,
-}
-
-impl fmt::Display for Action {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            Self::Arm => "Arming",
-            Self::Disarm => "Disarming",
-            Self::Takeoff => "Takeoff",
-            Self::Land => "Land",
-            Self::Hold => "Hold",
-            Self::Mission => "Mission",
-            Self::Return => "RTL",
-            Self::Offboard => "Offboard",
-            Self::Reposition => "Reposition",
-        })
-    }
-}
-
-/// Why a request was refused; `Display` is a STATUSTEXT (under 50 characters).
-#[derive(Debug, Clone, Copy, PartialEq, Error)]
-pub enum Refusal {
-    #[error("{0} denied: estimator not converged")]
-    EstimatorNotConverged(Action),
-    #[error("{0} denied: in air (use force)")]
-    InAir(Action),
-    #[error("{action} denied: {state}")]
-    NotInState { action: Action, state: State },
-    #[error("Takeoff denied: altitude {0} m invalid")]
-    InvalidAltitude(f64),
-    #[error("{0} denied: no mission")]
-    NoMission(Action),
-    #[error("{0} denied: no offboard setpoints")]
-    NoSetpoints(Action),
-    #[error("{0} denied: landed")]
-    Landed(Action),
-    #[error("Set home: no position")]
-    NoPosition,
-    #[error("Arming denied: battery {remaining_pct}% below {low_pct}%")]
-    BatteryLow { remaining_pct: u8, low_pct: u8 },
-}
-
-/// Why the vehicle disarmed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum DisarmReason {
-    /// A disarm request on the ground.
-    Requested,
-    /// A forced disarm request (possibly in the air).
-    Forced,
-    /// `disarm_land_s` after touchdown.
-    AutoLanded,
-    /// `disarm_preflight_s` armed without taking off.
-    AutoPreflight,
-    /// A kill.
-    Kill,
-}
-
-/// Something the MAVLink layer reports: arm and mode changes want a HEARTBEAT at once, all a STATUSTEXT.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Event {
-    Armed {
-        forced: bool,
-    },
-    Disarmed {
-        reason: DisarmReason,
-    },
-    Killed,
-    ModeChanged {
-        mode: FlightMode,
-    },
-    Landed,
-    TakeoffComplete,
-    /// A failsafe fired; `action` is what the vehicle does (None: nothing, it is only said).
-    Failsafe {
-        trigger: Trigger,
-        action: Option<FailsafeAction>,
-    },
-    /// A failsafe's condition cleared (the vehicle stays in the mode the failsafe chose).
-    FailsafeCleared {
-        trigger: Trigger,
-    },
-    /// The battery fell below BAT_LOW_THR while armed (a warning: no action).
-    BatteryLow {
-        remaining_pct: u8,
-    },
-}
-
-impl Event {
-    /// The STATUSTEXT for this event.
-    #[must_use]
-    pub fn text(&self) -> String {
-        match self {
-            Self::Armed { forced: false } => "Armed".into(),
-            Self::Armed { forced: true } => "Armed (forced)".into(),
-            Self::Disarmed { reason } => match reason {
-                DisarmReason::Requested => "Disarmed".into(),
-                DisarmReason::Forced => "Disarmed (forced)".into(),
-                DisarmReason::AutoLanded => "Disarmed after landing".into(),
-                DisarmReason::AutoPreflight => "Disarmed: no takeoff".into(),
-                DisarmReason::Kill => "Disarmed by kill".into(),
-            },
-            Self::Killed => "Kill switch engaged".into(),
-            Self::ModeChanged { mode, .. } => format!("Mode: {mode}"),
-            Self::Landed => "Landing detected".into(),
-            Self::TakeoffComplete => "Takeoff complete".into(),
-            Self::Failsafe { trigger, action: Some(action) } => {
-                format!("Failsafe: {}, {}", trigger.what(), action.doing())
-            }
-            Self::Failsafe { trigger, action: None } => format!("Failsafe: {}", trigger.what()),
-            Self::FailsafeCleared { trigger: Trigger::DatalinkLost } => "GCS link regained".into(),
-            Self::FailsafeCleared { trigger } => format!("Cleared: {}", trigger.what()),
-            Self::BatteryLow { remaining_pct } => format!("Battery low: {remaining_pct}% remaining"),
-        }
-    }
-
-    /// Whether the HEARTBEAT changed (armed flag, mode or status): send one at once.
-    #[must_use]
-    pub const fn changes_heartbeat(&self) -> bool {
-        matches!(self, Self::Armed { .. } | Self::Disarmed { .. } | Self::Killed | Self::ModeChanged { .. })
-    }
-}
-
-/// One step's outputs.
-#[derive(Debug, Clone, PartialEq)]
-pub struct CommanderOutput {
-    pub state: State,
-    pub mode: FlightMode,
-    /// Health (HEARTBEAT system_status).
-    pub status: SystemStatus,
-    /// On the ground, taking off, in the air, landing (EXTENDED_SYS_STATE).
-    pub landed: LandedState,
-    pub armed: bool,
-    pub motors_enabled: bool,
-    /// What the navigator is to fly.
-    pub intent: Intent,
-    /// The pack's latest reading and warning level.
-    pub battery: BatteryStatus,
-    /// What happened since the previous step (requests included), in order.
-    pub events: Vec<Event>,
-}
 
 /// The commander. See the module docs.
 #[derive(Debug, Clone, PartialEq)]
@@ -637,82 +279,6 @@ impl Commander {
             battery: self.battery.status(now),
             events: std::mem::take(&mut self.events),
         }
-    }
-
-    /// The datalink row of the failsafe table ([`failsafe`]): on losing the link while armed, say so and,
-    /// in the air, take `NAV_DLL_ACT`'s action; on regaining it, say so (the mode stays).
-    fn datalink_failsafe(&mut self, now: u64, gcs_heartbeat_us: Option<u64>) {
-        let lost = failsafe::datalink_lost(now, gcs_heartbeat_us, self.config.datalink_loss_s);
-        if lost == self.datalink_lost {
-            return;
-        }
-        self.datalink_lost = lost;
-        if !self.state.is_armed() {
-            return;
-        }
-        let trigger = Trigger::DatalinkLost;
-        if !lost {
-            self.events.push(Event::FailsafeCleared { trigger });
-            return;
-        }
-        let action = FailsafeAction::from_px4(self.config.datalink_loss_action).ok().flatten();
-        self.fail(now, trigger, action);
-    }
-
-    /// The battery rows of the failsafe table: the monitor takes the reading; a level that rose while
-    /// armed is said (low) or acted on (critical, emergency: COM_LOW_BAT_ACT).
-    fn battery_failsafe(&mut self, now: u64, sample: Option<BatterySample>) {
-        let before = self.battery.status(now).level;
-        self.battery.update(now, sample, self.state.is_armed());
-        let status = self.battery.status(now);
-        if status.level <= before || !self.state.is_armed() {
-            return;
-        }
-        let remaining_pct = status.remaining_pct().unwrap_or(0);
-        if status.level == BatteryWarning::Low {
-            self.events.push(Event::BatteryLow { remaining_pct });
-            return;
-        }
-        let trigger = Trigger::Battery { level: status.level, remaining_pct };
-        let action = failsafe::low_battery_action(self.config.low_battery_action, status.level).ok().flatten();
-        self.fail(now, trigger, action);
-    }
-
-    /// The geofence row: a breach (or a predicted one) that starts while armed in the air is acted on per
-    /// GF_ACTION (0: not even said); it re-arms once the vehicle is inside again.
-    fn geofence_failsafe(&mut self, now: u64, breach: Option<Violation>) {
-        let in_air = self.state.is_armed() && self.state != State::ArmedIdle && !self.land_detector.landed();
-        let breached = breach.is_some() && in_air;
-        if breached == self.fence_breached {
-            return;
-        }
-        self.fence_breached = breached;
-        let (Some(violation), true) = (breach, breached) else { return };
-        if let Ok(Some(action)) = failsafe::geofence_action(self.config.geofence.action) {
-            self.fail(now, Trigger::Geofence(violation), action);
-        }
-    }
-
-    /// A failsafe fired: take `action` if the vehicle is in the air, and say so (what happened and what
-    /// the vehicle does, or only what happened).
-    fn fail(&mut self, now: u64, trigger: Trigger, action: Option<FailsafeAction>) {
-        let in_air = self.state != State::ArmedIdle && self.state != State::Killed && !self.land_detector.landed();
-        let Some(action) = action.filter(|_| in_air) else {
-            self.events.push(Event::Failsafe { trigger, action: None });
-            return;
-        };
-        self.events.push(Event::Failsafe { trigger, action: Some(action) });
-        let (request, what) = match action {
-            FailsafeAction::Hold => (Conditions::HOLD_REQUESTED, Action::Hold),
-            FailsafeAction::Return => (Conditions::RTL_REQUESTED, Action::Return),
-            FailsafeAction::Land => (Conditions::LAND_REQUESTED, Action::Land),
-            FailsafeAction::Terminate => (Conditions::KILL, Action::Disarm),
-        };
-        if action == FailsafeAction::Hold {
-            self.hold_mode = FlightMode::Hold;
-        }
-        // Already in that mode (holding, returning, landing): nothing to change.
-        let _ = self.transition(now, request, what);
     }
 
     fn take_estimate(&mut self, inputs: &CommanderInputs) {

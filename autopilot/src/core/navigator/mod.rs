@@ -1,12 +1,13 @@
 //! The navigator: the one place where the vehicle's reference comes from. In, once per control step:
-//! the commander's [`Task`] (idle, take off to a point, hold a point or where the vehicle stops, land
-//! here, or an automatic mode), vehicle time `now_us` (µs), the estimate (NED m, m/s, rad, with its
-//! geodetic origin), home and whether the vehicle is landed ([`NavInput`]); and, when they arrive, the
-//! mission (as [`NavItem`]s), offboard setpoints and speed changes. Out: one [`Reference`]
-//! (position, velocity and acceleration feed-forward, yaw; or an attitude) or `None` for motors idle; the
-//! [`NavStatus`] the commander's transitions read at the next step (mission valid and done, landing,
-//! offboard fresh); and [`NavEvent`]s for the ground station (MISSION_CURRENT, MISSION_ITEM_REACHED,
-//! STATUSTEXT).
+//! the commander's [`Intent`] (idle, take off to an altitude, hold, reposition, land, or an automatic
+//! mode), vehicle time `now_us` (µs), the estimate (NED m, m/s, rad, with its geodetic origin), home and
+//! whether the vehicle is landed ([`NavInput`]), the rally points; and, when they arrive, the mission (as
+//! [`NavItem`]s), offboard setpoints and speed changes. Out: one [`Reference`] (position, velocity and
+//! acceleration feed-forward, yaw; or an attitude) or `None` for motors idle; [`Progress`] events for the
+//! commander (mission done, an automatic landing began or ended), and [`NavEvent`]s for the ground
+//! station (MISSION_CURRENT, MISSION_ITEM_REACHED, STATUSTEXT). It owns every point flown: it latches
+//! the takeoff and landing points when their intent starts, holds the yaw, chooses the rally point a
+//! return goes to and keeps its own clock; it never reads the commander's state.
 //!
 //! Every move is a [`Leg`] whose progress is a time-optimal jerk-limited profile ([`trajectory`]) under
 //! PX4's limits: `MPC_XY_CRUISE` (or a DO_CHANGE_SPEED) and `MPC_ACC_HOR` horizontally,
@@ -14,20 +15,18 @@
 //! `MPC_TKO_SPEED` for takeoffs, `MPC_LAND_SPEED` for landings, `MPC_JERK_AUTO` for all (a slanted line
 //! gets the tightest of its horizontal and vertical limits). A new leg starts from the reference's motion,
 //! so the reference is continuous in position, velocity and acceleration across every mode change,
-//! unless the reference has run away from the vehicle ([`Planner::start`]).
+//! unless the reference has run away from the vehicle (`Planner::start`).
 //!
-//! - **Takeoff** ([`Task::Takeoff`]): a vertical leg from the ground to the target. The hold that follows
-//!   at the same point continues the same leg.
-//! - **Hold** ([`Task::Hold`]): a leg to the point (DO_REPOSITION), or, without a point, a jerk-limited
-//!   stop where the reference is (a pause, or Hold entered from another mode).
-//! - **Land** ([`Task::Land`], NAV_LAND, the end of a return): a vertical leg at the land speed to
+//! - **Takeoff** ([`Intent::Takeoff`]): a vertical leg from the ground to the altitude, here. The hold
+//!   that follows at the same point ([`HoldAt::TakeoffPoint`]) continues the same leg.
+//! - **Hold** ([`Intent::Hold`]): a leg to the point (DO_REPOSITION), or a jerk-limited stop where the
+//!   reference is (a pause, or Hold entered from another mode).
+//! - **Land** ([`Intent::Land`], NAV_LAND, the end of a return): a vertical leg at the land speed to
 //!   `land_below_ground_m` below the ground; the vehicle touches down on the way and the commander's land
 //!   detector ends it.
 //! - **Missions** (`executor.rs`), **return to launch** (`rtl.rs`), **offboard** (`offboard.rs`).
 
 use nalgebra::{Vector2, Vector3};
-use serde::{Deserialize, Serialize};
-use thiserror::Error;
 
 use crate::core::control::Reference;
 use crate::core::estimator::GeoOrigin;
@@ -35,9 +34,11 @@ use crate::core::geofence::Rally;
 pub use crate::core::intent::{AutoMode, HoldAt, Intent, Progress};
 pub use crate::core::mission::{NavCommand, NavItem, NavTarget, nav_items};
 
+mod config;
 mod executor;
 pub mod leg;
 mod offboard;
+mod planner;
 mod rtl;
 pub mod spline;
 pub mod trajectory;
@@ -45,107 +46,13 @@ pub mod trajectory;
 #[cfg(test)]
 mod tests;
 
+pub use config::{ConfigError, NavigatorConfig};
 use executor::Executor;
-use leg::{Leg, LegPath, MIN_LEG_M, Motion3};
+use leg::{Leg, MIN_LEG_M, Motion3};
 pub use offboard::OffboardSetpoint;
-use trajectory::Limits;
+pub(crate) use planner::{Climb, Planner};
 
 pub use crate::core::plan::MAX_SETPOINT_FROM_HOME_M;
-
-/// The navigator's parameters (PX4 names in the field docs).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct NavigatorConfig {
-    /// Horizontal cruise speed of missions, goto and return (m/s; MPC_XY_CRUISE).
-    pub cruise_speed_mps: f64,
-    /// Largest climb speed of automatic moves (m/s; MPC_Z_VEL_MAX_UP).
-    pub climb_speed_mps: f64,
-    /// Largest descent speed of automatic moves (m/s; MPC_Z_VEL_MAX_DN).
-    pub descent_speed_mps: f64,
-    /// Climb speed of takeoffs (m/s; MPC_TKO_SPEED).
-    pub takeoff_speed_mps: f64,
-    /// Descent speed of landings (m/s; MPC_LAND_SPEED).
-    pub land_speed_mps: f64,
-    /// Horizontal acceleration limit (m/s²; MPC_ACC_HOR).
-    pub acc_hor_mps2: f64,
-    /// Upward acceleration limit (m/s²; MPC_ACC_UP_MAX).
-    pub acc_up_mps2: f64,
-    /// Downward acceleration limit (m/s²; MPC_ACC_DOWN_MAX).
-    pub acc_down_mps2: f64,
-    /// Jerk limit of every automatic move (m/s³; MPC_JERK_AUTO).
-    pub jerk_mps3: f64,
-    /// Waypoint acceptance radius when the item names none (m; NAV_ACC_RAD).
-    pub acceptance_radius_m: f64,
-    /// Altitude above home to climb to before returning (m; RTL_RETURN_ALT).
-    pub rtl_return_alt_m: f64,
-    /// Offboard setpoints older than this end offboard control (s; COM_OF_LOSS_T).
-    pub offboard_timeout_s: f64,
-    /// How far below the ground the landing reference goes (m): bounds the push into the ground.
-    pub land_below_ground_m: f64,
-}
-
-impl Default for NavigatorConfig {
-    fn default() -> Self {
-        Self {
-            cruise_speed_mps: 1.0,
-            climb_speed_mps: 1.0,
-            descent_speed_mps: 1.0,
-            takeoff_speed_mps: 1.0,
-            land_speed_mps: 0.7,
-            acc_hor_mps2: 0.5,
-            acc_up_mps2: 1.0,
-            acc_down_mps2: 1.0,
-            jerk_mps3: 1.0,
-            acceptance_radius_m: 0.2,
-            rtl_return_alt_m: 10.0,
-            offboard_timeout_s: 0.5,
-            land_below_ground_m: 0.5,
-        }
-    }
-}
-
-/// A navigator parameter out of range.
-#[derive(Debug, Clone, PartialEq, Error)]
-#[error("navigator config: {field} = {value} must be finite and {must}")]
-pub struct ConfigError {
-    pub field: &'static str,
-    pub value: f64,
-    pub must: &'static str,
-}
-
-impl NavigatorConfig {
-    /// # Errors
-    /// [`ConfigError`] naming the first field that is not finite and positive (non-negative for the
-    /// return altitude and the offboard timeout).
-    pub fn validate(&self) -> Result<(), ConfigError> {
-        let positive = [
-            ("cruise_speed_mps", self.cruise_speed_mps),
-            ("climb_speed_mps", self.climb_speed_mps),
-            ("descent_speed_mps", self.descent_speed_mps),
-            ("takeoff_speed_mps", self.takeoff_speed_mps),
-            ("land_speed_mps", self.land_speed_mps),
-            ("acc_hor_mps2", self.acc_hor_mps2),
-            ("acc_up_mps2", self.acc_up_mps2),
-            ("acc_down_mps2", self.acc_down_mps2),
-            ("jerk_mps3", self.jerk_mps3),
-            ("acceptance_radius_m", self.acceptance_radius_m),
-            ("land_below_ground_m", self.land_below_ground_m),
-        ];
-        for (field, value) in positive {
-            if !(value.is_finite() && value > 0.0) {
-                return Err(ConfigError { field, value, must: "positive" });
-            }
-        }
-        for (field, value) in
-            [("rtl_return_alt_m", self.rtl_return_alt_m), ("offboard_timeout_s", self.offboard_timeout_s)]
-        {
-            if !(value.is_finite() && value >= 0.0) {
-                return Err(ConfigError { field, value, must: "not negative" });
-            }
-        }
-        Ok(())
-    }
-}
 
 /// Something the ground station hears about.
 #[derive(Debug, Clone, PartialEq)]
@@ -192,194 +99,6 @@ impl NavInput {
             home_alt_amsl_m: self.home_alt_amsl_m,
             ground_d_m: self.ground_d_m(),
         }
-    }
-}
-
-/// Which limits a leg flies with.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Climb {
-    /// Automatic moves: cruise horizontally, MPC_Z_VEL_MAX_UP / _DN vertically.
-    Move,
-    /// A takeoff: MPC_TKO_SPEED up.
-    Takeoff,
-    /// A takeoff still on the ground: a quarter of MPC_TKO_SPEED up, until the vehicle lifts off.
-    Liftoff,
-    /// A landing: MPC_LAND_SPEED down.
-    Land,
-}
-
-/// A takeoff from the ground creeps up at this fraction of `MPC_TKO_SPEED` until the vehicle lifts off
-/// (PX4 ramps its takeoff the same way): an airframe heavier or weaker than the controller's model then
-/// lifts off a few centimetres behind its reference instead of lagging it by a metre and catching up.
-const LIFTOFF_SPEED_FRAC: f64 = 0.25;
-/// A reference farther than this from the vehicle (m), or faster or slower by more than
-/// [`RUNAWAY_MPS`] (m/s), has run away from it: new legs start from the vehicle (see [`Planner::start`]).
-const RUNAWAY_M: f64 = 0.5;
-const RUNAWAY_MPS: f64 = 1.0;
-/// A retargeted leg continues a reference moving across its new direction at up to this speed (m/s).
-const RETARGET_CROSS_MPS: f64 = 0.5;
-/// The vehicle has lifted off once this high above the ground (m).
-const LIFTOFF_M: f64 = 0.05;
-
-/// What every part of the navigator shares: the parameters, the speed override, the held yaw, the
-/// reference's last motion, the step's time and return point, and the progress and events for the
-/// commander and the ground station.
-#[derive(Debug, Clone)]
-pub(crate) struct Planner {
-    pub config: NavigatorConfig,
-    /// DO_CHANGE_SPEED (in a mission or not): the horizontal speed of the following legs.
-    pub speed_mps: Option<f64>,
-    /// The yaw the automatic modes hold (rad).
-    pub yaw_rad: f64,
-    /// The reference's motion at the last step (None: idle, or attitude control).
-    pub last: Option<Motion3>,
-    /// Time since the last step (s), for integrating velocity and yaw-rate setpoints (at most 0.05).
-    pub dt_s: f64,
-    /// Where a return goes when not home (the rally point chosen as it started; its down coordinate is
-    /// the ground).
-    pub return_ned_m: Option<Vector3<f64>>,
-    /// Descending to land in an automatic mode, this step.
-    pub landing: bool,
-    /// The mission flew its last item (and did not land).
-    pub mission_done: bool,
-    pub events: Vec<NavEvent>,
-}
-
-impl Planner {
-    /// The horizontal speed of moves (m/s).
-    pub fn speed(&self) -> f64 {
-        self.speed_mps.unwrap_or(self.config.cruise_speed_mps)
-    }
-
-    /// Where a new leg starts: the reference's motion, so the flight goes on smoothly; the vehicle at rest
-    /// when there is none; and the vehicle's own motion when the reference has run away from it (farther
-    /// than [`RUNAWAY_M`] or faster by [`RUNAWAY_MPS`]: an offboard velocity the airframe cannot reach),
-    /// so that a stop stops the vehicle where it can, not a reference metres ahead of it.
-    pub fn start(&self, input: &NavInput) -> Motion3 {
-        let Some(last) = self.last else { return Motion3::rest(input.pos_ned_m) };
-        let gap_m = (last.pos_ned_m - input.pos_ned_m).norm();
-        let gap_mps = (last.vel_ned_mps - input.vel_ned_mps).norm();
-        if gap_m > RUNAWAY_M || gap_mps > RUNAWAY_MPS {
-            return Motion3 { vel_ned_mps: input.vel_ned_mps, ..Motion3::rest(input.pos_ned_m) };
-        }
-        last
-    }
-
-    /// The progress limits of `path` for `climb`.
-    pub fn limits(&self, path: &LegPath, climb: Climb) -> Limits {
-        let c = &self.config;
-        let (v_up, v_down, a_up, a_down) = match climb {
-            Climb::Move => (c.climb_speed_mps, c.descent_speed_mps, c.acc_up_mps2, c.acc_down_mps2),
-            Climb::Takeoff => (c.takeoff_speed_mps, c.descent_speed_mps, c.acc_up_mps2, c.acc_down_mps2),
-            Climb::Liftoff => {
-                (c.takeoff_speed_mps * LIFTOFF_SPEED_FRAC, c.descent_speed_mps, c.acc_up_mps2, c.acc_down_mps2)
-            }
-            Climb::Land => (c.climb_speed_mps, c.land_speed_mps, c.acc_up_mps2, c.acc_down_mps2),
-        };
-        let (horizontal, down) = match path {
-            LegPath::Line { from, to } => {
-                let d = to - from;
-                let len = d.norm();
-                if len > 0.0 { (d.xy().norm() / len, d.z / len) } else { (1.0, 0.0) }
-            }
-            // Splines fly level runs (their altitude changes are gentle): the horizontal limits.
-            LegPath::Spline { .. } => (1.0, 0.0),
-        };
-        let cap = |h_limit: f64, up: f64, dn: f64| -> f64 {
-            let mut limit = f64::INFINITY;
-            if horizontal > 1e-9 {
-                limit = limit.min(h_limit / horizontal);
-            }
-            if down < -1e-9 {
-                limit = limit.min(up / -down);
-            } else if down > 1e-9 {
-                limit = limit.min(dn / down);
-            }
-            if limit.is_finite() { limit } else { h_limit }
-        };
-        Limits {
-            vel_mps: cap(self.speed(), v_up, v_down),
-            acc_mps2: cap(c.acc_hor_mps2, a_up, a_down),
-            jerk_mps3: c.jerk_mps3,
-        }
-    }
-
-    /// A straight leg from the reference's motion to `to`, reporting `seq` at its end.
-    pub fn line(&self, input: &NavInput, to: Vector3<f64>, climb: Climb, seq: Option<u16>) -> Leg {
-        let start = self.start(input);
-        let knots = seq.map(|s| vec![((to - start.pos_ned_m).norm(), s)]).unwrap_or_default();
-        Leg::plan(&start, input.now_us, knots, |p| self.limits(p, climb), |from| LegPath::Line { from, to })
-    }
-
-    /// A takeoff to `to`: from the ground it creeps up at the liftoff speed (`Climb::Liftoff`) until
-    /// [`Self::liftoff`] sees the vehicle leave the ground; in the air it climbs at once.
-    pub fn takeoff(&self, input: &NavInput, to: Vector3<f64>) -> (Leg, Climb) {
-        let climb = if Self::lifted(input) { Climb::Takeoff } else { Climb::Liftoff };
-        (self.line(input, to, climb, None), climb)
-    }
-
-    /// Whether the vehicle is off the ground.
-    fn lifted(input: &NavInput) -> bool {
-        input.ground_d_m() - input.pos_ned_m.z >= LIFTOFF_M
-    }
-
-    /// Speeds a creeping takeoff leg up to the takeoff speed once the vehicle has lifted off (from the
-    /// reference's motion: continuous).
-    pub fn liftoff(&self, input: &NavInput, leg: &mut Leg, climb: &mut Climb) {
-        if *climb == Climb::Liftoff && Self::lifted(input) {
-            *leg = self.line(input, leg.end(), Climb::Takeoff, None);
-            *climb = Climb::Takeoff;
-        }
-    }
-
-    /// A straight leg to a target that moves with every update (an offboard position stream): continues
-    /// the reference's motion towards it when it moves across the new direction at up to 0.5 m/s.
-    pub fn retarget(&self, input: &NavInput, to: Vector3<f64>) -> Leg {
-        let start = self.start(input);
-        Leg::plan_continuing(
-            &start,
-            input.now_us,
-            Vec::new(),
-            |p| self.limits(p, Climb::Move),
-            |from| LegPath::Line { from, to },
-            RETARGET_CROSS_MPS,
-        )
-    }
-
-    /// A landing: straight down at `ne` (NED m) at the land speed, through the ground without braking,
-    /// to `land_below_ground_m` below it.
-    pub fn land(&self, input: &NavInput, ne: Vector2<f64>) -> Leg {
-        let floor = input.ground_d_m() + self.config.land_below_ground_m;
-        let start = self.start(input);
-        // Planned to run on past the floor, so it still descends at the land speed there.
-        let beyond = floor.max(start.pos_ned_m.z) + 10.0;
-        Leg::plan(
-            &start,
-            input.now_us,
-            Vec::new(),
-            |p| self.limits(p, Climb::Land),
-            |from| LegPath::Line { from, to: Vector3::new(ne.x, ne.y, beyond.max(from.z)) },
-        )
-        .with_floor(floor)
-    }
-
-    /// A jerk-limited stop from the reference's motion, held where it ends.
-    pub fn stop(&self, input: &NavInput) -> Leg {
-        let start = self.start(input);
-        Leg::plan(
-            &start,
-            input.now_us,
-            Vec::new(),
-            |p| self.limits(p, Climb::Move),
-            |from| LegPath::Line { from, to: from },
-        )
-    }
-
-    /// The reference of `leg` now, remembered as the last motion (the vehicle's position paces it).
-    pub fn fly(&mut self, leg: &mut Leg, input: &NavInput) -> Motion3 {
-        let m = leg.motion(input.now_us, input.pos_ned_m);
-        self.last = Some(m);
-        m
     }
 }
 
