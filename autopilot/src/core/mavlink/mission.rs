@@ -63,6 +63,7 @@ use super::addressed_to_us;
 use super::telemetry::statustext;
 use crate::core::geofence::{Fence, Rally, validate_fence_item, validate_rally_item};
 use crate::core::mission::{Mission, MissionError, MissionItem, validate_item};
+use crate::core::plan::Plan;
 
 /// The service's tunables.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -210,14 +211,11 @@ struct Finished {
     last_seq: u16,
 }
 
-/// The mission microservice with the stored mission.
+/// The mission microservice: the transfer protocol over the plan store ([`Plan`]), which it is handed
+/// with every message.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct MissionService {
     config: MissionServiceConfig,
-    mission: Mission,
-    fence: Fence,
-    rally: Rally,
-    current_seq: u16,
     upload: Option<Upload>,
     finished: Option<Finished>,
 }
@@ -272,57 +270,6 @@ impl MissionService {
         &self.config
     }
 
-    /// The stored mission.
-    #[must_use]
-    pub fn mission(&self) -> &Mission {
-        &self.mission
-    }
-
-    /// Stores `mission` (e.g. the persisted one at start), current item 0. An upload in progress goes on
-    /// and replaces it if it completes.
-    ///
-    /// # Errors
-    /// [`Mission::validate`]'s, and then the stored mission is unchanged.
-    pub fn set_mission(&mut self, mission: Mission) -> Result<(), MissionError> {
-        mission.validate()?;
-        self.mission = mission;
-        self.current_seq = 0;
-        Ok(())
-    }
-
-    /// The stored fence.
-    #[must_use]
-    pub fn fence(&self) -> &Fence {
-        &self.fence
-    }
-
-    /// The stored rally points.
-    #[must_use]
-    pub fn rally(&self) -> &Rally {
-        &self.rally
-    }
-
-    /// Stores a fence (e.g. the persisted one at start).
-    pub fn set_fence(&mut self, fence: Fence) {
-        self.fence = fence;
-    }
-
-    /// Stores rally points (e.g. the persisted ones at start).
-    pub fn set_rally(&mut self, rally: Rally) {
-        self.rally = rally;
-    }
-
-    /// The item flagged `current` in downloads.
-    #[must_use]
-    pub fn current_seq(&self) -> u16 {
-        self.current_seq
-    }
-
-    /// The executor's current item (flagged `current` in downloads).
-    pub fn set_current_seq(&mut self, seq: u16) {
-        self.current_seq = seq;
-    }
-
     /// Whether an upload is in progress.
     #[must_use]
     pub fn upload_in_progress(&self) -> bool {
@@ -331,7 +278,14 @@ impl MissionService {
 
     /// A received message, from the client `header` names, to system `sysid`. Messages that are not
     /// mission messages for us give an empty reply.
-    pub fn on_message(&mut self, now_us: u64, sysid: u8, header: &MavHeader, msg: &MavMessage) -> MissionReply {
+    pub fn on_message(
+        &mut self,
+        plan: &mut Plan,
+        now_us: u64,
+        sysid: u8,
+        header: &MavHeader,
+        msg: &MavMessage,
+    ) -> MissionReply {
         let ours = |target_system, target_component| addressed_to_us(sysid, target_system, target_component);
         let peer = Peer::of(header);
         // The plan a message is about; ALL (or an unknown type) is answered UNSUPPORTED except by a clear.
@@ -339,40 +293,42 @@ impl MissionService {
         let unsupported = |t| MissionReply::send(vec![ack_typed(peer, MavMissionResult::MAV_MISSION_UNSUPPORTED, t)]);
         match msg {
             MavMessage::MISSION_COUNT(m) if ours(m.target_system, m.target_component) => match kind(m.mission_type) {
-                Ok(k) => self.on_count(now_us, peer, m.count, k),
+                Ok(k) => self.on_count(plan, now_us, peer, m.count, k),
                 Err(t) => unsupported(t),
             },
             MavMessage::MISSION_ITEM_INT(m) if ours(m.target_system, m.target_component) => {
                 match kind(m.mission_type) {
-                    Ok(k) => self.on_item(now_us, peer, Flavour::Int, m.seq, k, Ok(MissionItem::from_item_int(m))),
+                    Ok(k) => {
+                        self.on_item(plan, now_us, peer, Flavour::Int, m.seq, k, Ok(MissionItem::from_item_int(m)))
+                    }
                     Err(t) => unsupported(t),
                 }
             }
             MavMessage::MISSION_ITEM(m) if ours(m.target_system, m.target_component) => match kind(m.mission_type) {
-                Ok(k) => self.on_item(now_us, peer, Flavour::Legacy, m.seq, k, MissionItem::from_item(m)),
+                Ok(k) => self.on_item(plan, now_us, peer, Flavour::Legacy, m.seq, k, MissionItem::from_item(m)),
                 Err(t) => unsupported(t),
             },
             MavMessage::MISSION_REQUEST_LIST(m) if ours(m.target_system, m.target_component) => {
                 match kind(m.mission_type) {
-                    Ok(k) => self.on_request_list(peer, k),
+                    Ok(k) => self.on_request_list(plan, peer, k),
                     Err(t) => unsupported(t),
                 }
             }
             MavMessage::MISSION_REQUEST_INT(m) if ours(m.target_system, m.target_component) => {
                 match kind(m.mission_type) {
-                    Ok(k) => self.on_request(peer, m.seq, Flavour::Int, k),
+                    Ok(k) => self.on_request(plan, peer, m.seq, Flavour::Int, k),
                     Err(t) => unsupported(t),
                 }
             }
             MavMessage::MISSION_REQUEST(m) if ours(m.target_system, m.target_component) => match kind(m.mission_type) {
-                Ok(k) => self.on_request(peer, m.seq, Flavour::Legacy, k),
+                Ok(k) => self.on_request(plan, peer, m.seq, Flavour::Legacy, k),
                 Err(t) => unsupported(t),
             },
             MavMessage::MISSION_CLEAR_ALL(m) if ours(m.target_system, m.target_component) => {
-                self.on_clear(peer, PlanKind::of(m.mission_type), m.mission_type)
+                self.on_clear(plan, peer, PlanKind::of(m.mission_type), m.mission_type)
             }
             MavMessage::MISSION_SET_CURRENT(m) if ours(m.target_system, m.target_component) => {
-                self.on_set_current(m.seq)
+                Self::on_set_current(plan, m.seq)
             }
             MavMessage::MISSION_ACK(m) if ours(m.target_system, m.target_component) => {
                 self.on_ack(now_us, peer, m.mavtype, PlanKind::of(m.mission_type))
@@ -405,11 +361,11 @@ impl MissionService {
         ])
     }
 
-    fn on_count(&mut self, now_us: u64, peer: Peer, count: u16, kind: PlanKind) -> MissionReply {
+    fn on_count(&mut self, plan: &mut Plan, now_us: u64, peer: Peer, count: u16, kind: PlanKind) -> MissionReply {
         self.upload = None;
         self.finished = None;
         if count == 0 {
-            return self.clear(peer, kind);
+            return Self::clear(plan, peer, kind);
         }
         if count > self.config.max_items {
             let error =
@@ -430,8 +386,10 @@ impl MissionService {
         MissionReply::send(vec![first])
     }
 
+    #[allow(clippy::too_many_arguments)]
     fn on_item(
         &mut self,
+        plan: &mut Plan,
         now_us: u64,
         peer: Peer,
         flavour: Flavour,
@@ -469,17 +427,16 @@ impl MissionService {
         let items = std::mem::take(&mut upload.items);
         self.upload = None;
         let event = match kind {
-            PlanKind::Mission => Mission::new(items).map(|mission| {
-                self.mission = mission.clone();
-                self.current_seq = 0;
-                MissionEvent::Replaced(mission)
+            PlanKind::Mission => Mission::new(items).and_then(|mission| {
+                plan.set_mission(mission.clone())?;
+                Ok(MissionEvent::Replaced(mission))
             }),
             PlanKind::Fence => Fence::new(items).map(|fence| {
-                self.fence = fence.clone();
+                plan.set_fence(fence.clone());
                 MissionEvent::FenceReplaced(fence)
             }),
             PlanKind::Rally => Rally::new(items).map(|rally| {
-                self.rally = rally.clone();
+                plan.set_rally(rally.clone());
                 MissionEvent::RallyReplaced(rally)
             }),
         };
@@ -513,19 +470,19 @@ impl MissionService {
     }
 
     /// The stored items of a plan.
-    fn items(&self, kind: PlanKind) -> &[MissionItem] {
+    fn items(plan: &Plan, kind: PlanKind) -> &[MissionItem] {
         match kind {
-            PlanKind::Mission => &self.mission.items,
-            PlanKind::Fence => self.fence.items(),
-            PlanKind::Rally => self.rally.items(),
+            PlanKind::Mission => &plan.mission().items,
+            PlanKind::Fence => plan.fence().items(),
+            PlanKind::Rally => plan.rally().items(),
         }
     }
 
-    fn on_request_list(&mut self, peer: Peer, kind: PlanKind) -> MissionReply {
+    fn on_request_list(&mut self, plan: &Plan, peer: Peer, kind: PlanKind) -> MissionReply {
         if self.upload.as_ref().is_some_and(|u| u.peer == peer) {
             self.upload = None;
         }
-        let count = u16::try_from(self.items(kind).len()).unwrap_or(u16::MAX);
+        let count = u16::try_from(Self::items(plan, kind).len()).unwrap_or(u16::MAX);
         MissionReply::send(vec![MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
             count,
             target_system: peer.system,
@@ -535,11 +492,11 @@ impl MissionService {
         })])
     }
 
-    fn on_request(&self, peer: Peer, seq: u16, flavour: Flavour, kind: PlanKind) -> MissionReply {
-        let Some(item) = self.items(kind).get(usize::from(seq)) else {
+    fn on_request(&self, plan: &Plan, peer: Peer, seq: u16, flavour: Flavour, kind: PlanKind) -> MissionReply {
+        let Some(item) = Self::items(plan, kind).get(usize::from(seq)) else {
             return MissionReply::send(vec![ack(peer, MavMissionResult::MAV_MISSION_INVALID_SEQUENCE, kind)]);
         };
-        let current = kind == PlanKind::Mission && seq == self.current_seq;
+        let current = kind == PlanKind::Mission && seq == plan.current_seq();
         MissionReply::send(vec![match flavour {
             Flavour::Int => MavMessage::MISSION_ITEM_INT(MISSION_ITEM_INT_DATA {
                 mission_type: kind.wire(),
@@ -552,50 +509,54 @@ impl MissionService {
         }])
     }
 
-    fn on_clear(&mut self, peer: Peer, kind: Option<PlanKind>, mission_type: MavMissionType) -> MissionReply {
+    fn on_clear(
+        &mut self,
+        plan: &mut Plan,
+        peer: Peer,
+        kind: Option<PlanKind>,
+        mission_type: MavMissionType,
+    ) -> MissionReply {
         self.upload = None;
         self.finished = None;
         if let Some(kind) = kind {
-            return self.clear(peer, kind);
+            return Self::clear(plan, peer, kind);
         }
         if mission_type != MavMissionType::MAV_MISSION_TYPE_ALL {
             return MissionReply::send(vec![ack_typed(peer, MavMissionResult::MAV_MISSION_UNSUPPORTED, mission_type)]);
         }
-        self.mission = Mission::default();
-        self.fence = Fence::default();
-        self.rally = Rally::default();
-        self.current_seq = 0;
+        plan.clear_mission();
+        plan.set_fence(Fence::default());
+        plan.set_rally(Rally::default());
         MissionReply {
             messages: vec![ack_typed(peer, MavMissionResult::MAV_MISSION_ACCEPTED, mission_type)],
             event: Some(MissionEvent::ClearedAll),
         }
     }
 
-    fn clear(&mut self, peer: Peer, kind: PlanKind) -> MissionReply {
+    fn clear(plan: &mut Plan, peer: Peer, kind: PlanKind) -> MissionReply {
         let event = match kind {
             PlanKind::Mission => {
-                self.mission = Mission::default();
-                self.current_seq = 0;
+                plan.clear_mission();
                 MissionEvent::Cleared
             }
             PlanKind::Fence => {
-                self.fence = Fence::default();
+                plan.set_fence(Fence::default());
                 MissionEvent::FenceReplaced(Fence::default())
             }
             PlanKind::Rally => {
-                self.rally = Rally::default();
+                plan.set_rally(Rally::default());
                 MissionEvent::RallyReplaced(Rally::default())
             }
         };
         MissionReply { messages: vec![ack(peer, MavMissionResult::MAV_MISSION_ACCEPTED, kind)], event: Some(event) }
     }
 
-    fn on_set_current(&mut self, seq: u16) -> MissionReply {
-        if usize::from(seq) < self.mission.len() {
-            self.current_seq = seq;
+    fn on_set_current(plan: &mut Plan, seq: u16) -> MissionReply {
+        if usize::from(seq) < plan.mission().len() {
+            plan.set_current_seq(seq);
             return MissionReply { messages: Vec::new(), event: Some(MissionEvent::SetCurrent(seq)) };
         }
-        let text = format!("Mission: set current {seq}: not in 0..{}", self.mission.len());
+        let text = format!("Mission: set current {seq}: not in 0..{}", plan.mission().len());
         MissionReply::send(vec![warning(&text)])
     }
 
@@ -627,6 +588,43 @@ mod tests {
     };
 
     use super::*;
+
+    /// The service with the plan store it transfers into (the vehicle holds both), for the tests.
+    #[derive(Debug, Default)]
+    struct Svc {
+        service: MissionService,
+        plan: Plan,
+    }
+
+    impl Svc {
+        fn new(config: MissionServiceConfig) -> Self {
+            Self { service: MissionService::new(config), plan: Plan::default() }
+        }
+
+        fn on_message(&mut self, now_us: u64, sysid: u8, header: &MavHeader, msg: &MavMessage) -> MissionReply {
+            self.service.on_message(&mut self.plan, now_us, sysid, header, msg)
+        }
+
+        fn poll(&mut self, now_us: u64) -> MissionReply {
+            self.service.poll(now_us)
+        }
+
+        fn upload_in_progress(&self) -> bool {
+            self.service.upload_in_progress()
+        }
+
+        fn mission(&self) -> &Mission {
+            self.plan.mission()
+        }
+
+        fn current_seq(&self) -> u16 {
+            self.plan.current_seq()
+        }
+
+        fn set_mission(&mut self, mission: Mission) -> Result<(), MissionError> {
+            self.plan.set_mission(mission)
+        }
+    }
     use crate::core::mission::XY_UNSET;
 
     const SYSID: u8 = 1;
@@ -790,7 +788,7 @@ mod tests {
 
     /// A client that answers each request with the item asked for, INT or `legacy`, from `now_us` on at
     /// 1 ms per message; returns the last reply (the ACK) and the number of requests answered.
-    fn upload(svc: &mut MissionService, now_us: u64, items: &[MissionItem], legacy: bool) -> (MissionReply, usize) {
+    fn upload(svc: &mut Svc, now_us: u64, items: &[MissionItem], legacy: bool) -> (MissionReply, usize) {
         let n = u16::try_from(items.len()).expect("small");
         let mut t = now_us;
         let mut reply = svc.on_message(t, SYSID, &GCS, &count(n));
@@ -809,7 +807,7 @@ mod tests {
     }
 
     /// A client that downloads the mission (INT or legacy): the items and the seq flagged current.
-    fn download(svc: &mut MissionService, legacy: bool) -> (Vec<MissionItem>, Vec<u16>) {
+    fn download(svc: &mut Svc, legacy: bool) -> (Vec<MissionItem>, Vec<u16>) {
         let reply = svc.on_message(0, SYSID, &GCS, &request_list());
         assert_to(&reply, &GCS);
         let [MavMessage::MISSION_COUNT(c)] = reply.messages.as_slice() else { panic!("{reply:?}") };
@@ -856,15 +854,15 @@ mod tests {
         (items, current)
     }
 
-    fn with_mission(items: Vec<MissionItem>) -> MissionService {
-        let mut svc = MissionService::default();
+    fn with_mission(items: Vec<MissionItem>) -> Svc {
+        let mut svc = Svc::default();
         svc.set_mission(Mission::new(items).expect("valid")).expect("valid");
         svc
     }
 
     #[test]
     fn given_an_int_client_when_it_uploads_a_mission_then_accepted_replaced_and_downloaded_identically() {
-        let mut svc = MissionService::default();
+        let mut svc = Svc::default();
         let items = mission_items(9);
         let (reply, answered) = upload(&mut svc, 0, &items, false);
         assert_eq!(answered, 9);
@@ -879,7 +877,7 @@ mod tests {
 
     #[test]
     fn given_a_legacy_client_when_it_answers_with_mission_item_then_requests_turn_legacy_and_the_round_trip_holds() {
-        let mut svc = MissionService::default();
+        let mut svc = Svc::default();
         let items = mission_items(9);
         let mut reply = svc.on_message(0, SYSID, &GCS, &count(9));
         assert_eq!(requests(&reply), vec![(0, Flavour::Int)], "INT by default");
@@ -998,7 +996,7 @@ mod tests {
 
     #[test]
     fn given_an_upload_when_items_are_duplicated_or_ahead_then_ignored_and_the_expected_seq_re_requested() {
-        let mut svc = MissionService::default();
+        let mut svc = Svc::default();
         let items = waypoints(4, 10.0);
         svc.on_message(0, SYSID, &GCS, &count(4));
         assert_eq!(requests(&svc.on_message(100 * MS, SYSID, &GCS, &item_int(&items[0]))), vec![(1, Flavour::Int)]);
@@ -1096,7 +1094,7 @@ mod tests {
         assert_eq!(acks(&reply), vec![]);
         assert_eq!(texts(&reply), vec!["Mission: set current 3: not in 0..3".to_owned()]);
         assert_eq!(svc.current_seq(), 2);
-        let empty = MissionService::default().on_message(0, SYSID, &GCS, &set_current(0));
+        let empty = Svc::default().on_message(0, SYSID, &GCS, &set_current(0));
         assert_eq!((empty.event.clone(), texts(&empty).len()), (None, 1));
     }
 
@@ -1104,7 +1102,7 @@ mod tests {
     fn given_no_mission_type_on_the_wire_when_a_client_lists_or_uploads_an_empty_set_then_count_0_and_accepted() {
         // The fence (1) and rally (2) transfers of clients are read as type 0: with nothing stored, a list
         // gets COUNT 0 and an empty upload is accepted, which is what those transfers expect.
-        let mut svc = MissionService::default();
+        let mut svc = Svc::default();
         let reply = svc.on_message(0, SYSID, &GCS, &request_list());
         assert!(matches!(reply.messages.as_slice(), [MavMessage::MISSION_COUNT(c)] if c.count == 0));
         assert_eq!(acks(&svc.on_message(0, SYSID, &GCS, &count(0))), vec![MavMissionResult::MAV_MISSION_ACCEPTED]);
@@ -1182,7 +1180,7 @@ mod tests {
 
     #[test]
     fn given_a_40_item_mission_when_uploaded_then_40_requests_and_an_identical_download() {
-        let mut svc = MissionService::default();
+        let mut svc = Svc::default();
         let items = mission_items(40);
         let (reply, answered) = upload(&mut svc, 0, &items, false);
         assert_eq!(answered, 40);
@@ -1193,7 +1191,7 @@ mod tests {
 
     #[test]
     fn given_no_upload_when_an_item_arrives_then_mission_error_and_a_statustext_as_px4() {
-        let mut svc = MissionService::default();
+        let mut svc = Svc::default();
         let reply = svc.on_message(0, SYSID, &GCS, &item_int(&wp(0, 1, 1, 1.0)));
         assert_to(&reply, &GCS);
         assert_eq!(acks(&reply), vec![MavMissionResult::MAV_MISSION_ERROR]);
@@ -1202,7 +1200,7 @@ mod tests {
 
     #[test]
     fn given_a_count_above_max_items_when_received_then_no_space_and_no_upload() {
-        let mut svc = MissionService::new(MissionServiceConfig { max_items: 10, ..MissionServiceConfig::default() });
+        let mut svc = Svc::new(MissionServiceConfig { max_items: 10, ..MissionServiceConfig::default() });
         let reply = svc.on_message(0, SYSID, &GCS, &count(11));
         assert_eq!(acks(&reply), vec![MavMissionResult::MAV_MISSION_NO_SPACE]);
         assert_eq!(texts(&reply), vec!["Mission: 11 items, at most 10".to_owned()]);
@@ -1211,7 +1209,7 @@ mod tests {
 
     #[test]
     fn given_a_client_that_refuses_a_flavour_when_it_acks_unsupported_then_the_other_flavour_is_requested() {
-        let mut svc = MissionService::default();
+        let mut svc = Svc::default();
         let items = waypoints(2, 10.0);
         svc.on_message(0, SYSID, &GCS, &count(2));
         svc.on_message(MS, SYSID, &GCS, &item_legacy(&items[0]));
@@ -1224,8 +1222,7 @@ mod tests {
 
     #[test]
     fn given_a_legacy_only_client_when_it_ignores_request_int_then_the_retry_asks_with_mission_request() {
-        let mut svc =
-            MissionService::new(MissionServiceConfig { item_timeout_us: 100 * MS, ..MissionServiceConfig::default() });
+        let mut svc = Svc::new(MissionServiceConfig { item_timeout_us: 100 * MS, ..MissionServiceConfig::default() });
         svc.on_message(0, SYSID, &GCS, &count(1));
         assert_eq!(requests(&svc.poll(100 * MS)), vec![(0, Flavour::Legacy)]);
         assert_eq!(requests(&svc.poll(200 * MS)), vec![(0, Flavour::Int)], "alternating until an item arrives");
@@ -1235,7 +1232,7 @@ mod tests {
 
     #[test]
     fn given_an_upload_from_one_gcs_when_another_sends_an_item_then_it_gets_an_error_and_the_upload_goes_on() {
-        let mut svc = MissionService::default();
+        let mut svc = Svc::default();
         let items = waypoints(2, 10.0);
         svc.on_message(0, SYSID, &GCS, &count(2));
         let intruder = svc.on_message(MS, SYSID, &OTHER_GCS, &item_int(&items[0]));
@@ -1256,7 +1253,7 @@ mod tests {
     }
 
     /// A client's fence or rally transfer as QGroundControl runs it: every message carries the type.
-    fn typed_upload(svc: &mut MissionService, kind: PlanKind, items: &[MissionItem]) -> MissionReply {
+    fn typed_upload(svc: &mut Svc, kind: PlanKind, items: &[MissionItem]) -> MissionReply {
         let t = kind.wire();
         let n = u16::try_from(items.len()).expect("small");
         let mut reply = svc.on_message(
@@ -1285,7 +1282,7 @@ mod tests {
         }
     }
 
-    fn typed_download(svc: &mut MissionService, kind: PlanKind) -> Vec<MissionItem> {
+    fn typed_download(svc: &mut Svc, kind: PlanKind) -> Vec<MissionItem> {
         let t = kind.wire();
         let list = MavMessage::MISSION_REQUEST_LIST(MISSION_REQUEST_LIST_DATA {
             target_system: SYSID,

@@ -17,6 +17,7 @@ use super::params::{ParamChange, ParamService};
 use super::statustext;
 use crate::core::navigator::OffboardSetpoint;
 use crate::core::params::ParamStore;
+use crate::core::plan::Plan;
 
 /// The microservices a ground station's message can belong to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -179,11 +180,11 @@ impl Microservice for ParamService {
 }
 
 impl Microservice for MissionService {
-    type State = ();
+    type State = Plan;
     type Effect = MissionEvent;
 
-    fn handle(&mut self, ctx: &MessageContext<'_>, msg: &MavMessage, (): &mut ()) -> ServiceReply<MissionEvent> {
-        let reply = MissionService::on_message(self, ctx.now_us, ctx.sysid, ctx.header, msg);
+    fn handle(&mut self, ctx: &MessageContext<'_>, msg: &MavMessage, plan: &mut Plan) -> ServiceReply<MissionEvent> {
+        let reply = MissionService::on_message(self, plan, ctx.now_us, ctx.sysid, ctx.header, msg);
         ServiceReply::of(reply.messages, reply.event)
     }
 }

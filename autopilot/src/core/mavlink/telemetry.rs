@@ -160,9 +160,7 @@ impl Stream {
             Self::HomePosition => snap.home.and_then(home_position),
             Self::VfrHud => Some(vfr_hud(snap)),
             Self::BatteryStatus => Some(battery_status(&snap.commander.battery)),
-            Self::MissionCurrent => snap
-                .mission_seq
-                .map(|seq| MavMessage::MISSION_CURRENT(MISSION_CURRENT_DATA { seq, ..Default::default() })),
+            Self::MissionCurrent => snap.mission_seq.map(mission_current),
             Self::AdaptiveWeights => snap.controller.and_then(|c| adaptive_weights(snap.now_us, c).into_iter().next()),
         }
     }
@@ -191,6 +189,13 @@ pub const WEIGHT_VECTORS: [(&str, [&str; 3]); 15] = [
     ("pid.vel_i", ["pid.vel_int_n_mps2", "pid.vel_int_e_mps2", "pid.vel_int_d_mps2"]),
     ("pid.rate_i", ["pid.rate_int_x_nm", "pid.rate_int_y_nm", "pid.rate_int_z_nm"]),
 ];
+
+/// MISSION_CURRENT for the item `seq` the mission flies towards: the one builder (the stream, a
+/// MISSION_SET_CURRENT's answer and the navigator's moves all send this).
+#[must_use]
+pub fn mission_current(seq: u16) -> MavMessage {
+    MavMessage::MISSION_CURRENT(MISSION_CURRENT_DATA { seq, ..Default::default() })
+}
 
 /// One DEBUG_VECT per [`WEIGHT_VECTORS`] entry whose three values `controller` reports: 5 for ACO,
 /// 8 for the common adaptive controller, 2 for PID (three values to a message rather than one

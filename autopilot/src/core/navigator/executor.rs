@@ -22,6 +22,7 @@
 //! saturate: a time of 1e30 s waits for as long as the vehicle flies.
 
 use std::collections::BTreeMap;
+use std::sync::Arc;
 
 use nalgebra::Vector3;
 
@@ -78,7 +79,7 @@ enum After {
 /// The mission executor. See the module docs.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Executor {
-    items: Vec<NavItem>,
+    items: Arc<[NavItem]>,
     current: usize,
     phase: Phase,
     /// Remaining repeats of each DO_JUMP (by seq), set on first use.
@@ -89,7 +90,7 @@ pub(crate) struct Executor {
 }
 
 impl Executor {
-    pub fn set_items(&mut self, items: Vec<NavItem>) {
+    pub fn set_items(&mut self, items: Arc<[NavItem]>) {
         self.items = items;
         self.set_current(0);
     }

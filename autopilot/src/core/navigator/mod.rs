@@ -26,6 +26,8 @@
 //!   detector ends it.
 //! - **Missions** (`executor.rs`), **return to launch** (`rtl.rs`), **offboard** (`offboard.rs`).
 
+use std::sync::Arc;
+
 use nalgebra::{Vector2, Vector3};
 
 use crate::core::control::Reference;
@@ -203,7 +205,7 @@ impl Navigator {
     }
 
     /// A new mission (replacing the old one), to start at its first item.
-    pub fn set_mission(&mut self, items: Vec<NavItem>) {
+    pub fn set_mission(&mut self, items: Arc<[NavItem]>) {
         self.mission.set_items(items);
         self.planner.mission_done = false;
         self.report();

@@ -26,7 +26,7 @@ struct Ideal {
 impl Ideal {
     fn new(items: Vec<NavItem>) -> Self {
         let mut nav = Navigator::new(NavigatorConfig::default());
-        nav.set_mission(items);
+        nav.set_mission(items.into());
         Self {
             nav,
             pos: Vector3::zeros(),

@@ -1,8 +1,11 @@
-//! The plans the vehicle flies and where their points are: the resolver of every commanded target
-//! ([`resolve`]) and the guard that checks targets against home and the geofence ([`SetpointGuard`]).
+//! The plans the vehicle flies and where their points are: the store of the mission, fence and rally
+//! points ([`Plan`]), the resolver of every commanded target ([`resolve`]) and the guard that checks
+//! targets against home and the geofence ([`SetpointGuard`]).
 
 mod guard;
 mod resolve;
+mod store;
 
 pub use guard::{MAX_SETPOINT_FROM_HOME_M, SetpointGuard};
 pub use resolve::{Frame, Unresolved, resolve};
+pub use store::Plan;

@@ -4,7 +4,7 @@
 //! guard). The vehicle's step is in `mod.rs`.
 
 use ::mavlink::MavHeader;
-use ::mavlink::dialects::common::{MISSION_CURRENT_DATA, MavMessage, MavSeverity};
+use ::mavlink::dialects::common::{MavMessage, MavSeverity};
 use nalgebra::Vector3;
 
 use super::{ShellEffect, Vehicle, weights_interval_us};
@@ -19,11 +19,10 @@ use crate::core::mavlink::router::{
     self, Commands, GcsHeartbeats, Housekeeping, MessageContext, Microservice, Service,
 };
 use crate::core::mavlink::{
-    CommandContext, CommandEffect, CommandPoint, Stream, VehicleCommand, command_replies, housekeeping, statustext,
-    statustext_chunks,
+    CommandContext, CommandEffect, CommandPoint, Stream, VehicleCommand, command_replies, housekeeping,
+    mission_current, statustext, statustext_chunks,
 };
 use crate::core::mission::{Mission, MissionError, NavTarget, items_to_wpl};
-use crate::core::navigator::nav_items;
 use crate::core::params::ParamStore;
 use crate::core::plan::{self, Unresolved};
 
@@ -80,7 +79,7 @@ impl Vehicle {
                 }
             }
             Service::Mission => {
-                let reply = self.missions.handle(&ctx, msg, &mut ());
+                let reply = self.missions.handle(&ctx, msg, &mut self.plan);
                 let mut messages = reply.messages;
                 if let Some(event) = reply.effect {
                     messages.extend(self.on_mission_event(event));
@@ -262,8 +261,7 @@ impl Vehicle {
     fn on_mission_event(&mut self, event: MissionEvent) -> Vec<MavMessage> {
         match event {
             MissionEvent::Replaced(mission) => {
-                self.navigator.set_mission(nav_items(&mission));
-                self.missions.set_current_seq(0);
+                self.navigator.set_mission(self.plan.items());
                 self.effects.push(ShellEffect::SaveMission(mission.to_wpl()));
                 // Accepted (it is a valid mission), but said now: it will not start while it leaves the fence.
                 self.check_mission()
@@ -273,9 +271,8 @@ impl Vehicle {
                     .collect()
             }
             MissionEvent::Cleared => {
-                self.navigator.set_mission(Vec::new());
-                self.missions.set_current_seq(0);
-                self.effects.push(ShellEffect::SaveMission(self.missions.mission().to_wpl()));
+                self.navigator.set_mission(self.plan.items());
+                self.effects.push(ShellEffect::SaveMission(self.plan.mission().to_wpl()));
                 Vec::new()
             }
             MissionEvent::FenceReplaced(fence) => {
@@ -291,17 +288,15 @@ impl Vehicle {
                 Vec::new()
             }
             MissionEvent::ClearedAll => {
-                self.navigator.set_mission(Vec::new());
-                self.missions.set_current_seq(0);
-                self.effects.push(ShellEffect::SaveMission(self.missions.mission().to_wpl()));
+                self.navigator.set_mission(self.plan.items());
+                self.effects.push(ShellEffect::SaveMission(self.plan.mission().to_wpl()));
                 self.effects.push(ShellEffect::SaveFence(items_to_wpl(&[])));
                 self.effects.push(ShellEffect::SaveRally(items_to_wpl(&[])));
                 Vec::new()
             }
             MissionEvent::SetCurrent(seq) => {
                 self.navigator.set_current(seq);
-                self.missions.set_current_seq(seq);
-                vec![MavMessage::MISSION_CURRENT(MISSION_CURRENT_DATA { seq, ..Default::default() })]
+                vec![mission_current(seq)]
             }
         }
     }
@@ -311,26 +306,25 @@ impl Vehicle {
     /// # Errors
     /// The mission's first invalid item; the vehicle then has no mission.
     pub fn load_mission(&mut self, mission: Mission) -> Result<(), MissionError> {
-        let items = nav_items(&mission);
-        self.missions.set_mission(mission)?;
-        self.navigator.set_mission(items);
+        self.plan.set_mission(mission)?;
+        self.navigator.set_mission(self.plan.items());
         Ok(())
     }
 
     /// A geofence loaded at start (persisted by an earlier run).
     pub fn load_fence(&mut self, fence: Fence) {
-        self.missions.set_fence(fence);
+        self.plan.set_fence(fence);
     }
 
     /// Rally points loaded at start (persisted by an earlier run).
     pub fn load_rally(&mut self, rally: Rally) {
-        self.missions.set_rally(rally);
+        self.plan.set_rally(rally);
     }
 
     /// The geofence and the rally points as uploaded.
     #[must_use]
     pub fn fence_and_rally(&self) -> (&Fence, &Rally) {
-        (self.missions.fence(), self.missions.rally())
+        (self.plan.fence(), self.plan.rally())
     }
 
     /// Why the vehicle will not fly to `pos_ned_m` (NED m): see [`SetpointGuard::check`].
@@ -354,13 +348,13 @@ impl Vehicle {
         if self.estimator.state().origin.is_none() {
             return Ok(());
         }
-        self.guard().check_mission(&nav_items(self.missions.mission()), &self.frame())
+        self.guard().check_mission(&self.plan.items(), &self.frame())
     }
 
     /// The mission as uploaded.
     #[must_use]
     pub fn mission(&self) -> &Mission {
-        self.missions.mission()
+        self.plan.mission()
     }
 
     /// What the vehicle asks of the shell (restart, save parameters or the mission), since the last call.

@@ -15,7 +15,7 @@
 //! ground. PWM is 1000 whenever disarmed, killed or idle, and when the estimate is invalid while armed on
 //! the ground; it is clamped to [1000, 2000] and never NaN.
 
-use ::mavlink::dialects::common::{MISSION_CURRENT_DATA, MISSION_ITEM_REACHED_DATA, MavMessage, MavSeverity};
+use ::mavlink::dialects::common::{MISSION_ITEM_REACHED_DATA, MavMessage, MavSeverity};
 use nalgebra::Vector3;
 
 use crate::core::commander::{Commander, CommanderInputs, CommanderOutput, Estimate, Facts};
@@ -26,12 +26,12 @@ use crate::core::mavlink::mission::MissionService;
 use crate::core::mavlink::params::ParamService;
 use crate::core::mavlink::router::OffboardReceiver;
 use crate::core::mavlink::{
-    Home, LinkErrors, MavlinkService, Stream, TelemetrySnapshot, plant_lost_heartbeat, statustext,
+    Home, LinkErrors, MavlinkService, Stream, TelemetrySnapshot, mission_current, plant_lost_heartbeat, statustext,
     sys_status_plant_lost,
 };
 use crate::core::navigator::{NavEvent, NavInput, Navigator};
 use crate::core::params::ParamStore;
-use crate::core::plan::{Frame, SetpointGuard};
+use crate::core::plan::{Frame, Plan, SetpointGuard};
 
 mod control_stage;
 mod gcs;
@@ -67,6 +67,8 @@ pub struct Vehicle {
     /// The id of the last chunked STATUSTEXT.
     text_id: u16,
     offboard: OffboardReceiver,
+    /// The mission, fence and rally points (the one store), and the service that transfers them.
+    plan: Plan,
     missions: MissionService,
     params: ParamStore,
     param_service: ParamService,
@@ -128,6 +130,7 @@ impl Vehicle {
             link_errors: LinkErrors::default(),
             text_id: 0,
             offboard: OffboardReceiver::default(),
+            plan: Plan::default(),
             missions: MissionService::default(),
             params,
             param_service: ParamService::new(),
@@ -232,7 +235,7 @@ impl Vehicle {
     /// The checks of targets against home and the geofence, as of now.
     fn guard(&self) -> SetpointGuard<'_> {
         SetpointGuard {
-            fence: self.missions.fence(),
+            fence: self.plan.fence(),
             config: &self.config.commander.geofence,
             origin: self.estimator.state().origin.as_ref(),
             home_ned_m: self.commander.home_ned_m(),
@@ -340,7 +343,7 @@ impl Vehicle {
             takeoff_alt_m: self.config.commander.takeoff_alt_m,
             takeoff_acceptance_m: self.config.commander.takeoff_acceptance_m,
         };
-        self.reference = self.navigator.update(out.intent, &nav_input, self.missions.rally());
+        self.reference = self.navigator.update(out.intent, &nav_input, self.plan.rally());
         let pwm_us = self.control.step(tick, &state, &out, self.reference, &self.config);
         self.output = out;
         let events = std::mem::take(&mut self.output.events);
@@ -351,8 +354,8 @@ impl Vehicle {
         for event in self.navigator.take_events() {
             messages.push(match event {
                 NavEvent::Current(seq) => {
-                    self.missions.set_current_seq(seq);
-                    MavMessage::MISSION_CURRENT(MISSION_CURRENT_DATA { seq, ..Default::default() })
+                    self.plan.set_current_seq(seq);
+                    mission_current(seq)
                 }
                 NavEvent::Reached(seq) => MavMessage::MISSION_ITEM_REACHED(MISSION_ITEM_REACHED_DATA { seq }),
                 NavEvent::Text(text) => statustext(MavSeverity::MAV_SEVERITY_INFO, &text),
