@@ -27,6 +27,7 @@ use std::sync::Arc;
 use nalgebra::Vector3;
 
 use super::leg::{Leg, LegPath, MIN_LEG_M, Motion3};
+use super::planner::Flight;
 use super::spline::SplinePath;
 use super::{Climb, NavCommand, NavEvent, NavInput, NavItem, NavTarget, Planner, rtl, still};
 use crate::core::plan;
@@ -48,19 +49,19 @@ enum Phase {
     Start,
     /// Climbing (NAV_TAKEOFF, or the implicit climb of a mission started on the ground); then `item`
     /// is reached (None: the item at `current` starts).
-    Climb { leg: Box<Leg>, climb: Climb, item: Option<u16> },
+    Climb { flight: Box<Flight>, item: Option<u16> },
     /// Flying a leg; on arrival at its end the item `end_item` starts holding `hold_s` (then the next item).
     Fly { leg: Box<Leg>, end_item: u16, hold_s: f64, accept_m: f64, then: After },
     /// Holding a point until `until_us` (None: forever).
     Wait { at: Vector3<f64>, until_us: Option<u64>, item: u16 },
     /// Descending to land (NAV_LAND).
-    Descend { leg: Box<Leg>, item: Option<u16> },
+    Descend { flight: Box<Flight>, item: Option<u16> },
     /// Returning to launch (NAV_RETURN_TO_LAUNCH): reached once landed at home.
     Return { rtl: Option<Box<rtl::Rtl>>, item: u16 },
     /// The mission flew its last item.
     Done,
     /// The mission ended on the ground: it stays landing (the commander disarms after touchdown).
-    Landed { leg: Box<Leg> },
+    Landed { flight: Box<Flight> },
 }
 
 /// What happens when a [`Phase::Fly`] leg arrives.
@@ -208,8 +209,7 @@ impl Executor {
                 };
                 let alt = if alt_rel_m.is_finite() && alt_rel_m > 0.0 { alt_rel_m } else { input.takeoff_alt_m };
                 let to = Vector3::new(here.x, here.y, ground - alt);
-                let (leg, climb) = p.takeoff(input, to);
-                self.phase = Phase::Climb { leg: Box::new(leg), climb, item: Some(item.seq) };
+                self.phase = Phase::Climb { flight: Box::new(Flight::takeoff(p, input, to)), item: Some(item.seq) };
             }
             NavCommand::ChangeSpeed { speed_mps } => {
                 p.speed_mps = speed_mps.filter(|s| s.is_finite() && *s > 0.0);
@@ -246,8 +246,7 @@ impl Executor {
                     return false;
                 };
                 if let Some(climb_to) = climb_first(to) {
-                    let (leg, climb) = p.takeoff(input, climb_to);
-                    self.phase = Phase::Climb { leg: Box::new(leg), climb, item: None };
+                    self.phase = Phase::Climb { flight: Box::new(Flight::takeoff(p, input, climb_to)), item: None };
                     return true;
                 }
                 let Some(phase) = self.plan_flight(p, input, here) else {
@@ -406,16 +405,11 @@ impl Executor {
         let now = input.now_us;
         match &mut self.phase {
             Phase::Start | Phase::Done => self.hold_here(p, input),
-            Phase::Landed { leg } => {
-                p.landing = true;
-                p.fly(leg, input)
-            }
-            Phase::Climb { leg, climb, item } => {
+            Phase::Landed { flight } => flight.fly(p, input),
+            Phase::Climb { flight, item } => {
                 let item = *item;
-                p.liftoff(input, leg, climb);
-                let m = p.fly(leg, input);
-                let to = leg.end();
-                if leg.at_end() && (input.pos_ned_m.z - to.z).abs() <= input.takeoff_acceptance_m && !input.landed {
+                let m = flight.fly(p, input);
+                if flight.reached_altitude(input) {
                     match item {
                         Some(seq) => {
                             p.events.push(NavEvent::Reached(seq));
@@ -461,8 +455,8 @@ impl Executor {
                             self.phase = Phase::Wait { at: end, until_us: until, item: end_item };
                         }
                         After::Land => {
-                            let leg = p.land(input, end.xy());
-                            self.phase = Phase::Descend { leg: Box::new(leg), item: Some(end_item) };
+                            let flight = Box::new(Flight::land(p, input, end.xy()));
+                            self.phase = Phase::Descend { flight, item: Some(end_item) };
                         }
                         After::Restart => self.phase = Phase::Start,
                     }
@@ -479,10 +473,9 @@ impl Executor {
                 p.last = Some(m);
                 m
             }
-            Phase::Descend { leg, item } => {
+            Phase::Descend { flight, item } => {
                 let item = *item;
-                p.landing = true;
-                let m = p.fly(leg, input);
+                let m = flight.fly(p, input);
                 if input.landed {
                     self.landed_at_end(p, item);
                 }
@@ -507,22 +500,23 @@ impl Executor {
         if let Some(seq) = item {
             p.events.push(NavEvent::Reached(seq));
         }
-        let leg = match std::mem::take(&mut self.phase) {
-            Phase::Descend { leg, .. } => Some(leg),
-            Phase::Return { rtl: Some(r), .. } => r.into_leg().map(Box::new),
+        let flight = match std::mem::take(&mut self.phase) {
+            Phase::Descend { flight, .. } => Some(flight),
+            Phase::Return { rtl: Some(r), .. } => r.into_flight().map(Box::new),
             _ => None,
         };
-        let leg = leg.unwrap_or_else(|| {
+        let flight = flight.unwrap_or_else(|| {
             let here = p.last.map_or(Vector3::zeros(), |m| m.pos_ned_m);
-            Box::new(Leg::plan(
+            let rest = Leg::plan(
                 &Motion3::rest(here),
                 0,
                 Vec::new(),
                 |_| rest_limits(p),
                 |from| LegPath::Line { from, to: from },
-            ))
+            );
+            Box::new(Flight::of(rest, Climb::Land))
         });
-        self.phase = Phase::Landed { leg };
+        self.phase = Phase::Landed { flight };
         p.events.push(NavEvent::Text("Mission finished: landed".into()));
     }
 }

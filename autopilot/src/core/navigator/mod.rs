@@ -50,9 +50,9 @@ mod tests;
 
 pub use config::{ConfigError, NavigatorConfig};
 use executor::Executor;
-use leg::{Leg, MIN_LEG_M, Motion3};
+use leg::{MIN_LEG_M, Motion3};
 pub use offboard::OffboardSetpoint;
-pub(crate) use planner::{Climb, Planner};
+pub(crate) use planner::{Climb, Flight, Planner};
 
 pub use crate::core::plan::MAX_SETPOINT_FROM_HOME_M;
 
@@ -120,9 +120,8 @@ enum Aim {
 #[derive(Debug, Clone)]
 struct Direct {
     aim: Aim,
-    climb: Climb,
     yaw_rad: f64,
-    leg: Leg,
+    flight: Flight,
 }
 
 /// The navigator. See the module docs.
@@ -308,8 +307,11 @@ impl Navigator {
                 match point {
                     Some(p) => {
                         // Holding the point a takeoff climbs to continues the takeoff's leg.
-                        let climb =
-                            self.direct.as_ref().filter(|d| d.aim == Aim::Point(p)).map_or(Climb::Move, |d| d.climb);
+                        let climb = self
+                            .direct
+                            .as_ref()
+                            .filter(|d| d.aim == Aim::Point(p))
+                            .map_or(Climb::Move, |d| d.flight.climb);
                         Some(self.direct(input, Aim::Point(p), climb, yaw_rad))
                     }
                     None => Some(self.direct(input, Aim::Here, Climb::Move, yaw_rad)),
@@ -374,16 +376,15 @@ impl Navigator {
         }
         let planner = &mut self.planner;
         let d = self.direct.get_or_insert_with(|| {
-            let (leg, climb) = match aim {
-                Aim::Point(p) if climb == Climb::Land => (planner.land(input, p.xy()), climb),
-                Aim::Point(p) if climb == Climb::Takeoff => planner.takeoff(input, p),
-                Aim::Point(p) => (planner.line(input, p, climb, None), climb),
-                Aim::Here => (planner.stop(input), climb),
+            let flight = match aim {
+                Aim::Point(p) if climb == Climb::Land => Flight::land(planner, input, p.xy()),
+                Aim::Point(p) if climb == Climb::Takeoff => Flight::takeoff(planner, input, p),
+                Aim::Point(p) => Flight::of(planner.line(input, p, climb, None), climb),
+                Aim::Here => Flight::of(planner.stop(input), climb),
             };
-            Direct { aim, climb, yaw_rad, leg }
+            Direct { aim, yaw_rad, flight }
         });
-        planner.liftoff(input, &mut d.leg, &mut d.climb);
-        let m = planner.fly(&mut d.leg, input);
+        let m = d.flight.fly(planner, input);
         track(&m, yaw_rad)
     }
 

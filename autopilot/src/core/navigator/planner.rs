@@ -196,3 +196,47 @@ impl Planner {
         m
     }
 }
+
+/// A leg under way with the limits it flies by: the one implementation of takeoffs and landings, shared
+/// by Takeoff and Land, a mission's NAV_TAKEOFF, its climb from the ground and its NAV_LAND, and the end of
+/// a return. A takeoff creeps up at the liftoff speed until the vehicle leaves the ground, then climbs at
+/// the takeoff speed ([`Planner::takeoff`], [`Planner::liftoff`]); a landing descends at the land speed
+/// through the ground ([`Planner::land`]) and reports itself landing while it flies.
+#[derive(Debug, Clone)]
+pub(crate) struct Flight {
+    pub leg: Leg,
+    pub climb: Climb,
+}
+
+impl Flight {
+    /// A takeoff to `to` (NED m).
+    pub fn takeoff(p: &Planner, input: &NavInput, to: Vector3<f64>) -> Self {
+        let (leg, climb) = p.takeoff(input, to);
+        Self { leg, climb }
+    }
+
+    /// A landing at `ne` (NED m).
+    pub fn land(p: &Planner, input: &NavInput, ne: Vector2<f64>) -> Self {
+        Self { leg: p.land(input, ne), climb: Climb::Land }
+    }
+
+    /// Any other leg, flown with `climb`'s limits.
+    pub fn of(leg: Leg, climb: Climb) -> Self {
+        Self { leg, climb }
+    }
+
+    /// This step's motion: a takeoff speeds up once lifted off; a landing says it is landing.
+    pub fn fly(&mut self, p: &mut Planner, input: &NavInput) -> Motion3 {
+        p.liftoff(input, &mut self.leg, &mut self.climb);
+        if self.climb == Climb::Land {
+            p.landing = true;
+        }
+        p.fly(&mut self.leg, input)
+    }
+
+    /// A takeoff (or climb) is complete: the leg has arrived, the vehicle is within the takeoff acceptance
+    /// of its altitude, and it is off the ground.
+    pub fn reached_altitude(&self, input: &NavInput) -> bool {
+        self.leg.at_end() && (input.pos_ned_m.z - self.leg.end().z).abs() <= input.takeoff_acceptance_m && !input.landed
+    }
+}

@@ -6,6 +6,7 @@
 use nalgebra::Vector3;
 
 use super::leg::{Leg, Motion3};
+use super::planner::Flight;
 use super::{Climb, NavInput, Planner};
 
 /// Return-to-launch progress.
@@ -14,14 +15,14 @@ pub(crate) enum Rtl {
     /// A vertical leg up to the return altitude.
     Climb(Leg),
     Return(Leg),
-    Descend(Leg),
+    Descend(Flight),
 }
 
 impl Rtl {
-    /// The leg of the descent, once descending.
-    pub fn into_leg(self) -> Option<Leg> {
+    /// The landing, once descending.
+    pub fn into_flight(self) -> Option<Flight> {
         match self {
-            Self::Descend(leg) => Some(leg),
+            Self::Descend(flight) => Some(flight),
             _ => None,
         }
     }
@@ -36,7 +37,7 @@ fn return_leg(p: &Planner, input: &NavInput, from: Vector3<f64>) -> Rtl {
     let h = home(p, input);
     let to = Vector3::new(h.x, h.y, from.z);
     if (to - from).xy().norm() < p.config.acceptance_radius_m {
-        return Rtl::Descend(p.land(input, to.xy()));
+        return Rtl::Descend(Flight::land(p, input, to.xy()));
     }
     Rtl::Return(p.line(input, to, Climb::Move, None))
 }
@@ -65,15 +66,14 @@ pub(crate) fn step(rtl: &mut Option<Rtl>, p: &mut Planner, input: &NavInput) -> 
         Rtl::Return(mut leg) => {
             let m = p.fly(&mut leg, input);
             if leg.at_end() && (input.pos_ned_m - leg.end()).xy().norm() <= p.config.acceptance_radius_m {
-                (Rtl::Descend(p.land(input, leg.end().xy())), m)
+                (Rtl::Descend(Flight::land(p, input, leg.end().xy())), m)
             } else {
                 (Rtl::Return(leg), m)
             }
         }
-        Rtl::Descend(mut leg) => {
-            p.landing = true;
-            let m = p.fly(&mut leg, input);
-            (Rtl::Descend(leg), m)
+        Rtl::Descend(mut flight) => {
+            let m = flight.fly(p, input);
+            (Rtl::Descend(flight), m)
         }
     };
     *rtl = Some(next);
