@@ -23,8 +23,23 @@ use crate::core::mavlink::{
     mission_current, statustext, statustext_chunks,
 };
 use crate::core::mission::{Mission, MissionError, NavTarget, items_to_wpl};
+use crate::core::navigator::OffboardSetpoint;
 use crate::core::params::ParamStore;
 use crate::core::plan::{self, Unresolved};
+
+/// What a ground station's message asks of the vehicle, once its service has decoded it.
+enum Effect {
+    Offboard(OffboardSetpoint),
+    /// A parameter set (the store as it was before, to undo a value that makes the vehicle unflyable).
+    Param {
+        change: ParamChange,
+        before: ParamStore,
+    },
+    Mission(MissionEvent),
+    /// A ground station's HEARTBEAT at this vehicle time (µs), the datalink failsafe's clock.
+    GcsHeartbeat(u64),
+    Command(InboundCommand),
+}
 
 impl Vehicle {
     /// A message from a ground station at `now_us`: commands are applied at once and answered (ACK, and
@@ -44,58 +59,69 @@ impl Vehicle {
             command: CommandContext { home_alt_amsl_m },
             offboard: OffboardContext { origin: est.origin, home_alt_amsl_m, yaw_rad: est.euler_rad.z },
         };
-        match service {
-            Service::Housekeeping => Housekeeping.handle(&ctx, msg, &mut ()).messages,
+        let (messages, effect) = match service {
+            Service::Housekeeping => (Housekeeping.handle(&ctx, msg, &mut ()).messages, None),
             Service::Offboard => {
-                let mut reply = self.offboard.handle(&ctx, msg, &mut ());
-                if let Some(sp) = reply.effect {
-                    match sp.pos_ned_m.map(|p| self.check_setpoint(&p)) {
-                        Some(Err(why)) => {
-                            reply.messages.extend(self.offboard.refuse(format!("Offboard: setpoint {why}")))
-                        }
-                        _ => {
-                            self.offboard.taken(now_us);
-                            self.navigator.set_offboard(sp);
-                        }
-                    }
-                }
-                reply.messages
+                let reply = self.offboard.handle(&ctx, msg, &mut ());
+                (reply.messages, reply.effect.map(Effect::Offboard))
             }
             Service::Params => {
                 let before = self.params.clone();
                 let reply = self.param_service.handle(&ctx, msg, &mut self.params);
-                let Some(change) = reply.effect else { return reply.messages };
-                match self.on_param_change(&change) {
-                    Ok(extra) => reply.messages.into_iter().chain(extra).collect(),
-                    Err(text) => {
-                        // In range, but the configuration it makes is not flyable: undo it, in words (in
-                        // chunks when it is longer than one STATUSTEXT).
-                        self.params = before;
-                        self.text_id = self.text_id.wrapping_add(1).max(1);
-                        let mut messages = statustext_chunks(MavSeverity::MAV_SEVERITY_WARNING, &text, self.text_id);
-                        messages.extend(param_value(&self.params, change.index));
-                        messages
-                    }
-                }
+                (reply.messages, reply.effect.map(|change| Effect::Param { change, before }))
             }
             Service::Mission => {
                 let reply = self.missions.handle(&ctx, msg, &mut self.plan);
-                let mut messages = reply.messages;
-                if let Some(event) = reply.effect {
-                    messages.extend(self.on_mission_event(event));
-                }
-                messages
+                (reply.messages, reply.effect.map(Effect::Mission))
             }
             Service::Heartbeat => {
-                if let Some(t) = GcsHeartbeats.handle(&ctx, msg, &mut ()).effect {
-                    self.gcs_heartbeat_us = Some(t);
-                }
-                Vec::new()
+                (Vec::new(), GcsHeartbeats.handle(&ctx, msg, &mut ()).effect.map(Effect::GcsHeartbeat))
             }
-            Service::Command => match Commands.handle(&ctx, msg, &mut ()).effect {
-                Some(cmd) => self.apply_command(now_us, &cmd),
-                None => Vec::new(),
+            Service::Command => (Vec::new(), Commands.handle(&ctx, msg, &mut ()).effect.map(Effect::Command)),
+        };
+        match effect {
+            Some(effect) => self.apply(now_us, messages, effect),
+            None => messages,
+        }
+    }
+
+    /// Applies what a service decoded, after its own `replies`; returns every message to send the peer.
+    fn apply(&mut self, now_us: u64, mut replies: Vec<MavMessage>, effect: Effect) -> Vec<MavMessage> {
+        match effect {
+            Effect::Offboard(sp) => {
+                match sp.pos_ned_m.map(|p| self.check_setpoint(&p)) {
+                    Some(Err(why)) => replies.extend(self.offboard.refuse(format!("Offboard: setpoint {why}"))),
+                    _ => {
+                        self.offboard.taken(now_us);
+                        self.navigator.set_offboard(sp);
+                    }
+                }
+                replies
+            }
+            Effect::Param { change, before } => match self.on_param_change(&change) {
+                Ok(extra) => replies.into_iter().chain(extra).collect(),
+                Err(text) => {
+                    // In range, but the configuration it makes is not flyable: undo it, in words (in chunks
+                    // when it is longer than one STATUSTEXT), and say the value it still has.
+                    self.params = before;
+                    self.text_id = self.text_id.wrapping_add(1).max(1);
+                    let mut messages = statustext_chunks(MavSeverity::MAV_SEVERITY_WARNING, &text, self.text_id);
+                    messages.extend(param_value(&self.params, change.index));
+                    messages
+                }
             },
+            Effect::Mission(event) => {
+                replies.extend(self.on_mission_event(event));
+                replies
+            }
+            Effect::GcsHeartbeat(t) => {
+                self.gcs_heartbeat_us = Some(t);
+                replies
+            }
+            Effect::Command(cmd) => {
+                replies.extend(self.apply_command(now_us, &cmd));
+                replies
+            }
         }
     }
 

@@ -1,5 +1,6 @@
-//! What goes into and out of the vehicle: one step's sensor inputs, its outputs (PWM, armed, telemetry),
-//! the snapshot the onboard log records, and what the vehicle asks of the shell around it.
+//! What goes into and out of the vehicle: one step's sensor inputs (and how they feed the estimator), its
+//! outputs (PWM, armed, telemetry), the snapshot the onboard log records, and what the vehicle asks of the
+//! shell around it.
 
 use ::mavlink::dialects::common::MavMessage;
 use nalgebra::Vector3;
@@ -7,7 +8,9 @@ use nalgebra::Vector3;
 use crate::core::battery::{BatterySample, BatteryStatus};
 use crate::core::commander::{FlightMode, LandedState};
 use crate::core::control::{ControllerKind, Reference};
-use crate::core::estimator::{BaroSample, EstimatorState, GpsSample, ImuSample, Innovations, MagSample, TruthSample};
+use crate::core::estimator::{
+    BaroSample, Estimator, EstimatorSource, EstimatorState, GpsSample, ImuSample, Innovations, MagSample, TruthSample,
+};
 
 /// One step's sensor inputs (any may be absent).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -21,8 +24,35 @@ pub struct VehicleInputs {
     pub battery: Option<BatterySample>,
 }
 
-#[cfg(test)]
 impl VehicleInputs {
+    /// Feeds what arrived into `estimator` at `now_us` (its clock advances without an IMU sample); whether
+    /// a control tick is due: an IMU sample, or a truth sample with the `Truth` source.
+    pub(crate) fn feed(&self, now_us: u64, estimator: &mut Estimator, source: EstimatorSource) -> bool {
+        let truth_source = source == EstimatorSource::Truth;
+        let mut tick = false;
+        if let Some(imu) = &self.imu {
+            estimator.update_imu(imu);
+            tick = !truth_source;
+        } else {
+            estimator.update_clock(now_us);
+        }
+        if let Some(mag) = &self.mag {
+            estimator.update_mag(mag);
+        }
+        if let Some(baro) = &self.baro {
+            estimator.update_baro(baro);
+        }
+        if let Some(gps) = &self.gps {
+            estimator.update_gps(gps);
+        }
+        if let Some(truth) = &self.truth {
+            estimator.update_truth(truth);
+            tick |= truth_source;
+        }
+        tick
+    }
+
+    #[cfg(test)]
     /// A truth-fed vehicle at rest, level, at the origin: the truth and the IMU reading gravity (tests).
     pub(crate) fn at_rest_truth(time_us: u64) -> Self {
         use nalgebra::UnitQuaternion;

@@ -21,7 +21,7 @@ use nalgebra::Vector3;
 use crate::core::commander::{Commander, CommanderInputs, CommanderOutput, Estimate, Facts};
 pub use crate::core::config::{AirborneStart, VehicleConfig, VehicleError};
 use crate::core::control::{Controller, Reference};
-use crate::core::estimator::{Estimator, EstimatorSource, EstimatorState, GpsSample};
+use crate::core::estimator::{Estimator, EstimatorState, GpsSample};
 use crate::core::mavlink::mission::MissionService;
 use crate::core::mavlink::params::ParamService;
 use crate::core::mavlink::router::OffboardReceiver;
@@ -277,38 +277,13 @@ impl Vehicle {
         vec![plant_lost_heartbeat(&self.output), sys_status_plant_lost(self.link_errors)]
     }
 
-    /// The sensors of one step into the estimator; whether a control tick is due (an IMU sample, or a
-    /// truth sample with the `Truth` source).
-    fn sense(&mut self, now_us: u64, inputs: &VehicleInputs) -> bool {
-        let truth_source = self.config.estimator.source == EstimatorSource::Truth;
-        let mut tick = false;
-        if let Some(imu) = &inputs.imu {
-            self.estimator.update_imu(imu);
-            tick = !truth_source;
-        } else {
-            self.estimator.update_clock(now_us);
-        }
-        if let Some(mag) = &inputs.mag {
-            self.estimator.update_mag(mag);
-        }
-        if let Some(baro) = &inputs.baro {
-            self.estimator.update_baro(baro);
-        }
-        if let Some(gps) = &inputs.gps {
-            self.estimator.update_gps(gps);
-            self.last_gps = Some(*gps);
-        }
-        if let Some(truth) = &inputs.truth {
-            self.estimator.update_truth(truth);
-            tick |= truth_source;
-        }
-        tick
-    }
-
     /// One step at `now_us`: estimator -> commander (mode and intent) -> navigator (the reference) ->
     /// control stage (PWM) -> telemetry. See the module docs.
     pub fn step(&mut self, now_us: u64, inputs: &VehicleInputs) -> VehicleOutputs {
-        let tick = self.sense(now_us, inputs);
+        let tick = inputs.feed(now_us, &mut self.estimator, self.config.estimator.source);
+        if inputs.gps.is_some() {
+            self.last_gps = inputs.gps;
+        }
         let state = *self.estimator.state();
         for progress in self.navigator.take_progress() {
             self.commander.on_progress(progress);

@@ -8,7 +8,7 @@ use super::*;
 use crate::core::battery::BatterySample;
 use crate::core::commander::State;
 use crate::core::estimator::GeoOrigin;
-use crate::core::estimator::ImuSample;
+use crate::core::estimator::{EstimatorSource, ImuSample};
 use crate::core::mavlink::command_long;
 use ::mavlink::MavHeader;
 
