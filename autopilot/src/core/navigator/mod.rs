@@ -14,8 +14,11 @@
 //! `MPC_Z_VEL_MAX_UP` / `MPC_ACC_UP_MAX` up and `MPC_Z_VEL_MAX_DN` / `MPC_ACC_DOWN_MAX` down,
 //! `MPC_TKO_SPEED` for takeoffs, `MPC_LAND_SPEED` for landings, `MPC_JERK_AUTO` for all (a slanted line
 //! gets the tightest of its horizontal and vertical limits). A new leg starts from the reference's motion,
-//! so the reference is continuous in position, velocity and acceleration across every mode change,
-//! unless the reference has run away from the vehicle (`Planner::start`).
+//! so across every mode change the reference is continuous in position, and in velocity to within the
+//! 0.02 m/s a leg may drop across its path (a faster start brakes first), unless the reference has run
+//! away from the vehicle (`Planner::start`). Its acceleration keeps only the part along the new path: the
+//! part across it (at most the acceleration limit) is dropped in one step, a known jump a random-intent
+//! property test measures (navigator tests).
 //!
 //! - **Takeoff** ([`Intent::Takeoff`]): a vertical leg from the ground to the altitude, here. The hold
 //!   that follows at the same point ([`HoldAt::TakeoffPoint`]) continues the same leg.

@@ -474,3 +474,79 @@ fn given_intents_then_the_navigator_latches_the_takeoff_point_here_keeps_it_for_
         assert_eq!(step_intent(&mut v, Intent::Land, 0.1).pos_ned_m.xy(), Vector2::new(2.0, 1.0));
     }
 }
+
+/// An intent the random sequences below may give (no Idle and no Land: those restart from or run into
+/// the ground, where the ideal vehicle stops following its reference).
+fn any_intent() -> impl proptest::strategy::Strategy<Value = Intent> {
+    use proptest::prelude::*;
+    prop_oneof![
+        (0.5f64..20.0).prop_map(|alt_m| Intent::Takeoff { alt_m }),
+        Just(Intent::Hold { at: HoldAt::Stop, yaw_rad: None }),
+        Just(Intent::Hold { at: HoldAt::TakeoffPoint, yaw_rad: None }),
+        (-30.0f64..30.0, -30.0f64..30.0, -20.0f64..-1.0, proptest::option::of(-3.0f64..3.0))
+            .prop_map(|(n, e, d, yaw_rad)| Intent::Hold { at: HoldAt::Point(Vector3::new(n, e, d)), yaw_rad }),
+    ]
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(96))]
+
+    /// Whatever the commander asks, in whatever order and for however long, the navigator's reference is
+    /// finite; jerk-limited while an intent holds; and across every change of intent continuous in
+    /// position, in velocity to within the 0.02 m/s a new leg may drop across its path, and in
+    /// acceleration to within the acceleration limits (a new leg keeps only the acceleration along its
+    /// path: this test found that the across part, up to MPC_ACC_UP_MAX, is dropped in one step).
+    #[test]
+    fn given_any_sequence_of_intents_then_the_reference_is_finite_jerk_limited_within_each_and_continuous_across(
+        steps in proptest::collection::vec((any_intent(), 1usize..1500), 1..8),
+    ) {
+        let mut nav = Navigator::new(NavigatorConfig::default());
+        let cfg = NavigatorConfig::default();
+        let acc_max = cfg.acc_up_mps2.max(cfg.acc_down_mps2).max(cfg.acc_hor_mps2);
+        // A slanted leg may move at both its horizontal and its vertical limit.
+        let speed_max = cfg.cruise_speed_mps.hypot(cfg.climb_speed_mps.max(cfg.descent_speed_mps));
+        let mut pos = Vector3::new(0.0, 0.0, -2.0);
+        let mut vel = Vector3::zeros();
+        let mut now_us = 0;
+        let mut last: Option<(Intent, Reference)> = None;
+        nav.start_airborne(pos, 0.0);
+        for (intent, n) in steps {
+            for _ in 0..n {
+                let input = NavInput {
+                    now_us,
+                    pos_ned_m: pos,
+                    vel_ned_mps: vel,
+                    yaw_rad: 0.0,
+                    origin: Some(ORIGIN),
+                    home_ned_m: Some(Vector3::zeros()),
+                    home_alt_amsl_m: Some(ORIGIN.alt_amsl_m),
+                    landed: false,
+                    takeoff_alt_m: 2.5,
+                    takeoff_acceptance_m: 0.1,
+                };
+                let sp = nav.update(intent, &input, &Rally::default()).expect("flying");
+                proptest::prop_assert!(
+                    sp.pos_ned_m.iter().chain(sp.vel_ned_mps.iter()).chain(sp.acc_ned_mps2.iter()).all(|x| x.is_finite())
+                        && sp.yaw_rad.is_finite(),
+                    "{:?}", sp
+                );
+                if let Some((prev_intent, prev)) = last {
+                    let step_m = (sp.pos_ned_m - prev.pos_ned_m).norm();
+                    proptest::prop_assert!(step_m <= speed_max * DT_S * 1.01 + 1e-9, "position step {} m", step_m);
+                    let dv = (sp.vel_ned_mps - prev.vel_ned_mps).norm();
+                    let da = (sp.acc_ned_mps2 - prev.acc_ned_mps2).norm();
+                    if prev_intent == intent {
+                        proptest::prop_assert!(da / DT_S <= cfg.jerk_mps3 * 1.001 + 1e-9, "jerk {} in {:?}", da / DT_S, intent);
+                    } else {
+                        proptest::prop_assert!(dv <= 0.021 + acc_max * DT_S, "velocity step {} into {:?}", dv, intent);
+                        proptest::prop_assert!(da <= acc_max * 1.001 + cfg.jerk_mps3 * DT_S, "acceleration step {} into {:?}", da, intent);
+                    }
+                }
+                last = Some((intent, sp));
+                pos = sp.pos_ned_m;
+                vel = sp.vel_ned_mps;
+                now_us += 2_000;
+            }
+        }
+    }
+}
