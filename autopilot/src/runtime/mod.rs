@@ -11,6 +11,7 @@
 pub mod config;
 pub mod flight_log;
 pub mod frame;
+pub mod gcs_fanout;
 pub mod link;
 pub mod persist;
 pub mod plant_link;
@@ -24,6 +25,7 @@ pub mod transport;
 pub mod udp;
 pub mod ulog;
 pub mod utc;
+pub mod vehicle_host;
 
 use std::path::PathBuf;
 use std::sync::Arc;

@@ -18,10 +18,11 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 use mavlink::MavHeader;
-use mavlink::dialects::common::MavMessage;
+use mavlink::dialects::common::{MavMessage, MavSeverity, SETUP_SIGNING_DATA};
 
 use super::frame::{DecodedFrame, LinkCounters, encode_v2};
 use crate::core::mavlink::signing::{SecretKey, Signing, Verdict, timestamp_of_unix_us};
+use crate::core::mavlink::statustext;
 
 /// The key file in the state directory: the key's 64 hex digits, then the last timestamp used.
 pub const KEY_FILE: &str = "signing.key";
@@ -124,6 +125,24 @@ impl LinkSigning {
         }
         tracing::info!("MAVLink signing on (SETUP_SIGNING)");
         "Signing enabled".into()
+    }
+
+    /// A SETUP_SIGNING received by vehicle `sysid` on a link that is `secure` or not: applied when it is
+    /// for this vehicle (or every one), and the STATUSTEXT that answers the peer (WARNING when refused,
+    /// NOTICE when applied); `None` when it is for another vehicle.
+    #[must_use]
+    pub fn on_setup_signing(&self, m: &SETUP_SIGNING_DATA, sysid: u8, secure: bool) -> Option<MavMessage> {
+        let ours = m.target_system == 0 || m.target_system == sysid;
+        if !ours {
+            return None;
+        }
+        let said = self.setup(m.secret_key, m.initial_timestamp, secure);
+        let severity = if said.starts_with("Signing:") {
+            MavSeverity::MAV_SEVERITY_WARNING
+        } else {
+            MavSeverity::MAV_SEVERITY_NOTICE
+        };
+        Some(statustext(severity, &said))
     }
 
     /// Saves the last timestamp with the key (at shutdown), so the next start's timestamps continue.
