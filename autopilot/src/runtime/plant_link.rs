@@ -37,7 +37,8 @@ use mavlink::dialects::common::{
 use tokio::sync::mpsc;
 use tokio::sync::mpsc::error::TryRecvError;
 
-use crate::core::hil::{ActuatorCommand, DecoderStats, FrameDecoder, encode_actuator_controls, encode_frame_v2};
+use crate::core::hil::{ActuatorCommand, encode_actuator_controls};
+use crate::core::mavlink::frame::{DecoderStats, FrameDecoder, encode_frame_v2};
 use crate::core::mavlink::statustext;
 use crate::core::params::ParamStore;
 use crate::core::vehicle::{PWM_MIN_US, Vehicle, VehicleConfig, VehicleError};

@@ -19,6 +19,7 @@ use ::mavlink::dialects::common::MavMessage;
 use crate::core::commander::Event;
 
 pub mod command;
+pub mod frame;
 pub mod housekeeping;
 pub mod identity;
 pub mod mission;
