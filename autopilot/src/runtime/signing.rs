@@ -13,7 +13,6 @@
 //! - Turning signing off: SETUP_SIGNING with the all-zero key (while signing is on it must itself be signed,
 //!   as every frame must), or removing the key file.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
@@ -21,6 +20,7 @@ use mavlink::MavHeader;
 use mavlink::dialects::common::{MavMessage, MavSeverity, SETUP_SIGNING_DATA};
 
 use super::frame::{DecodedFrame, LinkCounters, encode_v2};
+use super::persist::write_private_file_atomically;
 use crate::core::mavlink::signing::{SecretKey, Signing, Verdict, timestamp_of_unix_us};
 use crate::core::mavlink::statustext;
 
@@ -157,26 +157,13 @@ impl LinkSigning {
     }
 }
 
-/// Writes the key file with owner-only permissions, atomically (temporary file, sync, rename).
+/// Writes the key file with owner-only permissions, atomically (`persist::write_private_file_atomically`).
 ///
 /// # Errors
 /// The I/O error; the previous file is then unchanged.
 pub fn save_key(dir: &Path, key: &SecretKey, timestamp: u64) -> std::io::Result<()> {
-    let tmp = dir.join(format!("{KEY_FILE}.tmp"));
-    let mut options = std::fs::OpenOptions::new();
-    options.write(true).create(true).truncate(true);
-    #[cfg(unix)]
-    std::os::unix::fs::OpenOptionsExt::mode(&mut options, 0o600);
-    let result = (|| {
-        let mut file = options.open(&tmp)?;
-        writeln!(file, "{}\n{timestamp}", key.to_hex())?;
-        file.sync_all()?;
-        std::fs::rename(&tmp, dir.join(KEY_FILE))
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
+    let text = format!("{}\n{timestamp}\n", key.to_hex());
+    write_private_file_atomically(&dir.join(KEY_FILE), text.as_bytes())
 }
 
 /// A key file: the key on its first line (64 hex digits), and optionally the last timestamp on the

@@ -1,7 +1,7 @@
 //! The flight log's writer: on a blocking thread of its own, each flight's bytes into
-//! `<dir>/<name>.ulg.tmp`, flushed once a second, synced and renamed to `<name>.ulg` when the flight ends.
+//! `<dir>/<name>.ulg.tmp` (a `persist::AtomicFile` log), flushed once a second, synced and renamed to
+//! `<name>.ulg` when the flight ends.
 
-use std::fs::{File, OpenOptions};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -9,6 +9,7 @@ use std::time::Instant;
 use tokio::sync::mpsc;
 
 use super::LogItem;
+use crate::runtime::persist::{AtomicFile, CommitError, temp_path};
 
 /// Wall time between flushes of the file.
 const FLUSH_INTERVAL: std::time::Duration = std::time::Duration::from_secs(1);
@@ -40,10 +41,14 @@ pub enum FlightLogError {
 /// An open `.ulg.tmp`.
 #[derive(Debug)]
 struct OpenLog {
-    file: BufWriter<File>,
-    temp_path: PathBuf,
-    final_path: PathBuf,
+    file: BufWriter<AtomicFile>,
     last_flush: Instant,
+}
+
+impl OpenLog {
+    fn temp_path(&self) -> &Path {
+        self.file.get_ref().temp_path()
+    }
 }
 
 /// The writer: see the module docs. Synchronous; [`spawn_writer`] runs it on a thread.
@@ -76,7 +81,7 @@ impl UlogWriter {
                 if log.last_flush.elapsed() >= FLUSH_INTERVAL {
                     log.last_flush = Instant::now();
                     if let Err(source) = log.file.flush() {
-                        let path = log.temp_path.clone();
+                        let path = log.temp_path().to_owned();
                         self.current = None;
                         return Err(FlightLogError::Write { path, source });
                     }
@@ -92,16 +97,14 @@ impl UlogWriter {
     /// # Errors
     /// [`FlightLogError::Write`] or [`FlightLogError::Rename`] (the `.ulg.tmp` stays).
     pub fn close(&mut self) -> Result<Option<PathBuf>, FlightLogError> {
-        let Some(mut log) = self.current.take() else { return Ok(None) };
-        let write_err = |source| FlightLogError::Write { path: log.temp_path.clone(), source };
-        log.file.flush().map_err(write_err)?;
-        log.file.get_ref().sync_all().map_err(write_err)?;
-        std::fs::rename(&log.temp_path, &log.final_path).map_err(|source| FlightLogError::Rename {
-            from: log.temp_path.clone(),
-            to: log.final_path.clone(),
-            source,
+        let Some(log) = self.current.take() else { return Ok(None) };
+        let path = log.temp_path().to_owned();
+        let file = log.file.into_inner().map_err(|e| FlightLogError::Write { path, source: e.into_error() })?;
+        let final_path = file.commit().map_err(|e| match e {
+            CommitError::Sync { path, source } => FlightLogError::Write { path, source },
+            CommitError::Rename { from, to, source } => FlightLogError::Rename { from, to, source },
         })?;
-        Ok(Some(log.final_path))
+        Ok(Some(final_path))
     }
 }
 
@@ -112,18 +115,17 @@ fn create(dir: &Path, name: &str) -> Result<OpenLog, FlightLogError> {
     for n in 0..100 {
         let stem = if n == 0 { name.to_owned() } else { format!("{name}_{n}") };
         let final_path = dir.join(format!("{stem}.ulg"));
-        let temp_path = dir.join(format!("{stem}.ulg.tmp"));
         if final_path.exists() {
             continue;
         }
-        match OpenOptions::new().write(true).create_new(true).open(&temp_path) {
+        match AtomicFile::create_log(&final_path) {
             Ok(file) => {
                 let file = BufWriter::with_capacity(64 * 1024, file);
-                return Ok(OpenLog { file, temp_path, final_path, last_flush: Instant::now() });
+                return Ok(OpenLog { file, last_flush: Instant::now() });
             }
             Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
             Err(source) => {
-                last_err = Some(FlightLogError::Create { path: temp_path, source });
+                last_err = Some(FlightLogError::Create { path: temp_path(&final_path), source });
                 break;
             }
         }
@@ -135,7 +137,7 @@ fn create(dir: &Path, name: &str) -> Result<OpenLog, FlightLogError> {
 }
 
 fn write(log: &mut OpenLog, bytes: &[u8]) -> Result<(), FlightLogError> {
-    log.file.write_all(bytes).map_err(|source| FlightLogError::Write { path: log.temp_path.clone(), source })
+    log.file.write_all(bytes).map_err(|source| FlightLogError::Write { path: log.temp_path().to_owned(), source })
 }
 
 /// The writer on a blocking thread: handles items until the channel closes (every sender dropped: the
@@ -153,7 +155,7 @@ pub fn spawn_writer(mut rx: mpsc::Receiver<LogItem>) -> tokio::task::JoinHandle<
             let opening = matches!(item, LogItem::Open { .. });
             report(writer.handle(item));
             if opening && let Some(log) = &writer.current {
-                tracing::info!(path = %log.temp_path.display(), "flight log (ULog) open");
+                tracing::info!(path = %log.temp_path().display(), "flight log (ULog) open");
             }
         }
         report(writer.close());
