@@ -49,7 +49,8 @@ use crate::runtime::transport::Transport;
 pub use crate::runtime::gcs_fanout::{
     GCS_FLUSH_INTERVAL, GcsFanout, GcsOutputs, STATUSTEXT_BURST, STATUSTEXT_PER_S, TextLimiter, TlogFrame,
 };
-pub use crate::runtime::vehicle_host::{FENCE_FILE, MISSION_FILE, PARAMS_FILE, Persisted, RALLY_FILE, VehicleHost};
+pub use crate::runtime::state::{FENCE_FILE, MISSION_FILE, PARAMS_FILE, Persisted, RALLY_FILE};
+pub use crate::runtime::vehicle_host::VehicleHost;
 
 /// Wall time without a sensor sample after which the plant link counts as lost.
 pub const PLANT_SILENCE: Duration = Duration::from_secs(1);

@@ -6,37 +6,14 @@
 use mavlink::dialects::common::{MavMessage, MavSeverity};
 
 use crate::core::estimator::{EstimatorSource, GeoOrigin};
-use crate::core::geofence::{Fence, Rally};
 use crate::core::hil::{ActuatorCommand, HilInput, SensorSamples, decode_hil_message, dege7_to_deg, mm_to_m};
 use crate::core::mavlink::{LinkErrors, statustext};
-use crate::core::mission::Mission;
 use crate::core::params::ParamStore;
 use crate::core::vehicle::{PWM_MIN_US, ShellEffect, Vehicle, VehicleConfig, VehicleError, VehicleInputs};
 use crate::runtime::gcs_fanout::GcsFanout;
 use crate::runtime::link::{Destination, Incoming, LinkId};
-use crate::runtime::persist::Persister;
 use crate::runtime::plant_link::{PLANT_RESTARTED_TEXT, PlantLinkStats};
-
-/// What an earlier run left in the state directory, and where to save: the parameters (applied over the
-/// configuration when the vehicle is built) and the mission.
-#[derive(Debug, Default)]
-pub struct Persisted {
-    pub params: Option<ParamStore>,
-    pub mission: Option<Mission>,
-    pub fence: Option<Fence>,
-    pub rally: Option<Rally>,
-    /// Where parameter and mission changes are saved; `None`: not saved.
-    pub persister: Option<Persister>,
-}
-
-/// The parameter file in the state directory.
-pub const PARAMS_FILE: &str = "params.txt";
-/// The mission file in the state directory (QGC WPL 110).
-pub const MISSION_FILE: &str = "mission.waypoints";
-/// The geofence file in the state directory (QGC WPL 110, fence commands).
-pub const FENCE_FILE: &str = "fence.waypoints";
-/// The rally-point file in the state directory (QGC WPL 110, NAV_RALLY_POINT).
-pub const RALLY_FILE: &str = "rally.waypoints";
+use crate::runtime::state::{FENCE_FILE, MISSION_FILE, PARAMS_FILE, Persisted, RALLY_FILE};
 
 /// The vehicle, what it was built from, and where its messages go.
 #[derive(Debug)]
