@@ -2,7 +2,7 @@
 //! byte streams and UDP datagrams -> `(header, message, version)` in, counting what was dropped in
 //! [`LinkStats`] instead of failing.
 //!
-//! The parsing itself is the core's [`FrameDecoder`] (`core::hil`, written for the plant link): it reads
+//! The parsing itself is the core's [`FrameDecoder`] (`core::mavlink::frame`, shared with the plant link): it reads
 //! v2 and v1, decodes signed v2 frames (incompat flag 0x01) keeping their bytes for the links' signing
 //! check (`runtime::signing`), checks CRC_EXTRA, never panics on garbage and resynchronises on the next
 //! start byte. This
@@ -15,12 +15,12 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use mavlink::dialects::common::MavMessage;
 use mavlink::{MavHeader, MavlinkVersion};
 
-pub use crate::core::hil::{DecodedFrame, DecoderStats, FrameDecoder};
+pub use crate::core::mavlink::frame::{DecodedFrame, DecoderStats, FrameDecoder};
 
 /// One message as a MAVLink 2 frame (unsigned, payload zero-truncated).
 #[must_use]
 pub fn encode_v2(header: MavHeader, message: &MavMessage) -> Vec<u8> {
-    crate::core::hil::encode_frame_v2(header, message)
+    crate::core::mavlink::frame::encode_frame_v2(header, message)
 }
 
 /// One message as a frame of `version`: used to log received frames in the version they arrived in.
@@ -29,7 +29,7 @@ pub fn encode_v2(header: MavHeader, message: &MavMessage) -> Vec<u8> {
 pub fn encode(header: MavHeader, message: &MavMessage, version: MavlinkVersion) -> Vec<u8> {
     match version {
         MavlinkVersion::V1 => {
-            crate::core::hil::encode_frame_v1(header, message).unwrap_or_else(|| encode_v2(header, message))
+            crate::core::mavlink::frame::encode_frame_v1(header, message).unwrap_or_else(|| encode_v2(header, message))
         }
         MavlinkVersion::V2 => encode_v2(header, message),
     }

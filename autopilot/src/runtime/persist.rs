@@ -1,7 +1,9 @@
 //! Persistence of what the vehicle keeps across restarts (parameters, the mission) in a state directory,
 //! off the plant link's thread. In: `(file name, contents)` to save, from the vehicle's thread; at start,
 //! [`load`] of a file. Out: files written atomically: the contents go to `NAME.tmp`, are synced to disk,
-//! and the temporary file is renamed over `NAME`, so a reader (or a crash) never sees half a file.
+//! and the temporary file is renamed over `NAME`, so a reader (or a crash) never sees half a file. This
+//! module owns that rule for every file of the workspace that must never be half-written: one-shot
+//! ([`write_file_atomically`]) or streamed (an [`AtomicFile`]: the `.tlog` and the flight log's `.ulg`).
 //!
 //! Saves are done by a thread of their own, so a burst of PARAM_SETs (MAVProxy loading a parameter file)
 //! never stalls the lockstep loop; a save that arrives while an older one of the same file is still
@@ -45,26 +47,175 @@ pub fn save_atomically(dir: &Path, name: &str, contents: &str) -> Result<(), Per
     write_file_atomically(&path, contents.as_bytes()).map_err(|source| PersistError::Write { path, source })
 }
 
-/// The workspace's one atomic file writer: `bytes` go to the whole name plus `.tmp` (so `x.csv` and
-/// `x.json` never share a temporary file), are synced to disk, and the temporary file is renamed over
-/// `path`, so a reader (or a crash) never sees half a file. The autopilot's state and the simulator's
-/// outputs (traces, figures, sweep rows, tuning results) are all written through it.
+/// The temporary file that `path` is written as until it is complete: the whole name plus `.tmp`
+/// (`params.txt.tmp`, `run.tlog.tmp`), so every target has its own (`x.csv` and `x.json` never share
+/// one) and a file left under it by a crash says by its name that it is incomplete. The one rule for
+/// every file written through [`write_file_atomically`] or an [`AtomicFile`].
+#[must_use]
+pub fn temp_path(path: &Path) -> PathBuf {
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".tmp");
+    PathBuf::from(tmp)
+}
+
+/// Why an [`AtomicFile`] could not be committed; its temporary file is then still there (a log) or
+/// removed (any other file), and the file under the final name, if any, is unchanged.
+#[derive(Debug, thiserror::Error)]
+pub enum CommitError {
+    #[error("cannot sync {path}: {source}")]
+    Sync {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("cannot rename {from} to {to}: {source}")]
+    Rename {
+        from: PathBuf,
+        to: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+impl From<CommitError> for std::io::Error {
+    fn from(e: CommitError) -> Self {
+        match e {
+            CommitError::Sync { source, .. } | CommitError::Rename { source, .. } => source,
+        }
+    }
+}
+
+/// A file written under [`temp_path`] and given its final name only by [`AtomicFile::commit`] (synced to
+/// disk, then renamed over it), so a reader or a crash never sees half of it under that name. Unbuffered:
+/// wrap it in a `BufWriter` to stream into it. Dropped without a commit, its temporary file is removed,
+/// except for a log ([`AtomicFile::create_log`]), which stays readable up to its last write.
+#[derive(Debug)]
+pub struct AtomicFile {
+    file: std::fs::File,
+    temp_path: PathBuf,
+    path: PathBuf,
+    /// Dropped without a commit, the temporary file stays (a log) rather than being removed.
+    keep_unfinished: bool,
+    committed: bool,
+}
+
+impl AtomicFile {
+    /// Start writing `path`, into its [`temp_path`] (what an earlier failed write left there is
+    /// overwritten).
+    ///
+    /// # Errors
+    /// The file system's, creating the temporary file.
+    pub fn create(path: &Path) -> std::io::Result<Self> {
+        let mut options = std::fs::OpenOptions::new();
+        options.write(true).create(true).truncate(true);
+        Self::open(path, &options, false)
+    }
+
+    /// As [`AtomicFile::create`], readable and writable by its owner only (mode 0600 on Unix): for a
+    /// secret such as the signing key.
+    ///
+    /// # Errors
+    /// The file system's, creating the temporary file or setting its permissions.
+    pub fn create_private(path: &Path) -> std::io::Result<Self> {
+        let mut options = std::fs::OpenOptions::new();
+        options.write(true).create(true).truncate(true);
+        #[cfg(unix)]
+        std::os::unix::fs::OpenOptionsExt::mode(&mut options, 0o600);
+        let file = Self::open(path, &options, false)?;
+        // A temporary file an earlier failed write left keeps its mode through `open`: set it.
+        #[cfg(unix)]
+        file.file.set_permissions(std::os::unix::fs::PermissionsExt::from_mode(0o600))?;
+        Ok(file)
+    }
+
+    /// Start a log streamed to `path`: its [`temp_path`] must not exist (a log being written, or one a
+    /// crash left, is never overwritten), and dropped without a commit it stays, readable up to its
+    /// last write.
+    ///
+    /// # Errors
+    /// [`std::io::ErrorKind::AlreadyExists`] when the temporary file exists; the file system's otherwise.
+    pub fn create_log(path: &Path) -> std::io::Result<Self> {
+        let mut options = std::fs::OpenOptions::new();
+        options.write(true).create_new(true);
+        Self::open(path, &options, true)
+    }
+
+    fn open(path: &Path, options: &std::fs::OpenOptions, keep_unfinished: bool) -> std::io::Result<Self> {
+        let temp_path = temp_path(path);
+        let file = options.open(&temp_path)?;
+        Ok(Self { file, temp_path, path: path.to_owned(), keep_unfinished, committed: false })
+    }
+
+    /// Where the file is being written now.
+    #[must_use]
+    pub fn temp_path(&self) -> &Path {
+        &self.temp_path
+    }
+
+    /// Where the file will be after [`AtomicFile::commit`].
+    #[must_use]
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Sync the file to disk and rename it over its final name; returns that path.
+    ///
+    /// # Errors
+    /// [`CommitError`]; the file under the final name, if any, is then unchanged.
+    pub fn commit(mut self) -> Result<PathBuf, CommitError> {
+        self.file.sync_all().map_err(|source| CommitError::Sync { path: self.temp_path.clone(), source })?;
+        std::fs::rename(&self.temp_path, &self.path).map_err(|source| CommitError::Rename {
+            from: self.temp_path.clone(),
+            to: self.path.clone(),
+            source,
+        })?;
+        self.committed = true;
+        Ok(self.path.clone())
+    }
+}
+
+impl Write for AtomicFile {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.file.write(buf)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.file.flush()
+    }
+}
+
+impl Drop for AtomicFile {
+    fn drop(&mut self) {
+        if !self.committed && !self.keep_unfinished {
+            let _ = std::fs::remove_file(&self.temp_path);
+        }
+    }
+}
+
+/// The workspace's one atomic file writer: `bytes` go to the [`temp_path`] of `path`, are synced to
+/// disk, and the temporary file is renamed over `path` (an [`AtomicFile`]), so a reader (or a crash)
+/// never sees half a file. The autopilot's state and the simulator's outputs (traces, figures, sweep
+/// rows, tuning results) are all written through it.
 ///
 /// # Errors
 /// The file system's; the temporary file is then removed and the previous file, if any, is unchanged.
 pub fn write_file_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".tmp");
-    let tmp = PathBuf::from(tmp);
-    let write = || -> std::io::Result<()> {
-        let mut file = std::fs::File::create(&tmp)?;
-        file.write_all(bytes)?;
-        file.sync_all()?;
-        std::fs::rename(&tmp, path)
-    };
-    write().inspect_err(|_| {
-        let _ = std::fs::remove_file(&tmp);
-    })
+    write_all_and_commit(AtomicFile::create(path)?, bytes)
+}
+
+/// [`write_file_atomically`] for a secret: the file is readable and writable by its owner only (mode
+/// 0600 on Unix), from its first byte on.
+///
+/// # Errors
+/// As [`write_file_atomically`].
+pub fn write_private_file_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    write_all_and_commit(AtomicFile::create_private(path)?, bytes)
+}
+
+fn write_all_and_commit(mut file: AtomicFile, bytes: &[u8]) -> std::io::Result<()> {
+    file.write_all(bytes)?;
+    file.commit()?;
+    Ok(())
 }
 
 /// The contents of `dir/name`, or `None` if there is no such file.
@@ -242,6 +393,61 @@ mod tests {
         assert!(write_file_atomically(&dir.join("x.json"), b"{}").is_err());
         assert_eq!(std::fs::read(dir.join("x.csv")).expect("read"), b"a,b\n");
         assert!(!dir.join("x.csv.tmp").exists() && !dir.join("x.json").exists());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn given_an_atomic_file_when_streamed_then_its_name_appears_only_on_commit_and_an_uncommitted_one_is_removed() {
+        let dir = temp_dir("stream");
+        std::fs::create_dir_all(&dir).expect("dir");
+        let path = dir.join("run.bin");
+        let mut file = AtomicFile::create(&path).expect("create");
+        assert_eq!(file.temp_path(), dir.join("run.bin.tmp"));
+        file.write_all(b"abc").expect("write");
+        file.write_all(b"def").expect("write");
+        assert!(!path.exists(), "no final name while writing");
+        assert_eq!(file.commit().expect("commit"), path);
+        assert_eq!(std::fs::read(&path).expect("read"), b"abcdef");
+        assert!(!dir.join("run.bin.tmp").exists());
+        // Dropped without a commit: the temporary file goes, the committed file stays as it was.
+        let mut file = AtomicFile::create(&path).expect("create");
+        file.write_all(b"half").expect("write");
+        drop(file);
+        assert!(!dir.join("run.bin.tmp").exists(), "no temporary file left behind");
+        assert_eq!(std::fs::read(&path).expect("read"), b"abcdef");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn given_a_log_when_dropped_without_commit_then_it_stays_incomplete_and_is_never_overwritten() {
+        let dir = temp_dir("log");
+        std::fs::create_dir_all(&dir).expect("dir");
+        let path = dir.join("crash.tlog");
+        let mut log = AtomicFile::create_log(&path).expect("create");
+        log.write_all(b"record").expect("write");
+        drop(log);
+        assert_eq!(std::fs::read(dir.join("crash.tlog.tmp")).expect("kept"), b"record");
+        assert!(!path.exists());
+        let again = AtomicFile::create_log(&path).map(|_| ()).expect_err("the crashed log is not overwritten");
+        assert_eq!(again.kind(), std::io::ErrorKind::AlreadyExists);
+        assert_eq!(std::fs::read(dir.join("crash.tlog.tmp")).expect("kept"), b"record");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn given_a_secret_when_written_atomically_then_it_is_owner_only_even_over_a_stale_temporary_file() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = temp_dir("private");
+        std::fs::create_dir_all(&dir).expect("dir");
+        let path = dir.join("signing.key");
+        // A temporary file an earlier failed write left, readable by everyone.
+        std::fs::write(dir.join("signing.key.tmp"), b"old").expect("stale");
+        std::fs::set_permissions(dir.join("signing.key.tmp"), std::fs::Permissions::from_mode(0o644)).expect("mode");
+        write_private_file_atomically(&path, b"secret\n").expect("write");
+        assert_eq!(std::fs::read(&path).expect("read"), b"secret\n");
+        assert_eq!(std::fs::metadata(&path).expect("meta").permissions().mode() & 0o777, 0o600);
+        assert!(!dir.join("signing.key.tmp").exists());
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

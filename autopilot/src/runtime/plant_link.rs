@@ -1,4 +1,5 @@
-//! The autopilot's end of the plant protocol, and the one thread that owns the [`Vehicle`]. In: plant
+//! The autopilot's end of the plant protocol, and the one thread that owns the [`Vehicle`] (in its
+//! [`VehicleHost`], which speaks to the ground stations through a [`GcsFanout`]). In: plant
 //! frames (`HIL_GPS`, `HIL_STATE_QUATERNION`, `HIL_SENSOR`) over a blocking [`Transport`] (UDP to the SITL
 //! plant, or serial to the real airframe's ARM board), and ground-station messages from the tokio links
 //! on a channel. Each `HIL_SENSOR` is a tick (its `time_usec` is the vehicle clock): `Vehicle::step`, then
@@ -26,7 +27,6 @@
 //! a HEARTBEAT every second, as the plant only answers peers that spoke (`docs/design.md`, the plant
 //! protocol).
 
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
@@ -35,24 +35,22 @@ use mavlink::dialects::common::{
     HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavSeverity, MavState, MavType,
 };
 use tokio::sync::mpsc;
-use tokio::sync::mpsc::error::{TryRecvError, TrySendError};
+use tokio::sync::mpsc::error::TryRecvError;
 
-use crate::core::estimator::{EstimatorSource, GeoOrigin};
-use crate::core::geofence::{Fence, Rally};
-use crate::core::hil::{
-    ActuatorCommand, DecoderStats, FrameDecoder, HilInput, SensorSamples, decode_hil_message, dege7_to_deg,
-    encode_actuator_controls, encode_frame_v2, mm_to_m,
-};
-use crate::core::mavlink::{LinkErrors, own_header, statustext};
-use crate::core::mission::Mission;
+use crate::core::hil::{ActuatorCommand, encode_actuator_controls};
+use crate::core::mavlink::frame::{DecoderStats, FrameDecoder, encode_frame_v2};
+use crate::core::mavlink::statustext;
 use crate::core::params::ParamStore;
-use crate::core::vehicle::{PWM_MIN_US, ShellEffect, Vehicle, VehicleConfig, VehicleError, VehicleInputs};
-use crate::runtime::flight_log::FlightLogger;
-use crate::runtime::frame::{self, LinkCounters};
-use crate::runtime::link::{Destination, Incoming, LinkId, Outgoing};
-use crate::runtime::persist::Persister;
-use crate::runtime::signing::LinkSigning;
+use crate::core::vehicle::{PWM_MIN_US, Vehicle, VehicleConfig, VehicleError};
+use crate::runtime::link::{Destination, Incoming};
 use crate::runtime::transport::Transport;
+
+// The vehicle's host and the ground-station fan-out were parts of this module; their names stay here.
+pub use crate::runtime::gcs_fanout::{
+    GCS_FLUSH_INTERVAL, GcsFanout, GcsOutputs, STATUSTEXT_BURST, STATUSTEXT_PER_S, TextLimiter, TlogFrame,
+};
+pub use crate::runtime::state::{FENCE_FILE, MISSION_FILE, PARAMS_FILE, Persisted, RALLY_FILE};
+pub use crate::runtime::vehicle_host::VehicleHost;
 
 /// Wall time without a sensor sample after which the plant link counts as lost.
 pub const PLANT_SILENCE: Duration = Duration::from_secs(1);
@@ -67,12 +65,6 @@ pub const PLANT_LOST_TEXT: &str = "Plant link lost: motors stopped";
 pub const PLANT_REGAINED_TEXT: &str = "Plant link regained";
 /// Said (severity CRITICAL) when the plant's clock goes back (a new simulation).
 pub const PLANT_RESTARTED_TEXT: &str = "Plant restarted: vehicle restarted, disarmed";
-
-/// Wall time the step's telemetry may wait before it is handed to the ground-station links. Handing each
-/// message over on its own wakes the tokio thread every time, which in lockstep (about 5000 messages per
-/// wall second at 70x) cost 8 µs per step, a quarter of the round trip; in bursts it costs one wake-up.
-/// Replies to a ground station are handed over at once.
-pub const GCS_FLUSH_INTERVAL: Duration = Duration::from_millis(2);
 
 /// Component id of the autopilot's messages to the plant.
 const PLANT_LINK_COMPONENT_ID: u8 = 1;
@@ -95,9 +87,6 @@ pub enum PlantLinkError {
     #[error(transparent)]
     Vehicle(#[from] VehicleError),
 }
-
-/// A raw frame for the `.tlog`, in or out.
-pub type TlogFrame = Vec<u8>;
 
 /// Counts of one run, returned when the link stops.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -127,379 +116,18 @@ pub struct PlantLinkStats {
     pub last_time_us: Option<u64>,
 }
 
-/// What an earlier run left in the state directory, and where to save: the parameters (applied over the
-/// configuration when the vehicle is built) and the mission.
-#[derive(Debug, Default)]
-pub struct Persisted {
-    pub params: Option<ParamStore>,
-    pub mission: Option<Mission>,
-    pub fence: Option<Fence>,
-    pub rally: Option<Rally>,
-    /// Where parameter and mission changes are saved; `None`: not saved.
-    pub persister: Option<Persister>,
-}
-
-/// The parameter file in the state directory.
-pub const PARAMS_FILE: &str = "params.txt";
-/// The mission file in the state directory (QGC WPL 110).
-pub const MISSION_FILE: &str = "mission.waypoints";
-/// The geofence file in the state directory (QGC WPL 110, fence commands).
-pub const FENCE_FILE: &str = "fence.waypoints";
-/// The rally-point file in the state directory (QGC WPL 110, NAV_RALLY_POINT).
-pub const RALLY_FILE: &str = "rally.waypoints";
-
-/// The senders towards each ground-station link (index = [`LinkId`]) and the `.tlog`, and the links'
-/// counters (their malformed frames are reported in SYS_STATUS).
-#[derive(Debug, Default)]
-pub struct GcsOutputs {
-    pub links: Vec<mpsc::Sender<Outgoing>>,
-    pub tlog: Option<mpsc::Sender<TlogFrame>>,
-    pub counters: Vec<Arc<LinkCounters>>,
-    /// The links' shared MAVLink signing (SETUP_SIGNING is applied here).
-    pub signing: Arc<LinkSigning>,
-    /// Per link (index = [`LinkId`]): whether it may carry SETUP_SIGNING (TCP, serial).
-    pub secure: Vec<bool>,
-    /// The onboard ULog's sampler (off by default).
-    pub flight_log: FlightLogger,
-}
-
-/// The plant link and the vehicle it drives.
-struct Driver {
-    config: VehicleConfig,
-    vehicle: Option<Vehicle>,
-    home: Option<GeoOrigin>,
-    /// Whether `home` is the plant's origin (from the configuration, or moved there by the first
-    /// ODOMETRY) rather than the vehicle's first position.
-    home_is_plant_origin: bool,
-    inputs: VehicleInputs,
-    now_us: u64,
+/// The autopilot's frames to the plant: its own component and sequence.
+struct PlantSender {
+    sysid: u8,
     sequence: u8,
-    plant_sequence: u8,
-    out: GcsOutputs,
-    /// Messages waiting for the next flush: (only this link, message).
-    pending: Vec<(Option<LinkId>, Outgoing)>,
-    /// A reply is pending: flush at once.
-    urgent: bool,
-    last_flush: Instant,
-    persisted: Persisted,
-    stats: PlantLinkStats,
-    texts: TextLimiter,
 }
 
-/// Broadcast STATUSTEXTs allowed per second of vehicle time, on average.
-pub const STATUSTEXT_PER_S: f64 = 10.0;
-/// How many may come at once above that rate.
-pub const STATUSTEXT_BURST: f64 = 20.0;
-
-/// A token bucket on vehicle time for the STATUSTEXTs the vehicle broadcasts, so that something that
-/// repeats itself (a bad stream, a flapping condition) cannot flood the ground stations. Replies to one
-/// peer (a refusal's reason) are not limited; the chunks of a long text follow their first.
-#[derive(Debug, Clone, PartialEq)]
-pub struct TextLimiter {
-    tokens: f64,
-    last_us: Option<u64>,
-    last_allowed: bool,
-}
-
-impl Default for TextLimiter {
-    fn default() -> Self {
-        Self { tokens: STATUSTEXT_BURST, last_us: None, last_allowed: true }
-    }
-}
-
-impl TextLimiter {
-    /// Whether a STATUSTEXT at `now_us` may go out (`continuation`: a later chunk of a chunked text).
-    pub fn allow(&mut self, now_us: u64, continuation: bool) -> bool {
-        let elapsed_s = match self.last_us {
-            Some(t) if now_us >= t => (now_us - t) as f64 * 1e-6,
-            // A new timeline (the plant restarted): start full.
-            Some(_) => STATUSTEXT_BURST,
-            None => 0.0,
-        };
-        self.last_us = Some(now_us);
-        self.tokens = (self.tokens + elapsed_s * STATUSTEXT_PER_S).min(STATUSTEXT_BURST);
-        if continuation {
-            return self.last_allowed;
-        }
-        self.last_allowed = self.tokens >= 1.0;
-        if self.last_allowed {
-            self.tokens -= 1.0;
-        }
-        self.last_allowed
-    }
-}
-
-impl Driver {
-    fn header(&mut self) -> MavHeader {
-        let mut header = own_header(self.config.sysid);
-        header.sequence = self.sequence;
+impl PlantSender {
+    fn frame(&mut self, message: &MavMessage) -> Vec<u8> {
+        let header =
+            MavHeader { system_id: self.sysid.into(), component_id: PLANT_LINK_COMPONENT_ID, sequence: self.sequence };
         self.sequence = self.sequence.wrapping_add(1);
-        header
-    }
-
-    fn plant_frame(&mut self, message: &MavMessage) -> Vec<u8> {
-        let header = MavHeader {
-            system_id: self.config.sysid.into(),
-            component_id: PLANT_LINK_COMPONENT_ID,
-            sequence: self.plant_sequence,
-        };
-        self.plant_sequence = self.plant_sequence.wrapping_add(1);
         encode_frame_v2(header, message)
-    }
-
-    fn log(&mut self, frame: TlogFrame) {
-        if let Some(tlog) = &self.out.tlog
-            && tlog.try_send(frame).is_err()
-        {
-            self.stats.tlog_dropped += 1;
-        }
-    }
-
-    /// Queues a message to every link (`to == All`) or to one peer of link `link`; it goes out at the next
-    /// [`Driver::flush`] that is due (at once for a reply to one peer).
-    fn send_gcs(&mut self, link: Option<LinkId>, to: Destination, message: MavMessage) {
-        // The flight log keeps every text, those the limiter holds back from the ground stations too.
-        if let MavMessage::STATUSTEXT(text) = &message {
-            self.out.flight_log.text(self.now_us, text.severity, text.text.to_str().unwrap_or(""));
-        }
-        if let (Destination::All, MavMessage::STATUSTEXT(text)) = (to, &message)
-            && !self.texts.allow(self.now_us, text.id != 0 && text.chunk_seq > 0)
-        {
-            self.stats.statustext_suppressed += 1;
-            return;
-        }
-        let header = self.header();
-        if self.out.tlog.is_some() {
-            self.log(frame::encode_v2(header, &message));
-        }
-        self.urgent |= matches!(to, Destination::Peer(_));
-        self.pending.push((link, Outgoing { to, header, message }));
-    }
-
-    /// Hands the pending messages to the links if a reply waits or [`GCS_FLUSH_INTERVAL`] has passed
-    /// (always with `force`).
-    fn flush(&mut self, now: Instant, force: bool) {
-        if self.pending.is_empty() || !(force || self.urgent || now - self.last_flush >= GCS_FLUSH_INTERVAL) {
-            return;
-        }
-        let mut dropped = 0;
-        for (link, out) in self.pending.drain(..) {
-            for (id, tx) in self.out.links.iter().enumerate() {
-                if link.is_some_and(|l| l != id) {
-                    continue;
-                }
-                match tx.try_send(out.clone()) {
-                    Ok(()) | Err(TrySendError::Closed(_)) => {}
-                    Err(TrySendError::Full(_)) => dropped += 1,
-                }
-            }
-        }
-        self.stats.gcs_dropped += dropped;
-        self.urgent = false;
-        self.last_flush = now;
-    }
-
-    /// The vehicle, built on first use (with the `Truth` source only once a truth origin is known: from
-    /// the configuration, or else the first truth sample's position).
-    fn vehicle(&mut self) -> Result<Option<&mut Vehicle>, VehicleError> {
-        if self.vehicle.is_none() {
-            let mut config = self.config.clone();
-            if config.estimator.source == EstimatorSource::Truth && config.estimator.truth_origin.is_none() {
-                let Some(home) = self.home else { return Ok(None) };
-                config.estimator.truth_origin = Some(home);
-            }
-            let params = self.persisted.params.clone().unwrap_or_else(|| ParamStore::from_config(&config));
-            let mut vehicle = Vehicle::with_params(config, params)?;
-            if let Some(mission) = self.persisted.mission.clone()
-                && let Err(e) = vehicle.load_mission(mission)
-            {
-                tracing::error!(error = %e, "the saved mission is not valid any more; starting without one");
-            }
-            if let Some(fence) = self.persisted.fence.clone() {
-                vehicle.load_fence(fence);
-            }
-            if let Some(rally) = self.persisted.rally.clone() {
-                vehicle.load_rally(rally);
-            }
-            self.vehicle = Some(vehicle);
-        }
-        Ok(self.vehicle.as_mut())
-    }
-
-    /// Carries out what the vehicle asked of the shell: save its parameters or mission, restart it.
-    fn apply_effects(&mut self) {
-        let Some(vehicle) = self.vehicle.as_mut() else { return };
-        for effect in vehicle.take_effects() {
-            match effect {
-                ShellEffect::SaveParams(text) => {
-                    self.persisted.params = Some(vehicle.params().clone());
-                    if let Some(p) = &self.persisted.persister {
-                        p.save(PARAMS_FILE, text);
-                    }
-                }
-                ShellEffect::SaveMission(text) => {
-                    self.persisted.mission = Some(vehicle.mission().clone());
-                    if let Some(p) = &self.persisted.persister {
-                        p.save(MISSION_FILE, text);
-                    }
-                }
-                ShellEffect::SaveFence(text) => {
-                    self.persisted.fence = Some(vehicle.fence_and_rally().0.clone());
-                    if let Some(p) = &self.persisted.persister {
-                        p.save(FENCE_FILE, text);
-                    }
-                }
-                ShellEffect::SaveRally(text) => {
-                    self.persisted.rally = Some(vehicle.fence_and_rally().1.clone());
-                    if let Some(p) = &self.persisted.persister {
-                        p.save(RALLY_FILE, text);
-                    }
-                }
-                ShellEffect::Reboot => {
-                    tracing::info!("reboot requested: the vehicle restarts from its stored parameters and mission");
-                    self.vehicle = None;
-                    return;
-                }
-            }
-        }
-    }
-
-    /// One plant frame; returns the actuator reply to send if it carried a `HIL_SENSOR`. `plant_malformed`
-    /// is what the plant link's decoder has dropped so far.
-    fn on_plant_frame(
-        &mut self,
-        message: &MavMessage,
-        plant_malformed: u64,
-    ) -> Result<Option<ActuatorCommand>, VehicleError> {
-        if self.home.is_none()
-            && let MavMessage::HIL_STATE_QUATERNION(m) = message
-        {
-            self.home = Some(self.config.estimator.truth_origin.unwrap_or(GeoOrigin {
-                lat_deg: dege7_to_deg(m.lat),
-                lon_deg: dege7_to_deg(m.lon),
-                alt_amsl_m: mm_to_m(m.alt),
-            }));
-        }
-        let home = self.home.unwrap_or(GeoOrigin { lat_deg: 0.0, lon_deg: 0.0, alt_amsl_m: 0.0 });
-        match decode_hil_message(message, &home) {
-            Some(HilInput::Gps(gps)) => self.inputs.gps = Some(gps),
-            Some(HilInput::Battery(battery)) => self.inputs.battery = Some(battery),
-            Some(HilInput::Truth(truth)) if self.home.is_some() => self.inputs.truth = Some(truth),
-            Some(HilInput::LocalTruth(local)) => {
-                // ODOMETRY positions are about the plant's origin, but a home latched from the first
-                // HIL_STATE_QUATERNION is the vehicle's first position: a vehicle that starts away from
-                // the origin (a swarm's) would count its offset twice. Before the vehicle is built, home
-                // moves to the plant's origin, the first position less the odometry's.
-                if !self.home_is_plant_origin
-                    && self.vehicle.is_none()
-                    && self.config.estimator.truth_origin.is_none()
-                    && let Some(first) = self.home
-                {
-                    let (lat_deg, lon_deg, alt_amsl_m) = first.geodetic_from_ned(&-local.pos_ned_m);
-                    self.home = Some(GeoOrigin { lat_deg, lon_deg, alt_amsl_m });
-                    self.home_is_plant_origin = true;
-                }
-                if let Some(truth) = self.inputs.truth.as_mut().filter(|t| t.time_us == local.time_us) {
-                    *truth = local.refine(truth);
-                }
-            }
-            Some(HilInput::Sensor(fields)) => {
-                let samples = SensorSamples::from(&fields);
-                self.inputs.imu = Some(samples.imu);
-                self.inputs.mag = samples.mag;
-                self.inputs.baro = samples.baro;
-                let now_us = fields.time_us;
-                if self.stats.last_time_us.is_some_and(|last| now_us < last) {
-                    // The plant's clock went back: a new simulation, not a pause. The vehicle restarts
-                    // (disarmed, its telemetry on the new timeline from this step on) from its stored
-                    // parameters and mission, and says so.
-                    tracing::warn!(now_us, "the plant restarted (its clock went back): the vehicle restarts, disarmed");
-                    let text = statustext(MavSeverity::MAV_SEVERITY_CRITICAL, PLANT_RESTARTED_TEXT);
-                    self.send_gcs(None, Destination::All, text);
-                    self.stats.plant_restarts += 1;
-                    self.vehicle = None;
-                }
-                self.now_us = now_us;
-                self.stats.first_time_us.get_or_insert(now_us);
-                self.stats.last_time_us = Some(now_us);
-                let inputs = std::mem::take(&mut self.inputs);
-                let link_errors = self.link_errors(plant_malformed);
-                let Some(vehicle) = self.vehicle()? else {
-                    return Ok(Some(ActuatorCommand { time_us: now_us, pwm_us: [PWM_MIN_US; 4], armed: false }));
-                };
-                vehicle.set_link_errors(link_errors);
-                let outputs = vehicle.step(now_us, &inputs);
-                self.stats.steps += 1;
-                // The flight log opens before the step's texts ("Armed" is its first) and samples after.
-                if let Some(vehicle) = self.vehicle.as_ref() {
-                    self.out.flight_log.begin_step(now_us, vehicle);
-                }
-                for message in outputs.messages {
-                    self.send_gcs(None, Destination::All, message);
-                }
-                if let Some(vehicle) = self.vehicle.as_ref() {
-                    self.out.flight_log.end_step(now_us, vehicle);
-                }
-                self.apply_effects();
-                return Ok(Some(ActuatorCommand { time_us: now_us, pwm_us: outputs.pwm_us, armed: outputs.armed }));
-            }
-            _ => {}
-        }
-        Ok(None)
-    }
-
-    /// What every link has dropped so far: malformed frames, the plant link's (`plant_malformed`) and
-    /// the ground-station links', and the frames signing refused.
-    fn link_errors(&self, plant_malformed: u64) -> LinkErrors {
-        self.out.counters.iter().map(|c| c.snapshot()).fold(
-            LinkErrors { malformed: plant_malformed, signing_rejected: 0 },
-            |acc, s| LinkErrors {
-                malformed: acc.malformed + s.malformed,
-                signing_rejected: acc.signing_rejected + s.signature_rejected,
-            },
-        )
-    }
-
-    /// The vehicle's fallback telemetry while the plant is lost (HEARTBEAT CRITICAL or EMERGENCY,
-    /// SYS_STATUS with the sensors unhealthy), queued to every ground-station link. Nothing when no
-    /// vehicle can be built yet (the `Truth` source before any truth sample): it has not spoken either.
-    fn plant_lost_telemetry(&mut self, plant_malformed: u64) -> Result<(), VehicleError> {
-        let link_errors = self.link_errors(plant_malformed);
-        let Some(vehicle) = self.vehicle()? else { return Ok(()) };
-        vehicle.set_link_errors(link_errors);
-        for message in vehicle.plant_lost_telemetry() {
-            self.send_gcs(None, Destination::All, message);
-        }
-        Ok(())
-    }
-
-    fn on_gcs(&mut self, incoming: Incoming) -> Result<(), VehicleError> {
-        self.stats.gcs_messages += 1;
-        if self.out.tlog.is_some() {
-            self.log(frame::encode(incoming.header, &incoming.message, incoming.version));
-        }
-        if let MavMessage::SETUP_SIGNING(m) = &incoming.message {
-            let ours = m.target_system == 0 || m.target_system == self.config.sysid;
-            if ours {
-                let secure = self.out.secure.get(incoming.link).copied().unwrap_or(false);
-                let said = self.out.signing.setup(m.secret_key, m.initial_timestamp, secure);
-                let severity = if said.starts_with("Signing:") {
-                    MavSeverity::MAV_SEVERITY_WARNING
-                } else {
-                    MavSeverity::MAV_SEVERITY_NOTICE
-                };
-                self.send_gcs(Some(incoming.link), Destination::Peer(incoming.peer), statustext(severity, &said));
-            }
-            return Ok(());
-        }
-        let now_us = self.now_us;
-        let Some(vehicle) = self.vehicle()? else { return Ok(()) };
-        let replies = vehicle.handle_message(now_us, &incoming.header, &incoming.message);
-        for reply in replies {
-            self.send_gcs(Some(incoming.link), Destination::Peer(incoming.peer), reply);
-        }
-        self.apply_effects();
-        Ok(())
     }
 }
 
@@ -533,23 +161,8 @@ pub fn run(
     Vehicle::with_params(vehicle.clone(), params)?;
     let link = transport.describe();
     let io = |source| PlantLinkError::Io { link: link.clone(), source };
-    let mut driver = Driver {
-        config: vehicle,
-        vehicle: None,
-        home: None,
-        home_is_plant_origin: false,
-        inputs: VehicleInputs::default(),
-        now_us: 0,
-        sequence: 0,
-        plant_sequence: 0,
-        out,
-        pending: Vec::new(),
-        urgent: false,
-        last_flush: Instant::now(),
-        persisted,
-        stats: PlantLinkStats::default(),
-        texts: TextLimiter::default(),
-    };
+    let mut plant = PlantSender { sysid: vehicle.sysid, sequence: 0 };
+    let mut host = VehicleHost::new(vehicle.clone(), persisted, GcsFanout::new(vehicle.sysid, out));
     let mut decoder = FrameDecoder::new();
     let datagrams = transport.is_datagram();
     let mut last_sensor: Option<Instant> = None;
@@ -564,15 +177,15 @@ pub fn run(
         if silent_for >= PLANT_SILENCE && !lost {
             lost = true;
             if last_sensor.is_some() {
-                driver.stats.plant_losses += 1;
+                host.stats.plant_losses += 1;
                 tracing::warn!(
                     plant = %link,
                     "plant link lost: no sensor data for 1 s; motors to minimum, HEARTBEAT on the wall clock"
                 );
                 let text = statustext(MavSeverity::MAV_SEVERITY_CRITICAL, PLANT_LOST_TEXT);
-                driver.send_gcs(None, Destination::All, text);
-                let stopped = ActuatorCommand { time_us: driver.now_us, pwm_us: [PWM_MIN_US; 4], armed: false };
-                let frame = driver.plant_frame(&MavMessage::HIL_ACTUATOR_CONTROLS(encode_actuator_controls(&stopped)));
+                host.send_gcs(None, Destination::All, text);
+                let stopped = ActuatorCommand { time_us: host.now_us, pwm_us: [PWM_MIN_US; 4], armed: false };
+                let frame = plant.frame(&MavMessage::HIL_ACTUATOR_CONTROLS(encode_actuator_controls(&stopped)));
                 transport.send(&frame).map_err(io)?;
             } else {
                 tracing::warn!(plant = %link, "no sensor data from the plant yet; waiting");
@@ -580,11 +193,11 @@ pub fn run(
         }
         // While the plant is lost no step makes telemetry: the vehicle's fallback, on the wall clock.
         if lost && last_sensor.is_some() && last_fallback.is_none_or(|t| now - t >= PLANT_LOST_TELEMETRY_INTERVAL) {
-            driver.plant_lost_telemetry(decoder.stats().malformed())?;
+            host.plant_lost_telemetry(decoder.stats().malformed())?;
             last_fallback = Some(now);
         }
         if last_sensor.is_none_or(|_| lost) && last_announce.is_none_or(|t| now - t >= PLANT_SILENCE) {
-            let frame = driver.plant_frame(&announcement());
+            let frame = plant.frame(&announcement());
             transport.send(&frame).map_err(io)?;
             last_announce = Some(now);
         }
@@ -592,14 +205,14 @@ pub fn run(
             let frames = if datagrams { decoder.decode_datagram(bytes) } else { decoder.push(bytes) };
             let mut reply = None;
             let malformed = decoder.stats().malformed();
-            let restarts = driver.stats.plant_restarts;
+            let restarts = host.stats.plant_restarts;
             for decoded in frames {
-                if let Some(cmd) = driver.on_plant_frame(&decoded.message, malformed)? {
+                if let Some(cmd) = host.on_plant_frame(&decoded.message, malformed)? {
                     reply = Some(cmd);
                 }
             }
             if let Some(cmd) = reply {
-                let frame = driver.plant_frame(&MavMessage::HIL_ACTUATOR_CONTROLS(encode_actuator_controls(&cmd)));
+                let frame = plant.frame(&MavMessage::HIL_ACTUATOR_CONTROLS(encode_actuator_controls(&cmd)));
                 transport.send(&frame).map_err(io)?;
                 last_sensor = Some(Instant::now());
                 if lost {
@@ -607,9 +220,9 @@ pub fn run(
                     last_fallback = None;
                     tracing::info!(plant = %link, "plant data again");
                     // A plant that restarted has been announced as such; one that paused is regained.
-                    if driver.stats.plant_losses > 0 && driver.stats.plant_restarts == restarts {
+                    if host.stats.plant_losses > 0 && host.stats.plant_restarts == restarts {
                         let text = statustext(MavSeverity::MAV_SEVERITY_NOTICE, PLANT_REGAINED_TEXT);
-                        driver.send_gcs(None, Destination::All, text);
+                        host.send_gcs(None, Destination::All, text);
                     }
                 }
             }
@@ -617,24 +230,28 @@ pub fn run(
         // Between ticks: everything the ground stations said meanwhile.
         while gcs_open {
             match incoming.try_recv() {
-                Ok(msg) => driver.on_gcs(msg)?,
+                Ok(msg) => host.on_gcs(msg)?,
                 Err(TryRecvError::Empty) => break,
                 Err(TryRecvError::Disconnected) => gcs_open = false,
             }
         }
-        driver.flush(Instant::now(), lost);
-        if !gcs_open && driver.out.links.iter().all(mpsc::Sender::is_closed) {
+        host.gcs.flush(Instant::now(), lost);
+        if !gcs_open && host.gcs.links_closed() {
             tracing::info!("every ground-station link has stopped; plant link stopping");
             break;
         }
     }
-    driver.flush(Instant::now(), true);
-    driver.out.flight_log.close();
-    let ulog = driver.out.flight_log.stats();
-    driver.stats.ulog_flights = ulog.flights;
-    driver.stats.ulog_dropped = ulog.dropped;
-    driver.stats.plant_decoder = decoder.stats();
-    Ok(driver.stats)
+    host.gcs.flush(Instant::now(), true);
+    host.gcs.out.flight_log.close();
+    let ulog = host.gcs.out.flight_log.stats();
+    host.stats.ulog_flights = ulog.flights;
+    host.stats.ulog_dropped = ulog.dropped;
+    host.stats.plant_decoder = decoder.stats();
+    let lost = host.gcs.stats;
+    host.stats.gcs_dropped = lost.gcs_dropped;
+    host.stats.tlog_dropped = lost.tlog_dropped;
+    host.stats.statustext_suppressed = lost.statustext_suppressed;
+    Ok(host.stats)
 }
 
 #[cfg(test)]
@@ -646,6 +263,7 @@ mod tests {
 
     use super::*;
     use crate::core::hil::{HilSensorFields, decode_actuator_controls, encode_hil_sensor};
+    use crate::runtime::link::Outgoing;
     use crate::runtime::transport::UdpPeerTransport;
 
     fn sensor_frame(time_us: u64) -> Vec<u8> {
@@ -952,21 +570,5 @@ mod tests {
         assert_eq!(hb.system_status, MavState::MAV_STATE_STANDBY);
         assert!(system_statuses(after).iter().all(|s| *s == MavState::MAV_STATE_STANDBY), "no fallback after it");
         assert_eq!((stats.plant_losses, stats.plant_restarts), (1, 1));
-    }
-
-    #[test]
-    fn a_repeating_statustext_is_held_to_10_per_vehicle_second_after_a_burst_of_20() {
-        let mut limiter = TextLimiter::default();
-        // 60 texts a second for 3 s of vehicle time (a bad stream refused at 60 Hz).
-        let allowed = (0..180_u64).filter(|k| limiter.allow(k * 16_667, false)).count();
-        assert_eq!(allowed, 20 + 30 - 1, "the burst, then 10 a second");
-        // A chunked text's continuation follows its first chunk.
-        let mut limiter = TextLimiter { tokens: 1.0, ..TextLimiter::default() };
-        assert!(limiter.allow(0, false) && limiter.allow(0, true));
-        assert!(!limiter.allow(0, false) && !limiter.allow(0, true));
-        // A plant restart (time goes back) starts full again.
-        let mut limiter = TextLimiter { tokens: 0.0, last_us: Some(5_000_000), last_allowed: false };
-        assert!(!limiter.allow(5_000_000, false));
-        assert!(limiter.allow(0, false), "a new timeline");
     }
 }

@@ -56,6 +56,32 @@ impl Shutdown {
     }
 }
 
+/// Resolves on SIGTERM (how service managers and `kill` stop a process), never elsewhere than on Unix.
+pub async fn terminated() {
+    #[cfg(unix)]
+    {
+        use tokio::signal::unix::{SignalKind, signal};
+        if let Ok(mut term) = signal(SignalKind::terminate()) {
+            term.recv().await;
+            return;
+        }
+    }
+    std::future::pending::<()>().await;
+}
+
+/// Resolves when standard input reaches its end (a detached thread reads it, so a pending read never
+/// holds up the process exit).
+pub async fn stdin_closed() {
+    let (tx, rx) = tokio::sync::oneshot::channel();
+    std::thread::spawn(move || {
+        let mut sink = [0u8; 256];
+        let mut stdin = std::io::stdin();
+        while std::io::Read::read(&mut stdin, &mut sink).is_ok_and(|n| n > 0) {}
+        let _ = tx.send(());
+    });
+    let _ = rx.await;
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -13,15 +13,16 @@
 //! - Turning signing off: SETUP_SIGNING with the all-zero key (while signing is on it must itself be signed,
 //!   as every frame must), or removing the key file.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 use mavlink::MavHeader;
-use mavlink::dialects::common::MavMessage;
+use mavlink::dialects::common::{MavMessage, MavSeverity, SETUP_SIGNING_DATA};
 
 use super::frame::{DecodedFrame, LinkCounters, encode_v2};
+use super::persist::write_private_file_atomically;
 use crate::core::mavlink::signing::{SecretKey, Signing, Verdict, timestamp_of_unix_us};
+use crate::core::mavlink::statustext;
 
 /// The key file in the state directory: the key's 64 hex digits, then the last timestamp used.
 pub const KEY_FILE: &str = "signing.key";
@@ -126,6 +127,24 @@ impl LinkSigning {
         "Signing enabled".into()
     }
 
+    /// A SETUP_SIGNING received by vehicle `sysid` on a link that is `secure` or not: applied when it is
+    /// for this vehicle (or every one), and the STATUSTEXT that answers the peer (WARNING when refused,
+    /// NOTICE when applied); `None` when it is for another vehicle.
+    #[must_use]
+    pub fn on_setup_signing(&self, m: &SETUP_SIGNING_DATA, sysid: u8, secure: bool) -> Option<MavMessage> {
+        let ours = m.target_system == 0 || m.target_system == sysid;
+        if !ours {
+            return None;
+        }
+        let said = self.setup(m.secret_key, m.initial_timestamp, secure);
+        let severity = if said.starts_with("Signing:") {
+            MavSeverity::MAV_SEVERITY_WARNING
+        } else {
+            MavSeverity::MAV_SEVERITY_NOTICE
+        };
+        Some(statustext(severity, &said))
+    }
+
     /// Saves the last timestamp with the key (at shutdown), so the next start's timestamps continue.
     pub fn save_timestamp(&self) {
         let Some(dir) = &self.dir else { return };
@@ -138,26 +157,13 @@ impl LinkSigning {
     }
 }
 
-/// Writes the key file with owner-only permissions, atomically (temporary file, sync, rename).
+/// Writes the key file with owner-only permissions, atomically (`persist::write_private_file_atomically`).
 ///
 /// # Errors
 /// The I/O error; the previous file is then unchanged.
 pub fn save_key(dir: &Path, key: &SecretKey, timestamp: u64) -> std::io::Result<()> {
-    let tmp = dir.join(format!("{KEY_FILE}.tmp"));
-    let mut options = std::fs::OpenOptions::new();
-    options.write(true).create(true).truncate(true);
-    #[cfg(unix)]
-    std::os::unix::fs::OpenOptionsExt::mode(&mut options, 0o600);
-    let result = (|| {
-        let mut file = options.open(&tmp)?;
-        writeln!(file, "{}\n{timestamp}", key.to_hex())?;
-        file.sync_all()?;
-        std::fs::rename(&tmp, dir.join(KEY_FILE))
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
+    let text = format!("{}\n{timestamp}\n", key.to_hex());
+    write_private_file_atomically(&dir.join(KEY_FILE), text.as_bytes())
 }
 
 /// A key file: the key on its first line (64 hex digits), and optionally the last timestamp on the

@@ -4,12 +4,11 @@
 //!
 //! The timestamp is the caller's `now_us` (the shell picks wall clock, or plant time offset onto a start
 //! epoch), so the writer reads no clock. It writes to `<dir>/<name>.tlog.tmp` and renames to
-//! `<dir>/<name>.tlog` only in [`TlogWriter::close`]: a log under its final name is always complete; one
+//! `<dir>/<name>.tlog` only in [`TlogWriter::close`] (a `persist::AtomicFile` log): a log under its final name is always complete; one
 //! left as `.tlog.tmp` (crash, error, dropped without close) is readable up to its last flush. It flushes
 //! whenever [`TLOG_FLUSH_INTERVAL_US`] of `now_us` has passed since the last flush. This is blocking
 //! std I/O into a buffer: cheap per call, flushes are a few kB once a second.
 
-use std::fs::{File, OpenOptions};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
@@ -17,6 +16,7 @@ use mavlink::dialects::common::MavMessage;
 use mavlink::{MavHeader, MavlinkVersion};
 
 use super::frame::encode;
+use super::persist::{AtomicFile, CommitError};
 
 /// How often buffered records reach the file, in µs of the caller's clock.
 pub const TLOG_FLUSH_INTERVAL_US: u64 = 1_000_000;
@@ -62,9 +62,7 @@ pub struct TlogRecord {
 /// An open `.tlog.tmp`; becomes `.tlog` on [`TlogWriter::close`].
 #[derive(Debug)]
 pub struct TlogWriter {
-    file: BufWriter<File>,
-    temp_path: PathBuf,
-    final_path: PathBuf,
+    file: BufWriter<AtomicFile>,
     last_flush_us: Option<u64>,
     records: u64,
 }
@@ -77,30 +75,30 @@ impl TlogWriter {
     /// overwritten), [`TlogError::Create`] if the file cannot be created.
     pub fn create(dir: &Path, name: &str) -> Result<Self, TlogError> {
         let final_path = dir.join(format!("{name}.tlog"));
-        let temp_path = dir.join(format!("{name}.tlog.tmp"));
         if final_path.exists() {
             return Err(TlogError::Exists { path: final_path });
         }
-        let file = OpenOptions::new().write(true).create_new(true).open(&temp_path).map_err(|source| {
+        let file = AtomicFile::create_log(&final_path).map_err(|source| {
+            let temp_path = super::persist::temp_path(&final_path);
             if source.kind() == std::io::ErrorKind::AlreadyExists {
-                TlogError::Exists { path: temp_path.clone() }
+                TlogError::Exists { path: temp_path }
             } else {
-                TlogError::Create { path: temp_path.clone(), source }
+                TlogError::Create { path: temp_path, source }
             }
         })?;
-        Ok(Self { file: BufWriter::new(file), temp_path, final_path, last_flush_us: None, records: 0 })
+        Ok(Self { file: BufWriter::new(file), last_flush_us: None, records: 0 })
     }
 
     /// Where the log is being written now.
     #[must_use]
     pub fn temp_path(&self) -> &Path {
-        &self.temp_path
+        self.file.get_ref().temp_path()
     }
 
     /// Where the log will be after [`TlogWriter::close`].
     #[must_use]
     pub fn final_path(&self) -> &Path {
-        &self.final_path
+        self.file.get_ref().path()
     }
 
     /// Records written so far.
@@ -115,7 +113,7 @@ impl TlogWriter {
     /// [`TlogError::Write`] if the file cannot be written or flushed.
     pub fn write_frame(&mut self, now_us: u64, frame: &[u8]) -> Result<(), TlogError> {
         let res = self.file.write_all(&now_us.to_be_bytes()).and_then(|()| self.file.write_all(frame));
-        res.map_err(|source| TlogError::Write { path: self.temp_path.clone(), source })?;
+        res.map_err(|source| TlogError::Write { path: self.temp_path().to_owned(), source })?;
         self.records += 1;
         match self.last_flush_us {
             None => self.last_flush_us = Some(now_us),
@@ -148,7 +146,7 @@ impl TlogWriter {
     /// # Errors
     /// [`TlogError::Write`] if the flush fails.
     pub fn flush(&mut self) -> Result<(), TlogError> {
-        self.file.flush().map_err(|source| TlogError::Write { path: self.temp_path.clone(), source })
+        self.file.flush().map_err(|source| TlogError::Write { path: self.temp_path().to_owned(), source })
     }
 
     /// Flush, sync and rename to the final name; returns that path.
@@ -156,15 +154,13 @@ impl TlogWriter {
     /// # Errors
     /// [`TlogError::Write`] if flushing or syncing fails (the `.tlog.tmp` stays), [`TlogError::Rename`]
     /// if the rename fails.
-    pub fn close(mut self) -> Result<PathBuf, TlogError> {
-        self.flush()?;
-        self.file.get_ref().sync_all().map_err(|source| TlogError::Write { path: self.temp_path.clone(), source })?;
-        std::fs::rename(&self.temp_path, &self.final_path).map_err(|source| TlogError::Rename {
-            from: self.temp_path.clone(),
-            to: self.final_path.clone(),
-            source,
-        })?;
-        Ok(self.final_path.clone())
+    pub fn close(self) -> Result<PathBuf, TlogError> {
+        let temp_path = self.temp_path().to_owned();
+        let file = self.file.into_inner().map_err(|e| TlogError::Write { path: temp_path, source: e.into_error() })?;
+        file.commit().map_err(|e| match e {
+            CommitError::Sync { path, source } => TlogError::Write { path, source },
+            CommitError::Rename { from, to, source } => TlogError::Rename { from, to, source },
+        })
     }
 }
 

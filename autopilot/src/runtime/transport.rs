@@ -8,7 +8,7 @@
 //! lockstep step, and the lockstep round trip is what bounds the two-process real-time factor.
 //!
 //! Serial is 8N1 without flow control; a read returns as soon as any bytes are there (a piece of a
-//! frame is normal: the caller's [`crate::core::hil::FrameDecoder::push`] reassembles).
+//! frame is normal: the caller's [`crate::core::mavlink::frame::FrameDecoder::push`] reassembles).
 
 use std::io::{self, Read, Write};
 use std::net::{SocketAddr, UdpSocket};

@@ -20,6 +20,7 @@ use nalgebra::Vector3;
 use crate::core::commander::Event;
 
 pub mod command;
+pub mod frame;
 pub mod housekeeping;
 pub mod identity;
 pub mod mission;

@@ -190,7 +190,7 @@ mod tests {
     use ::mavlink::dialects::common::{COMMAND_LONG_DATA, MavCmd, MavMessage, RADIO_STATUS_DATA};
 
     use super::*;
-    use crate::core::hil::{FrameDecoder, encode_frame_v2};
+    use crate::core::mavlink::frame::{FrameDecoder, encode_frame_v2};
 
     const KEY: SecretKey = SecretKey([7u8; 32]);
     const T0: u64 = 30_000_000_000_000; // about 9.5 years after 2015

@@ -1,0 +1,483 @@
+//! The flight log's sampler: on the plant-link thread, after each vehicle step, the topics due on
+//! vehicle time, the vehicle's texts as logged strings, parameters changed in flight and sync markers,
+//! handed to the writer without ever waiting (a batch the writer has no room for is dropped and counted).
+
+use std::path::PathBuf;
+use std::time::{SystemTime, UNIX_EPOCH};
+
+use mavlink::dialects::common::MavSeverity;
+use tokio::sync::mpsc;
+use tokio::sync::mpsc::error::TrySendError;
+
+use super::LogItem;
+use super::topics::{RecordContext, TOPICS, definitions, fields, param_value, px4_nav_state, record};
+use crate::core::control::ControllerKind;
+use crate::core::vehicle::Vehicle;
+use crate::runtime::ulog::{self, Topic};
+use crate::runtime::utc::UtcTime;
+
+/// Vehicle time between sync markers.
+pub const SYNC_INTERVAL_US: u64 = 1_000_000;
+/// Vehicle time between checks for parameters changed in flight.
+pub const PARAM_CHECK_INTERVAL_US: u64 = 1_000_000;
+
+/// Counts of the sampler, for the summary at shutdown.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct FlightLogStats {
+    /// Flights logged (files opened).
+    pub flights: u64,
+    /// Bytes handed to the writer.
+    pub bytes: u64,
+    /// Batches dropped because the writer was behind.
+    pub dropped: u64,
+}
+
+/// A flight being logged.
+#[derive(Debug)]
+struct Flight {
+    topics: Vec<Topic>,
+    intervals_us: Vec<u64>,
+    due_us: Vec<u64>,
+    /// The controller's telemetry names, in the order `controller_status` declares them.
+    telemetry_names: Vec<&'static str>,
+    /// (armed, nav_state) last logged.
+    status: (bool, u8),
+    params: Vec<f32>,
+    next_sync_us: u64,
+    next_param_check_us: u64,
+    armed_at_us: u64,
+}
+
+/// The sampler: see the module docs. The default logs nothing.
+#[derive(Debug)]
+pub struct FlightLogger {
+    tx: Option<mpsc::Sender<LogItem>>,
+    root: PathBuf,
+    sysid: u8,
+    flight: Option<Flight>,
+    pending: Vec<u8>,
+    /// Vehicle time of the first batch dropped since the last one delivered.
+    dropped_since_us: Option<u64>,
+    /// A Close that found the queue full, sent again at the next step.
+    close_pending: bool,
+    stats: FlightLogStats,
+}
+
+impl Default for FlightLogger {
+    fn default() -> Self {
+        Self::off()
+    }
+}
+
+impl FlightLogger {
+    /// A logger writing flights under `root` through `tx`; `None`: logging off.
+    #[must_use]
+    pub fn new(tx: Option<mpsc::Sender<LogItem>>, root: PathBuf, sysid: u8) -> Self {
+        Self {
+            tx,
+            root,
+            sysid,
+            flight: None,
+            pending: Vec::new(),
+            dropped_since_us: None,
+            close_pending: false,
+            stats: FlightLogStats::default(),
+        }
+    }
+
+    /// A logger that logs nothing.
+    #[must_use]
+    pub fn off() -> Self {
+        Self::new(None, PathBuf::new(), 1)
+    }
+
+    #[must_use]
+    pub fn stats(&self) -> FlightLogStats {
+        self.stats
+    }
+
+    /// Whether a flight is being logged.
+    #[must_use]
+    pub fn logging(&self) -> bool {
+        self.flight.is_some()
+    }
+
+    /// Before the step's messages are sent: a flight starts when the vehicle is armed (and SDLOG_MODE is
+    /// not -1), so that the step's "Armed" text is its first logged string.
+    pub fn begin_step(&mut self, now_us: u64, vehicle: &Vehicle) {
+        if self.close_pending
+            && let Some(tx) = &self.tx
+            && tx.try_send(LogItem::Close).is_ok()
+        {
+            self.close_pending = false;
+        }
+        if self.tx.is_none() || self.flight.is_some() || !vehicle.commander_output().armed {
+            return;
+        }
+        if vehicle.params().sdlog_mode() < 0 {
+            return;
+        }
+        self.open(now_us, vehicle, wall_us());
+    }
+
+    /// A STATUSTEXT the vehicle sent at `now_us`, as a logged string of its severity (while a flight is
+    /// logged).
+    pub fn text(&mut self, now_us: u64, severity: MavSeverity, text: &str) {
+        if self.flight.is_none() {
+            return;
+        }
+        if let Ok(bytes) = ulog::logged_string(severity as u8, now_us, text) {
+            self.pending.extend(bytes);
+        }
+    }
+
+    /// After the step's messages: the topics due at `now_us`; when the vehicle has disarmed, a last
+    /// `vehicle_status` and the end of the flight.
+    pub fn end_step(&mut self, now_us: u64, vehicle: &Vehicle) {
+        let Some(flight) = self.flight.as_mut() else { return };
+        let out = vehicle.commander_output();
+        let status = (out.armed, px4_nav_state(out.mode));
+        if status != flight.status {
+            flight.status = status;
+            flight.due_us[0] = now_us;
+        }
+        // Most steps (9 in 10 at 500 Hz) have nothing due: copy nothing out of the vehicle then.
+        let due = |i: usize| now_us >= flight.due_us[i];
+        let any_due = (0..flight.topics.len()).any(due);
+        let wants_telemetry = flight
+            .topics
+            .iter()
+            .enumerate()
+            .any(|(i, t)| due(i) && matches!(t.name.as_str(), "controller_status" | "aco_weights"));
+        let snap = if any_due { Some(vehicle.log_snapshot()) } else { None };
+        let telemetry = if wants_telemetry { vehicle.controller().telemetry() } else { Vec::new() };
+        for (i, topic) in flight.topics.iter().enumerate() {
+            let Some(snap) = snap.as_ref() else { break };
+            if now_us < flight.due_us[i] {
+                continue;
+            }
+            let interval = flight.intervals_us[i];
+            flight.due_us[i] =
+                if now_us - flight.due_us[i] < interval { flight.due_us[i] + interval } else { now_us + interval };
+            let ctx = RecordContext {
+                sysid: self.sysid,
+                armed_at_us: flight.armed_at_us,
+                telemetry: &telemetry,
+                telemetry_names: &flight.telemetry_names,
+            };
+            if let Ok(bytes) = topic.data(&record(&topic.name, now_us, snap, &ctx)) {
+                self.pending.extend(bytes);
+            }
+        }
+        if now_us >= flight.next_param_check_us {
+            flight.next_param_check_us = now_us + PARAM_CHECK_INTERVAL_US;
+            let store = vehicle.params();
+            for (i, (def, value)) in store.iter().enumerate() {
+                if flight.params.get(i).is_some_and(|old| old.to_bits() != value.to_bits()) {
+                    flight.params[i] = value;
+                    if let Ok(bytes) = ulog::parameter(def.name, &param_value(def.kind, value)) {
+                        self.pending.extend(bytes);
+                    }
+                }
+            }
+        }
+        if now_us >= flight.next_sync_us {
+            flight.next_sync_us = now_us + SYNC_INTERVAL_US;
+            self.pending.extend(ulog::sync());
+        }
+        let ended = !status.0;
+        self.send(now_us, false);
+        if ended {
+            self.close();
+        }
+    }
+
+    /// The end of the flight being logged, if any (the vehicle disarmed, was rebuilt, or the autopilot
+    /// stops).
+    pub fn close(&mut self) {
+        if self.flight.take().is_none() {
+            return;
+        }
+        self.send(0, true);
+        if let Some(tx) = &self.tx {
+            // Blocking would stall the lockstep loop: with the queue full, the close goes at a later step
+            // (and the writer closes the file at the next Open or when the autopilot stops in any case).
+            self.close_pending = tx.try_send(LogItem::Close).is_err();
+        }
+    }
+
+    /// Hands the pending bytes to the writer (`force`: even when there is nothing new, to push a dropout
+    /// marker out).
+    fn send(&mut self, now_us: u64, force: bool) {
+        let Some(tx) = &self.tx else { return };
+        if self.pending.is_empty() && !force {
+            return;
+        }
+        let mut bytes = Vec::new();
+        if let Some(since) = self.dropped_since_us {
+            let lost_ms = u16::try_from(now_us.saturating_sub(since) / 1000).unwrap_or(u16::MAX);
+            bytes.extend(ulog::dropout(lost_ms));
+        }
+        bytes.append(&mut self.pending);
+        if bytes.is_empty() {
+            return;
+        }
+        let len = bytes.len() as u64;
+        match tx.try_send(LogItem::Append(bytes)) {
+            Ok(()) => {
+                self.dropped_since_us = None;
+                self.stats.bytes += len;
+            }
+            Err(TrySendError::Full(_) | TrySendError::Closed(_)) => {
+                self.stats.dropped += 1;
+                self.dropped_since_us.get_or_insert(now_us);
+            }
+        }
+    }
+
+    fn open(&mut self, now_us: u64, vehicle: &Vehicle, wall_us: u64) {
+        let Some(tx) = &self.tx else { return };
+        let when = UtcTime::from_unix_us(wall_us);
+        let telemetry = vehicle.controller().telemetry();
+        let telemetry_names: Vec<&'static str> = telemetry.iter().map(|(n, _)| *n).collect();
+        let aco = vehicle.controller().kind() == ControllerKind::Aco;
+        let mut topics = Vec::new();
+        let mut intervals_us = Vec::new();
+        for (name, interval) in TOPICS {
+            if name == "aco_weights" && !aco {
+                continue;
+            }
+            let msg_id = u16::try_from(topics.len()).unwrap_or(u16::MAX);
+            topics.push(Topic::new(name, msg_id, fields(name, &telemetry_names)));
+            intervals_us.push(interval);
+        }
+        let params: Vec<f32> = vehicle.params().iter().map(|(_, v)| v).collect();
+        let bytes = definitions(now_us, wall_us, vehicle, &topics);
+        let item = LogItem::Open { dir: self.root.join(when.date()), name: when.time('_'), bytes };
+        if tx.try_send(item).is_err() {
+            self.stats.dropped += 1;
+            return;
+        }
+        self.stats.flights += 1;
+        self.close_pending = false;
+        self.pending.clear();
+        self.dropped_since_us = None;
+        let n = topics.len();
+        self.flight = Some(Flight {
+            topics,
+            intervals_us,
+            due_us: vec![now_us; n],
+            telemetry_names,
+            status: (true, px4_nav_state(vehicle.commander_output().mode)),
+            params,
+            next_sync_us: now_us + SYNC_INTERVAL_US,
+            next_param_check_us: now_us + PARAM_CHECK_INTERVAL_US,
+            armed_at_us: now_us,
+        });
+    }
+}
+
+fn wall_us() -> u64 {
+    SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| u64::try_from(d.as_micros()).unwrap_or(u64::MAX))
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use crate::core::commander::State;
+    use crate::core::config::VehicleConfig;
+    use crate::core::estimator::{EstimatorSource, GeoOrigin};
+    use crate::core::mavlink::MavHeader;
+    use crate::core::mavlink::command_long;
+    use crate::core::mavlink::common::{MavCmd, MavMessage};
+    use crate::core::vehicle::VehicleInputs;
+    use crate::runtime::flight_log::{ULOG_CHANNEL_CAPACITY, UlogWriter};
+    use crate::runtime::ulog::read_messages;
+
+    const GCS: MavHeader = MavHeader { system_id: 255, component_id: 190, sequence: 0 };
+
+    pub(crate) fn scratch(test: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("autopilot-ulog-{test}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        dir
+    }
+
+    pub(crate) fn vehicle() -> Vehicle {
+        let mut config = VehicleConfig::default();
+        config.estimator.source = EstimatorSource::Truth;
+        config.estimator.truth_origin = Some(GeoOrigin { lat_deg: 47.4, lon_deg: 8.5, alt_amsl_m: 488.0 });
+        Vehicle::new(config).expect("valid")
+    }
+
+    fn at_rest(time_us: u64) -> VehicleInputs {
+        VehicleInputs::at_rest_truth(time_us)
+    }
+
+    /// Steps the vehicle for `seconds` as the plant link does, the logger around each step.
+    fn fly(v: &mut Vehicle, log: &mut FlightLogger, t_us: &mut u64, seconds: f64) {
+        let end = *t_us + (seconds * 1e6) as u64;
+        while *t_us < end {
+            let out = v.step(*t_us, &at_rest(*t_us));
+            log.begin_step(*t_us, v);
+            for m in &out.messages {
+                if let MavMessage::STATUSTEXT(s) = m {
+                    log.text(*t_us, s.severity, s.text.to_str().unwrap_or(""));
+                }
+            }
+            log.end_step(*t_us, v);
+            *t_us += 2_000;
+        }
+    }
+
+    fn drain(rx: &mut mpsc::Receiver<LogItem>, writer: &mut UlogWriter) -> Vec<PathBuf> {
+        let mut closed = Vec::new();
+        while let Ok(item) = rx.try_recv() {
+            closed.extend(writer.handle(item).expect("written"));
+        }
+        closed
+    }
+
+    /// Data messages of a file, per topic name: (timestamp, payload).
+    fn topics_of(bytes: &[u8]) -> std::collections::HashMap<String, Vec<Vec<u8>>> {
+        let (_, msgs) = read_messages(bytes).expect("parses");
+        let mut names = std::collections::HashMap::new();
+        let mut data: std::collections::HashMap<String, Vec<Vec<u8>>> = std::collections::HashMap::new();
+        for m in &msgs {
+            match m.kind {
+                b'A' => {
+                    let id = u16::from_le_bytes([m.body[1], m.body[2]]);
+                    names.insert(id, String::from_utf8(m.body[3..].to_vec()).expect("utf8"));
+                }
+                b'D' => {
+                    let id = u16::from_le_bytes([m.body[0], m.body[1]]);
+                    data.entry(names[&id].clone()).or_default().push(m.body[2..].to_vec());
+                }
+                _ => {}
+            }
+        }
+        data
+    }
+
+    #[test]
+    fn an_armed_flight_is_one_file_with_every_topic_at_its_rate_and_the_texts_as_logged_strings() {
+        let root = scratch("flight");
+        let (tx, mut rx) = mpsc::channel(ULOG_CHANNEL_CAPACITY);
+        let mut log = FlightLogger::new(Some(tx), root.clone(), 1);
+        let mut writer = UlogWriter::default();
+        let (mut v, mut t) = (vehicle(), 0);
+        // GIVEN a vehicle on the ground: nothing is written while it is disarmed.
+        fly(&mut v, &mut log, &mut t, 1.0);
+        assert!(!log.logging());
+        assert!(drain(&mut rx, &mut writer).is_empty() && !root.exists());
+        // WHEN it arms, idles 2 s and disarms.
+        let arm = command_long(1, 0, MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        v.handle_message(t, &GCS, &arm);
+        let armed_at = t;
+        fly(&mut v, &mut log, &mut t, 2.0);
+        assert!(log.logging());
+        assert_eq!(v.commander().state(), State::ArmedIdle);
+        let disarm = command_long(1, 0, MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [0.0; 7]);
+        v.handle_message(t, &GCS, &disarm);
+        fly(&mut v, &mut log, &mut t, 0.5);
+        // THEN one file, finalized, under <root>/<date>/<time>.ulg.
+        let closed = drain(&mut rx, &mut writer);
+        assert_eq!(closed.len(), 1, "{closed:?}");
+        assert!(!log.logging());
+        let path = &closed[0];
+        assert_eq!(path.extension().and_then(|e| e.to_str()), Some("ulg"));
+        let date_dir = path.parent().expect("dir");
+        assert_eq!(date_dir.parent(), Some(root.as_path()));
+        assert_eq!(date_dir.file_name().and_then(|n| n.to_str()).map(str::len), Some(10), "YYYY-MM-DD");
+        assert!(!path.with_extension("ulg.tmp").exists());
+        let bytes = std::fs::read(path).expect("read");
+        let (start_us, msgs) = read_messages(&bytes).expect("parses");
+        assert_eq!(start_us, armed_at);
+        assert_eq!(msgs[0].kind, b'B', "flag bits right after the header");
+        let first_a = msgs.iter().position(|m| m.kind == b'A').expect("subscriptions");
+        assert!(msgs[..first_a].iter().all(|m| b"BFIPQ".contains(&m.kind)), "definitions first");
+        let params = msgs.iter().filter(|m| m.kind == b'P').count();
+        assert_eq!(params, v.params().len(), "every parameter");
+        let key = |m: &ulog::ReadMessage| String::from_utf8_lossy(&m.body[1..1 + usize::from(m.body[0])]).into_owned();
+        assert!(msgs.iter().any(|m| m.kind == b'P' && key(m) == "int32_t SDLOG_MODE"));
+        assert!(msgs.iter().any(|m| m.kind == b'P' && key(m) == "float MPC_XY_CRUISE"));
+        let data = topics_of(&bytes);
+        let count = |name: &str| data.get(name).map_or(0, Vec::len);
+        // 2 s armed (and the disarming step): 50 Hz topics about 100 records, 10 Hz about 20, 5 Hz about 10.
+        for (name, hz) in [("vehicle_attitude", 50), ("actuator_outputs", 50), ("controller_status", 50)] {
+            assert!((2 * hz..=2 * hz + 2).contains(&count(name)), "{name}: {}", count(name));
+        }
+        for (name, hz) in [("aco_weights", 10), ("estimator_innovations", 10), ("battery_status", 5)] {
+            assert!((2 * hz..=2 * hz + 2).contains(&count(name)), "{name}: {}", count(name));
+        }
+        // vehicle_status: at arming, once a second, and at the disarm: armed then disarmed (1).
+        let status = &data["vehicle_status"];
+        assert!(status.len() >= 3, "{}", status.len());
+        assert_eq!(status[0][16], 2, "armed");
+        assert_eq!(u64::from_le_bytes(status[0][8..16].try_into().expect("8")), armed_at, "armed_time");
+        assert_eq!(status.last().map(|s| s[16]), Some(1), "disarmed at the end");
+        // Every record is its format's size; attitude is the identity quaternion (w first).
+        assert!(data["vehicle_attitude"].iter().all(|r| r[16..20] == 1.0f32.to_le_bytes()));
+        let texts: Vec<String> = msgs
+            .iter()
+            .filter(|m| m.kind == b'L')
+            .map(|m| String::from_utf8_lossy(&m.body[9..]).into_owned())
+            .collect();
+        assert_eq!(texts.first().map(String::as_str), Some("Armed"), "{texts:?}");
+        assert!(texts.iter().any(|t| t == "Disarmed"), "{texts:?}");
+        assert!(msgs.iter().any(|m| m.kind == b'S'), "sync markers");
+        // A second flight is a second file.
+        v.handle_message(t, &GCS, &arm);
+        fly(&mut v, &mut log, &mut t, 0.2);
+        log.close();
+        assert_eq!(drain(&mut rx, &mut writer).len(), 1);
+        assert_eq!(log.stats().flights, 2);
+        let _ = std::fs::remove_dir_all(&root);
+    }
+
+    #[test]
+    fn sdlog_mode_minus_one_logs_nothing() {
+        let root = scratch("off");
+        let (tx, mut rx) = mpsc::channel(16);
+        let mut log = FlightLogger::new(Some(tx), root.clone(), 1);
+        let (mut v, mut t) = (vehicle(), 0);
+        let set = MavMessage::PARAM_SET(crate::core::mavlink::common::PARAM_SET_DATA {
+            param_value: f32::from_le_bytes((-1i32).to_le_bytes()),
+            target_system: 1,
+            target_component: 1,
+            param_id: "SDLOG_MODE".into(),
+            param_type: crate::core::mavlink::common::MavParamType::MAV_PARAM_TYPE_INT32,
+        });
+        v.handle_message(t, &GCS, &set);
+        assert_eq!(v.params().sdlog_mode(), -1);
+        fly(&mut v, &mut log, &mut t, 0.5);
+        let arm = command_long(1, 0, MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        v.handle_message(t, &GCS, &arm);
+        fly(&mut v, &mut log, &mut t, 0.5);
+        assert!(v.commander_output().armed && !log.logging());
+        assert!(rx.try_recv().is_err());
+    }
+
+    #[test]
+    fn a_writer_that_falls_behind_costs_records_not_the_loop_and_says_so_with_a_dropout() {
+        let root = scratch("behind");
+        let (tx, mut rx) = mpsc::channel(4);
+        let mut log = FlightLogger::new(Some(tx), root.clone(), 1);
+        let (mut v, mut t) = (vehicle(), 0);
+        fly(&mut v, &mut log, &mut t, 0.5);
+        let arm = command_long(1, 0, MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        v.handle_message(t, &GCS, &arm);
+        // Nobody drains the queue for 1 s: of the 50 batches (one per step with a 50 Hz topic due), all but
+        // the four the queue holds are dropped, and no step waits.
+        fly(&mut v, &mut log, &mut t, 1.0);
+        assert!(log.stats().dropped >= 45, "{:?}", log.stats());
+        let mut writer = UlogWriter::default();
+        assert!(drain(&mut rx, &mut writer).is_empty());
+        fly(&mut v, &mut log, &mut t, 0.04);
+        log.close();
+        let closed = drain(&mut rx, &mut writer);
+        let bytes = std::fs::read(&closed[0]).expect("read");
+        let (_, msgs) = read_messages(&bytes).expect("a file with a gap still parses");
+        assert!(msgs.iter().any(|m| m.kind == b'O'), "a dropout marker");
+        let _ = std::fs::remove_dir_all(&root);
+    }
+}

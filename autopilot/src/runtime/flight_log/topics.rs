@@ -1,0 +1,305 @@
+//! What the flight log records: the topics and their rates, each topic's ULog format, one record of a
+//! topic from the vehicle's snapshot, and the header and definitions that start a flight's file.
+
+use nalgebra::{UnitQuaternion, Vector3};
+
+use crate::runtime::ulog::{self, Field, FieldType, Record, Topic, Value};
+use crate::runtime::utc::UtcTime;
+// Standard gravity (m/s²), to turn the specific force into an acceleration.
+use crate::core::battery::BatteryWarning;
+use crate::core::commander::FlightMode;
+use crate::core::estimator::eskf::GRAVITY_MPS2 as G_MPS2;
+use crate::core::params::{ParamKind, ParamStore};
+use crate::core::vehicle::{LogSnapshot, Vehicle};
+
+/// The logged topics and the interval (µs of vehicle time) each is sampled at. PX4's topic names, and
+/// the fields of PX4's messages that this vehicle has, with their names and types; `controller_status`
+/// (every value of [`crate::core::control::Controller::telemetry`]) and `aco_weights` (ACO only) are
+/// this autopilot's own. `vehicle_status` is also logged whenever the arming state or the mode changes.
+/// PX4's default logger profile takes attitude and setpoints at 20-50 Hz and positions at 10 Hz; the
+/// control-side topics are taken at 50 Hz here because the controller is what this autopilot studies.
+pub const TOPICS: [(&str, u64); 10] = [
+    ("vehicle_status", 1_000_000),
+    ("vehicle_attitude", 20_000),
+    ("vehicle_local_position", 20_000),
+    ("vehicle_local_position_setpoint", 20_000),
+    ("vehicle_attitude_setpoint", 20_000),
+    ("actuator_outputs", 20_000),
+    ("controller_status", 20_000),
+    ("estimator_innovations", 100_000),
+    ("battery_status", 200_000),
+    ("aco_weights", 100_000),
+];
+
+/// `aco_weights`: the ACO weight vectors and the telemetry names of their N/E/D or x/y/z values.
+const ACO_WEIGHTS: [(&str, [&str; 3]); 5] = [
+    ("w_t", ["aco.w_t_n", "aco.w_t_e", "aco.w_t_d"]),
+    ("b_t", ["aco.b_t_n_mps2", "aco.b_t_e_mps2", "aco.b_t_d_mps2"]),
+    ("c_r", ["aco.c_r_x", "aco.c_r_y", "aco.c_r_z"]),
+    ("d_r", ["aco.d_r_x_radps2", "aco.d_r_y_radps2", "aco.d_r_z_radps2"]),
+    ("mass_est", ["aco.mass_est_n_kg", "aco.mass_est_e_kg", "aco.mass_est_d_kg"]),
+];
+
+/// PX4's `vehicle_status.nav_state` of a mode.
+#[must_use]
+pub const fn px4_nav_state(mode: FlightMode) -> u8 {
+    match mode {
+        FlightMode::Altitude => 1,
+        FlightMode::Position => 2,
+        FlightMode::Mission => 3,
+        FlightMode::Hold => 4,
+        FlightMode::ReturnToLaunch => 5,
+        FlightMode::Offboard => 14,
+        FlightMode::Takeoff => 17,
+        FlightMode::Land => 18,
+    }
+}
+
+/// PX4's `battery_status.warning` of a level.
+const fn px4_battery_warning(level: BatteryWarning) -> u8 {
+    match level {
+        BatteryWarning::None => 0,
+        BatteryWarning::Low => 1,
+        BatteryWarning::Critical => 2,
+        BatteryWarning::Emergency => 3,
+    }
+}
+
+/// A telemetry name as a ULog field name: without the controller's prefix, dots as underscores
+/// (`ca.roll.k1` -> `roll_k1`).
+fn field_name(telemetry: &str) -> String {
+    let bare = telemetry.split_once('.').map_or(telemetry, |(_, rest)| rest);
+    bare.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '_' }).collect()
+}
+
+/// The fields (after `timestamp`) of topic `name`; `telemetry` names the controller's values.
+pub(super) fn fields(name: &str, telemetry: &[&'static str]) -> Vec<Field> {
+    use FieldType::{Bool, F32, F64, U8, U32, U64};
+    let f = |n: &str| Field::scalar(F32, n);
+    match name {
+        "vehicle_status" => vec![
+            Field::scalar(U64, "armed_time"),
+            Field::scalar(U8, "arming_state"),
+            Field::scalar(U8, "nav_state"),
+            Field::scalar(U8, "vehicle_type"),
+            Field::scalar(U8, "system_type"),
+            Field::scalar(U8, "system_id"),
+            Field::scalar(U8, "component_id"),
+            Field::scalar(Bool, "is_vtol"),
+        ],
+        "vehicle_attitude" => vec![Field::scalar(U64, "timestamp_sample"), Field::array(F32, 4, "q")],
+        "vehicle_local_position" => {
+            let mut v = vec![Field::scalar(U64, "timestamp_sample"), Field::scalar(F64, "ref_lat")];
+            v.push(Field::scalar(F64, "ref_lon"));
+            v.extend(["x", "y", "z", "vx", "vy", "vz", "ax", "ay", "az", "heading", "ref_alt"].map(f));
+            v.extend(
+                ["xy_valid", "z_valid", "v_xy_valid", "v_z_valid", "xy_global", "z_global"]
+                    .map(|n| Field::scalar(Bool, n)),
+            );
+            v
+        }
+        "vehicle_local_position_setpoint" => {
+            let mut v: Vec<Field> = ["x", "y", "z", "yaw", "vx", "vy", "vz"].map(f).into();
+            v.push(Field::array(F32, 3, "acceleration"));
+            v.push(Field::array(F32, 3, "jerk"));
+            v
+        }
+        "vehicle_attitude_setpoint" => {
+            let mut v: Vec<Field> = ["roll_body", "pitch_body", "yaw_body"].map(f).into();
+            v.push(Field::array(F32, 4, "q_d"));
+            v
+        }
+        "actuator_outputs" => vec![Field::scalar(U32, "noutputs"), Field::array(F32, 16, "output")],
+        "controller_status" => telemetry.iter().map(|n| f(&field_name(n))).collect(),
+        "estimator_innovations" => vec![
+            Field::scalar(U64, "timestamp_sample"),
+            Field::array(F32, 2, "gps_hvel"),
+            f("gps_vvel"),
+            Field::array(F32, 2, "gps_hpos"),
+            f("gps_vpos"),
+            f("baro_vpos"),
+            f("heading"),
+        ],
+        "battery_status" => {
+            let mut v: Vec<Field> = ["voltage_v", "current_a", "discharged_mah", "remaining"].map(f).into();
+            v.extend([Field::scalar(U8, "warning"), Field::scalar(U8, "cell_count"), Field::scalar(Bool, "connected")]);
+            v
+        }
+        "aco_weights" => ACO_WEIGHTS.iter().map(|(n, _)| Field::array(F32, 3, n)).collect(),
+        _ => Vec::new(),
+    }
+}
+
+/// What a record needs besides the vehicle's snapshot.
+pub(super) struct RecordContext<'a> {
+    pub(super) sysid: u8,
+    /// Vehicle time of arming (`vehicle_status.armed_time`).
+    pub(super) armed_at_us: u64,
+    /// The controller's telemetry now.
+    pub(super) telemetry: &'a [(&'static str, f64)],
+    /// The telemetry names `controller_status` declared when the flight started.
+    pub(super) telemetry_names: &'a [&'static str],
+}
+
+/// One record of topic `name` at `now_us`.
+pub(super) fn record(name: &str, now_us: u64, snap: &LogSnapshot, ctx: &RecordContext<'_>) -> Record {
+    let r = Record::new(now_us);
+    let telemetry = ctx.telemetry;
+    let est = &snap.estimate;
+    let value = |n: &str| telemetry.iter().find(|(t, _)| *t == n).map_or(f64::NAN, |&(_, v)| v);
+    let nan3 = [f64::NAN; 3];
+    match name {
+        "vehicle_status" => r
+            .u64(ctx.armed_at_us)
+            .u8(if snap.armed { 2 } else { 1 })
+            .u8(px4_nav_state(snap.mode))
+            .u8(1) // rotary wing
+            .u8(2) // MAV_TYPE_QUADROTOR
+            .u8(ctx.sysid)
+            .u8(1)
+            .bool(false),
+        "vehicle_attitude" => {
+            let q = est.q_ned_frd;
+            r.u64(est.time_us).f32s(&[q.w, q.i, q.j, q.k])
+        }
+        "vehicle_local_position" => {
+            let (lat, lon, alt) =
+                est.origin.map_or((f64::NAN, f64::NAN, f64::NAN), |o| (o.lat_deg, o.lon_deg, o.alt_amsl_m));
+            let acc = est.q_ned_frd * est.specific_force_frd_mps2 + Vector3::new(0.0, 0.0, G_MPS2);
+            let (p, v, flags) = (est.pos_ned_m, est.vel_ned_mps, est.flags);
+            r.u64(est.time_us)
+                .f64(lat)
+                .f64(lon)
+                .f32s(&[p.x, p.y, p.z, v.x, v.y, v.z, acc.x, acc.y, acc.z, est.euler_rad.z, alt])
+                .bool(flags.position_valid)
+                .bool(flags.position_valid)
+                .bool(flags.velocity_valid)
+                .bool(flags.velocity_valid)
+                .bool(est.origin.is_some())
+                .bool(est.origin.is_some())
+        }
+        "vehicle_local_position_setpoint" => match &snap.reference {
+            Some(rf) => {
+                let (x, y) =
+                    if rf.attitude_rad.is_some() { (f64::NAN, f64::NAN) } else { (rf.pos_ned_m.x, rf.pos_ned_m.y) };
+                let (v, a, j) = (rf.vel_ned_mps, rf.acc_ned_mps2, rf.jerk_ned_mps3);
+                r.f32s(&[x, y, rf.pos_ned_m.z, rf.yaw_rad, v.x, v.y, v.z, a.x, a.y, a.z, j.x, j.y, j.z])
+            }
+            None => r.f32s(&[f64::NAN; 13]),
+        },
+        "vehicle_attitude_setpoint" => {
+            let sp = if snap.reference.is_some() { snap.attitude_setpoint_rad } else { Vector3::from(nan3) };
+            let q = UnitQuaternion::from_euler_angles(sp.x, sp.y, sp.z);
+            let q_d = if sp.iter().all(|x| x.is_finite()) { [q.w, q.i, q.j, q.k] } else { [f64::NAN; 4] };
+            r.f32s(&[sp.x, sp.y, sp.z]).f32s(&q_d)
+        }
+        "actuator_outputs" => {
+            let mut out = [0.0; 16];
+            out[..4].copy_from_slice(&snap.pwm_us);
+            r.u32(4).f32s(&out)
+        }
+        "controller_status" => ctx.telemetry_names.iter().fold(r, |r, n| r.f32(value(n))),
+        "estimator_innovations" => {
+            let i = &snap.innovations;
+            r.u64(est.time_us).f32s(&i.gps_vel_ned_mps).f32s(&i.gps_pos_ned_m).f32(i.baro_alt_m).f32(i.heading_rad)
+        }
+        "battery_status" => {
+            let s = snap.battery.sample;
+            r.f32(s.map_or(0.0, |s| s.voltage_v))
+                .f32(s.and_then(|s| s.current_a).unwrap_or(-1.0))
+                .f32(s.and_then(|s| s.consumed_mah).unwrap_or(-1.0))
+                .f32(s.and_then(|s| s.remaining).unwrap_or(-1.0))
+                .u8(px4_battery_warning(snap.battery.level))
+                .u8(s.map_or(0, |s| s.cells))
+                .bool(s.is_some())
+        }
+        "aco_weights" => ACO_WEIGHTS.iter().fold(r, |r, (_, names)| r.f32s(&names.map(value))),
+        _ => r,
+    }
+}
+
+/// A parameter's value as PX4 types it in a log.
+pub(super) fn param_value(kind: ParamKind, value: f32) -> Value {
+    match kind {
+        ParamKind::Real => Value::F32(value),
+        ParamKind::Integer | ParamKind::Boolean => Value::I32(value as i32),
+    }
+}
+
+/// The header and definitions of a flight starting at `now_us` (vehicle time) and `wall_us` (Unix
+/// time): flag bits, formats, information, parameters and their defaults, subscriptions.
+pub(super) fn definitions(now_us: u64, wall_us: u64, vehicle: &Vehicle, topics: &[Topic]) -> Vec<u8> {
+    let mut out = ulog::header(now_us).to_vec();
+    out.extend(ulog::flag_bits());
+    for t in topics {
+        out.extend(t.format_message().unwrap_or_default());
+    }
+    let controller = vehicle.controller().kind().as_str().to_owned();
+    let infos = [
+        ("sys_name", Value::Str("ACO autopilot".into())),
+        ("ver_hw", Value::Str("ACO_QUADROTOR".into())),
+        ("ver_sw", Value::Str(env!("CARGO_PKG_VERSION").into())),
+        ("sys_toolchain", Value::Str("rustc".into())),
+        ("time_ref_utc", Value::I32(0)),
+        ("controller", Value::Str(controller)),
+        ("estimator", Value::Str(format!("{:?}", vehicle.config().estimator.source).to_lowercase())),
+        (
+            "log_start_utc",
+            Value::Str(format!(
+                "{} {} UTC",
+                UtcTime::from_unix_us(wall_us).date(),
+                UtcTime::from_unix_us(wall_us).time(':')
+            )),
+        ),
+    ];
+    for (name, value) in &infos {
+        out.extend(ulog::info(name, value).unwrap_or_default());
+    }
+    let store: &ParamStore = vehicle.params();
+    for (def, value) in store.iter() {
+        out.extend(ulog::parameter(def.name, &param_value(def.kind, value)).unwrap_or_default());
+    }
+    for (def, value) in store.iter() {
+        if value.to_bits() != def.default.to_bits() {
+            let default = param_value(def.kind, def.default);
+            out.extend(ulog::default_parameter(ulog::DEFAULT_TYPE_SYSTEM, def.name, &default).unwrap_or_default());
+        }
+    }
+    for t in topics {
+        out.extend(t.subscription(0).unwrap_or_default());
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::config::VehicleConfig;
+    use crate::core::control::ControllerKind;
+    use crate::runtime::flight_log::sampler::tests::vehicle;
+
+    #[test]
+    fn field_names_drop_the_controller_prefix_and_dots() {
+        assert_eq!(field_name("aco.w_t_n"), "w_t_n");
+        assert_eq!(field_name("ca.roll.k1"), "roll_k1");
+        assert_eq!(field_name("plain"), "plain");
+        // Every controller's telemetry gives distinct, plain field names.
+        for kind in [ControllerKind::Aco, ControllerKind::Ca, ControllerKind::Pid] {
+            let c = crate::core::control::new_controller(kind, &VehicleConfig::default().control);
+            let names: Vec<String> = c.telemetry().iter().map(|(n, _)| field_name(n)).collect();
+            let unique: std::collections::HashSet<&String> = names.iter().collect();
+            assert_eq!(unique.len(), names.len(), "{kind}: {names:?}");
+            assert!(names.iter().all(|n| !n.is_empty() && n.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')));
+        }
+        // Each topic's record matches its format for every controller.
+        let v = vehicle();
+        let snap = v.log_snapshot();
+        let telemetry = v.controller().telemetry();
+        let names: Vec<&'static str> = telemetry.iter().map(|(n, _)| *n).collect();
+        let ctx = RecordContext { sysid: 1, armed_at_us: 0, telemetry: &telemetry, telemetry_names: &names };
+        for (i, (name, _)) in TOPICS.iter().enumerate() {
+            let topic = Topic::new(name, i as u16, fields(name, &names));
+            assert!(topic.data(&record(name, 0, &snap, &ctx)).is_ok(), "{name}");
+        }
+    }
+}
