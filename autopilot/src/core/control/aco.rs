@@ -16,15 +16,13 @@
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
-use super::distributor::{
-    self, ActuatorLimits, LimitedThrust, MixerSaturation, attitude_from_thrust, collective_thrust_n,
-    limit_thrust_vector, mix_forward,
-};
+use super::distributor::{ActuatorLimits, LimitedThrust, MixerSaturation, limit_thrust_vector, mix_forward};
 use super::filters::LowPass2Vec3;
 use super::frames::{body_z_in_ned, euler_rates_to_body, rotation_ned_frd, wrap_pi};
 use super::lms::{LmsBounds, LmsChannel};
 use super::{
-    Airframe, ControlInput, Controller, ControllerKind, LoopRates, Reference, clip_abs, inputs_finite, tilt_lead_mps2,
+    Airframe, ControlInput, Controller, ControllerKind, HeldOutput, LoopRates, Reference, attitude_setpoint_rad,
+    clip_abs, commanded_collective_n, inputs_finite, tilt_lead_mps2,
 };
 
 /// ACO constants, gains, adaptation rates and bounds (spec A.1, A.3, A.4). Default = the spec's values.
@@ -175,8 +173,7 @@ pub struct AcoController {
     collective_n: f64,
     moment_cmd_nm: Vector3<f64>,
     rate_sp_radps: Vector3<f64>,
-    last_saturation: MixerSaturation,
-    last_pwm_us: [f64; 4],
+    held: HeldOutput,
 }
 
 impl AcoController {
@@ -232,8 +229,7 @@ impl AcoController {
             collective_n: a.mass_kg * g,
             moment_cmd_nm: Vector3::zeros(),
             rate_sp_radps: Vector3::zeros(),
-            last_saturation: MixerSaturation { roll_pitch_scale: 1.0, yaw_factor: 1.0, ..Default::default() },
-            last_pwm_us: [a.hover_pwm_us(); 4],
+            held: HeldOutput::hover(&a),
             cfg,
         }
     }
@@ -297,7 +293,7 @@ impl AcoController {
     /// The saturation report of the last distribution.
     #[must_use]
     pub fn last_saturation(&self) -> MixerSaturation {
-        self.last_saturation
+        self.held.saturation
     }
 
     /// Step 1: the rotor-lag model, `F̂ <- F̂ + (1 - e^(-Δ/τ̄)) (F_cmd[k-1] - F̂)`; returns `(T̂, M̂)`.
@@ -383,10 +379,7 @@ impl AcoController {
         }
         let limited = limit_thrust_vector(&u, &c.limits);
         self.vertical_thrust_n = limited.vertical_n;
-        self.attitude_sp_rad = match reference.attitude_rad {
-            Some(att) => att,
-            None => attitude_from_thrust(&limited, reference.yaw_rad),
-        };
+        self.attitude_sp_rad = attitude_setpoint_rad(reference, &limited);
         self.last_limit = Some(limited);
         self.position_loop_ran = true;
     }
@@ -417,7 +410,7 @@ impl Controller for AcoController {
             self.moment_est_prev_nm = moment_est;
             self.rotation_primed = false;
             self.tick += 1;
-            return self.last_pwm_us;
+            return self.held.pwm_us;
         }
         if !self.started {
             self.lpf_gyro.reset_to(&input.rate_frd_radps);
@@ -439,10 +432,8 @@ impl Controller for AcoController {
             self.attitude_sp_rad = att;
         }
         // 5. Collective (or the thrust asked for directly).
-        self.collective_n = match reference.collective_frac {
-            Some(frac) => self.cfg.limits.collective_from_frac_n(frac),
-            None => collective_thrust_n(self.vertical_thrust_n, &input.euler_rad, &self.cfg.limits),
-        };
+        self.collective_n =
+            commanded_collective_n(reference, self.vertical_thrust_n, &input.euler_rad, &self.cfg.limits, true);
         // 6. Attitude (Eqs 22-24).
         let eta = &input.euler_rad;
         let sp = &self.attitude_sp_rad;
@@ -460,14 +451,11 @@ impl Controller for AcoController {
                     / self.lms_r[j].w();
         }
         // 8. Distributor and lift curve.
-        let d = distributor::distribute(self.collective_n, &self.moment_cmd_nm, &a, &self.cfg.limits);
         self.tick += 1;
-        if d.pwm_us.iter().all(|p| p.is_finite()) {
+        if let Some(d) = self.held.distribute(self.collective_n, &self.moment_cmd_nm, &a, &self.cfg.limits) {
             self.rotor_cmd_n = d.forces_n;
-            self.last_saturation = d.saturation;
-            self.last_pwm_us = d.pwm_us;
         }
-        self.last_pwm_us
+        self.held.pwm_us
     }
 
     fn reconfigure(&mut self, config: &super::ControllerConfig) {
@@ -508,8 +496,8 @@ impl Controller for AcoController {
             ("aco.rate_sp_x_radps", self.rate_sp_radps.x),
             ("aco.rate_sp_y_radps", self.rate_sp_radps.y),
             ("aco.rate_sp_z_radps", self.rate_sp_radps.z),
-            ("aco.yaw_factor", self.last_saturation.yaw_factor),
-            ("aco.roll_pitch_scale", self.last_saturation.roll_pitch_scale),
+            ("aco.yaw_factor", self.held.saturation.yaw_factor),
+            ("aco.roll_pitch_scale", self.held.saturation.roll_pitch_scale),
             ("aco.vertical_clamped", f64::from(u8::from(limit.is_some_and(|l| l.vertical_clamped)))),
             ("aco.horizontal_limited", f64::from(u8::from(limit.is_some_and(|l| l.horizontal_limited)))),
         ]

@@ -415,6 +415,78 @@ pub(crate) fn inputs_finite(input: &ControlInput, reference: &Reference) -> bool
         && reference.collective_frac.is_none_or(f64::is_finite)
 }
 
+/// The collective thrust (N) a controller commands this tick: the thrust asked for directly
+/// (`reference.collective_frac`, [`distributor::ActuatorLimits::collective_from_frac_n`]) when given,
+/// else the vertical thrust `vertical_n` (N) of its position loop, tilt-compensated
+/// ([`distributor::collective_thrust_n`]) when `tilt_compensate` and taken as it is otherwise.
+#[must_use]
+pub(crate) fn commanded_collective_n(
+    reference: &Reference,
+    vertical_n: f64,
+    euler_rad: &Vector3<f64>,
+    limits: &distributor::ActuatorLimits,
+    tilt_compensate: bool,
+) -> f64 {
+    if let Some(frac) = reference.collective_frac {
+        limits.collective_from_frac_n(frac)
+    } else if tilt_compensate {
+        distributor::collective_thrust_n(vertical_n, euler_rad, limits)
+    } else {
+        vertical_n
+    }
+}
+
+/// The attitude setpoint (phi, theta, psi) a position loop leaves: the reference's own in attitude-only
+/// mode, else the one extracted from the limited thrust vector and the reference yaw.
+#[must_use]
+pub(crate) fn attitude_setpoint_rad(reference: &Reference, limited: &distributor::LimitedThrust) -> Vector3<f64> {
+    match reference.attitude_rad {
+        Some(att) => att,
+        None => distributor::attitude_from_thrust(limited, reference.yaw_rad),
+    }
+}
+
+/// The output a controller holds between ticks: the PWM commands (µs) it gave last, repeated while its
+/// inputs are not finite, and the distributor's saturation report on them, which the baselines freeze on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct HeldOutput {
+    pub saturation: distributor::MixerSaturation,
+    pub pwm_us: [f64; 4],
+}
+
+impl HeldOutput {
+    /// Hover PWM on every rotor (Eq 10) and nothing saturated, before the first tick.
+    #[must_use]
+    pub fn hover(airframe: &Airframe) -> Self {
+        Self {
+            saturation: distributor::MixerSaturation { roll_pitch_scale: 1.0, yaw_factor: 1.0, ..Default::default() },
+            pwm_us: [airframe.hover_pwm_us(); 4],
+        }
+    }
+
+    /// The tail of every controller's inner tick: the collective `collective_n` (N) and the moment
+    /// command `moment_cmd_nm` (N·m, FRD) through the channel distributor (Eqs 26-27) and the lift curve
+    /// (Eq 10) to four PWM commands clamped to 1000-2000 µs. A finite result becomes the held output and
+    /// is returned; a non-finite one leaves the held output as it was (the last good command is
+    /// repeated) and gives None.
+    pub fn distribute(
+        &mut self,
+        collective_n: f64,
+        moment_cmd_nm: &Vector3<f64>,
+        airframe: &Airframe,
+        limits: &distributor::ActuatorLimits,
+    ) -> Option<distributor::Distribution> {
+        let d = distributor::distribute(collective_n, moment_cmd_nm, airframe, limits);
+        if d.pwm_us.iter().all(|p| p.is_finite()) {
+            self.saturation = d.saturation;
+            self.pwm_us = d.pwm_us;
+            Some(d)
+        } else {
+            None
+        }
+    }
+}
+
 /// Clip each component of `v` to `[-limit_i, limit_i]`.
 #[must_use]
 pub(crate) fn clip_abs(v: &Vector3<f64>, limit: &[f64; 3]) -> Vector3<f64> {

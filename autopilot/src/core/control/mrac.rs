@@ -25,12 +25,12 @@
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
-use super::distributor::{
-    self, ActuatorLimits, LimitedThrust, MixerSaturation, attitude_from_thrust, collective_thrust_n,
-    limit_thrust_vector,
-};
+use super::distributor::{self, ActuatorLimits, LimitedThrust, limit_thrust_vector};
 use super::frames::{body_to_euler_rates, wrap_pi};
-use super::{Airframe, ControlInput, Controller, ControllerKind, LoopRates, Reference, inputs_finite, tilt_lead_mps2};
+use super::{
+    Airframe, ControlInput, Controller, ControllerKind, HeldOutput, LoopRates, Reference, attitude_setpoint_rad,
+    commanded_collective_n, inputs_finite, tilt_lead_mps2,
+};
 
 /// MRAC baseline settings (spec (c)). Default = "CA" as the reference prototype flew it (see
 /// `freeze_roll_pitch`); `freeze_on_saturation = false` gives "CA-raw",
@@ -67,7 +67,8 @@ pub struct MracConfig {
     /// Stop adapting a channel while its actuator is saturated (false: "CA-raw").
     pub freeze_on_saturation: bool,
     /// Also freeze roll and pitch while the distributor scales or clips them, as the spec's text says.
-    /// Off by default, as the reference prototype flew (see [`MixerSaturation::freeze_axes`]).
+    /// Off by default, as the reference prototype flew (see
+    /// [`MixerSaturation::freeze_axes`](distributor::MixerSaturation::freeze_axes)).
     pub freeze_roll_pitch: bool,
     /// Competent CA: the position channels take the reference's velocity, acceleration and jerk. The
     /// reference model is commanded `r = p + (2ζ/ωn) v + a/ωn²`, whose solution is the reference itself,
@@ -458,10 +459,9 @@ pub struct MracController {
     vertical_thrust_n: f64,
     attitude_sp_rad: Vector3<f64>,
     last_limit: Option<LimitedThrust>,
-    last_saturation: MixerSaturation,
+    held: HeldOutput,
     collective_n: f64,
     moment_cmd_nm: Vector3<f64>,
-    last_pwm_us: [f64; 4],
     /// Whether the telemetry lists the error integrals: fixed when built (an integral pole was set), so
     /// the telemetry's names never change in flight.
     report_integrals: bool,
@@ -505,10 +505,9 @@ impl MracController {
             vertical_thrust_n: mg,
             attitude_sp_rad: Vector3::zeros(),
             last_limit: None,
-            last_saturation: MixerSaturation { roll_pitch_scale: 1.0, yaw_factor: 1.0, ..Default::default() },
+            held: HeldOutput::hover(&c.airframe),
             collective_n: mg,
             moment_cmd_nm: Vector3::zeros(),
-            last_pwm_us: [c.airframe.hover_pwm_us(); 4],
             report_integrals: c.wi_att_radps != 0.0 || c.wi_pos_radps != 0.0,
             cfg: c,
         }
@@ -568,7 +567,7 @@ impl MracController {
         let freeze = c.freeze_on_saturation;
         let limit = self.last_limit;
         let freeze_ne = freeze && limit.is_some_and(|l| l.horizontal_limited);
-        let freeze_d = freeze && (limit.is_some_and(|l| l.vertical_clamped) || self.last_saturation.collective);
+        let freeze_d = freeze && (limit.is_some_and(|l| l.vertical_clamped) || self.held.saturation.collective);
         let attitude_only = reference.attitude_rad.is_some();
         // The command of each position channel: the reference position, or with the feed-forward the
         // command whose reference-model solution is the reference trajectory itself.
@@ -603,10 +602,7 @@ impl MracController {
             }
         }
         self.vertical_thrust_n = limited.vertical_n;
-        self.attitude_sp_rad = match reference.attitude_rad {
-            Some(att) => att,
-            None => attitude_from_thrust(&limited, reference.yaw_rad),
-        };
+        self.attitude_sp_rad = attitude_setpoint_rad(reference, &limited);
         self.last_limit = Some(limited);
         self.position_loop_ran = true;
     }
@@ -616,7 +612,7 @@ impl Controller for MracController {
     fn update(&mut self, input: &ControlInput, reference: &Reference) -> [f64; 4] {
         if !inputs_finite(input, reference) {
             self.tick += 1;
-            return self.last_pwm_us;
+            return self.held.pwm_us;
         }
         let eta = input.euler_rad;
         let yaw = match self.yaw_unwrapped_rad {
@@ -637,7 +633,7 @@ impl Controller for MracController {
         let x1 = [eta.x, eta.y, yaw];
         let sp = self.attitude_sp_rad;
         let r = [sp.x, sp.y, yaw + wrap_pi(sp.z - yaw)];
-        let sat = self.last_saturation;
+        let sat = self.held.saturation;
         let freeze = self.cfg.freeze_on_saturation;
         let frozen = sat.freeze_axes(self.cfg.freeze_roll_pitch).map(|saturated| freeze && saturated);
         let inertia = self.cfg.airframe.inertia();
@@ -646,15 +642,11 @@ impl Controller for MracController {
             self.moment_cmd_nm[j] = inertia[j] * v;
         }
 
-        self.collective_n = match reference.collective_frac {
-            Some(frac) => self.cfg.limits.collective_from_frac_n(frac),
-            None => collective_thrust_n(self.vertical_thrust_n, &eta, &self.cfg.limits),
-        };
-        let d = distributor::distribute(self.collective_n, &self.moment_cmd_nm, &self.cfg.airframe, &self.cfg.limits);
+        self.collective_n = commanded_collective_n(reference, self.vertical_thrust_n, &eta, &self.cfg.limits, true);
         self.tick += 1;
-        if d.pwm_us.iter().all(|p| p.is_finite()) {
-            self.last_saturation = d.saturation;
-            self.last_pwm_us = d.pwm_us;
+        if let Some(d) =
+            self.held.distribute(self.collective_n, &self.moment_cmd_nm, &self.cfg.airframe, &self.cfg.limits)
+        {
             if self.cfg.hedging {
                 // The moment each attitude channel asked for and did not get, as its pseudo-control.
                 let (_, achieved_nm) = distributor::mix_forward(&d.forces_n, &self.cfg.airframe);
@@ -663,7 +655,7 @@ impl Controller for MracController {
                 }
             }
         }
-        self.last_pwm_us
+        self.held.pwm_us
     }
 
     fn reconfigure(&mut self, config: &super::ControllerConfig) {
@@ -698,7 +690,7 @@ impl Controller for MracController {
         }
         out.push(("ca.vertical_thrust_n", self.vertical_thrust_n));
         out.push(("ca.collective_n", self.collective_n));
-        out.push(("ca.yaw_factor", self.last_saturation.yaw_factor));
+        out.push(("ca.yaw_factor", self.held.saturation.yaw_factor));
         out
     }
 
@@ -715,6 +707,7 @@ impl Controller for MracController {
 mod tests {
     use super::*;
     use crate::core::control::ControllerConfig;
+    use crate::core::control::distributor::MixerSaturation;
     use crate::core::control::toy_plant::{Sample, ToyPlant, at, fly, hover_input, max_after, mismatch};
 
     fn ca() -> MracController {
@@ -878,7 +871,7 @@ mod tests {
         c.update(&input, &r);
         input.rate_frd_radps = Vector3::new(0.3, 0.3, 0.3);
         input.euler_rad = Vector3::new(0.02, 0.02, 0.02);
-        c.last_saturation = MixerSaturation { yaw: true, ..c.last_saturation };
+        c.held.saturation = MixerSaturation { yaw: true, ..c.held.saturation };
         let before = c.att.map(|ch| ch.parameters());
         c.update(&input, &r);
         assert_eq!(c.att[2].parameters(), before[2], "yaw frozen");
@@ -889,7 +882,7 @@ mod tests {
             LoopRates::default(),
         );
         raw.update(&hover_input(p, 0.0), &r);
-        raw.last_saturation = MixerSaturation { yaw: true, ..raw.last_saturation };
+        raw.held.saturation = MixerSaturation { yaw: true, ..raw.held.saturation };
         let before = raw.att[2].parameters();
         raw.update(&input, &r);
         assert_ne!(raw.att[2].parameters(), before);
@@ -906,7 +899,7 @@ mod tests {
             let mut c =
                 MracController::new(&MracConfig { freeze_roll_pitch, ..MracConfig::default() }, LoopRates::default());
             c.update(&hover_input(p, 0.0), &r);
-            c.last_saturation = MixerSaturation { roll: true, pitch: true, ..c.last_saturation };
+            c.held.saturation = MixerSaturation { roll: true, pitch: true, ..c.held.saturation };
             let before = c.att.map(|ch| ch.parameters());
             c.update(&input, &r);
             for (j, (channel, was)) in c.att.iter().zip(before).take(2).enumerate() {

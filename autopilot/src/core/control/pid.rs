@@ -15,13 +15,11 @@
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
-use super::distributor::{
-    self, ActuatorLimits, LimitedThrust, MixerSaturation, attitude_from_thrust, collective_thrust_n,
-    limit_thrust_vector,
-};
+use super::distributor::{ActuatorLimits, LimitedThrust, limit_thrust_vector};
 use super::frames::quaternion_from_euler;
 use super::{
-    Airframe, ControlInput, Controller, ControllerKind, LoopRates, Reference, clip_abs, inputs_finite, tilt_lead_mps2,
+    Airframe, ControlInput, Controller, ControllerKind, HeldOutput, LoopRates, Reference, attitude_setpoint_rad,
+    clip_abs, commanded_collective_n, inputs_finite, tilt_lead_mps2,
 };
 
 /// PID baseline gains and limits (spec (c)). Default = the spec's values.
@@ -56,7 +54,8 @@ pub struct PidConfig {
     pub rate_limit_radps: [f64; 3],
     /// Also freeze the roll and pitch rate integrators while the distributor saturates those axes, as
     /// the spec's text says. Off by default, as the reference prototype flew (see
-    /// [`MixerSaturation::freeze_axes`]); the yaw integrator is always frozen under saturation.
+    /// [`MixerSaturation::freeze_axes`](super::distributor::MixerSaturation::freeze_axes)); the yaw
+    /// integrator is always frozen under saturation.
     pub freeze_roll_pitch: bool,
 }
 
@@ -99,8 +98,7 @@ pub struct PidController {
     rate_sp_radps: Vector3<f64>,
     moment_cmd_nm: Vector3<f64>,
     last_limit: Option<LimitedThrust>,
-    last_saturation: MixerSaturation,
-    last_pwm_us: [f64; 4],
+    held: HeldOutput,
 }
 
 impl PidController {
@@ -121,8 +119,7 @@ impl PidController {
             rate_sp_radps: Vector3::zeros(),
             moment_cmd_nm: Vector3::zeros(),
             last_limit: None,
-            last_saturation: MixerSaturation { roll_pitch_scale: 1.0, yaw_factor: 1.0, ..Default::default() },
-            last_pwm_us: [config.airframe.hover_pwm_us(); 4],
+            held: HeldOutput::hover(&config.airframe),
             cfg: config.clone(),
         }
     }
@@ -189,10 +186,7 @@ impl PidController {
         }
 
         self.collective_n = limited.force_ned_n.norm();
-        self.attitude_sp_rad = match reference.attitude_rad {
-            Some(att) => att,
-            None => attitude_from_thrust(&limited, reference.yaw_rad),
-        };
+        self.attitude_sp_rad = attitude_setpoint_rad(reference, &limited);
         self.last_limit = Some(limited);
         self.position_loop_ran = true;
     }
@@ -202,7 +196,7 @@ impl Controller for PidController {
     fn update(&mut self, input: &ControlInput, reference: &Reference) -> [f64; 4] {
         if !inputs_finite(input, reference) {
             self.tick += 1;
-            return self.last_pwm_us;
+            return self.held.pwm_us;
         }
         if self.tick.is_multiple_of(self.pos_divider) || !self.position_loop_ran {
             self.step_position_loop(input, reference);
@@ -227,7 +221,7 @@ impl Controller for PidController {
         let e_w = self.rate_sp_radps - input.rate_frd_radps;
         self.moment_cmd_nm =
             inertia.component_mul(&Vector3::from(c.k_rate_per_s).component_mul(&e_w)) + self.rate_integral_nm;
-        let sat = self.last_saturation;
+        let sat = self.held.saturation;
         for (j, saturated) in sat.freeze_axes(c.freeze_roll_pitch).into_iter().enumerate() {
             if !saturated {
                 self.rate_integral_nm[j] = (self.rate_integral_nm[j]
@@ -239,20 +233,16 @@ impl Controller for PidController {
         // In attitude-only mode there is no thrust vector to take the norm of: the vertical demand is
         // tilt-compensated as for the other controllers (the prototype's PID yaw settling, 3.89 / 4.67 s,
         // is reproduced only with it).
-        let collective_n = if let Some(frac) = reference.collective_frac {
-            c.limits.collective_from_frac_n(frac)
-        } else if reference.attitude_rad.is_some() {
-            collective_thrust_n(self.collective_n, &input.euler_rad, &c.limits)
-        } else {
-            self.collective_n
-        };
-        let d = distributor::distribute(collective_n, &self.moment_cmd_nm, &c.airframe, &c.limits);
+        let collective_n = commanded_collective_n(
+            reference,
+            self.collective_n,
+            &input.euler_rad,
+            &c.limits,
+            reference.attitude_rad.is_some(),
+        );
         self.tick += 1;
-        if d.pwm_us.iter().all(|p| p.is_finite()) {
-            self.last_saturation = d.saturation;
-            self.last_pwm_us = d.pwm_us;
-        }
-        self.last_pwm_us
+        self.held.distribute(collective_n, &self.moment_cmd_nm, &c.airframe, &c.limits);
+        self.held.pwm_us
     }
 
     fn reconfigure(&mut self, config: &super::ControllerConfig) {
@@ -276,7 +266,7 @@ impl Controller for PidController {
             ("pid.moment_x_nm", self.moment_cmd_nm.x),
             ("pid.moment_y_nm", self.moment_cmd_nm.y),
             ("pid.moment_z_nm", self.moment_cmd_nm.z),
-            ("pid.yaw_factor", self.last_saturation.yaw_factor),
+            ("pid.yaw_factor", self.held.saturation.yaw_factor),
             ("pid.vertical_clamped", f64::from(u8::from(limit.is_some_and(|l| l.vertical_clamped)))),
             ("pid.horizontal_limited", f64::from(u8::from(limit.is_some_and(|l| l.horizontal_limited)))),
         ]
@@ -406,7 +396,7 @@ mod tests {
             c.update(&input, &Reference::position(p, 0.0));
         }
         assert!((c.rate_integral_nm().x - 0.3).abs() < 1e-12, "{}", c.rate_integral_nm());
-        assert!(!c.last_saturation.roll);
+        assert!(!c.held.saturation.roll);
     }
 
     #[test]
@@ -419,7 +409,7 @@ mod tests {
         input.rate_frd_radps.x = -10.0;
         c.update(&input, &Reference::position(p, 0.0));
         let after_first = c.rate_integral_nm();
-        assert!(c.last_saturation.roll);
+        assert!(c.held.saturation.roll);
         for _ in 0..100 {
             c.update(&input, &Reference::position(p, 0.0));
         }
@@ -427,7 +417,7 @@ mod tests {
         let mut default = pid();
         default.update(&input, &Reference::position(p, 0.0));
         let first = default.rate_integral_nm();
-        assert!(default.last_saturation.roll);
+        assert!(default.held.saturation.roll);
         default.update(&input, &Reference::position(p, 0.0));
         assert_ne!(default.rate_integral_nm().x, first.x, "by default roll integrates through saturation");
     }
