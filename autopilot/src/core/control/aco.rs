@@ -515,52 +515,36 @@ impl Controller for AcoController {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::core::control::ControllerConfig;
-    use crate::core::control::toy_plant::{Sample, ToyPlant, at, fly, hover_input, max_after, mismatch};
+    use crate::core::control::toy_plant::{
+        Reconfigured, Sample, ToyPlant, assert_same_config_reconfigure_is_bit_identical, at, fly, hover_input,
+        max_after, mismatch,
+    };
+    use crate::core::control::{ControllerConfig, toy_plant};
 
     fn aco() -> AcoController {
         AcoController::new(&AcoConfig::default(), LoopRates::default())
     }
 
-    /// A run of the default controller around the mismatch plant: 4 s holding `(0, 0, -1.5)` (the weights
-    /// adapt away from the nominal), then `reconfigure(config)` when given, then 3 s flying to
-    /// `target`. Returns the second leg, the weights just before and just after the reconfigure,
-    /// and the controller.
-    fn fly_reconfigured(
-        config: Option<&AcoConfig>,
-        target: Vector3<f64>,
-    ) -> (Vec<Sample>, AcoWeights, AcoWeights, AcoController) {
-        let p = Vector3::new(0.0, 0.0, -1.5);
-        let mut plant = ToyPlant::new(p, Vector3::zeros());
-        mismatch(&mut plant);
-        let mut c = aco();
-        fly(&mut c, &mut plant, 500, 4.0, |_| Reference::position(p, 0.0));
-        let before = c.weights();
-        if let Some(config) = config {
-            Controller::reconfigure(&mut c, &ControllerConfig { aco: config.clone(), ..ControllerConfig::default() });
-        }
-        let after = c.weights();
-        let tr = fly(&mut c, &mut plant, 500, 3.0, |_| Reference::position(target, 0.0));
-        (tr, before, after, c)
+    /// The default controller through the shared harness ([`toy_plant::fly_reconfigured`]): 4 s holding
+    /// `(0, 0, -1.5)` (the weights adapt away from the nominal), then `reconfigure(config)` when given, then
+    /// 3 s flying to `target`; the state compared is the weights.
+    fn fly_reconfigured(config: Option<&AcoConfig>, target: Vector3<f64>) -> Reconfigured<AcoWeights, AcoController> {
+        let config = config.map(|aco| ControllerConfig { aco: aco.clone(), ..ControllerConfig::default() });
+        let hold = Vector3::new(0.0, 0.0, -1.5);
+        toy_plant::fly_reconfigured(aco(), (hold, 4.0), config.as_ref(), (target, 3.0), AcoController::weights)
     }
 
     /// Second-leg targets: a diagonal step (everything moves) and a 1 m climb (the D loop alone).
     const DIAGONAL: Vector3<f64> = Vector3::new(1.0, 0.5, -2.5);
     const CLIMB: Vector3<f64> = Vector3::new(0.0, 0.0, -2.5);
 
-    fn bits(trace: &[Sample]) -> Vec<[u64; 4]> {
-        trace.iter().map(|s| s.pwm_us.map(f64::to_bits)).collect()
-    }
-
     #[test]
     fn given_adapted_controller_when_reconfigured_with_same_config_then_trajectory_bit_identical() {
-        let (plain, before, _, c_plain) = fly_reconfigured(None, DIAGONAL);
-        let (same, _, after, c_same) = fly_reconfigured(Some(&AcoConfig::default()), DIAGONAL);
-        assert_eq!(before, after);
-        assert_ne!(before.w_t, [9.81; 3], "the weights adapted before the reconfigure");
-        assert_eq!(bits(&plain), bits(&same));
-        assert!(plain.iter().zip(same.iter()).all(|(a, b)| a.input == b.input));
-        assert_eq!(c_plain.telemetry(), c_same.telemetry());
+        let plain = fly_reconfigured(None, DIAGONAL);
+        let same = fly_reconfigured(Some(&AcoConfig::default()), DIAGONAL);
+        assert_same_config_reconfigure_is_bit_identical(&plain, &same);
+        assert_ne!(plain.1.w_t, [9.81; 3], "the weights adapted before the reconfigure");
+        assert!(plain.0.iter().zip(same.0.iter()).all(|(a, b)| a.input == b.input));
     }
 
     #[test]

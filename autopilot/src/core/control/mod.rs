@@ -564,7 +564,7 @@ mod tests {
     /// the closed loop bit-identical, and a rate change in `config.rates` is not applied.
     #[test]
     fn given_each_kind_when_reconfigured_mid_flight_with_same_config_then_bit_identical() {
-        use toy_plant::{ToyPlant, fly};
+        use toy_plant::{ToyPlant, fly, pwm_bits};
         let p = Vector3::new(0.0, 0.0, -2.0);
         let target = Vector3::new(0.5, -0.5, -2.5);
         let run = |kind: ControllerKind, reconfigure: Option<&ControllerConfig>| {
@@ -575,7 +575,7 @@ mod tests {
                 c.reconfigure(config);
             }
             let tr = fly(c.as_mut(), &mut plant, 500, 1.0, |_| Reference::position(target, 0.0));
-            (tr.iter().map(|s| s.pwm_us.map(f64::to_bits)).collect::<Vec<_>>(), c.telemetry())
+            (pwm_bits(&tr), c.telemetry())
         };
         let other_rates =
             ControllerConfig { rates: LoopRates { inner_hz: 1000, position_hz: 50 }, ..ControllerConfig::default() };

@@ -706,9 +706,12 @@ impl Controller for MracController {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::core::control::ControllerConfig;
     use crate::core::control::distributor::MixerSaturation;
-    use crate::core::control::toy_plant::{Sample, ToyPlant, at, fly, hover_input, max_after, mismatch};
+    use crate::core::control::toy_plant::{
+        Reconfigured, ToyPlant, assert_same_config_reconfigure_is_bit_identical, at, fly, hover_input, max_after,
+        mismatch, pwm_bits,
+    };
+    use crate::core::control::{ControllerConfig, toy_plant};
 
     fn ca() -> MracController {
         MracController::new(&MracConfig::default(), LoopRates::default())
@@ -719,39 +722,21 @@ mod tests {
         c.att.iter().chain(c.pos.iter()).map(MracChannel::parameters).collect()
     }
 
-    /// A second leg, every channel's parameters just before and just after the reconfigure, the controller.
-    type Run = (Vec<Sample>, Vec<[f64; 4]>, Vec<[f64; 4]>, MracController);
-
-    /// The default CA around the mismatch plant: 4 s flying to `(0.5, 0, -2)` (the gains adapt), then
-    /// `reconfigure(config)` when given, then 4 s flying to `(1, 0.5, -2.5)`. Returns the second leg, the
-    /// parameters just before and just after the reconfigure, and the controller.
-    fn fly_reconfigured(config: Option<&MracConfig>) -> Run {
-        let mut plant = ToyPlant::new(Vector3::new(0.0, 0.0, -1.5), Vector3::zeros());
-        mismatch(&mut plant);
-        let mut c = ca();
-        fly(&mut c, &mut plant, 500, 4.0, |_| Reference::position(Vector3::new(0.5, 0.0, -2.0), 0.0));
-        let before = parameters(&c);
-        if let Some(config) = config {
-            Controller::reconfigure(&mut c, &ControllerConfig { mrac: config.clone(), ..ControllerConfig::default() });
-        }
-        let after = parameters(&c);
-        let target = Vector3::new(1.0, 0.5, -2.5);
-        let tr = fly(&mut c, &mut plant, 500, 4.0, |_| Reference::position(target, 0.0));
-        (tr, before, after, c)
-    }
-
-    fn bits(trace: &[Sample]) -> Vec<[u64; 4]> {
-        trace.iter().map(|s| s.pwm_us.map(f64::to_bits)).collect()
+    /// The default CA through the shared harness ([`toy_plant::fly_reconfigured`]): 4 s flying to
+    /// `(0.5, 0, -2)` (the gains adapt), then `reconfigure(config)` when given, then 4 s flying to
+    /// `(1, 0.5, -2.5)`; the state compared is every channel's parameters.
+    fn fly_reconfigured(config: Option<&MracConfig>) -> Reconfigured<Vec<[f64; 4]>, MracController> {
+        let config = config.map(|mrac| ControllerConfig { mrac: mrac.clone(), ..ControllerConfig::default() });
+        let (first, second) = (Vector3::new(0.5, 0.0, -2.0), Vector3::new(1.0, 0.5, -2.5));
+        toy_plant::fly_reconfigured(ca(), (first, 4.0), config.as_ref(), (second, 4.0), parameters)
     }
 
     #[test]
     fn given_adapted_ca_when_reconfigured_with_same_config_then_trajectory_bit_identical() {
-        let (plain, before, _, c_plain) = fly_reconfigured(None);
-        let (same, _, after, c_same) = fly_reconfigured(Some(&MracConfig::default()));
-        assert_eq!(before, after);
-        assert_ne!(before, parameters(&ca()), "the gains adapted before the reconfigure");
-        assert_eq!(bits(&plain), bits(&same));
-        assert_eq!(c_plain.telemetry(), c_same.telemetry());
+        let plain = fly_reconfigured(None);
+        let same = fly_reconfigured(Some(&MracConfig::default()));
+        assert_same_config_reconfigure_is_bit_identical(&plain, &same);
+        assert_ne!(plain.1, parameters(&ca()), "the gains adapted before the reconfigure");
     }
 
     #[test]
@@ -760,7 +745,7 @@ mod tests {
         let fast_cfg = MracConfig { gamma_theta_pos: 3.0, ..MracConfig::default() };
         let (fast, before, after, _) = fly_reconfigured(Some(&fast_cfg));
         assert_eq!(before, after, "reconfigure does not reset the adapted gains");
-        assert_ne!(bits(&plain), bits(&fast));
+        assert_ne!(pwm_bits(&plain), pwm_bits(&fast));
         let target = Vector3::new(1.0, 0.5, -2.5);
         assert!((at(&fast, 4.0).input.pos_ned_m - target).norm() < (at(&fast, 0.0).input.pos_ned_m - target).norm());
         // One position step from the same state: the offsets move three times as far at three times the rate.
@@ -1020,7 +1005,7 @@ mod tests {
             assert_eq!(integrals, kept);
             assert!(integrals.iter().any(|x| *x != 0.0), "the integrals moved: {integrals:?}");
             let tr = fly(&mut c, &mut plant, 500, 2.0, |_| Reference::position(Vector3::new(1.0, 0.5, -2.5), 0.0));
-            (bits(&tr), c.telemetry())
+            (pwm_bits(&tr), c.telemetry())
         };
         assert_eq!(run(false), run(true));
         let names: Vec<_> = competent().telemetry().iter().map(|(n, _)| *n).collect();

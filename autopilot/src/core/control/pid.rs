@@ -285,8 +285,11 @@ impl Controller for PidController {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::core::control::ControllerConfig;
-    use crate::core::control::toy_plant::{Sample, ToyPlant, at, fly, hover_input, max_after, mismatch};
+    use crate::core::control::toy_plant::{
+        Reconfigured, Sample, ToyPlant, assert_same_config_reconfigure_is_bit_identical, at, fly, hover_input,
+        max_after,
+    };
+    use crate::core::control::{ControllerConfig, toy_plant};
 
     fn pid() -> PidController {
         PidController::new(&PidConfig::default(), LoopRates::default())
@@ -294,44 +297,30 @@ mod tests {
 
     /// The integrators: velocity (m/s², NED) and rate (N·m, FRD).
     type Integrators = (Vector3<f64>, Vector3<f64>);
-    /// A second leg, the integrators just before and just after the reconfigure, the controller.
-    type Run = (Vec<Sample>, Integrators, Integrators, PidController);
 
-    /// The default PID around the mismatch plant: 4 s holding `(0, 0, -1.5)` (the integrators take up the
-    /// extra mass and the torque disturbance), then `reconfigure(config)` when given, then 4 s flying to
-    /// `target`. Returns the second leg, the integrators `(velocity, rate)` just before and just
-    /// after the reconfigure, and the controller.
-    fn fly_reconfigured(config: Option<&PidConfig>, target: Vector3<f64>) -> Run {
-        let p = Vector3::new(0.0, 0.0, -1.5);
-        let mut plant = ToyPlant::new(p, Vector3::zeros());
-        mismatch(&mut plant);
-        let mut c = pid();
-        fly(&mut c, &mut plant, 500, 4.0, |_| Reference::position(p, 0.0));
-        let before = (c.velocity_integral_mps2(), c.rate_integral_nm());
-        if let Some(config) = config {
-            Controller::reconfigure(&mut c, &ControllerConfig { pid: config.clone(), ..ControllerConfig::default() });
-        }
-        let after = (c.velocity_integral_mps2(), c.rate_integral_nm());
-        let tr = fly(&mut c, &mut plant, 500, 4.0, |_| Reference::position(target, 0.0));
-        (tr, before, after, c)
+    /// The default PID through the shared harness ([`toy_plant::fly_reconfigured`]): 4 s holding
+    /// `(0, 0, -1.5)` (the integrators take up the extra mass and the torque disturbance), then
+    /// `reconfigure(config)` when given, then 4 s flying to `target`; the state compared is the
+    /// integrators `(velocity, rate)`.
+    fn fly_reconfigured(config: Option<&PidConfig>, target: Vector3<f64>) -> Reconfigured<Integrators, PidController> {
+        let config = config.map(|pid| ControllerConfig { pid: pid.clone(), ..ControllerConfig::default() });
+        let hold = Vector3::new(0.0, 0.0, -1.5);
+        toy_plant::fly_reconfigured(pid(), (hold, 4.0), config.as_ref(), (target, 4.0), |c: &PidController| {
+            (c.velocity_integral_mps2(), c.rate_integral_nm())
+        })
     }
 
     /// Second-leg targets: a diagonal step (everything moves) and a 1 m climb (the D loop alone).
     const DIAGONAL: Vector3<f64> = Vector3::new(1.0, 0.5, -2.5);
     const CLIMB: Vector3<f64> = Vector3::new(0.0, 0.0, -2.5);
 
-    fn bits(trace: &[Sample]) -> Vec<[u64; 4]> {
-        trace.iter().map(|s| s.pwm_us.map(f64::to_bits)).collect()
-    }
-
     #[test]
     fn given_flying_pid_when_reconfigured_with_same_config_then_trajectory_bit_identical() {
-        let (plain, before, _, c_plain) = fly_reconfigured(None, DIAGONAL);
-        let (same, _, after, c_same) = fly_reconfigured(Some(&PidConfig::default()), DIAGONAL);
-        assert_eq!(before, after);
+        let plain = fly_reconfigured(None, DIAGONAL);
+        let same = fly_reconfigured(Some(&PidConfig::default()), DIAGONAL);
+        assert_same_config_reconfigure_is_bit_identical(&plain, &same);
+        let before = plain.1;
         assert!(before.0.z.abs() > 0.05 && before.1.x.abs() > 0.01, "integrators took up the mismatch: {before:?}");
-        assert_eq!(bits(&plain), bits(&same));
-        assert_eq!(c_plain.telemetry(), c_same.telemetry());
     }
 
     #[test]
