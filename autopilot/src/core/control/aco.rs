@@ -21,8 +21,8 @@ use super::filters::LowPass2Vec3;
 use super::frames::{body_z_in_ned, euler_rates_to_body, rotation_ned_frd, wrap_pi};
 use super::lms::{LmsBounds, LmsChannel};
 use super::{
-    Airframe, ControlInput, Controller, ControllerKind, HeldOutput, LoopRates, Reference, attitude_setpoint_rad,
-    clip_abs, commanded_collective_n, inputs_finite, tilt_lead_mps2,
+    Airframe, ControlInput, Controller, ControllerKind, HeldOutput, LoopClock, LoopRates, Reference,
+    attitude_setpoint_rad, clip_abs, commanded_collective_n, inputs_finite, tilt_lead_mps2,
 };
 
 /// ACO constants, gains, adaptation rates and bounds (spec A.1, A.3, A.4). Default = the spec's values.
@@ -135,16 +135,13 @@ pub struct AcoWeights {
 #[derive(Debug, Clone)]
 pub struct AcoController {
     cfg: AcoConfig,
-    /// Inner-loop rate f_s (Hz) and period Δ (s).
+    /// Inner-loop rate f_s (Hz).
     sample_hz: f64,
-    dt_s: f64,
-    pos_divider: u64,
-    pos_dt_s: f64,
+    /// Inner period Δ, position period and tick.
+    clock: LoopClock,
     /// `1 - exp(-Δ/τ̄)`: the exact discretisation of the rotor lag over one tick.
     rotor_lag_factor: f64,
-    tick: u64,
     started: bool,
-    position_loop_ran: bool,
 
     // Step 1: rotor model.
     rotor_est_n: [f64; 4],
@@ -204,13 +201,9 @@ impl AcoController {
 
         Self {
             sample_hz: fs,
-            dt_s,
-            pos_divider: rates.position_divider(),
-            pos_dt_s: rates.position_dt_s(),
+            clock: LoopClock::new(rates),
             rotor_lag_factor: 1.0 - (-dt_s / a.rotor_tau_s).exp(),
-            tick: 0,
             started: false,
-            position_loop_ran: false,
             rotor_est_n,
             rotor_cmd_n: rotor_est_n,
             moment_est_prev_nm: moment0,
@@ -246,7 +239,7 @@ impl AcoController {
         let old = std::mem::replace(&mut self.cfg, config.clone());
         let cfg = &self.cfg;
         let fs = self.sample_hz;
-        self.rotor_lag_factor = 1.0 - (-self.dt_s / cfg.airframe.rotor_tau_s).exp();
+        self.rotor_lag_factor = 1.0 - (-self.clock.dt_s / cfg.airframe.rotor_tau_s).exp();
         if cfg.lpf_translation_hz != old.lpf_translation_hz {
             self.lpf_specific_force.retune(cfg.lpf_translation_hz, fs);
             self.lpf_thrust_force.retune(cfg.lpf_translation_hz, fs);
@@ -325,7 +318,7 @@ impl AcoController {
         let moment_avg = 0.5 * (moment_est_nm + self.moment_est_prev_nm);
         let moment_f = self.lpf_moment.update(&moment_avg);
         if self.rotation_primed {
-            let alpha = (gyro_f - self.gyro_filtered_prev_radps) / self.dt_s;
+            let alpha = (gyro_f - self.gyro_filtered_prev_radps) / self.clock.dt_s;
             let gamma = a.gyroscopic_radps2(&gyro_f);
             let inertia = a.inertia();
             let adapt = self.cfg.adaptation_enabled;
@@ -348,7 +341,7 @@ impl AcoController {
         if c.pos_integral_enabled {
             for i in 0..3 {
                 if (i == 2 || !attitude_only) && e_p[i].abs() < c.pos_integral_zone_m {
-                    self.pos_integral_m_s[i] += e_p[i] * self.pos_dt_s;
+                    self.pos_integral_m_s[i] += e_p[i] * self.clock.pos_dt_s;
                 }
             }
         }
@@ -381,7 +374,7 @@ impl AcoController {
         self.vertical_thrust_n = limited.vertical_n;
         self.attitude_sp_rad = attitude_setpoint_rad(reference, &limited);
         self.last_limit = Some(limited);
-        self.position_loop_ran = true;
+        self.clock.position_loop_done();
     }
 }
 
@@ -409,7 +402,7 @@ impl Controller for AcoController {
             let (_, moment_est) = self.step_rotor_model();
             self.moment_est_prev_nm = moment_est;
             self.rotation_primed = false;
-            self.tick += 1;
+            self.clock.advance();
             return self.held.pwm_us;
         }
         if !self.started {
@@ -425,7 +418,7 @@ impl Controller for AcoController {
         // 3. Rotation LMS (the update itself is skipped on the first tick).
         self.step_rotation_lms(input, &moment_est_nm);
         // 4. Position loop every `pos_divider`-th tick (and on the first good one).
-        if self.tick.is_multiple_of(self.pos_divider) || !self.position_loop_ran {
+        if self.clock.position_loop_due() {
             self.step_position_loop(input, reference);
         }
         if let Some(att) = reference.attitude_rad {
@@ -451,7 +444,7 @@ impl Controller for AcoController {
                     / self.lms_r[j].w();
         }
         // 8. Distributor and lift curve.
-        self.tick += 1;
+        self.clock.advance();
         if let Some(d) = self.held.distribute(self.collective_n, &self.moment_cmd_nm, &a, &self.cfg.limits) {
             self.rotor_cmd_n = d.forces_n;
         }

@@ -446,6 +446,50 @@ pub(crate) fn attitude_setpoint_rad(reference: &Reference, limited: &distributor
     }
 }
 
+/// A controller's loop schedule: the inner and position periods and which inner tick it is at. The
+/// position loop runs on every `inner_hz / position_hz`-th tick, starting with the first, and on the first
+/// tick with finite inputs if that came later.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct LoopClock {
+    /// Inner-loop period Δ (s).
+    pub dt_s: f64,
+    /// Position-loop period (s).
+    pub pos_dt_s: f64,
+    pos_divider: u64,
+    tick: u64,
+    position_loop_ran: bool,
+}
+
+impl LoopClock {
+    /// At the first tick, at `rates`.
+    #[must_use]
+    pub fn new(rates: LoopRates) -> Self {
+        Self {
+            dt_s: rates.inner_dt_s(),
+            pos_dt_s: rates.position_dt_s(),
+            pos_divider: rates.position_divider(),
+            tick: 0,
+            position_loop_ran: false,
+        }
+    }
+
+    /// True when the position loop is to run at this tick.
+    #[must_use]
+    pub fn position_loop_due(&self) -> bool {
+        self.tick.is_multiple_of(self.pos_divider) || !self.position_loop_ran
+    }
+
+    /// The position loop has run.
+    pub fn position_loop_done(&mut self) {
+        self.position_loop_ran = true;
+    }
+
+    /// On to the next tick (every call of the controller counts, finite inputs or not).
+    pub fn advance(&mut self) {
+        self.tick += 1;
+    }
+}
+
 /// The output a controller holds between ticks: the PWM commands (µs) it gave last, repeated while its
 /// inputs are not finite, and the distributor's saturation report on them, which the baselines freeze on.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -18,8 +18,8 @@ use serde::{Deserialize, Serialize};
 use super::distributor::{ActuatorLimits, LimitedThrust, limit_thrust_vector};
 use super::frames::quaternion_from_euler;
 use super::{
-    Airframe, ControlInput, Controller, ControllerKind, HeldOutput, LoopRates, Reference, attitude_setpoint_rad,
-    clip_abs, commanded_collective_n, inputs_finite, tilt_lead_mps2,
+    Airframe, ControlInput, Controller, ControllerKind, HeldOutput, LoopClock, LoopRates, Reference,
+    attitude_setpoint_rad, clip_abs, commanded_collective_n, inputs_finite, tilt_lead_mps2,
 };
 
 /// PID baseline gains and limits (spec (c)). Default = the spec's values.
@@ -84,11 +84,7 @@ impl Default for PidConfig {
 #[derive(Debug, Clone)]
 pub struct PidController {
     cfg: PidConfig,
-    dt_s: f64,
-    pos_dt_s: f64,
-    pos_divider: u64,
-    tick: u64,
-    position_loop_ran: bool,
+    clock: LoopClock,
     /// Velocity integral terms `Kvi ∫e_v` (m/s²), NED.
     vel_integral_mps2: Vector3<f64>,
     /// Rate integral torques `Ī Kri ∫e_ω` (N·m), FRD.
@@ -107,11 +103,7 @@ impl PidController {
     pub fn new(config: &PidConfig, rates: LoopRates) -> Self {
         let mg = config.airframe.mass_kg * config.airframe.gravity_mps2;
         Self {
-            dt_s: rates.inner_dt_s(),
-            pos_dt_s: rates.position_dt_s(),
-            pos_divider: rates.position_divider(),
-            tick: 0,
-            position_loop_ran: false,
+            clock: LoopClock::new(rates),
             vel_integral_mps2: Vector3::zeros(),
             rate_integral_nm: Vector3::zeros(),
             collective_n: mg,
@@ -181,24 +173,25 @@ impl PidController {
             if saturated && e_v[i] * excess[i] > 0.0 {
                 continue;
             }
-            self.vel_integral_mps2[i] = (self.vel_integral_mps2[i] + c.kvi_vel_per_s2[i] * e_v[i] * self.pos_dt_s)
+            self.vel_integral_mps2[i] = (self.vel_integral_mps2[i]
+                + c.kvi_vel_per_s2[i] * e_v[i] * self.clock.pos_dt_s)
                 .clamp(-c.vel_integral_max_mps2, c.vel_integral_max_mps2);
         }
 
         self.collective_n = limited.force_ned_n.norm();
         self.attitude_sp_rad = attitude_setpoint_rad(reference, &limited);
         self.last_limit = Some(limited);
-        self.position_loop_ran = true;
+        self.clock.position_loop_done();
     }
 }
 
 impl Controller for PidController {
     fn update(&mut self, input: &ControlInput, reference: &Reference) -> [f64; 4] {
         if !inputs_finite(input, reference) {
-            self.tick += 1;
+            self.clock.advance();
             return self.held.pwm_us;
         }
-        if self.tick.is_multiple_of(self.pos_divider) || !self.position_loop_ran {
+        if self.clock.position_loop_due() {
             self.step_position_loop(input, reference);
         }
         if let Some(att) = reference.attitude_rad {
@@ -225,7 +218,7 @@ impl Controller for PidController {
         for (j, saturated) in sat.freeze_axes(c.freeze_roll_pitch).into_iter().enumerate() {
             if !saturated {
                 self.rate_integral_nm[j] = (self.rate_integral_nm[j]
-                    + inertia[j] * c.kri_rate_per_s2[j] * e_w[j] * self.dt_s)
+                    + inertia[j] * c.kri_rate_per_s2[j] * e_w[j] * self.clock.dt_s)
                     .clamp(-c.rate_integral_max_nm, c.rate_integral_max_nm);
             }
         }
@@ -240,7 +233,7 @@ impl Controller for PidController {
             &c.limits,
             reference.attitude_rad.is_some(),
         );
-        self.tick += 1;
+        self.clock.advance();
         self.held.distribute(collective_n, &self.moment_cmd_nm, &c.airframe, &c.limits);
         self.held.pwm_us
     }

@@ -34,7 +34,7 @@ pub use config::MracConfig;
 use super::distributor::{self, LimitedThrust, limit_thrust_vector};
 use super::frames::{body_to_euler_rates, wrap_pi};
 use super::{
-    ControlInput, Controller, ControllerKind, HeldOutput, LoopRates, Reference, attitude_setpoint_rad,
+    ControlInput, Controller, ControllerKind, HeldOutput, LoopClock, LoopRates, Reference, attitude_setpoint_rad,
     commanded_collective_n, inputs_finite, tilt_lead_mps2,
 };
 
@@ -42,11 +42,7 @@ use super::{
 #[derive(Debug, Clone)]
 pub struct MracController {
     cfg: MracConfig,
-    dt_s: f64,
-    pos_dt_s: f64,
-    pos_divider: u64,
-    tick: u64,
-    position_loop_ran: bool,
+    clock: LoopClock,
     /// Roll, pitch, yaw.
     att: [MracChannel; 3],
     /// N, E, D.
@@ -91,11 +87,7 @@ impl MracController {
         .with_robustness(c.wi_pos_radps, c.e_mod_sigma); 3];
         let mg = c.airframe.mass_kg * c.airframe.gravity_mps2;
         Self {
-            dt_s: rates.inner_dt_s(),
-            pos_dt_s: rates.position_dt_s(),
-            pos_divider: rates.position_divider(),
-            tick: 0,
-            position_loop_ran: false,
+            clock: LoopClock::new(rates),
             att,
             pos,
             yaw_unwrapped_rad: None,
@@ -181,7 +173,8 @@ impl MracController {
                 continue;
             }
             let frozen = if i < 2 { freeze_ne } else { freeze_d };
-            a_d[i] = self.pos[i].step(input.pos_ned_m[i], input.vel_ned_mps[i], command[i], self.pos_dt_s, frozen);
+            a_d[i] =
+                self.pos[i].step(input.pos_ned_m[i], input.vel_ned_mps[i], command[i], self.clock.pos_dt_s, frozen);
         }
         if c.feed_forward && !attitude_only {
             a_d += tilt_lead_mps2(&reference.jerk_ned_mps3, &self.tilt_gains_per_s());
@@ -201,14 +194,14 @@ impl MracController {
         self.vertical_thrust_n = limited.vertical_n;
         self.attitude_sp_rad = attitude_setpoint_rad(reference, &limited);
         self.last_limit = Some(limited);
-        self.position_loop_ran = true;
+        self.clock.position_loop_done();
     }
 }
 
 impl Controller for MracController {
     fn update(&mut self, input: &ControlInput, reference: &Reference) -> [f64; 4] {
         if !inputs_finite(input, reference) {
-            self.tick += 1;
+            self.clock.advance();
             return self.held.pwm_us;
         }
         let eta = input.euler_rad;
@@ -218,7 +211,7 @@ impl Controller for MracController {
         };
         self.yaw_unwrapped_rad = Some(yaw);
 
-        if self.tick.is_multiple_of(self.pos_divider) || !self.position_loop_ran {
+        if self.clock.position_loop_due() {
             self.step_position_loop(input, reference);
         }
         if let Some(att) = reference.attitude_rad {
@@ -235,12 +228,12 @@ impl Controller for MracController {
         let frozen = sat.freeze_axes(self.cfg.freeze_roll_pitch).map(|saturated| freeze && saturated);
         let inertia = self.cfg.airframe.inertia();
         for j in 0..3 {
-            let v = self.att[j].step(x1[j], eta_dot[j], r[j], self.dt_s, frozen[j]);
+            let v = self.att[j].step(x1[j], eta_dot[j], r[j], self.clock.dt_s, frozen[j]);
             self.moment_cmd_nm[j] = inertia[j] * v;
         }
 
         self.collective_n = commanded_collective_n(reference, self.vertical_thrust_n, &eta, &self.cfg.limits, true);
-        self.tick += 1;
+        self.clock.advance();
         if let Some(d) =
             self.held.distribute(self.collective_n, &self.moment_cmd_nm, &self.cfg.airframe, &self.cfg.limits)
         {
