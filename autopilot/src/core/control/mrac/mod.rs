@@ -234,15 +234,15 @@ impl Controller for MracController {
 
         self.collective_n = commanded_collective_n(reference, self.vertical_thrust_n, &eta, &self.cfg.limits, true);
         self.clock.advance();
+        // The distribution runs whether or not the hedging is on.
         if let Some(d) =
             self.held.distribute(self.collective_n, &self.moment_cmd_nm, &self.cfg.airframe, &self.cfg.limits)
+            && self.cfg.hedging
         {
-            if self.cfg.hedging {
-                // The moment each attitude channel asked for and did not get, as its pseudo-control.
-                let (_, achieved_nm) = distributor::mix_forward(&d.forces_n, &self.cfg.airframe);
-                for j in 0..3 {
-                    self.att[j].set_hedge((self.moment_cmd_nm[j] - achieved_nm[j]) / inertia[j]);
-                }
+            // The moment each attitude channel asked for and did not get, as its pseudo-control.
+            let (_, achieved_nm) = distributor::mix_forward(&d.forces_n, &self.cfg.airframe);
+            for j in 0..3 {
+                self.att[j].set_hedge((self.moment_cmd_nm[j] - achieved_nm[j]) / inertia[j]);
             }
         }
         self.held.pwm_us
