@@ -51,10 +51,10 @@
 //!   normalised GPS velocity innovation, which a tilt error drives first, small) and tighter position and
 //!   velocity bounds. Flags are recomputed from scratch at every sample, so they drop as soon as a
 //!   condition fails.
-//! - **Sanitising** (here, with the limits and checks in `samples`): non-finite or absurd samples (|accel|
-//!   > 16 g, |gyro| > 35 rad/s, a field beyond 4 G, GPS without a 3D fix, out-of-range coordinates, IMU
-//!   time not increasing, GPS older than the history) are refused before they touch the filter and counted
-//!   in [`Estimator::rejected_samples`].
+//! - **Sanitising** (here, with the limits and checks in `samples`): non-finite or absurd samples
+//!   (|accel| > 16 g, |gyro| > 35 rad/s, a field beyond 4 G, GPS without a 3D fix, out-of-range
+//!   coordinates, IMU time not increasing, GPS older than the history) are refused before they touch the
+//!   filter and counted in [`Estimator::rejected_samples`].
 
 use nalgebra::{UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
