@@ -16,15 +16,13 @@
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
-use super::distributor::{
-    self, ActuatorLimits, LimitedThrust, MixerSaturation, attitude_from_thrust, collective_thrust_n,
-    limit_thrust_vector, mix_forward,
-};
+use super::distributor::{ActuatorLimits, LimitedThrust, MixerSaturation, limit_thrust_vector, mix_forward};
 use super::filters::LowPass2Vec3;
 use super::frames::{body_z_in_ned, euler_rates_to_body, rotation_ned_frd, wrap_pi};
 use super::lms::{LmsBounds, LmsChannel};
 use super::{
-    Airframe, ControlInput, Controller, ControllerKind, LoopRates, Reference, clip_abs, inputs_finite, tilt_lead_mps2,
+    Airframe, ControlInput, Controller, ControllerKind, HeldOutput, LoopClock, LoopRates, Reference,
+    attitude_setpoint_rad, clip_abs, commanded_collective_n, inputs_finite, tilt_lead_mps2,
 };
 
 /// ACO constants, gains, adaptation rates and bounds (spec A.1, A.3, A.4). Default = the spec's values.
@@ -137,16 +135,13 @@ pub struct AcoWeights {
 #[derive(Debug, Clone)]
 pub struct AcoController {
     cfg: AcoConfig,
-    /// Inner-loop rate f_s (Hz) and period Δ (s).
+    /// Inner-loop rate f_s (Hz).
     sample_hz: f64,
-    dt_s: f64,
-    pos_divider: u64,
-    pos_dt_s: f64,
+    /// Inner period Δ, position period and tick.
+    clock: LoopClock,
     /// `1 - exp(-Δ/τ̄)`: the exact discretisation of the rotor lag over one tick.
     rotor_lag_factor: f64,
-    tick: u64,
     started: bool,
-    position_loop_ran: bool,
 
     // Step 1: rotor model.
     rotor_est_n: [f64; 4],
@@ -175,8 +170,7 @@ pub struct AcoController {
     collective_n: f64,
     moment_cmd_nm: Vector3<f64>,
     rate_sp_radps: Vector3<f64>,
-    last_saturation: MixerSaturation,
-    last_pwm_us: [f64; 4],
+    held: HeldOutput,
 }
 
 impl AcoController {
@@ -207,13 +201,9 @@ impl AcoController {
 
         Self {
             sample_hz: fs,
-            dt_s,
-            pos_divider: rates.position_divider(),
-            pos_dt_s: rates.position_dt_s(),
+            clock: LoopClock::new(rates),
             rotor_lag_factor: 1.0 - (-dt_s / a.rotor_tau_s).exp(),
-            tick: 0,
             started: false,
-            position_loop_ran: false,
             rotor_est_n,
             rotor_cmd_n: rotor_est_n,
             moment_est_prev_nm: moment0,
@@ -232,8 +222,7 @@ impl AcoController {
             collective_n: a.mass_kg * g,
             moment_cmd_nm: Vector3::zeros(),
             rate_sp_radps: Vector3::zeros(),
-            last_saturation: MixerSaturation { roll_pitch_scale: 1.0, yaw_factor: 1.0, ..Default::default() },
-            last_pwm_us: [a.hover_pwm_us(); 4],
+            held: HeldOutput::hover(&a),
             cfg,
         }
     }
@@ -250,7 +239,7 @@ impl AcoController {
         let old = std::mem::replace(&mut self.cfg, config.clone());
         let cfg = &self.cfg;
         let fs = self.sample_hz;
-        self.rotor_lag_factor = 1.0 - (-self.dt_s / cfg.airframe.rotor_tau_s).exp();
+        self.rotor_lag_factor = 1.0 - (-self.clock.dt_s / cfg.airframe.rotor_tau_s).exp();
         if cfg.lpf_translation_hz != old.lpf_translation_hz {
             self.lpf_specific_force.retune(cfg.lpf_translation_hz, fs);
             self.lpf_thrust_force.retune(cfg.lpf_translation_hz, fs);
@@ -297,7 +286,7 @@ impl AcoController {
     /// The saturation report of the last distribution.
     #[must_use]
     pub fn last_saturation(&self) -> MixerSaturation {
-        self.last_saturation
+        self.held.saturation
     }
 
     /// Step 1: the rotor-lag model, `F̂ <- F̂ + (1 - e^(-Δ/τ̄)) (F_cmd[k-1] - F̂)`; returns `(T̂, M̂)`.
@@ -329,7 +318,7 @@ impl AcoController {
         let moment_avg = 0.5 * (moment_est_nm + self.moment_est_prev_nm);
         let moment_f = self.lpf_moment.update(&moment_avg);
         if self.rotation_primed {
-            let alpha = (gyro_f - self.gyro_filtered_prev_radps) / self.dt_s;
+            let alpha = (gyro_f - self.gyro_filtered_prev_radps) / self.clock.dt_s;
             let gamma = a.gyroscopic_radps2(&gyro_f);
             let inertia = a.inertia();
             let adapt = self.cfg.adaptation_enabled;
@@ -352,7 +341,7 @@ impl AcoController {
         if c.pos_integral_enabled {
             for i in 0..3 {
                 if (i == 2 || !attitude_only) && e_p[i].abs() < c.pos_integral_zone_m {
-                    self.pos_integral_m_s[i] += e_p[i] * self.pos_dt_s;
+                    self.pos_integral_m_s[i] += e_p[i] * self.clock.pos_dt_s;
                 }
             }
         }
@@ -383,12 +372,9 @@ impl AcoController {
         }
         let limited = limit_thrust_vector(&u, &c.limits);
         self.vertical_thrust_n = limited.vertical_n;
-        self.attitude_sp_rad = match reference.attitude_rad {
-            Some(att) => att,
-            None => attitude_from_thrust(&limited, reference.yaw_rad),
-        };
+        self.attitude_sp_rad = attitude_setpoint_rad(reference, &limited);
         self.last_limit = Some(limited);
-        self.position_loop_ran = true;
+        self.clock.position_loop_done();
     }
 }
 
@@ -416,8 +402,8 @@ impl Controller for AcoController {
             let (_, moment_est) = self.step_rotor_model();
             self.moment_est_prev_nm = moment_est;
             self.rotation_primed = false;
-            self.tick += 1;
-            return self.last_pwm_us;
+            self.clock.advance();
+            return self.held.pwm_us;
         }
         if !self.started {
             self.lpf_gyro.reset_to(&input.rate_frd_radps);
@@ -432,17 +418,15 @@ impl Controller for AcoController {
         // 3. Rotation LMS (the update itself is skipped on the first tick).
         self.step_rotation_lms(input, &moment_est_nm);
         // 4. Position loop every `pos_divider`-th tick (and on the first good one).
-        if self.tick.is_multiple_of(self.pos_divider) || !self.position_loop_ran {
+        if self.clock.position_loop_due() {
             self.step_position_loop(input, reference);
         }
         if let Some(att) = reference.attitude_rad {
             self.attitude_sp_rad = att;
         }
         // 5. Collective (or the thrust asked for directly).
-        self.collective_n = match reference.collective_frac {
-            Some(frac) => self.cfg.limits.collective_from_frac_n(frac),
-            None => collective_thrust_n(self.vertical_thrust_n, &input.euler_rad, &self.cfg.limits),
-        };
+        self.collective_n =
+            commanded_collective_n(reference, self.vertical_thrust_n, &input.euler_rad, &self.cfg.limits, true);
         // 6. Attitude (Eqs 22-24).
         let eta = &input.euler_rad;
         let sp = &self.attitude_sp_rad;
@@ -460,14 +444,11 @@ impl Controller for AcoController {
                     / self.lms_r[j].w();
         }
         // 8. Distributor and lift curve.
-        let d = distributor::distribute(self.collective_n, &self.moment_cmd_nm, &a, &self.cfg.limits);
-        self.tick += 1;
-        if d.pwm_us.iter().all(|p| p.is_finite()) {
+        self.clock.advance();
+        if let Some(d) = self.held.distribute(self.collective_n, &self.moment_cmd_nm, &a, &self.cfg.limits) {
             self.rotor_cmd_n = d.forces_n;
-            self.last_saturation = d.saturation;
-            self.last_pwm_us = d.pwm_us;
         }
-        self.last_pwm_us
+        self.held.pwm_us
     }
 
     fn reconfigure(&mut self, config: &super::ControllerConfig) {
@@ -508,8 +489,8 @@ impl Controller for AcoController {
             ("aco.rate_sp_x_radps", self.rate_sp_radps.x),
             ("aco.rate_sp_y_radps", self.rate_sp_radps.y),
             ("aco.rate_sp_z_radps", self.rate_sp_radps.z),
-            ("aco.yaw_factor", self.last_saturation.yaw_factor),
-            ("aco.roll_pitch_scale", self.last_saturation.roll_pitch_scale),
+            ("aco.yaw_factor", self.held.saturation.yaw_factor),
+            ("aco.roll_pitch_scale", self.held.saturation.roll_pitch_scale),
             ("aco.vertical_clamped", f64::from(u8::from(limit.is_some_and(|l| l.vertical_clamped)))),
             ("aco.horizontal_limited", f64::from(u8::from(limit.is_some_and(|l| l.horizontal_limited)))),
         ]
@@ -527,52 +508,36 @@ impl Controller for AcoController {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::core::control::ControllerConfig;
-    use crate::core::control::toy_plant::{Sample, ToyPlant, at, fly, hover_input, max_after, mismatch};
+    use crate::core::control::toy_plant::{
+        Reconfigured, Sample, ToyPlant, assert_same_config_reconfigure_is_bit_identical, at, fly, hover_input,
+        max_after, mismatch,
+    };
+    use crate::core::control::{ControllerConfig, toy_plant};
 
     fn aco() -> AcoController {
         AcoController::new(&AcoConfig::default(), LoopRates::default())
     }
 
-    /// A run of the default controller around the mismatch plant: 4 s holding `(0, 0, -1.5)` (the weights
-    /// adapt away from the nominal), then `reconfigure(config)` when given, then 3 s flying to
-    /// `target`. Returns the second leg, the weights just before and just after the reconfigure,
-    /// and the controller.
-    fn fly_reconfigured(
-        config: Option<&AcoConfig>,
-        target: Vector3<f64>,
-    ) -> (Vec<Sample>, AcoWeights, AcoWeights, AcoController) {
-        let p = Vector3::new(0.0, 0.0, -1.5);
-        let mut plant = ToyPlant::new(p, Vector3::zeros());
-        mismatch(&mut plant);
-        let mut c = aco();
-        fly(&mut c, &mut plant, 500, 4.0, |_| Reference::position(p, 0.0));
-        let before = c.weights();
-        if let Some(config) = config {
-            Controller::reconfigure(&mut c, &ControllerConfig { aco: config.clone(), ..ControllerConfig::default() });
-        }
-        let after = c.weights();
-        let tr = fly(&mut c, &mut plant, 500, 3.0, |_| Reference::position(target, 0.0));
-        (tr, before, after, c)
+    /// The default controller through the shared harness ([`toy_plant::fly_reconfigured`]): 4 s holding
+    /// `(0, 0, -1.5)` (the weights adapt away from the nominal), then `reconfigure(config)` when given, then
+    /// 3 s flying to `target`; the state compared is the weights.
+    fn fly_reconfigured(config: Option<&AcoConfig>, target: Vector3<f64>) -> Reconfigured<AcoWeights, AcoController> {
+        let config = config.map(|aco| ControllerConfig { aco: aco.clone(), ..ControllerConfig::default() });
+        let hold = Vector3::new(0.0, 0.0, -1.5);
+        toy_plant::fly_reconfigured(aco(), (hold, 4.0), config.as_ref(), (target, 3.0), AcoController::weights)
     }
 
     /// Second-leg targets: a diagonal step (everything moves) and a 1 m climb (the D loop alone).
     const DIAGONAL: Vector3<f64> = Vector3::new(1.0, 0.5, -2.5);
     const CLIMB: Vector3<f64> = Vector3::new(0.0, 0.0, -2.5);
 
-    fn bits(trace: &[Sample]) -> Vec<[u64; 4]> {
-        trace.iter().map(|s| s.pwm_us.map(f64::to_bits)).collect()
-    }
-
     #[test]
     fn given_adapted_controller_when_reconfigured_with_same_config_then_trajectory_bit_identical() {
-        let (plain, before, _, c_plain) = fly_reconfigured(None, DIAGONAL);
-        let (same, _, after, c_same) = fly_reconfigured(Some(&AcoConfig::default()), DIAGONAL);
-        assert_eq!(before, after);
-        assert_ne!(before.w_t, [9.81; 3], "the weights adapted before the reconfigure");
-        assert_eq!(bits(&plain), bits(&same));
-        assert!(plain.iter().zip(same.iter()).all(|(a, b)| a.input == b.input));
-        assert_eq!(c_plain.telemetry(), c_same.telemetry());
+        let plain = fly_reconfigured(None, DIAGONAL);
+        let same = fly_reconfigured(Some(&AcoConfig::default()), DIAGONAL);
+        assert_same_config_reconfigure_is_bit_identical(&plain, &same);
+        assert_ne!(plain.1.w_t, [9.81; 3], "the weights adapted before the reconfigure");
+        assert!(plain.0.iter().zip(same.0.iter()).all(|(a, b)| a.input == b.input));
     }
 
     #[test]

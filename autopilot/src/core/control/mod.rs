@@ -415,6 +415,122 @@ pub(crate) fn inputs_finite(input: &ControlInput, reference: &Reference) -> bool
         && reference.collective_frac.is_none_or(f64::is_finite)
 }
 
+/// The collective thrust (N) a controller commands this tick: the thrust asked for directly
+/// (`reference.collective_frac`, [`distributor::ActuatorLimits::collective_from_frac_n`]) when given,
+/// else the vertical thrust `vertical_n` (N) of its position loop, tilt-compensated
+/// ([`distributor::collective_thrust_n`]) when `tilt_compensate` and taken as it is otherwise.
+#[must_use]
+pub(crate) fn commanded_collective_n(
+    reference: &Reference,
+    vertical_n: f64,
+    euler_rad: &Vector3<f64>,
+    limits: &distributor::ActuatorLimits,
+    tilt_compensate: bool,
+) -> f64 {
+    if let Some(frac) = reference.collective_frac {
+        limits.collective_from_frac_n(frac)
+    } else if tilt_compensate {
+        distributor::collective_thrust_n(vertical_n, euler_rad, limits)
+    } else {
+        vertical_n
+    }
+}
+
+/// The attitude setpoint (phi, theta, psi) a position loop leaves: the reference's own in attitude-only
+/// mode, else the one extracted from the limited thrust vector and the reference yaw.
+#[must_use]
+pub(crate) fn attitude_setpoint_rad(reference: &Reference, limited: &distributor::LimitedThrust) -> Vector3<f64> {
+    match reference.attitude_rad {
+        Some(att) => att,
+        None => distributor::attitude_from_thrust(limited, reference.yaw_rad),
+    }
+}
+
+/// A controller's loop schedule: the inner and position periods and which inner tick it is at. The
+/// position loop runs on every `inner_hz / position_hz`-th tick, starting with the first, and on the first
+/// tick with finite inputs if that came later.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct LoopClock {
+    /// Inner-loop period Δ (s).
+    pub dt_s: f64,
+    /// Position-loop period (s).
+    pub pos_dt_s: f64,
+    pos_divider: u64,
+    tick: u64,
+    position_loop_ran: bool,
+}
+
+impl LoopClock {
+    /// At the first tick, at `rates`.
+    #[must_use]
+    pub fn new(rates: LoopRates) -> Self {
+        Self {
+            dt_s: rates.inner_dt_s(),
+            pos_dt_s: rates.position_dt_s(),
+            pos_divider: rates.position_divider(),
+            tick: 0,
+            position_loop_ran: false,
+        }
+    }
+
+    /// True when the position loop is to run at this tick.
+    #[must_use]
+    pub fn position_loop_due(&self) -> bool {
+        self.tick.is_multiple_of(self.pos_divider) || !self.position_loop_ran
+    }
+
+    /// The position loop has run.
+    pub fn position_loop_done(&mut self) {
+        self.position_loop_ran = true;
+    }
+
+    /// On to the next tick (every call of the controller counts, finite inputs or not).
+    pub fn advance(&mut self) {
+        self.tick += 1;
+    }
+}
+
+/// The output a controller holds between ticks: the PWM commands (µs) it gave last, repeated while its
+/// inputs are not finite, and the distributor's saturation report on them, which the baselines freeze on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct HeldOutput {
+    pub saturation: distributor::MixerSaturation,
+    pub pwm_us: [f64; 4],
+}
+
+impl HeldOutput {
+    /// Hover PWM on every rotor (Eq 10) and nothing saturated, before the first tick.
+    #[must_use]
+    pub fn hover(airframe: &Airframe) -> Self {
+        Self {
+            saturation: distributor::MixerSaturation { roll_pitch_scale: 1.0, yaw_factor: 1.0, ..Default::default() },
+            pwm_us: [airframe.hover_pwm_us(); 4],
+        }
+    }
+
+    /// The tail of every controller's inner tick: the collective `collective_n` (N) and the moment
+    /// command `moment_cmd_nm` (N·m, FRD) through the channel distributor (Eqs 26-27) and the lift curve
+    /// (Eq 10) to four PWM commands clamped to 1000-2000 µs. A finite result becomes the held output and
+    /// is returned; a non-finite one leaves the held output as it was (the last good command is
+    /// repeated) and gives None.
+    pub fn distribute(
+        &mut self,
+        collective_n: f64,
+        moment_cmd_nm: &Vector3<f64>,
+        airframe: &Airframe,
+        limits: &distributor::ActuatorLimits,
+    ) -> Option<distributor::Distribution> {
+        let d = distributor::distribute(collective_n, moment_cmd_nm, airframe, limits);
+        if d.pwm_us.iter().all(|p| p.is_finite()) {
+            self.saturation = d.saturation;
+            self.pwm_us = d.pwm_us;
+            Some(d)
+        } else {
+            None
+        }
+    }
+}
+
 /// Clip each component of `v` to `[-limit_i, limit_i]`.
 #[must_use]
 pub(crate) fn clip_abs(v: &Vector3<f64>, limit: &[f64; 3]) -> Vector3<f64> {
@@ -492,7 +608,7 @@ mod tests {
     /// the closed loop bit-identical, and a rate change in `config.rates` is not applied.
     #[test]
     fn given_each_kind_when_reconfigured_mid_flight_with_same_config_then_bit_identical() {
-        use toy_plant::{ToyPlant, fly};
+        use toy_plant::{ToyPlant, fly, pwm_bits};
         let p = Vector3::new(0.0, 0.0, -2.0);
         let target = Vector3::new(0.5, -0.5, -2.5);
         let run = |kind: ControllerKind, reconfigure: Option<&ControllerConfig>| {
@@ -503,7 +619,7 @@ mod tests {
                 c.reconfigure(config);
             }
             let tr = fly(c.as_mut(), &mut plant, 500, 1.0, |_| Reference::position(target, 0.0));
-            (tr.iter().map(|s| s.pwm_us.map(f64::to_bits)).collect::<Vec<_>>(), c.telemetry())
+            (pwm_bits(&tr), c.telemetry())
         };
         let other_rates =
             ControllerConfig { rates: LoopRates { inner_hz: 1000, position_hz: 50 }, ..ControllerConfig::default() };

@@ -15,13 +15,11 @@
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
-use super::distributor::{
-    self, ActuatorLimits, LimitedThrust, MixerSaturation, attitude_from_thrust, collective_thrust_n,
-    limit_thrust_vector,
-};
+use super::distributor::{ActuatorLimits, LimitedThrust, limit_thrust_vector};
 use super::frames::quaternion_from_euler;
 use super::{
-    Airframe, ControlInput, Controller, ControllerKind, LoopRates, Reference, clip_abs, inputs_finite, tilt_lead_mps2,
+    Airframe, ControlInput, Controller, ControllerKind, HeldOutput, LoopClock, LoopRates, Reference,
+    attitude_setpoint_rad, clip_abs, commanded_collective_n, inputs_finite, tilt_lead_mps2,
 };
 
 /// PID baseline gains and limits (spec (c)). Default = the spec's values.
@@ -56,7 +54,8 @@ pub struct PidConfig {
     pub rate_limit_radps: [f64; 3],
     /// Also freeze the roll and pitch rate integrators while the distributor saturates those axes, as
     /// the spec's text says. Off by default, as the reference prototype flew (see
-    /// [`MixerSaturation::freeze_axes`]); the yaw integrator is always frozen under saturation.
+    /// [`MixerSaturation::freeze_axes`](super::distributor::MixerSaturation::freeze_axes)); the yaw
+    /// integrator is always frozen under saturation.
     pub freeze_roll_pitch: bool,
 }
 
@@ -85,11 +84,7 @@ impl Default for PidConfig {
 #[derive(Debug, Clone)]
 pub struct PidController {
     cfg: PidConfig,
-    dt_s: f64,
-    pos_dt_s: f64,
-    pos_divider: u64,
-    tick: u64,
-    position_loop_ran: bool,
+    clock: LoopClock,
     /// Velocity integral terms `Kvi ∫e_v` (m/s²), NED.
     vel_integral_mps2: Vector3<f64>,
     /// Rate integral torques `Ī Kri ∫e_ω` (N·m), FRD.
@@ -99,8 +94,7 @@ pub struct PidController {
     rate_sp_radps: Vector3<f64>,
     moment_cmd_nm: Vector3<f64>,
     last_limit: Option<LimitedThrust>,
-    last_saturation: MixerSaturation,
-    last_pwm_us: [f64; 4],
+    held: HeldOutput,
 }
 
 impl PidController {
@@ -109,11 +103,7 @@ impl PidController {
     pub fn new(config: &PidConfig, rates: LoopRates) -> Self {
         let mg = config.airframe.mass_kg * config.airframe.gravity_mps2;
         Self {
-            dt_s: rates.inner_dt_s(),
-            pos_dt_s: rates.position_dt_s(),
-            pos_divider: rates.position_divider(),
-            tick: 0,
-            position_loop_ran: false,
+            clock: LoopClock::new(rates),
             vel_integral_mps2: Vector3::zeros(),
             rate_integral_nm: Vector3::zeros(),
             collective_n: mg,
@@ -121,8 +111,7 @@ impl PidController {
             rate_sp_radps: Vector3::zeros(),
             moment_cmd_nm: Vector3::zeros(),
             last_limit: None,
-            last_saturation: MixerSaturation { roll_pitch_scale: 1.0, yaw_factor: 1.0, ..Default::default() },
-            last_pwm_us: [config.airframe.hover_pwm_us(); 4],
+            held: HeldOutput::hover(&config.airframe),
             cfg: config.clone(),
         }
     }
@@ -184,27 +173,25 @@ impl PidController {
             if saturated && e_v[i] * excess[i] > 0.0 {
                 continue;
             }
-            self.vel_integral_mps2[i] = (self.vel_integral_mps2[i] + c.kvi_vel_per_s2[i] * e_v[i] * self.pos_dt_s)
+            self.vel_integral_mps2[i] = (self.vel_integral_mps2[i]
+                + c.kvi_vel_per_s2[i] * e_v[i] * self.clock.pos_dt_s)
                 .clamp(-c.vel_integral_max_mps2, c.vel_integral_max_mps2);
         }
 
         self.collective_n = limited.force_ned_n.norm();
-        self.attitude_sp_rad = match reference.attitude_rad {
-            Some(att) => att,
-            None => attitude_from_thrust(&limited, reference.yaw_rad),
-        };
+        self.attitude_sp_rad = attitude_setpoint_rad(reference, &limited);
         self.last_limit = Some(limited);
-        self.position_loop_ran = true;
+        self.clock.position_loop_done();
     }
 }
 
 impl Controller for PidController {
     fn update(&mut self, input: &ControlInput, reference: &Reference) -> [f64; 4] {
         if !inputs_finite(input, reference) {
-            self.tick += 1;
-            return self.last_pwm_us;
+            self.clock.advance();
+            return self.held.pwm_us;
         }
-        if self.tick.is_multiple_of(self.pos_divider) || !self.position_loop_ran {
+        if self.clock.position_loop_due() {
             self.step_position_loop(input, reference);
         }
         if let Some(att) = reference.attitude_rad {
@@ -227,11 +214,11 @@ impl Controller for PidController {
         let e_w = self.rate_sp_radps - input.rate_frd_radps;
         self.moment_cmd_nm =
             inertia.component_mul(&Vector3::from(c.k_rate_per_s).component_mul(&e_w)) + self.rate_integral_nm;
-        let sat = self.last_saturation;
+        let sat = self.held.saturation;
         for (j, saturated) in sat.freeze_axes(c.freeze_roll_pitch).into_iter().enumerate() {
             if !saturated {
                 self.rate_integral_nm[j] = (self.rate_integral_nm[j]
-                    + inertia[j] * c.kri_rate_per_s2[j] * e_w[j] * self.dt_s)
+                    + inertia[j] * c.kri_rate_per_s2[j] * e_w[j] * self.clock.dt_s)
                     .clamp(-c.rate_integral_max_nm, c.rate_integral_max_nm);
             }
         }
@@ -239,20 +226,16 @@ impl Controller for PidController {
         // In attitude-only mode there is no thrust vector to take the norm of: the vertical demand is
         // tilt-compensated as for the other controllers (the prototype's PID yaw settling, 3.89 / 4.67 s,
         // is reproduced only with it).
-        let collective_n = if let Some(frac) = reference.collective_frac {
-            c.limits.collective_from_frac_n(frac)
-        } else if reference.attitude_rad.is_some() {
-            collective_thrust_n(self.collective_n, &input.euler_rad, &c.limits)
-        } else {
-            self.collective_n
-        };
-        let d = distributor::distribute(collective_n, &self.moment_cmd_nm, &c.airframe, &c.limits);
-        self.tick += 1;
-        if d.pwm_us.iter().all(|p| p.is_finite()) {
-            self.last_saturation = d.saturation;
-            self.last_pwm_us = d.pwm_us;
-        }
-        self.last_pwm_us
+        let collective_n = commanded_collective_n(
+            reference,
+            self.collective_n,
+            &input.euler_rad,
+            &c.limits,
+            reference.attitude_rad.is_some(),
+        );
+        self.clock.advance();
+        self.held.distribute(collective_n, &self.moment_cmd_nm, &c.airframe, &c.limits);
+        self.held.pwm_us
     }
 
     fn reconfigure(&mut self, config: &super::ControllerConfig) {
@@ -276,7 +259,7 @@ impl Controller for PidController {
             ("pid.moment_x_nm", self.moment_cmd_nm.x),
             ("pid.moment_y_nm", self.moment_cmd_nm.y),
             ("pid.moment_z_nm", self.moment_cmd_nm.z),
-            ("pid.yaw_factor", self.last_saturation.yaw_factor),
+            ("pid.yaw_factor", self.held.saturation.yaw_factor),
             ("pid.vertical_clamped", f64::from(u8::from(limit.is_some_and(|l| l.vertical_clamped)))),
             ("pid.horizontal_limited", f64::from(u8::from(limit.is_some_and(|l| l.horizontal_limited)))),
         ]
@@ -295,8 +278,11 @@ impl Controller for PidController {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::core::control::ControllerConfig;
-    use crate::core::control::toy_plant::{Sample, ToyPlant, at, fly, hover_input, max_after, mismatch};
+    use crate::core::control::toy_plant::{
+        Reconfigured, Sample, ToyPlant, assert_same_config_reconfigure_is_bit_identical, at, fly, hover_input,
+        max_after,
+    };
+    use crate::core::control::{ControllerConfig, toy_plant};
 
     fn pid() -> PidController {
         PidController::new(&PidConfig::default(), LoopRates::default())
@@ -304,44 +290,30 @@ mod tests {
 
     /// The integrators: velocity (m/s², NED) and rate (N·m, FRD).
     type Integrators = (Vector3<f64>, Vector3<f64>);
-    /// A second leg, the integrators just before and just after the reconfigure, the controller.
-    type Run = (Vec<Sample>, Integrators, Integrators, PidController);
 
-    /// The default PID around the mismatch plant: 4 s holding `(0, 0, -1.5)` (the integrators take up the
-    /// extra mass and the torque disturbance), then `reconfigure(config)` when given, then 4 s flying to
-    /// `target`. Returns the second leg, the integrators `(velocity, rate)` just before and just
-    /// after the reconfigure, and the controller.
-    fn fly_reconfigured(config: Option<&PidConfig>, target: Vector3<f64>) -> Run {
-        let p = Vector3::new(0.0, 0.0, -1.5);
-        let mut plant = ToyPlant::new(p, Vector3::zeros());
-        mismatch(&mut plant);
-        let mut c = pid();
-        fly(&mut c, &mut plant, 500, 4.0, |_| Reference::position(p, 0.0));
-        let before = (c.velocity_integral_mps2(), c.rate_integral_nm());
-        if let Some(config) = config {
-            Controller::reconfigure(&mut c, &ControllerConfig { pid: config.clone(), ..ControllerConfig::default() });
-        }
-        let after = (c.velocity_integral_mps2(), c.rate_integral_nm());
-        let tr = fly(&mut c, &mut plant, 500, 4.0, |_| Reference::position(target, 0.0));
-        (tr, before, after, c)
+    /// The default PID through the shared harness ([`toy_plant::fly_reconfigured`]): 4 s holding
+    /// `(0, 0, -1.5)` (the integrators take up the extra mass and the torque disturbance), then
+    /// `reconfigure(config)` when given, then 4 s flying to `target`; the state compared is the
+    /// integrators `(velocity, rate)`.
+    fn fly_reconfigured(config: Option<&PidConfig>, target: Vector3<f64>) -> Reconfigured<Integrators, PidController> {
+        let config = config.map(|pid| ControllerConfig { pid: pid.clone(), ..ControllerConfig::default() });
+        let hold = Vector3::new(0.0, 0.0, -1.5);
+        toy_plant::fly_reconfigured(pid(), (hold, 4.0), config.as_ref(), (target, 4.0), |c: &PidController| {
+            (c.velocity_integral_mps2(), c.rate_integral_nm())
+        })
     }
 
     /// Second-leg targets: a diagonal step (everything moves) and a 1 m climb (the D loop alone).
     const DIAGONAL: Vector3<f64> = Vector3::new(1.0, 0.5, -2.5);
     const CLIMB: Vector3<f64> = Vector3::new(0.0, 0.0, -2.5);
 
-    fn bits(trace: &[Sample]) -> Vec<[u64; 4]> {
-        trace.iter().map(|s| s.pwm_us.map(f64::to_bits)).collect()
-    }
-
     #[test]
     fn given_flying_pid_when_reconfigured_with_same_config_then_trajectory_bit_identical() {
-        let (plain, before, _, c_plain) = fly_reconfigured(None, DIAGONAL);
-        let (same, _, after, c_same) = fly_reconfigured(Some(&PidConfig::default()), DIAGONAL);
-        assert_eq!(before, after);
+        let plain = fly_reconfigured(None, DIAGONAL);
+        let same = fly_reconfigured(Some(&PidConfig::default()), DIAGONAL);
+        assert_same_config_reconfigure_is_bit_identical(&plain, &same);
+        let before = plain.1;
         assert!(before.0.z.abs() > 0.05 && before.1.x.abs() > 0.01, "integrators took up the mismatch: {before:?}");
-        assert_eq!(bits(&plain), bits(&same));
-        assert_eq!(c_plain.telemetry(), c_same.telemetry());
     }
 
     #[test]
@@ -406,7 +378,7 @@ mod tests {
             c.update(&input, &Reference::position(p, 0.0));
         }
         assert!((c.rate_integral_nm().x - 0.3).abs() < 1e-12, "{}", c.rate_integral_nm());
-        assert!(!c.last_saturation.roll);
+        assert!(!c.held.saturation.roll);
     }
 
     #[test]
@@ -419,7 +391,7 @@ mod tests {
         input.rate_frd_radps.x = -10.0;
         c.update(&input, &Reference::position(p, 0.0));
         let after_first = c.rate_integral_nm();
-        assert!(c.last_saturation.roll);
+        assert!(c.held.saturation.roll);
         for _ in 0..100 {
             c.update(&input, &Reference::position(p, 0.0));
         }
@@ -427,7 +399,7 @@ mod tests {
         let mut default = pid();
         default.update(&input, &Reference::position(p, 0.0));
         let first = default.rate_integral_nm();
-        assert!(default.last_saturation.roll);
+        assert!(default.held.saturation.roll);
         default.update(&input, &Reference::position(p, 0.0));
         assert_ne!(default.rate_integral_nm().x, first.x, "by default roll integrates through saturation");
     }

@@ -219,3 +219,50 @@ pub fn poisoned_inputs(base: &ControlInput) -> Vec<ControlInput> {
     }
     v
 }
+
+/// A flight with a live reconfigure between two legs: the second leg, the controller's state (weights,
+/// gains or integrators, as `state` reads them) just before and just after the reconfigure, and the
+/// controller.
+pub type Reconfigured<S, C> = (Vec<Sample>, S, S, C);
+
+/// The reconfiguration harness of every controller: `controller` around the mismatch plant (started at
+/// rest at `(0, 0, -1.5)` m NED) for `first.1` seconds flying to `first.0`, so its adaptive state moves
+/// away from the nominal, then [`super::Controller::reconfigure`] with `config` when given, then
+/// `second.1` seconds flying to `second.0`, both at 500 Hz.
+pub fn fly_reconfigured<C: super::Controller, S>(
+    mut controller: C,
+    first: (Vector3<f64>, f64),
+    config: Option<&super::ControllerConfig>,
+    second: (Vector3<f64>, f64),
+    state: impl Fn(&C) -> S,
+) -> Reconfigured<S, C> {
+    let mut plant = ToyPlant::new(Vector3::new(0.0, 0.0, -1.5), Vector3::zeros());
+    mismatch(&mut plant);
+    fly(&mut controller, &mut plant, 500, first.1, |_| super::Reference::position(first.0, 0.0));
+    let before = state(&controller);
+    if let Some(config) = config {
+        super::Controller::reconfigure(&mut controller, config);
+    }
+    let after = state(&controller);
+    let tr = fly(&mut controller, &mut plant, 500, second.1, |_| super::Reference::position(second.0, 0.0));
+    (tr, before, after, controller)
+}
+
+/// Every PWM command of a trace as bits, for bit-identity checks.
+pub fn pwm_bits(trace: &[Sample]) -> Vec<[u64; 4]> {
+    trace.iter().map(|s| s.pwm_us.map(f64::to_bits)).collect()
+}
+
+/// What a reconfigure with the configuration in use must leave alone, given the run without it (`plain`)
+/// and the run with it (`same`): the adaptive state across the reconfigure, the second leg's PWM to the
+/// bit and the controller's telemetry after it.
+pub fn assert_same_config_reconfigure_is_bit_identical<C: super::Controller, S: PartialEq + std::fmt::Debug>(
+    plain: &Reconfigured<S, C>,
+    same: &Reconfigured<S, C>,
+) {
+    let (plain_leg, before, _, c_plain) = plain;
+    let (same_leg, _, after, c_same) = same;
+    assert_eq!(before, after);
+    assert_eq!(pwm_bits(plain_leg), pwm_bits(same_leg));
+    assert_eq!(c_plain.telemetry(), c_same.telemetry());
+}
