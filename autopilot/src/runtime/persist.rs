@@ -170,8 +170,24 @@ impl AtomicFile {
             source,
         })?;
         self.committed = true;
+        sync_parent_dir(&self.path);
         Ok(self.path.clone())
     }
+}
+
+/// Makes a rename in the directory of `path` durable (the new name survives a power loss), where the
+/// platform allows opening a directory to sync it (Unix); elsewhere, and on failure, the rename stands as
+/// the file system keeps it: the file is whole either way, only which version a power loss leaves may vary.
+fn sync_parent_dir(path: &Path) {
+    #[cfg(unix)]
+    if let Some(dir) = path.parent() {
+        let dir = if dir.as_os_str().is_empty() { Path::new(".") } else { dir };
+        if let Ok(d) = std::fs::File::open(dir) {
+            let _ = d.sync_all();
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = path;
 }
 
 impl Write for AtomicFile {
