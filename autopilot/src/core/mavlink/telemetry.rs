@@ -18,8 +18,8 @@
 use ::mavlink::dialects::common::{
     ATTITUDE_DATA, ATTITUDE_QUATERNION_DATA, BATTERY_STATUS_DATA, DEBUG_VECT_DATA, EXTENDED_SYS_STATE_DATA,
     GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA,
-    MISSION_CURRENT_DATA, MavBatteryChargeState, MavBatteryFunction, MavBatteryType, MavMessage, MavSeverity,
-    MavSysStatusSensor, MavVtolState, STATUSTEXT_DATA, SYS_STATUS_DATA, VFR_HUD_DATA,
+    MISSION_CURRENT_DATA, MISSION_ITEM_REACHED_DATA, MavBatteryChargeState, MavBatteryFunction, MavBatteryType,
+    MavMessage, MavSeverity, MavSysStatusSensor, MavVtolState, STATUSTEXT_DATA, SYS_STATUS_DATA, VFR_HUD_DATA,
 };
 use nalgebra::Vector3;
 
@@ -29,6 +29,7 @@ use crate::core::commander::{CommanderOutput, Event, LandedState};
 use crate::core::control::Controller;
 use crate::core::estimator::{EstimatorFlags, EstimatorState, GpsSample};
 use crate::core::hil::encode_battery_status;
+use crate::core::navigator::NavEvent;
 
 /// Home: where the vehicle armed (m, NED about the estimator's origin) and, with an origin, geodetic.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -189,6 +190,17 @@ pub const WEIGHT_VECTORS: [(&str, [&str; 3]); 15] = [
     ("pid.vel_i", ["pid.vel_int_n_mps2", "pid.vel_int_e_mps2", "pid.vel_int_d_mps2"]),
     ("pid.rate_i", ["pid.rate_int_x_nm", "pid.rate_int_y_nm", "pid.rate_int_z_nm"]),
 ];
+
+/// What the ground station hears of a navigator event: MISSION_CURRENT, MISSION_ITEM_REACHED, or an INFO
+/// STATUSTEXT.
+#[must_use]
+pub fn nav_event_message(event: &NavEvent) -> MavMessage {
+    match event {
+        NavEvent::Current(seq) => mission_current(*seq),
+        NavEvent::Reached(seq) => MavMessage::MISSION_ITEM_REACHED(MISSION_ITEM_REACHED_DATA { seq: *seq }),
+        NavEvent::Text(text) => statustext(MavSeverity::MAV_SEVERITY_INFO, text),
+    }
+}
 
 /// MISSION_CURRENT for the item `seq` the mission flies towards: the one builder (the stream, a
 /// MISSION_SET_CURRENT's answer and the navigator's moves all send this).

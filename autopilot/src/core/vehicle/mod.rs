@@ -15,7 +15,7 @@
 //! ground. PWM is 1000 whenever disarmed, killed or idle, and when the estimate is invalid while armed on
 //! the ground; it is clamped to [1000, 2000] and never NaN.
 
-use ::mavlink::dialects::common::{MISSION_ITEM_REACHED_DATA, MavMessage, MavSeverity};
+use ::mavlink::dialects::common::MavMessage;
 use nalgebra::Vector3;
 
 use crate::core::commander::{Commander, CommanderInputs, CommanderOutput, Estimate, Facts};
@@ -26,7 +26,7 @@ use crate::core::mavlink::mission::MissionService;
 use crate::core::mavlink::params::ParamService;
 use crate::core::mavlink::router::OffboardReceiver;
 use crate::core::mavlink::{
-    Home, LinkErrors, MavlinkService, Stream, TelemetrySnapshot, mission_current, plant_lost_heartbeat, statustext,
+    Home, LinkErrors, MavlinkService, Stream, TelemetrySnapshot, nav_event_message, plant_lost_heartbeat,
     sys_status_plant_lost,
 };
 use crate::core::navigator::{NavEvent, NavInput, Navigator};
@@ -327,14 +327,10 @@ impl Vehicle {
         messages.extend(self.missions.poll(now_us).messages);
         messages.extend(self.param_service.due(&self.params));
         for event in self.navigator.take_events() {
-            messages.push(match event {
-                NavEvent::Current(seq) => {
-                    self.plan.set_current_seq(seq);
-                    mission_current(seq)
-                }
-                NavEvent::Reached(seq) => MavMessage::MISSION_ITEM_REACHED(MISSION_ITEM_REACHED_DATA { seq }),
-                NavEvent::Text(text) => statustext(MavSeverity::MAV_SEVERITY_INFO, &text),
-            });
+            if let NavEvent::Current(seq) = event {
+                self.plan.set_current_seq(seq);
+            }
+            messages.push(nav_event_message(&event));
         }
         self.output.events = events;
         VehicleOutputs { pwm_us, armed: self.output.armed, messages }
