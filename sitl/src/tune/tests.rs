@@ -1,11 +1,13 @@
 //! Tests of tuning specs, guards, reproducibility and the files a tuning writes.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use autopilot::core::config::VehicleConfig;
+use autopilot::core::control::ControllerKind;
 use autopilot::core::params::ParamStore;
 
 use super::*;
+use crate::scenario::Scenario;
 
 /// A 6 s hover with a 1 s gust and a 6 s step of 1 m north: short enough that a tuning of a few
 /// evaluations takes well under a second.
