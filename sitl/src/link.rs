@@ -44,8 +44,7 @@ use mavlink::dialects::common::{MavBatteryChargeState, MavMessage};
 mod fields;
 
 pub use fields::{
-    BATTERY_PERIOD_US, battery_due, battery_fields, gps_fields, home_origin, noisy_truth_fields, sensor_fields,
-    truth_fields,
+    BATTERY_PERIOD_US, battery_due, battery_fields, home_origin, noisy_truth_fields, sensor_fields, truth_fields,
 };
 
 use crate::pacer::Pacer;
@@ -398,7 +397,7 @@ impl<T: Transport> PlantServer<T> {
         let sample = self.plant.sample_sensors();
         let mut datagram = Vec::with_capacity(256);
         if let Some(gps) = &sample.gps {
-            let msg = MavMessage::HIL_GPS(encode_hil_gps(&gps_fields(gps)));
+            let msg = MavMessage::HIL_GPS(encode_hil_gps(gps));
             datagram.extend(self.frame(&msg));
             self.stats.gps_sent += 1;
         }
@@ -838,9 +837,9 @@ mod tests {
         assert_eq!(fields.time_us, 0);
         assert_eq!(fields.accel_frd_mps2, sample.accel_frd_mps2);
         assert_eq!(fields.baro.map(|b| b.pressure_alt_m), Some(sample.baro.pressure_alt_m));
+        // The plant's GPS sample is the protocol's (`autopilot::core::estimator::GpsSample`): no mapping.
         let gps = sample.gps.expect("GPS at t = 0");
-        let back = gps_fields(&gps);
-        assert_eq!((back.lat_deg, back.satellites, back.eph_m), (gps.lat_deg, gps.satellites_visible, gps.eph_m));
+        assert_eq!(gps.satellites, plant.config().sensors.gps.satellites_visible);
         let home = home_origin(&plant.config().sensors.home);
         let truth = truth_fields(&plant.truth());
         let msg = encode_hil_state_quaternion(&truth, &home, 0.0);

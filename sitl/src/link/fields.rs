@@ -1,18 +1,18 @@
-//! The plant's state as the plant protocol's samples: sensors, GPS, truth (plain or with the paper's
+//! The plant's state as the plant protocol's samples: sensors, truth (plain or with the paper's
 //! state noise), the battery and when it is due, and the home as the protocol's geodetic origin.
 
 use autopilot::core::battery::BatterySample;
-use autopilot::core::estimator::{GeoOrigin, GpsSample as ApGpsSample, TruthSample};
-use autopilot::core::hil::{HilBaroFields, HilSensorFields};
+use autopilot::core::estimator::{GeoOrigin, TruthSample};
+use autopilot::core::hil::HilSensorFields;
 use nalgebra::UnitQuaternion;
 
 use crate::plant::sensors::{HomeConfig, NoisyState};
-use crate::plant::{BatteryReading, GpsSample, SensorSample, Truth};
+use crate::plant::{BatteryReading, SensorSample, Truth};
 
 /// The plant's [`HomeConfig`] as the protocol's geodetic origin.
 #[must_use]
 pub fn home_origin(home: &HomeConfig) -> GeoOrigin {
-    GeoOrigin { lat_deg: home.lat_deg, lon_deg: home.lon_deg, alt_amsl_m: home.alt_amsl_m }
+    home.origin()
 }
 
 /// Plant time between two `BATTERY_STATUS` (µs): 10 Hz, as a battery monitor samples.
@@ -45,28 +45,7 @@ pub fn sensor_fields(sample: &SensorSample) -> HilSensorFields {
         accel_frd_mps2: sample.accel_frd_mps2,
         gyro_frd_radps: sample.gyro_frd_radps,
         mag_frd_gauss: Some(sample.mag_frd_gauss),
-        baro: Some(HilBaroFields {
-            pressure_hpa: sample.baro.pressure_hpa,
-            pressure_alt_m: sample.baro.pressure_alt_m,
-            temperature_degc: sample.baro.temperature_degc,
-        }),
-    }
-}
-
-/// A plant GPS sample as the protocol's GPS fields (ground speed and course are recomputed from the
-/// velocity by the encoder).
-#[must_use]
-pub fn gps_fields(gps: &GpsSample) -> ApGpsSample {
-    ApGpsSample {
-        time_us: gps.time_us,
-        lat_deg: gps.lat_deg,
-        lon_deg: gps.lon_deg,
-        alt_amsl_m: gps.alt_amsl_m,
-        vel_ned_mps: gps.vel_ned_mps,
-        fix_type: gps.fix_type,
-        satellites: gps.satellites_visible,
-        eph_m: gps.eph_m,
-        epv_m: gps.epv_m,
+        baro: Some(sample.baro),
     }
 }
 
