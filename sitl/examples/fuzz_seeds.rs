@@ -13,7 +13,7 @@ use autopilot::core::hil::{
 };
 use autopilot::core::mavlink::MavHeader;
 use autopilot::core::mavlink::common::{MavBatteryChargeState, MavMessage};
-use sitl::link::{battery_due, battery_fields, gps_fields, home_origin, sensor_fields, truth_fields};
+use sitl::link::{battery_due, battery_fields, home_origin, sensor_fields, truth_fields};
 use sitl::plant::{InitialState, Plant, PlantConfig, SensorConfig};
 
 /// Frames per `frame_decode` seed, and seeds per tlog at most.
@@ -77,7 +77,7 @@ fn plant_datagrams(pwm_us: f64, steps: usize) -> Vec<Vec<u8>> {
         let sample = plant.sample_sensors();
         let mut datagram = Vec::new();
         if let Some(gps) = &sample.gps {
-            datagram.extend(frame(MavMessage::HIL_GPS(encode_hil_gps(&gps_fields(gps)))));
+            datagram.extend(frame(MavMessage::HIL_GPS(encode_hil_gps(gps))));
         }
         let airspeed_mps = (truth.vel_ned_mps - truth.wind_ned_mps).norm();
         datagram.extend(frame(MavMessage::HIL_STATE_QUATERNION(encode_hil_state_quaternion(

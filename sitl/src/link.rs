@@ -33,21 +33,22 @@ use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use autopilot::core::battery::BatterySample;
-use autopilot::core::estimator::{GeoOrigin, GpsSample as ApGpsSample, TruthSample};
+use autopilot::core::estimator::GeoOrigin;
 use autopilot::core::hil::{
-    ActuatorCommand, DecoderStats, FrameDecoder, HilBaroFields, HilInput, HilSensorFields, decode_hil_message,
-    encode_battery_status, encode_frame_v2, encode_hil_gps, encode_hil_sensor, encode_hil_state_quaternion,
-    encode_odometry,
+    ActuatorCommand, DecoderStats, FrameDecoder, HilInput, decode_hil_message, encode_battery_status, encode_frame_v2,
+    encode_hil_gps, encode_hil_sensor, encode_hil_state_quaternion, encode_odometry,
 };
 use mavlink::MavHeader;
 use mavlink::dialects::common::{MavBatteryChargeState, MavMessage};
-use nalgebra::UnitQuaternion;
+
+mod fields;
+
+pub use fields::{
+    BATTERY_PERIOD_US, battery_due, battery_fields, home_origin, noisy_truth_fields, sensor_fields, truth_fields,
+};
 
 use crate::pacer::Pacer;
-use crate::plant::sensors::HomeConfig;
-use crate::plant::sensors::NoisyState;
-use crate::plant::{BatteryReading, GpsSample, Plant, SensorSample, StateNoise, Truth};
+use crate::plant::{Plant, StateNoise};
 
 /// MAVLink system id the plant sends with.
 pub const PLANT_SYSTEM_ID: u8 = 1;
@@ -254,80 +255,6 @@ pub struct LinkStats {
     pub decoder: DecoderStats,
 }
 
-/// The plant's [`HomeConfig`] as the protocol's geodetic origin.
-#[must_use]
-pub fn home_origin(home: &HomeConfig) -> GeoOrigin {
-    GeoOrigin { lat_deg: home.lat_deg, lon_deg: home.lon_deg, alt_amsl_m: home.alt_amsl_m }
-}
-
-/// Plant time between two `BATTERY_STATUS` (µs): 10 Hz, as a battery monitor samples.
-pub const BATTERY_PERIOD_US: u64 = 100_000;
-
-/// Whether the step at `time_us` (of length `dt_us`) is the first of a [`BATTERY_PERIOD_US`] period.
-#[must_use]
-pub fn battery_due(time_us: u64, dt_us: u64) -> bool {
-    time_us % BATTERY_PERIOD_US < dt_us.max(1)
-}
-
-/// A plant pack reading as the protocol's battery sample (the ARM board's monitor reads the same).
-#[must_use]
-pub fn battery_fields(r: &BatteryReading) -> BatterySample {
-    BatterySample {
-        voltage_v: r.voltage_v,
-        current_a: Some(r.current_a),
-        remaining: Some(r.remaining),
-        consumed_mah: Some(r.consumed_mah),
-        consumed_j: Some(r.consumed_j),
-        cells: r.cells,
-    }
-}
-
-/// A plant sensor sample as `HIL_SENSOR` fields (the plant updates every field at every sample).
-#[must_use]
-pub fn sensor_fields(sample: &SensorSample) -> HilSensorFields {
-    HilSensorFields {
-        time_us: sample.time_us,
-        accel_frd_mps2: sample.accel_frd_mps2,
-        gyro_frd_radps: sample.gyro_frd_radps,
-        mag_frd_gauss: Some(sample.mag_frd_gauss),
-        baro: Some(HilBaroFields {
-            pressure_hpa: sample.baro.pressure_hpa,
-            pressure_alt_m: sample.baro.pressure_alt_m,
-            temperature_degc: sample.baro.temperature_degc,
-        }),
-    }
-}
-
-/// A plant GPS sample as the protocol's GPS fields (ground speed and course are recomputed from the
-/// velocity by the encoder).
-#[must_use]
-pub fn gps_fields(gps: &GpsSample) -> ApGpsSample {
-    ApGpsSample {
-        time_us: gps.time_us,
-        lat_deg: gps.lat_deg,
-        lon_deg: gps.lon_deg,
-        alt_amsl_m: gps.alt_amsl_m,
-        vel_ned_mps: gps.vel_ned_mps,
-        fix_type: gps.fix_type,
-        satellites: gps.satellites_visible,
-        eph_m: gps.eph_m,
-        epv_m: gps.epv_m,
-    }
-}
-
-/// The plant's truth as the protocol's truth fields.
-#[must_use]
-pub fn truth_fields(truth: &Truth) -> TruthSample {
-    TruthSample {
-        time_us: truth.time_us,
-        pos_ned_m: truth.pos_ned_m,
-        vel_ned_mps: truth.vel_ned_mps,
-        q_ned_frd: truth.q_ned_frd,
-        rate_frd_radps: truth.rate_frd_radps,
-        specific_force_frd_mps2: truth.specific_force_frd_mps2,
-    }
-}
-
 /// The plant behind a [`Transport`], in lockstep with the autopilot.
 #[derive(Debug)]
 pub struct PlantServer<T: Transport> {
@@ -470,7 +397,7 @@ impl<T: Transport> PlantServer<T> {
         let sample = self.plant.sample_sensors();
         let mut datagram = Vec::with_capacity(256);
         if let Some(gps) = &sample.gps {
-            let msg = MavMessage::HIL_GPS(encode_hil_gps(&gps_fields(gps)));
+            let msg = MavMessage::HIL_GPS(encode_hil_gps(gps));
             datagram.extend(self.frame(&msg));
             self.stats.gps_sent += 1;
         }
@@ -645,21 +572,6 @@ impl<T: Transport> PlantServer<T> {
             std::thread::sleep(if self.hook.is_some() { sleep.min(HOOK_WAIT_INTERVAL) } else { sleep });
             self.poll_hook_if_due(Instant::now())?;
         }
-    }
-}
-
-/// The truth-fed state with noise as the protocol's truth fields (the attitude rebuilt from the noisy
-/// Euler angles).
-#[must_use]
-pub fn noisy_truth_fields(state: &NoisyState) -> TruthSample {
-    let e = state.euler_rad;
-    TruthSample {
-        time_us: state.time_us,
-        pos_ned_m: state.pos_ned_m,
-        vel_ned_mps: state.vel_ned_mps,
-        q_ned_frd: UnitQuaternion::from_euler_angles(e.x, e.y, e.z),
-        rate_frd_radps: state.rate_frd_radps,
-        specific_force_frd_mps2: state.specific_force_frd_mps2,
     }
 }
 
@@ -925,9 +837,9 @@ mod tests {
         assert_eq!(fields.time_us, 0);
         assert_eq!(fields.accel_frd_mps2, sample.accel_frd_mps2);
         assert_eq!(fields.baro.map(|b| b.pressure_alt_m), Some(sample.baro.pressure_alt_m));
+        // The plant's GPS sample is the protocol's (`autopilot::core::estimator::GpsSample`): no mapping.
         let gps = sample.gps.expect("GPS at t = 0");
-        let back = gps_fields(&gps);
-        assert_eq!((back.lat_deg, back.satellites, back.eph_m), (gps.lat_deg, gps.satellites_visible, gps.eph_m));
+        assert_eq!(gps.satellites, plant.config().sensors.gps.satellites_visible);
         let home = home_origin(&plant.config().sensors.home);
         let truth = truth_fields(&plant.truth());
         let msg = encode_hil_state_quaternion(&truth, &home, 0.0);

@@ -71,23 +71,24 @@
 //! here, 50 in PX4) is the floor its state of charge never falls below; both act from the next step and
 //! start at the plant's `[battery]` values.
 
+mod truth;
+
+pub use truth::{TRUTH_PERIOD_US, TRUTH_RATE_HZ, TruthStream, sim_state, truth_messages};
+
 use std::io;
 use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
 use std::time::{Duration, Instant};
 
-use autopilot::core::hil::{FrameDecoder, deg_to_dege7, encode_frame_v1, encode_frame_v2};
+use autopilot::core::hil::{FrameDecoder, encode_frame_v1, encode_frame_v2};
 use autopilot::core::mavlink::params::{Applied, ParamService};
 use autopilot::core::params::{ParamDef, ParamKind, ParamStore};
-use mavlink::dialects::common::{
-    HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavState, MavType, SIM_STATE_DATA, SYSTEM_TIME_DATA,
-};
+use mavlink::dialects::common::{HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavState, MavType};
 use mavlink::{MavHeader, MavlinkVersion};
 use nalgebra::Vector3;
 
 use crate::link::{PLANT_COMPONENT_ID, PlantHook};
-use crate::plant::sensors::{HomeConfig, geodetic_from_ned};
 use crate::plant::wind::{BEAUFORT, GaussMarkovConfig, beaufort};
-use crate::plant::{GustConfig, Plant, Truth, TurbulenceConfig, Wind};
+use crate::plant::{GustConfig, Plant, TurbulenceConfig, Wind};
 
 /// Instance N's SIM_ parameter port is this + N (on 127.0.0.1; the instance port scheme is
 /// `autopilot::runtime::ports`).
@@ -96,10 +97,6 @@ pub use autopilot::runtime::ports::SIM_PARAM_PORT_BASE;
 pub const PEER_EXPIRY: Duration = Duration::from_secs(10);
 /// Wall time between two heartbeats to the peers.
 pub const HEARTBEAT_PERIOD: Duration = Duration::from_secs(1);
-/// Rate of the truth stream (SIM_STATE), in plant time.
-pub const TRUTH_RATE_HZ: u64 = 50;
-/// Plant time between two SIM_STATE (µs).
-pub const TRUTH_PERIOD_US: u64 = 1_000_000 / TRUTH_RATE_HZ;
 /// Plant time of a gust that is installed but never blows (s): a gust must exist for the turbulence to
 /// be scaled by it, and "no gust yet" is a gust whose onset is 30 years away.
 const DORMANT_ONSET_S: f64 = 1e9;
@@ -391,86 +388,6 @@ pub fn heartbeat() -> MavMessage {
     })
 }
 
-/// The plant's truth as SIM_STATE (see the module documentation for the fields, frames and units): the
-/// position mapped to WGS-84 about `home` by the map the plant's GPS uses.
-#[must_use]
-pub fn sim_state(truth: &Truth, home: &HomeConfig) -> SIM_STATE_DATA {
-    let q = truth.q_ned_frd.quaternion();
-    let geo = geodetic_from_ned(home, &truth.pos_ned_m);
-    let (euler, acc, rate, vel) =
-        (truth.euler_rad, truth.specific_force_frd_mps2, truth.rate_frd_radps, truth.vel_ned_mps);
-    SIM_STATE_DATA {
-        q1: q.w as f32,
-        q2: q.i as f32,
-        q3: q.j as f32,
-        q4: q.k as f32,
-        roll: euler.x as f32,
-        pitch: euler.y as f32,
-        yaw: euler.z as f32,
-        xacc: acc.x as f32,
-        yacc: acc.y as f32,
-        zacc: acc.z as f32,
-        xgyro: rate.x as f32,
-        ygyro: rate.y as f32,
-        zgyro: rate.z as f32,
-        lat: geo.lat_deg as f32,
-        lon: geo.lon_deg as f32,
-        alt: geo.alt_amsl_m as f32,
-        std_dev_horz: 0.0,
-        std_dev_vert: 0.0,
-        vn: vel.x as f32,
-        ve: vel.y as f32,
-        vd: vel.z as f32,
-        lat_int: deg_to_dege7(geo.lat_deg),
-        lon_int: deg_to_dege7(geo.lon_deg),
-    }
-}
-
-/// One truth sample as it goes out, in this order in one datagram: SYSTEM_TIME (`time_boot_ms` = the
-/// plant time in ms) and SIM_STATE ([`sim_state`]).
-#[must_use]
-pub fn truth_messages(truth: &Truth, home: &HomeConfig) -> [MavMessage; 2] {
-    let time = SYSTEM_TIME_DATA { time_unix_usec: 0, time_boot_ms: (truth.time_us / 1000) as u32 };
-    [MavMessage::SYSTEM_TIME(time), MavMessage::SIM_STATE(sim_state(truth, home))]
-}
-
-/// The truth samples due on plant time: [`TruthStream::stepped`], after each plant step, takes one when
-/// the step crossed into a new [`TRUTH_PERIOD_US`] period (at most one per step); [`TruthStream::take`]
-/// hands over those taken since the last call, oldest first.
-#[derive(Debug, Clone, PartialEq)]
-pub struct TruthStream {
-    /// The period (plant time / [`TRUTH_PERIOD_US`]) of the last step seen.
-    period: u64,
-    pending: Vec<[MavMessage; 2]>,
-}
-
-impl TruthStream {
-    /// A stream for a plant at plant time `now_us`: the first sample is at the next multiple of
-    /// [`TRUTH_PERIOD_US`].
-    #[must_use]
-    pub fn new(now_us: u64) -> Self {
-        Self { period: now_us / TRUTH_PERIOD_US, pending: Vec::new() }
-    }
-
-    /// After a plant step: take a sample of `plant` if the step entered a new period and someone is
-    /// `listening` (a sample nobody would receive is not built).
-    pub fn stepped(&mut self, plant: &Plant, listening: bool) {
-        let period = plant.time_us() / TRUTH_PERIOD_US;
-        if period == self.period {
-            return;
-        }
-        self.period = period;
-        if listening {
-            self.pending.push(truth_messages(&plant.truth(), &plant.config().sensors.home));
-        }
-    }
-
-    /// The samples taken since the last call, oldest first.
-    pub fn take(&mut self) -> Vec<[MavMessage; 2]> {
-        std::mem::take(&mut self.pending)
-    }
-}
-
 /// A client that spoke to the plant.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Peer {
@@ -615,9 +532,11 @@ impl PlantHook for SimParamLink {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::plant::sensors::{HomeConfig, geodetic_from_ned};
     use crate::plant::{InitialState, PlantConfig, WindConfig};
     use autopilot::core::mavlink::params::{decode_value, param_name};
     use autopilot::core::params::ParamError;
+    use mavlink::dialects::common::SIM_STATE_DATA;
     use mavlink::dialects::common::{MavParamType, PARAM_REQUEST_LIST_DATA, PARAM_REQUEST_READ_DATA, PARAM_SET_DATA};
     use mavlink::types::CharArray;
 

@@ -3,9 +3,7 @@
 //! pack's readings (10 Hz, as the plant link sends them) are converted directly (no HIL encode/decode
 //! round trip). Pure simulated time: no sleeps.
 
-use autopilot::core::estimator::{
-    BaroSample, EstimatorSource, GeoOrigin, GpsSample, ImuSample, MagSample, TruthSample,
-};
+use autopilot::core::estimator::{BaroSample, EstimatorSource, GeoOrigin, ImuSample, MagSample, TruthSample};
 use autopilot::core::mavlink::MavHeader;
 use autopilot::core::mavlink::command_long;
 use autopilot::core::mavlink::common::{MavCmd, MavLandedState, MavMessage, MavModeFlag, MavResult};
@@ -65,17 +63,7 @@ impl Rig {
             }),
             mag: Some(MagSample { field_frd_gauss: s.mag_frd_gauss }),
             baro: Some(BaroSample { pressure_alt_m: s.baro.pressure_alt_m }),
-            gps: s.gps.map(|g| GpsSample {
-                time_us: g.time_us,
-                lat_deg: g.lat_deg,
-                lon_deg: g.lon_deg,
-                alt_amsl_m: g.alt_amsl_m,
-                vel_ned_mps: g.vel_ned_mps,
-                fix_type: g.fix_type,
-                satellites: g.satellites_visible,
-                eph_m: g.eph_m,
-                epv_m: g.epv_m,
-            }),
+            gps: s.gps,
             truth: Some(TruthSample {
                 time_us: t.time_us,
                 pos_ned_m: t.pos_ned_m,

@@ -20,6 +20,9 @@
 use std::collections::VecDeque;
 
 use autopilot::core::control::frames::wrap_pi;
+use autopilot::core::estimator::GeoOrigin;
+pub use autopilot::core::estimator::GpsSample;
+pub use autopilot::core::hil::HilBaroFields as BaroSample;
 use nalgebra::Vector3;
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
@@ -28,11 +31,6 @@ use serde::Deserialize;
 
 use super::airframe::{finite, non_negative, positive};
 use super::{PlantError, Truth, stream, stream_rng};
-
-/// WGS-84 semi-major axis (m).
-pub const WGS84_A_M: f64 = 6_378_137.0;
-/// WGS-84 first eccentricity squared.
-pub const WGS84_E2: f64 = 6.694_379_990_14e-3;
 
 /// ISA sea-level pressure (hPa).
 pub const ISA_P0_HPA: f64 = 1013.25;
@@ -55,6 +53,15 @@ pub struct HomeConfig {
 impl Default for HomeConfig {
     fn default() -> Self {
         Self { lat_deg: 47.397_742, lon_deg: 8.545_594, alt_amsl_m: 488.0 }
+    }
+}
+
+impl HomeConfig {
+    /// The home as the core's geodetic origin (`autopilot::core::estimator::GeoOrigin`), whose map and
+    /// WGS-84 radii the plant's GPS and SIM_STATE use.
+    #[must_use]
+    pub fn origin(&self) -> GeoOrigin {
+        GeoOrigin { lat_deg: self.lat_deg, lon_deg: self.lon_deg, alt_amsl_m: self.alt_amsl_m }
     }
 }
 
@@ -239,41 +246,34 @@ pub struct Geodetic {
     pub alt_amsl_m: f64,
 }
 
-/// Metres per radian of latitude and of longitude at `home`: the WGS-84 meridian radius
-/// M = a(1-e²)/(1-e² sin²φ)^1.5 and the transverse radius N = a/sqrt(1-e² sin²φ), each plus the home
-/// altitude, the latter times cos φ.
-fn metres_per_radian(home: &HomeConfig) -> (f64, f64) {
-    let lat = home.lat_deg.to_radians();
-    let s2 = 1.0 - WGS84_E2 * lat.sin().powi(2);
-    let meridian_m = WGS84_A_M * (1.0 - WGS84_E2) / (s2 * s2.sqrt());
-    let transverse_m = WGS84_A_M / s2.sqrt();
-    (meridian_m + home.alt_amsl_m, (transverse_m + home.alt_amsl_m) * lat.cos())
-}
-
 /// Flat-earth NED -> geodetic, an equirectangular map about home: lat = lat0 + N/(M + h0),
 /// lon = lon0 + E/((N_t + h0) cos lat0), alt = h0 - D, with the WGS-84 meridian radius M and transverse
-/// radius N_t at lat0. It is exactly inverted by [`ned_from_geodetic`]. Against a true tangent plane it
+/// radius N_t at lat0 (the core's [`GeoOrigin::metres_per_radian`]). It is inverted by
+/// [`ned_from_geodetic`] (the core's map) to rounding. The core's [`GeoOrigin::geodetic_from_ned`] wraps
+/// every longitude through `(lon + 180) mod 360 - 180`, which rounds away the last bits of most fixes; the
+/// plant wraps only a longitude past ±180 (an origin at the antimeridian), so its fixes stay bit for bit
+/// what they were. Against a true tangent plane it
 /// departs as d²/R (at 1 km the plane is 8 cm above the ellipsoid, and a combined 1 km N + 1 km E offset
 /// moves by about 0.2 m at mid-latitudes): fine for a SITL field of a few km.
 #[must_use]
 pub fn geodetic_from_ned(home: &HomeConfig, pos_ned_m: &Vector3<f64>) -> Geodetic {
-    let (north_m_per_rad, east_m_per_rad) = metres_per_radian(home);
+    let (north_m_per_rad, east_m_per_rad) = home.origin().metres_per_radian();
+    let lon_deg = home.lon_deg + (pos_ned_m.y / east_m_per_rad).to_degrees();
     Geodetic {
         lat_deg: home.lat_deg + (pos_ned_m.x / north_m_per_rad).to_degrees(),
-        lon_deg: home.lon_deg + (pos_ned_m.y / east_m_per_rad).to_degrees(),
+        lon_deg: if (-180.0..180.0).contains(&lon_deg) {
+            lon_deg
+        } else {
+            home.origin().geodetic_from_ned(pos_ned_m).1
+        },
         alt_amsl_m: home.alt_amsl_m - pos_ned_m.z,
     }
 }
 
-/// The inverse of [`geodetic_from_ned`].
+/// The inverse of [`geodetic_from_ned`]: the core's [`GeoOrigin::ned_from_geodetic`] about home.
 #[must_use]
 pub fn ned_from_geodetic(home: &HomeConfig, geodetic: &Geodetic) -> Vector3<f64> {
-    let (north_m_per_rad, east_m_per_rad) = metres_per_radian(home);
-    Vector3::new(
-        (geodetic.lat_deg - home.lat_deg).to_radians() * north_m_per_rad,
-        (geodetic.lon_deg - home.lon_deg).to_radians() * east_m_per_rad,
-        home.alt_amsl_m - geodetic.alt_amsl_m,
-    )
+    home.origin().ned_from_geodetic(geodetic.lat_deg, geodetic.lon_deg, geodetic.alt_amsl_m)
 }
 
 /// Altitude range (m AMSL) of the ISA troposphere model; outside it the altitude is clamped (the formula
@@ -298,36 +298,6 @@ pub fn isa_altitude_m(pressure_hpa: f64) -> f64 {
 #[must_use]
 pub fn isa_temperature_degc(alt_amsl_m: f64) -> f64 {
     15.0 - ISA_LAPSE_KPM * alt_amsl_m
-}
-
-/// Barometer output.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct BaroSample {
-    /// Static pressure (hPa).
-    pub pressure_hpa: f64,
-    /// Pressure altitude (m AMSL).
-    pub pressure_alt_m: f64,
-    /// Air temperature (°C).
-    pub temperature_degc: f64,
-}
-
-/// GPS output.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GpsSample {
-    /// Plant time the measurement is valid for (µs); it is output `latency_s` later.
-    pub time_us: u64,
-    pub lat_deg: f64,
-    pub lon_deg: f64,
-    pub alt_amsl_m: f64,
-    pub vel_ned_mps: Vector3<f64>,
-    /// Horizontal speed (m/s).
-    pub ground_speed_mps: f64,
-    /// Course over ground, 0..360 deg clockwise from north.
-    pub course_deg: f64,
-    pub eph_m: f64,
-    pub epv_m: f64,
-    pub fix_type: u8,
-    pub satellites_visible: u8,
 }
 
 /// One sample of every sensor.
@@ -510,19 +480,16 @@ impl Sensors {
         let pos_ned_m = self.gps_position.measure(&truth.pos_ned_m, dt_s);
         let vel_ned_mps = self.gps_velocity.measure(&truth.vel_ned_mps, dt_s);
         let geodetic = geodetic_from_ned(&self.config.home, &pos_ned_m);
-        let course_deg = vel_ned_mps.y.atan2(vel_ned_mps.x).to_degrees().rem_euclid(360.0);
         GpsSample {
             time_us: truth.time_us,
             lat_deg: geodetic.lat_deg,
             lon_deg: geodetic.lon_deg,
             alt_amsl_m: geodetic.alt_amsl_m,
             vel_ned_mps,
-            ground_speed_mps: vel_ned_mps.xy().norm(),
-            course_deg,
             eph_m: self.config.gps.eph_m,
             epv_m: self.config.gps.epv_m,
             fix_type: self.config.gps.fix_type,
-            satellites_visible: self.config.gps.satellites_visible,
+            satellites: self.config.gps.satellites_visible,
         }
     }
 }

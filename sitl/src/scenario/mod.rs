@@ -28,6 +28,8 @@
 //! [metric_windows]                # optional: step_sse_s, gust_steady_s, gust_peak_s, gust_rms_s
 //! ```
 
+#[cfg(test)]
+pub(crate) mod fixtures;
 pub mod gcs;
 pub mod metrics;
 pub mod path;

@@ -4,27 +4,10 @@ use super::table::{self, percentile};
 use super::*;
 use crate::scenario::MetricKind;
 
-/// A short gust hover (6 s, gust from 1 s to 3 s), so a sweep of a few runs takes well under a second.
+/// A short gust hover (6 s, gust from 1 s to 3 s), so a sweep of a few runs takes well under a second: the
+/// shared fixture, 5 m/s.
 fn short_gust() -> Scenario {
-    let text = r#"
-name = "short-gust"
-duration_s = 6.0
-plant = "mismatch"
-state_noise = "paper"
-metrics = ["gust"]
-[initial]
-pos_ned_m = [0.0, 0.0, -1.5]
-[reference]
-kind = "position"
-steps = [{ t_s = 0.0, pos_ned_m = [0.0, 0.0, -1.5] }]
-[wind.gust]
-amplitude_mps = 5.0
-onset_s = 1.0
-rise_s = 0.5
-release_s = 3.0
-fall_s = 0.5
-"#;
-    Scenario::from_toml("short-gust", text).unwrap()
+    crate::scenario::fixtures::short_gust(5.0, 3.0)
 }
 
 const SPEC: &str = r#"

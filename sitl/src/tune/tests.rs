@@ -1,33 +1,17 @@
 //! Tests of tuning specs, guards, reproducibility and the files a tuning writes.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use autopilot::core::config::VehicleConfig;
+use autopilot::core::control::ControllerKind;
 use autopilot::core::params::ParamStore;
 
 use super::*;
+use crate::scenario::Scenario;
+use crate::scenario::fixtures::short_gust_toml;
 
-/// A 6 s hover with a 1 s gust and a 6 s step of 1 m north: short enough that a tuning of a few
-/// evaluations takes well under a second.
-const SHORT_GUST: &str = r#"
-name = "short-gust"
-duration_s = 6.0
-plant = "mismatch"
-state_noise = "paper"
-metrics = ["gust"]
-[initial]
-pos_ned_m = [0.0, 0.0, -1.5]
-[reference]
-kind = "position"
-steps = [{ t_s = 0.0, pos_ned_m = [0.0, 0.0, -1.5] }]
-[wind.gust]
-amplitude_mps = 4.0
-onset_s = 1.0
-rise_s = 0.5
-release_s = 2.5
-fall_s = 0.5
-"#;
-
+/// A 6 s step of 1 m north: short enough that a tuning of a few evaluations takes well under a second
+/// (the gust it is tuned on is the shared short gust hover, 4 m/s released at 2.5 s).
 const SHORT_STEP: &str = r#"
 name = "short-step"
 duration_s = 6.0
@@ -78,7 +62,7 @@ fn scenario_dir(test: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("sitl-tune-{test}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
-    std::fs::write(dir.join("short-gust.toml"), SHORT_GUST).unwrap();
+    std::fs::write(dir.join("short-gust.toml"), short_gust_toml(4.0, 2.5)).unwrap();
     std::fs::write(dir.join("short-step.toml"), SHORT_STEP).unwrap();
     dir
 }

@@ -34,7 +34,8 @@ fn wrap_deg(angle_deg: f64) -> f64 {
 
 impl GeoOrigin {
     /// Metres per radian of latitude and of longitude at the origin: `(M + h0, (N_t + h0) cos lat0)`.
-    fn metres_per_radian(&self) -> (f64, f64) {
+    #[must_use]
+    pub fn metres_per_radian(&self) -> (f64, f64) {
         let lat_rad = self.lat_deg.to_radians();
         let s2 = 1.0 - WGS84_E2 * lat_rad.sin().powi(2);
         let meridian_m = WGS84_A_M * (1.0 - WGS84_E2) / (s2 * s2.sqrt());

@@ -1,16 +1,9 @@
-//! `sitl bench`: what the SITL costs and how it answers. One vehicle (the default): the two-process
-//! real-time factor in lockstep, and the CPU and telemetry of a real-time run. `--vehicles N`: a swarm of N
-//! started as `sitl run -n N` starts it, at real time, with a ground station on UDP 14550 that measures,
-//! per vehicle, the wall-clock intervals between its HEARTBEATs and the latency of a COMMAND_ACK to a
-//! COMMAND_LONG addressed to its system id, and the CPU of the plant process and of every autopilot (user
-//! plus system, from `/proc`, per process and per thread); then PASS or FAIL against the swarm's targets:
-//! every vehicle's HEARTBEAT interval p99 <= [`HEARTBEAT_P99_LIMIT_S`], COMMAND_ACK p99 <=
-//! [`ACK_P99_LIMIT_MS`].
+//! `sitl bench --vehicles N`: a swarm started as `sitl run -n N` starts it, measured at real time by a
+//! ground station (HEARTBEAT intervals, COMMAND_ACK latency, CPU per process and thread) and judged PASS or
+//! FAIL against the swarm's targets.
 
 use std::collections::BTreeMap;
-use std::ffi::OsString;
 use std::net::{SocketAddr, UdpSocket};
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
@@ -21,209 +14,34 @@ use autopilot::runtime::ports::InstancePorts;
 use clap::Parser;
 use mavlink::MavHeader;
 use mavlink::dialects::common::{MavCmd, MavMessage};
-use sitl::launch::{self, AutopilotChild, TempConfig};
-use sitl::link::{LinkConfig, Pacing, PlantServer};
-use sitl::plant::{InitialState, Plant};
+use sitl::launch::{self, AutopilotChild};
 
-use crate::{
-    BenchArgs, Cli, Command, RunArgs, bind_sim_params, duration_us, instance_ports, realistic_plant_config, start_swarm,
-};
+use super::{BenchArgs, Summary, describe};
+use crate::cli::run::RunArgs;
+use crate::cli::swarm::start_swarm;
+use crate::{Cli, Command};
 
 /// The swarm target: every vehicle's HEARTBEAT interval at the ground station, p99 (s).
 pub const HEARTBEAT_P99_LIMIT_S: f64 = 1.2;
+
 /// The swarm target: COMMAND_ACK latency at the ground station, p99 over every command (ms).
 pub const ACK_P99_LIMIT_MS: f64 = 20.0;
+
 /// Each vehicle gets one COMMAND_LONG per this period, the vehicles' sends spread evenly over it.
 const COMMAND_PERIOD: Duration = Duration::from_secs(1);
+
 /// After every vehicle was heard, the swarm runs this long before the measurement starts.
 const WARM_UP: Duration = Duration::from_secs(2);
+
 /// The receive buffer the bench's ground station asks for (B).
 const GROUND_STATION_RCVBUF_BYTES: usize = 4 << 20;
+
 /// How long the ground station waits for every vehicle's first HEARTBEAT.
 const HEAR_ALL_TIMEOUT: Duration = Duration::from_secs(60);
+
 /// The message each command requests: AUTOPILOT_VERSION (harmless, and not a HEARTBEAT, whose intervals
 /// are measured).
 const REQUESTED_MESSAGE_ID: f32 = 148.0;
-
-/// `sitl bench`.
-pub fn run(args: &BenchArgs) -> Result<()> {
-    match args.vehicles {
-        Some(count) => bench_swarm(args, count),
-        None => bench_one(args),
-    }
-}
-
-/// p50, p99 and the largest of a sample (nearest rank: the smallest value with at least p % of the sample
-/// at or below it), and its size. Units are the sample's.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Summary {
-    pub count: usize,
-    pub p50: f64,
-    pub p99: f64,
-    pub max: f64,
-}
-
-impl Summary {
-    /// The summary of `values` (NaN sorts last); `None` for an empty sample.
-    #[must_use]
-    pub fn of(values: &[f64]) -> Option<Self> {
-        if values.is_empty() {
-            return None;
-        }
-        let mut sorted = values.to_vec();
-        sorted.sort_by(f64::total_cmp);
-        Some(Self {
-            count: sorted.len(),
-            p50: nearest_rank(&sorted, 50.0),
-            p99: nearest_rank(&sorted, 99.0),
-            max: sorted[sorted.len() - 1],
-        })
-    }
-}
-
-/// The `pct` percentile of an ascending, non-empty sample by nearest rank.
-fn nearest_rank(sorted: &[f64], pct: f64) -> f64 {
-    let rank = (pct / 100.0 * sorted.len() as f64).ceil() as usize;
-    sorted[rank.clamp(1, sorted.len()) - 1]
-}
-
-/// `summary` as "p50 a, p99 b, max c UNIT" with each value times `scale`.
-fn describe(summary: Option<Summary>, scale: f64, unit: &str, decimals: usize) -> String {
-    match summary {
-        Some(s) => format!(
-            "p50 {:.d$}, p99 {:.d$}, max {:.d$} {unit} ({} samples)",
-            s.p50 * scale,
-            s.p99 * scale,
-            s.max * scale,
-            s.count,
-            d = decimals
-        ),
-        None => "no samples".to_owned(),
-    }
-}
-
-// -- one vehicle -----------------------------------------------------------------------------------------
-
-/// Counts what arrives on a UDP port (the ground-station side of a bench run) until stopped.
-struct TelemetryCounter {
-    stop: Arc<AtomicBool>,
-    thread: std::thread::JoinHandle<(u64, u64)>,
-}
-
-impl TelemetryCounter {
-    fn listen(port: u16) -> Result<Self> {
-        let socket = UdpSocket::bind(("127.0.0.1", port)).with_context(|| format!("binding udp {port}"))?;
-        socket.set_read_timeout(Some(Duration::from_millis(20)))?;
-        let stop = Arc::new(AtomicBool::new(false));
-        let flag = stop.clone();
-        let thread = std::thread::spawn(move || {
-            let mut decoder = FrameDecoder::new();
-            let (mut frames, mut bytes) = (0, 0);
-            let mut buf = [0u8; 65_536];
-            while !flag.load(Ordering::Relaxed) {
-                if let Ok(n) = socket.recv(&mut buf) {
-                    frames += decoder.decode_datagram(&buf[..n]).len() as u64;
-                    bytes += n as u64;
-                }
-            }
-            (frames, bytes)
-        });
-        Ok(Self { stop, thread })
-    }
-
-    /// (MAVLink messages, bytes) received.
-    fn finish(self) -> (u64, u64) {
-        self.stop.store(true, Ordering::Relaxed);
-        self.thread.join().unwrap_or((0, 0))
-    }
-}
-
-/// One bench run: the default `sitl run` plant and autopilot for `duration_s` simulated seconds, with a
-/// ground station listening on the QGroundControl port, or (`gcs` false) with the autopilot's
-/// ground-station links off.
-fn bench_once(
-    n: u16,
-    pacing: Pacing,
-    duration_s: f64,
-    gcs: bool,
-    stop: &AtomicBool,
-) -> Result<(launch::LaunchReport, u64, u64)> {
-    let (plant_port, _, qgc_port, _) = instance_ports(n)?;
-    let plant = Plant::new(realistic_plant_config(), &InitialState::default(), 1)?;
-    let link = LinkConfig { pacing, connect_timeout: Some(Duration::from_secs(30)), ..LinkConfig::default() };
-    let listen = format!("127.0.0.1:{plant_port}");
-    // As `sitl run`: the SIM_ parameter service polled between steps.
-    let (sim_params, _) = bind_sim_params(n, &plant)?;
-    let mut server =
-        PlantServer::bind_udp(plant, listen.as_str(), link).with_context(|| format!("binding {listen}"))?;
-    server.set_hook(Box::new(sim_params));
-    let counter = TelemetryCounter::listen(qgc_port)?;
-    let mut args: Vec<OsString> = vec![
-        "--plant".into(),
-        format!("udp://{listen}").into(),
-        "-i".into(),
-        n.to_string().into(),
-        "--state-dir".into(),
-        "off".into(),
-    ];
-    let _config = if gcs {
-        None
-    } else {
-        let config = TempConfig::write("bench", "[gcs]\nudp_targets = []\ntcp_bind = \"off\"\n")
-            .map_err(|(path, e)| anyhow::anyhow!("writing {}: {e}", path.display()))?;
-        args.extend(["--config".into(), config.path().into()]);
-        Some(config)
-    };
-    let child = AutopilotChild::spawn_with(&launch::autopilot_binary()?, &args, Some("warn"))?;
-    let report = launch::run_with_child(&mut server, child, duration_us(Some(duration_s))?, stop, |_, _| {})?;
-    let (messages, bytes) = counter.finish();
-    if report.stopped {
-        bail!("stopped");
-    }
-    Ok((report, messages, bytes))
-}
-
-/// `sitl bench` without `--vehicles`: lockstep with and without ground-station links, then real time.
-fn bench_one(args: &BenchArgs) -> Result<()> {
-    let stop = launch::ctrl_c_flag();
-    let n = args.instance;
-    println!(
-        "sitl bench: the default `sitl run` plant (nominal, modest sensor noise) and autopilot (fused estimator, \
-         ACO, on the ground), telemetry to a ground station on udp {}",
-        InstancePorts::of(n)?.qgc_udp
-    );
-    for gcs in [true, false] {
-        let (r, messages, _) = bench_once(n, Pacing::Lockstep, args.sim_s, gcs, &stop)?;
-        println!(
-            "  lockstep, {}: {:.1} sim s in {:.2} s wall = {:.1}x real time, {:.0} steps/s, {:.1} us per step; CPU \
-             per step: autopilot {:.1} us, plant {:.1} us (both poll while waiting); {} telemetry messages received",
-            if gcs { "telemetry to the ground station" } else { "ground-station links off" },
-            r.sim_s,
-            r.wall_s,
-            r.realtime_factor(),
-            r.steps as f64 / r.wall_s,
-            r.wall_s * 1e6 / r.steps as f64,
-            r.autopilot_cpu_s.unwrap_or(f64::NAN) * 1e6 / r.steps as f64,
-            r.plant_cpu_s.unwrap_or(f64::NAN) * 1e6 / r.steps as f64,
-            messages,
-        );
-    }
-    if args.realtime_s <= 0.0 {
-        return Ok(());
-    }
-    let (r, messages, bytes) = bench_once(n, Pacing::RealTime { speed: 1.0 }, args.realtime_s, true, &stop)?;
-    println!(
-        "  real time: {:.1} s: CPU autopilot {:.2} % of a core, plant {:.2} %; telemetry {:.1} messages/s, {:.2} kB/s",
-        r.wall_s,
-        100.0 * r.autopilot_cpu_s.unwrap_or(f64::NAN) / r.wall_s,
-        100.0 * r.plant_cpu_s.unwrap_or(f64::NAN) / r.wall_s,
-        messages as f64 / r.wall_s,
-        bytes as f64 / r.wall_s / 1000.0,
-    );
-    Ok(())
-}
-
-// -- a swarm ---------------------------------------------------------------------------------------------
 
 /// The `sitl run` options of the bench's swarm: `sitl run -n N -i FIRST` with no kept state, parsed by
 /// the same command line, so the swarm is started exactly as `sitl run -n N` starts it.
@@ -476,7 +294,7 @@ fn ground_station(
 }
 
 /// `sitl bench --vehicles N`.
-fn bench_swarm(args: &BenchArgs, count: u16) -> Result<()> {
+pub(super) fn bench_swarm(args: &BenchArgs, count: u16) -> Result<()> {
     if !(args.realtime_s.is_finite() && args.realtime_s >= 5.0) {
         bail!("--vehicles measures over --realtime-s of wall time: give at least 5 s, got {}", args.realtime_s);
     }
@@ -629,28 +447,7 @@ fn report(args: &BenchArgs, first: u16, m: &Measured, resends: u64) -> Result<()
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn percentiles_are_nearest_rank() {
-        // GIVEN 1..=100 in any order THEN p50 is 50, p99 99, max 100.
-        let values: Vec<f64> = (1..=100).rev().map(f64::from).collect();
-        assert_eq!(Summary::of(&values), Some(Summary { count: 100, p50: 50.0, p99: 99.0, max: 100.0 }));
-        // A small sample: p99 is its largest value, p50 the lower middle one.
-        let s = Summary::of(&[3.0, 1.0, 2.0, 4.0]).expect("a sample");
-        assert_eq!((s.p50, s.p99, s.max), (2.0, 4.0, 4.0));
-        assert_eq!(Summary::of(&[7.5]), Some(Summary { count: 1, p50: 7.5, p99: 7.5, max: 7.5 }));
-        assert_eq!(Summary::of(&[]), None);
-        // An unanswered command (infinity) counts as the slowest.
-        let s = Summary::of(&[1.0, f64::INFINITY]).expect("a sample");
-        assert_eq!((s.p50, s.p99), (1.0, f64::INFINITY));
-    }
-
-    #[test]
-    fn a_summary_reads_with_its_unit() {
-        let s = Summary::of(&[0.001, 0.002]);
-        assert_eq!(describe(s, 1e3, "ms", 1), "p50 1.0, p99 2.0, max 2.0 ms (2 samples)");
-        assert_eq!(describe(None, 1.0, "s", 3), "no samples");
-    }
+    use sitl::link::Pacing;
 
     #[test]
     fn the_bench_swarm_is_sitl_run_n() {

@@ -1,0 +1,115 @@
+//! `sitl run -n N`: a swarm of N plants in this process on one clock and N autopilot processes, placed on
+//! a grid.
+
+use std::ffi::OsString;
+use std::path::Path;
+
+use anyhow::{Context, Result, bail};
+use autopilot::runtime::ports::InstancePorts;
+use sitl::launch::{self, AutopilotChild};
+use sitl::link::{PlantServer, UdpTransport};
+use sitl::plant::{InitialState, Plant};
+use sitl::progress::Progress;
+
+use super::common::{bind_sim_params, describe_pacing, duration_us, realistic_plant_config};
+use super::run::{RunArgs, autopilot_args, check_autopilot_config, run_link_config};
+
+/// Where swarm vehicle `k` of `count` starts: on a square grid `spacing_m` apart, rows north, columns east
+/// (NED, metres from the plant origin).
+pub(crate) fn grid_position_ned_m(k: u16, count: u16, spacing_m: f64) -> nalgebra::Vector3<f64> {
+    let columns = (f64::from(count).sqrt().ceil() as u16).max(1);
+    nalgebra::Vector3::new(f64::from(k / columns) * spacing_m, f64::from(k % columns) * spacing_m, 0.0)
+}
+
+/// The swarm of `sitl run -n N` started, once the instances, `--spacing` and the autopilot configuration
+/// have been checked: N plant servers bound (not yet stepping) and N autopilot processes spawned (with
+/// `RUST_LOG` set to `log_filter` unless the environment sets it), in instance order.
+pub(crate) fn start_swarm(
+    args: &RunArgs,
+    log_filter: Option<&str>,
+) -> Result<(Vec<PlantServer<UdpTransport>>, Vec<AutopilotChild>)> {
+    let (first, count) = (args.instance, args.count);
+    let last = first
+        .checked_add(count - 1)
+        .filter(|&last| last <= autopilot::runtime::ports::MAX_INSTANCE)
+        .with_context(|| format!("-i {first} -n {count}: instances are 0..=254"))?;
+    if !(args.spacing.is_finite() && args.spacing > 0.0) {
+        bail!("--spacing must be a positive number of metres, got {}", args.spacing);
+    }
+    let autopilot = launch::autopilot_binary()?;
+    for n in first..=last {
+        launch::check_instance_free(n, true)?;
+    }
+    check_autopilot_config(args, first)?;
+    let config = args.plant.config(realistic_plant_config())?;
+    let pacing = args.plant.pacing();
+    let mut servers = Vec::new();
+    let mut children = Vec::new();
+    for (k, n) in (first..=last).enumerate() {
+        let k = u16::try_from(k).context("swarm index")?;
+        let ports = InstancePorts::of(n)?;
+        let start = InitialState { pos_ned_m: grid_position_ned_m(k, count, args.spacing), ..InitialState::default() };
+        let plant = Plant::new(config.clone(), &start, args.plant.seed.wrapping_add(u64::from(k)))?;
+        let listen = format!("127.0.0.1:{}", ports.plant_udp);
+        let (sim_params, _) = bind_sim_params(n, &plant)?;
+        let mut server = PlantServer::bind_udp(plant, listen.as_str(), run_link_config(args, pacing))
+            .with_context(|| format!("binding {listen}"))?;
+        server.set_hook(Box::new(sim_params));
+        servers.push(server);
+        // Each vehicle keeps its own state: a directory given for the swarm holds one per instance.
+        let state_dir = match args.state_dir.as_deref().map(str::trim) {
+            Some("off") => Some(OsString::from("off")),
+            Some(dir) => Some(Path::new(dir).join(format!("i{n}")).into_os_string()),
+            None => None,
+        };
+        let ap_args = autopilot_args(args, n, &listen, state_dir);
+        children.push(AutopilotChild::spawn_with(&autopilot, &ap_args, log_filter)?);
+    }
+    Ok((servers, children))
+}
+
+/// `sitl run -n N`: N plants in this process on one clock, N autopilot processes.
+pub(crate) fn run_swarm(args: &RunArgs) -> Result<()> {
+    let duration = duration_us(args.duration)?;
+    let stop = launch::ctrl_c_flag();
+    let (mut servers, children) = start_swarm(args, None)?;
+    let (first, count, pacing) = (args.instance, args.count, args.plant.pacing());
+    let last = first + (count - 1);
+    let api: Vec<String> =
+        (first..=last).map(|n| InstancePorts::of(n).map(|p| p.api_udp.to_string())).collect::<Result<_, _>>()?;
+    eprintln!(
+        "sitl: swarm of {count} vehicles running {}: instances {first}..={last} (system ids {}..={}), spawned {} m \
+         apart; every vehicle sends to udp 14550 (QGroundControl shows them all) and to its API port ({}); \
+         plants on udp {}..={}, SIM_ parameters on udp {}..={}. Ctrl-C stops them all.",
+        describe_pacing(pacing),
+        u32::from(first) + 1,
+        u32::from(last) + 1,
+        args.spacing,
+        api.join(", "),
+        InstancePorts::of(first)?.plant_udp,
+        InstancePorts::of(last)?.plant_udp,
+        InstancePorts::of(first)?.sim_params_udp,
+        InstancePorts::of(last)?.sim_params_udp,
+    );
+    let mut progress = match duration {
+        Some(us) => Progress::new("sitl: swarm", us.div_ceil(1_000_000), "sim s"),
+        None => Progress::hidden(0),
+    };
+    let report = launch::run_swarm(&mut servers, children, duration, &stop, |t_us| progress.set(t_us / 1_000_000));
+    progress.finish();
+    let report = report?;
+    let steps: u64 = report.vehicles.iter().map(|v| v.steps).sum();
+    let sim_s = report.vehicles.first().map_or(0.0, |v| v.sim_s);
+    let resends: u64 = report.vehicles.iter().map(|v| v.link.resends).sum();
+    let malformed: u64 = report.vehicles.iter().map(|v| v.link.decoder.malformed()).sum();
+    let autopilot_cpu_s: f64 = report.vehicles.iter().filter_map(|v| v.autopilot_cpu_s).sum();
+    eprintln!(
+        "sitl: swarm of {count}: {sim_s:.1} sim s in {:.1} s wall ({:.1}x real time), {steps} plant steps in all; \
+         CPU: plants {:.2} s in this process, autopilots {autopilot_cpu_s:.2} s together; plant links: {resends} \
+         resends, {malformed} malformed frames dropped",
+        report.wall_s,
+        if report.wall_s > 0.0 { sim_s / report.wall_s } else { 0.0 },
+        report.vehicles.first().and_then(|v| v.plant_cpu_s).unwrap_or(f64::NAN),
+    );
+    Ok(())
+}
