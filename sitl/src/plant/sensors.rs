@@ -246,28 +246,15 @@ pub struct Geodetic {
     pub alt_amsl_m: f64,
 }
 
-/// Flat-earth NED -> geodetic, an equirectangular map about home: lat = lat0 + N/(M + h0),
-/// lon = lon0 + E/((N_t + h0) cos lat0), alt = h0 - D, with the WGS-84 meridian radius M and transverse
-/// radius N_t at lat0 (the core's [`GeoOrigin::metres_per_radian`]). It is inverted by
-/// [`ned_from_geodetic`] (the core's map) to rounding. The core's [`GeoOrigin::geodetic_from_ned`] wraps
-/// every longitude through `(lon + 180) mod 360 - 180`, which rounds away the last bits of most fixes; the
-/// plant wraps only a longitude past ±180 (an origin at the antimeridian), so its fixes stay bit for bit
-/// what they were. Against a true tangent plane it
-/// departs as d²/R (at 1 km the plane is 8 cm above the ellipsoid, and a combined 1 km N + 1 km E offset
-/// moves by about 0.2 m at mid-latitudes): fine for a SITL field of a few km.
+/// Flat-earth NED -> geodetic about home: the core's map ([`GeoOrigin::geodetic_from_ned`], the WGS-84
+/// meridian and transverse radii at lat0, a longitude past ±180 wrapped), inverted by
+/// [`ned_from_geodetic`] to rounding. Against a true tangent plane it departs as d²/R (at 1 km the plane is
+/// 8 cm above the ellipsoid, and a combined 1 km N + 1 km E offset moves by about 0.2 m at mid-latitudes):
+/// fine for a SITL field of a few km.
 #[must_use]
 pub fn geodetic_from_ned(home: &HomeConfig, pos_ned_m: &Vector3<f64>) -> Geodetic {
-    let (north_m_per_rad, east_m_per_rad) = home.origin().metres_per_radian();
-    let lon_deg = home.lon_deg + (pos_ned_m.y / east_m_per_rad).to_degrees();
-    Geodetic {
-        lat_deg: home.lat_deg + (pos_ned_m.x / north_m_per_rad).to_degrees(),
-        lon_deg: if (-180.0..180.0).contains(&lon_deg) {
-            lon_deg
-        } else {
-            home.origin().geodetic_from_ned(pos_ned_m).1
-        },
-        alt_amsl_m: home.alt_amsl_m - pos_ned_m.z,
-    }
+    let (lat_deg, lon_deg, alt_amsl_m) = home.origin().geodetic_from_ned(pos_ned_m);
+    Geodetic { lat_deg, lon_deg, alt_amsl_m }
 }
 
 /// The inverse of [`geodetic_from_ned`]: the core's [`GeoOrigin::ned_from_geodetic`] about home.

@@ -55,13 +55,16 @@ impl GeoOrigin {
     }
 
     /// The geodetic point `(lat_deg, lon_deg, alt_amsl_m)` of a NED position (m) about this origin; the
-    /// inverse of [`GeoOrigin::ned_from_geodetic`] (longitude wrapped into [-180, 180)).
+    /// inverse of [`GeoOrigin::ned_from_geodetic`]. A longitude past ±180 (an origin at the antimeridian)
+    /// is wrapped into [-180, 180); one in range is left as summed, so no fix loses its last bits to the
+    /// wrap. The simulator's GPS uses this same map.
     #[must_use]
     pub fn geodetic_from_ned(&self, pos_ned_m: &Vector3<f64>) -> (f64, f64, f64) {
         let (north_m_per_rad, east_m_per_rad) = self.metres_per_radian();
+        let lon_deg = self.lon_deg + (pos_ned_m.y / east_m_per_rad).to_degrees();
         (
             self.lat_deg + (pos_ned_m.x / north_m_per_rad).to_degrees(),
-            wrap_deg(self.lon_deg + (pos_ned_m.y / east_m_per_rad).to_degrees()),
+            if (-180.0..180.0).contains(&lon_deg) { lon_deg } else { wrap_deg(lon_deg) },
             self.alt_amsl_m - pos_ned_m.z,
         )
     }
