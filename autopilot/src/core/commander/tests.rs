@@ -9,7 +9,7 @@ use crate::core::intent::{AutoMode, HoldAt, Intent, Progress};
 const STEP_US: u64 = 10_000;
 const G: f64 = 9.81;
 
-/// A vertical point mass whose "controller" tracks the task's vertical speed with a first-order lag;
+/// A vertical point mass whose "controller" tracks the intent's vertical speed with a first-order lag;
 /// idle or motors off, it falls; the ground at D = 0 stops it.
 #[derive(Debug, Clone)]
 struct Sim {

@@ -315,7 +315,7 @@ fn given_offboard_velocity_then_a_carrot_moves_at_that_velocity() {
     assert!(v.pos.x > 0.39 && v.pos.x < 0.41, "carrot moved 1 m/s x 0.4 s: {}", v.pos.x);
 }
 
-/// Flies `task` with the ideal vehicle for `seconds`; the references.
+/// Flies `intent` with the ideal vehicle for `seconds`; the references.
 fn fly_task(v: &mut Ideal, intent: Intent, seconds: f64) -> Vec<Reference> {
     let mut out = Vec::new();
     for _ in 0..(seconds / DT_S) as usize {

@@ -1,19 +1,21 @@
-//! The vehicle: estimator, controller, commander and MAVLink services in one deterministic object. In,
-//! once per plant sample: the vehicle time `now_us` (µs, the plant's sensor clock) and [`VehicleInputs`]
-//! (IMU at the control rate, 500 Hz by default; mag, baro with it; GPS when a fix arrives; truth for the
-//! truth-fed runs). In, whenever a ground station speaks: a MAVLink message with its header. Out, per step:
-//! [`VehicleOutputs`] (four PWM commands in µs, 1000-2000, the paper's rotor order; the armed flag; the
-//! telemetry due this step); per message: the replies to its sender (COMMAND_ACK, STATUSTEXT). When no
-//! step comes (the plant link lost), [`Vehicle::plant_lost_telemetry`]: the HEARTBEAT and SYS_STATUS
-//! that say so, for the shell to send on its wall-clock fallback.
+//! The vehicle: the estimator, commander, navigator, control stage, plan store and MAVLink services wired
+//! into one deterministic object that decides nothing itself. In, once per plant sample: the vehicle time
+//! `now_us` (µs, the plant's sensor clock) and [`VehicleInputs`] (IMU at the control rate, 500 Hz by
+//! default; mag, baro with it; GPS when a fix arrives; truth for the truth-fed runs). In, whenever a
+//! ground station speaks: a MAVLink message with its header (`gcs.rs`). Out, per step: [`VehicleOutputs`]
+//! (four PWM commands in µs, 1000-2000, the paper's rotor order; the armed flag; the telemetry due this
+//! step); per message: the replies to its sender (COMMAND_ACK, STATUSTEXT). When no step comes (the plant
+//! link lost), [`Vehicle::plant_lost_telemetry`]: the HEARTBEAT and SYS_STATUS that say so, for the shell
+//! to send on its wall-clock fallback.
 //!
-//! The step: estimator update -> commander step on the estimate (the mode and its task) -> the
-//! navigator turns the task into the one [`Reference`] the controller tracks (position with velocity and
-//! acceleration feed-forward from jerk-limited trajectories, or an attitude; `None` for idle) ->
-//! controller update -> PWM. One control tick per IMU sample (per truth sample with the `Truth` source).
-//! Idle -> 1000 µs on every rotor and the controller rebuilt, so nothing adapts or integrates on the
-//! ground. PWM is 1000 whenever disarmed, killed or idle, and when the estimate is invalid while armed on
-//! the ground; it is clamped to [1000, 2000] and never NaN.
+//! The step: the inputs feed the estimator -> the navigator's progress goes to the commander -> the
+//! commander steps on the estimate and the vehicle's facts (the mode and its intent) -> the navigator
+//! turns the intent into the one [`Reference`] the controller tracks (position with velocity and
+//! acceleration feed-forward from jerk-limited trajectories, or an attitude; `None` for idle) -> the
+//! control stage gives the PWM -> the MAVLink layer assembles the telemetry. One control tick per IMU
+//! sample (per truth sample with the `Truth` source). Idle -> 1000 µs on every rotor and the controller
+//! rebuilt, so nothing adapts or integrates on the ground. PWM is 1000 whenever disarmed, killed or idle,
+//! and when the estimate is invalid while armed on the ground; it is clamped to [1000, 2000] and never NaN.
 
 use ::mavlink::dialects::common::MavMessage;
 use nalgebra::Vector3;
