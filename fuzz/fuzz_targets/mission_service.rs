@@ -1,8 +1,9 @@
-//! The mission protocol service (`core::mavlink::mission::MissionService`) on any sequence of mission
-//! messages (the three plans, uploads, downloads, acks, clears, any counts and sequence numbers) from two
-//! ground stations, with time passing between them. Nothing panics; no plan grows past the item cap
-//! (a bigger count gets MAV_MISSION_NO_SPACE); every reply is addressed to a ground station that spoke;
-//! and once the sender falls silent, any upload under way times out: the service never waits forever.
+//! The mission protocol service (`core::mavlink::mission::MissionService`, transferring into the plan store
+//! `core::plan::Plan`) on any sequence of mission messages (the three plans, uploads, downloads, acks,
+//! clears, any counts and sequence numbers) from two ground stations, with time passing between them.
+//! Nothing panics; no plan grows past the item cap (a bigger count gets MAV_MISSION_NO_SPACE); every reply
+//! is addressed to a ground station that spoke; and once the sender falls silent, any upload under way
+//! times out: the service never waits forever.
 #![no_main]
 
 use aco_fuzz::{MissionMessage, SYSID};
@@ -10,6 +11,7 @@ use arbitrary::Arbitrary;
 use autopilot::core::mavlink::MavHeader;
 use autopilot::core::mavlink::common::{MavMessage, MavMissionResult};
 use autopilot::core::mavlink::mission::{MissionService, MissionServiceConfig, PlanKind};
+use autopilot::core::plan::Plan;
 use libfuzzer_sys::fuzz_target;
 
 /// A small cap, so that the fuzzer reaches it.
@@ -41,6 +43,7 @@ fn target_of(msg: &MavMessage) -> Option<(u8, u8)> {
 fuzz_target!(|steps: Vec<Step>| {
     let config = MissionServiceConfig { max_items: MAX_ITEMS, ..MissionServiceConfig::default() };
     let mut svc = MissionService::new(config);
+    let mut plan = Plan::default();
     let gcs = [
         MavHeader { system_id: 255, component_id: 190, sequence: 0 },
         MavHeader { system_id: 254, component_id: 1, sequence: 0 },
@@ -51,7 +54,7 @@ fuzz_target!(|steps: Vec<Step>| {
         let mut replies = svc.poll(now_us).messages;
         let from = &gcs[usize::from(step.second_gcs)];
         let msg = step.message.to_message();
-        let reply = svc.on_message(now_us, SYSID, from, &msg);
+        let reply = svc.on_message(&mut plan, now_us, SYSID, from, &msg);
         replies.extend(reply.messages);
         for r in &replies {
             if let Some((system, component)) = target_of(r) {
@@ -71,7 +74,7 @@ fuzz_target!(|steps: Vec<Step>| {
             );
             assert!(no_space, "a count of {} above the cap is not NO_SPACE: {replies:?}", c.count);
         }
-        assert!(svc.mission().len() <= usize::from(MAX_ITEMS), "mission of {} items", svc.mission().len());
+        assert!(plan.mission().len() <= usize::from(MAX_ITEMS), "mission of {} items", plan.mission().len());
     }
     // Silence: retries run out and the upload ends.
     for _ in 0..100 {
