@@ -8,7 +8,7 @@ use ::mavlink::dialects::common::{MavMessage, MavSeverity};
 use nalgebra::Vector3;
 
 use super::{ShellEffect, Vehicle, weights_interval_us};
-use crate::core::commander::{FlightMode, Request};
+use crate::core::commander::{Facts, FlightMode, Request};
 use crate::core::estimator::EstimatorState;
 use crate::core::geofence::{Fence, Rally, Violation};
 use crate::core::mavlink::command::{AUTOPILOT_VERSION_ID, InboundCommand};
@@ -136,7 +136,7 @@ impl Vehicle {
                 .map_err(Some)
                 .and_then(|()| self.commander.request(now_us, facts, req).map_err(|r| Some(r.to_string()))),
             CommandEffect::Request(req) => self.commander.request(now_us, facts, req).map_err(|r| Some(r.to_string())),
-            CommandEffect::Vehicle(command) => self.vehicle_command(now_us, command, &mut extra),
+            CommandEffect::Vehicle(command) => self.vehicle_command(now_us, facts, command, &mut extra),
             CommandEffect::Deny(text) => Err(Some(text)),
             CommandEffect::Unsupported => Err(None),
         };
@@ -172,6 +172,7 @@ impl Vehicle {
     fn vehicle_command(
         &mut self,
         now_us: u64,
+        facts: Facts,
         command: VehicleCommand,
         extra: &mut Vec<MavMessage>,
     ) -> Result<(), Option<String>> {
@@ -215,7 +216,6 @@ impl Vehicle {
             }
             VehicleCommand::SetHome { point } => {
                 let pos_ned_m = point.map(|p| self.local_point(&p)).transpose()?;
-                let facts = self.facts(now_us);
                 self.commander.request(now_us, facts, Request::SetHome { pos_ned_m }).map_err(|r| Some(r.to_string()))
             }
             VehicleCommand::Reposition { point, yaw_rad } => {
@@ -223,7 +223,6 @@ impl Vehicle {
                 if let Some(p) = pos_ned_m {
                     self.check_setpoint(&p).map_err(|why| Some(format!("Reposition: {why}")))?;
                 }
-                let facts = self.facts(now_us);
                 self.commander
                     .request(now_us, facts, Request::Goto { pos_ned_m, yaw_rad })
                     .map_err(|r| Some(r.to_string()))
@@ -234,7 +233,6 @@ impl Vehicle {
                 }
                 self.check_mission().map_err(Some)?;
                 self.navigator.set_current(first);
-                let facts = self.facts(now_us);
                 self.commander.request(now_us, facts, Request::Mission).map_err(|r| Some(r.to_string()))
             }
             VehicleCommand::Reboot => {
@@ -370,10 +368,8 @@ impl Vehicle {
 
     /// Why the mission cannot be flown: an item, resolved as the navigator flies it, outside the geofence
     /// or too far.
+    /// Items the frame cannot place yet (no origin) have nothing to check.
     fn check_mission(&self) -> Result<(), String> {
-        if self.estimator.state().origin.is_none() {
-            return Ok(());
-        }
         self.guard().check_mission(&self.plan.items(), &self.frame())
     }
 

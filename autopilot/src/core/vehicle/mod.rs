@@ -217,11 +217,11 @@ impl Vehicle {
 
     /// Home altitude (m AMSL): home once set, else the ground under the vehicle; None without an origin.
     fn home_alt_amsl_m(&self) -> Option<f64> {
-        if let Some((_, _, alt)) = self.home().and_then(|h| h.geodetic) {
-            return Some(alt);
-        }
+        // The altitude the geodetic map gives home (`alt_amsl_m - D`), without mapping its latitude and
+        // longitude (this runs every step).
         let est = self.estimator.state();
-        est.origin.map(|o| o.alt_amsl_m - est.pos_ned_m.z).filter(|a| a.is_finite())
+        let ground_d_m = self.commander.home_ned_m().map_or(est.pos_ned_m.z, |h| h.z);
+        est.origin.map(|o| o.alt_amsl_m - ground_d_m).filter(|a| a.is_finite())
     }
 
     /// The frame targets are read in: the origin, home's altitude (or the ground under the vehicle's), the
