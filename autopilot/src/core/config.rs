@@ -11,6 +11,7 @@ use thiserror::Error;
 use crate::core::commander::{self, CommanderConfig};
 use crate::core::control::{self, ControllerConfig, ControllerKind};
 use crate::core::estimator::{self, EstimatorConfig};
+use crate::core::manual::{ManualConfig, input::ManualConfigError};
 use crate::core::navigator::{self, NavigatorConfig};
 
 /// Everything the vehicle is built from.
@@ -24,6 +25,8 @@ pub struct VehicleConfig {
     pub estimator: EstimatorConfig,
     pub commander: CommanderConfig,
     pub navigator: NavigatorConfig,
+    /// The pilot's input: the radio's map and calibration, the source, loss, gestures, the mode switch.
+    pub manual: ManualConfig,
     /// Start armed and holding a point instead of disarmed on the ground (experiments that begin in the
     /// air, as the paper's do: `sitl run --scenario`); home is then the ground below that point.
     pub start_airborne: Option<AirborneStart>,
@@ -47,6 +50,7 @@ impl Default for VehicleConfig {
             estimator: EstimatorConfig::default(),
             commander: CommanderConfig::default(),
             navigator: NavigatorConfig::default(),
+            manual: ManualConfig::default(),
             start_airborne: None,
         }
     }
@@ -67,6 +71,8 @@ pub enum VehicleError {
     Commander(#[from] commander::ConfigError),
     #[error(transparent)]
     Navigator(#[from] navigator::ConfigError),
+    #[error(transparent)]
+    Manual(#[from] ManualConfigError),
 }
 
 impl VehicleConfig {
@@ -82,6 +88,7 @@ impl VehicleConfig {
         self.estimator.validate()?;
         self.commander.validate()?;
         self.navigator.validate()?;
+        self.manual.validate()?;
         if let Some(start) = self.start_airborne
             && !(start.hold_ned_m.iter().all(|x| x.is_finite()) && start.yaw_rad.is_finite())
         {

@@ -1,7 +1,8 @@
 //! The plant protocol (MAVLink 2 HIL messages, as PX4 uses with its simulators), pure: no sockets, clocks or
 //! files. In from the plant: byte streams or datagrams holding `HIL_SENSOR` (every plant step, 500 Hz by
 //! default), `HIL_GPS` (when a fix is released, 10 Hz by default), `HIL_STATE_QUATERNION` (ground truth,
-//! every step) and `BATTERY_STATUS` (the pack, 10 Hz); out to the estimator: [`ImuSample`], [`MagSample`],
+//! every step), `BATTERY_STATUS` (the pack, 10 Hz) and `RC_CHANNELS` (the board's radio receiver, as it
+//! reads it; the [`RcFrame`] for the vehicle's manual control); out to the estimator: [`ImuSample`], [`MagSample`],
 //! [`BaroSample`], [`GpsSample`] and [`TruthSample`], and to the battery monitor a [`BatterySample`]. Out to the plant, once per sensor sample: the four motor commands as
 //! `HIL_ACTUATOR_CONTROLS` (`controls[i] = (pwm_us - 1000) / 1000` for the paper's rotors 1..4, the armed
 //! flag in `mode`, `time_usec` echoing the sensor sample it answers).
@@ -37,7 +38,7 @@
 //! shared with the ground-station links; their names are re-exported here.
 
 use mavlink::dialects::common::{
-    BATTERY_STATUS_DATA, HIL_ACTUATOR_CONTROLS_DATA, HIL_GPS_DATA, HIL_SENSOR_DATA, HIL_STATE_QUATERNION_DATA,
+    BATTERY_STATUS_DATA, HIL_ACTUATOR_CONTROLS_DATA, HIL_GPS_DATA, HIL_SENSOR_DATA, HIL_STATE_QUATERNION_DATA, RC_CHANNELS_DATA,
     HilActuatorControlsFlags, HilSensorUpdatedFlags, MavBatteryChargeState, MavBatteryFunction, MavBatteryType,
     MavFrame, MavMessage, MavModeFlag, ODOMETRY_DATA,
 };
@@ -45,6 +46,7 @@ use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
 use super::battery::BatterySample;
 use super::estimator::{BaroSample, GeoOrigin, GpsSample, ImuSample, MagSample, TruthSample};
+use super::manual::RcFrame;
 pub use super::mavlink::frame::{DecodedFrame, DecoderStats, FrameDecoder, encode_frame_v1, encode_frame_v2};
 
 /// The plant's default UDP port (the plant listens on it), as PX4's simulators.
@@ -568,6 +570,69 @@ pub fn decode_battery_status(m: &BATTERY_STATUS_DATA) -> BatterySample {
 }
 
 // ---------------------------------------------------------------------------------------------------------
+// RC_CHANNELS
+// ---------------------------------------------------------------------------------------------------------
+
+/// [`RcFrame`] -> `RC_CHANNELS` (the board's radio receiver, and the vehicle's RC telemetry): the 18
+/// channels in µs (0 where the receiver has none), their count and RSSI; `time_boot_ms` the sender's clock.
+#[must_use]
+pub fn encode_rc_channels(frame: &RcFrame, time_boot_ms: u32) -> RC_CHANNELS_DATA {
+    let c = &frame.channels_us;
+    RC_CHANNELS_DATA {
+        time_boot_ms,
+        chan1_raw: c[0],
+        chan2_raw: c[1],
+        chan3_raw: c[2],
+        chan4_raw: c[3],
+        chan5_raw: c[4],
+        chan6_raw: c[5],
+        chan7_raw: c[6],
+        chan8_raw: c[7],
+        chan9_raw: c[8],
+        chan10_raw: c[9],
+        chan11_raw: c[10],
+        chan12_raw: c[11],
+        chan13_raw: c[12],
+        chan14_raw: c[13],
+        chan15_raw: c[14],
+        chan16_raw: c[15],
+        chan17_raw: c[16],
+        chan18_raw: c[17],
+        chancount: frame.count.min(18),
+        rssi: frame.rssi,
+    }
+}
+
+/// `RC_CHANNELS` -> [`RcFrame`] (exact: every field is carried as it is; a count above 18 reads as 18).
+#[must_use]
+pub fn decode_rc_channels(m: &RC_CHANNELS_DATA) -> RcFrame {
+    RcFrame {
+        channels_us: [
+            m.chan1_raw,
+            m.chan2_raw,
+            m.chan3_raw,
+            m.chan4_raw,
+            m.chan5_raw,
+            m.chan6_raw,
+            m.chan7_raw,
+            m.chan8_raw,
+            m.chan9_raw,
+            m.chan10_raw,
+            m.chan11_raw,
+            m.chan12_raw,
+            m.chan13_raw,
+            m.chan14_raw,
+            m.chan15_raw,
+            m.chan16_raw,
+            m.chan17_raw,
+            m.chan18_raw,
+        ],
+        count: m.chancount.min(18),
+        rssi: m.rssi,
+    }
+}
+
+// ---------------------------------------------------------------------------------------------------------
 // Dispatch and framing
 // ---------------------------------------------------------------------------------------------------------
 
@@ -581,6 +646,8 @@ pub enum HilInput {
     LocalTruth(LocalTruth),
     Actuators(ActuatorCommand),
     Battery(BatterySample),
+    /// The board's radio receiver.
+    Rc(RcFrame),
 }
 
 /// The plant-protocol content of `msg` (truth positions about `home`), or `None` for any other message.
@@ -593,6 +660,7 @@ pub fn decode_hil_message(msg: &MavMessage, home: &GeoOrigin) -> Option<HilInput
         MavMessage::ODOMETRY(m) => decode_odometry(m).map(HilInput::LocalTruth),
         MavMessage::HIL_ACTUATOR_CONTROLS(m) => Some(HilInput::Actuators(decode_actuator_controls(m))),
         MavMessage::BATTERY_STATUS(m) => Some(HilInput::Battery(decode_battery_status(m))),
+        MavMessage::RC_CHANNELS(m) => Some(HilInput::Rc(decode_rc_channels(m))),
         _ => None,
     }
 }
@@ -659,6 +727,17 @@ mod tests {
     }
 
     proptest! {
+        #[test]
+        fn rc_channels_round_trip_exactly(
+            channels in prop::array::uniform18(any::<u16>()), count in 0_u8..=18, rssi in any::<u8>(),
+        ) {
+            let frame = RcFrame { channels_us: channels, count, rssi };
+            let bytes = encode_frame_v2(header(), &MavMessage::RC_CHANNELS(encode_rc_channels(&frame, 1234)));
+            let decoded = FrameDecoder::new().decode_datagram(&bytes);
+            prop_assert_eq!(decoded.len(), 1);
+            prop_assert_eq!(decode_hil_message(&decoded[0].message, &HOME), Some(HilInput::Rc(frame)));
+        }
+
         #[test]
         fn hil_sensor_round_trips_within_f32(
             v in prop::array::uniform12(-2000.0_f64..2000.0), t in any::<u64>(), mag in any::<bool>(),

@@ -141,6 +141,7 @@ impl VehicleHost {
         match decode_hil_message(message, &home) {
             Some(HilInput::Gps(gps)) => self.inputs.gps = Some(gps),
             Some(HilInput::Battery(battery)) => self.inputs.battery = Some(battery),
+            Some(HilInput::Rc(frame)) => self.inputs.rc = Some(frame),
             Some(HilInput::Truth(truth)) if self.home.is_some() => self.inputs.truth = Some(truth),
             Some(HilInput::LocalTruth(local)) => {
                 // ODOMETRY positions are about the plant's origin, but a home latched from the first

@@ -15,6 +15,7 @@
 //! `charge_state`; without a reading in the last 5 s, MAVLink's "unknown" values (voltage UINT16_MAX,
 //! current -1, remaining -1, temperature INT16_MAX, consumption -1).
 
+use crate::core::manual::ManualStatus;
 use ::mavlink::dialects::common::{
     ATTITUDE_DATA, ATTITUDE_QUATERNION_DATA, BATTERY_STATUS_DATA, DEBUG_VECT_DATA, EXTENDED_SYS_STATE_DATA,
     GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA,
@@ -55,6 +56,8 @@ pub struct TelemetrySnapshot<'a> {
     pub mission_seq: Option<u16>,
     /// The controller, for the adaptive-weight stream.
     pub controller: Option<&'a dyn Controller>,
+    /// The pilot's input: the sticks in use and the last radio frame (RC_CHANNELS, MANUAL_CONTROL).
+    pub manual: ManualStatus,
 }
 
 impl std::fmt::Debug for TelemetrySnapshot<'_> {

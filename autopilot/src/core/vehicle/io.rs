@@ -8,6 +8,7 @@ use nalgebra::Vector3;
 use crate::core::battery::{BatterySample, BatteryStatus};
 use crate::core::commander::{FlightMode, LandedState};
 use crate::core::control::{ControllerKind, Reference};
+use crate::core::manual::{ManualStatus, RcFrame};
 use crate::core::estimator::{
     BaroSample, Estimator, EstimatorSource, EstimatorState, GpsSample, ImuSample, Innovations, MagSample, TruthSample,
 };
@@ -22,6 +23,8 @@ pub struct VehicleInputs {
     pub truth: Option<TruthSample>,
     /// A reading of the pack (BATTERY_STATUS from the plant or the ARM board).
     pub battery: Option<BatterySample>,
+    /// A frame of the radio receiver (RC_CHANNELS from the plant or the ARM board).
+    pub rc: Option<RcFrame>,
 }
 
 impl VehicleInputs {
@@ -99,6 +102,8 @@ pub struct LogSnapshot {
     pub landed: LandedState,
     pub battery: BatteryStatus,
     pub controller: ControllerKind,
+    /// The pilot's input: the sticks in use (manual_control_setpoint) and the last radio frame (input_rc).
+    pub manual: ManualStatus,
 }
 
 /// What the vehicle asks of the shell around it.

@@ -24,6 +24,7 @@ use crate::core::commander::{Commander, CommanderInputs, CommanderOutput, Estima
 pub use crate::core::config::{AirborneStart, VehicleConfig, VehicleError};
 use crate::core::control::{Controller, Reference};
 use crate::core::estimator::{Estimator, EstimatorState, GpsSample};
+use crate::core::manual::{ManualInput, ManualStatus};
 use crate::core::mavlink::mission::MissionService;
 use crate::core::mavlink::params::ParamService;
 use crate::core::mavlink::router::OffboardReceiver;
@@ -75,6 +76,9 @@ pub struct Vehicle {
     params: ParamStore,
     param_service: ParamService,
     effects: Vec<ShellEffect>,
+    /// The pilot's input (radio and joystick), and what it gave at the last step.
+    manual: ManualInput,
+    manual_status: ManualStatus,
 }
 
 impl std::fmt::Debug for Vehicle {
@@ -137,6 +141,8 @@ impl Vehicle {
             params,
             param_service: ParamService::new(),
             effects: Vec::new(),
+            manual: ManualInput::default(),
+            manual_status: ManualStatus::default(),
             config,
         })
     }
@@ -202,6 +208,7 @@ impl Vehicle {
             landed: self.output.landed,
             battery: self.output.battery,
             controller: self.control.controller().kind(),
+            manual: self.manual_status,
         }
     }
 
@@ -265,6 +272,7 @@ impl Vehicle {
             link_errors: self.link_errors,
             mission_seq: (self.navigator.mission_len() > 0).then(|| self.navigator.current_seq()),
             controller: Some(self.control.controller()),
+            manual: self.manual_status,
         }
     }
 
@@ -286,6 +294,11 @@ impl Vehicle {
         if inputs.gps.is_some() {
             self.last_gps = inputs.gps;
         }
+        if let Some(frame) = inputs.rc {
+            self.manual.on_rc(now_us, frame, &self.config.manual);
+        }
+        let (manual_status, _pilot_actions) = self.manual.step(now_us, &self.config.manual);
+        self.manual_status = manual_status;
         let state = *self.estimator.state();
         for progress in self.navigator.take_progress() {
             self.commander.on_progress(progress);
