@@ -25,6 +25,8 @@ pub struct Rig {
     pub landed_state: Option<MavLandedState>,
     /// Every message the vehicle sent, with its time (µs), since the last `take_messages`.
     pub messages: Vec<(u64, MavMessage)>,
+    /// The radio as the board reads it: this frame goes to the vehicle with every tick (None: no radio).
+    pub rc: Option<autopilot::core::manual::RcFrame>,
 }
 
 impl Rig {
@@ -45,7 +47,15 @@ impl Rig {
             Some(GeoOrigin { lat_deg: home.lat_deg, lon_deg: home.lon_deg, alt_amsl_m: home.alt_amsl_m });
         adjust(&mut vc);
         let vehicle = Vehicle::new(vc).expect("vehicle");
-        Self { plant, vehicle, now_us: 0, base_mode: MavModeFlag::empty(), landed_state: None, messages: Vec::new() }
+        Self {
+            plant,
+            vehicle,
+            now_us: 0,
+            base_mode: MavModeFlag::empty(),
+            landed_state: None,
+            messages: Vec::new(),
+            rc: None,
+        }
     }
 
     /// One lockstep tick: sensors -> vehicle -> plant.
@@ -77,6 +87,7 @@ impl Rig {
                 .battery()
                 .filter(|_| sitl::link::battery_due(s.time_us, DT_US))
                 .map(|b| sitl::link::battery_fields(&b.reading())),
+            rc: self.rc,
         };
         self.now_us = s.time_us;
         let out = self.vehicle.step(self.now_us, &inputs);
