@@ -47,6 +47,7 @@ fn inputs(time_us: u64) -> VehicleInputs {
             consumed_j: Some(160_000.0),
             cells: 6,
         }),
+        rc: None,
     }
 }
 
