@@ -268,6 +268,7 @@ def test_params_talk_to_the_plant_sim_parameters(sitl, tmp_path):
         "SIM_BEAUFORT",
         "SIM_BAT_DRAIN",
         "SIM_BAT_MIN_PCT",
+        "SIM_RC_FAIL",
     ]
     code, out, err = run_script("params", "--instance", n, "--plant", "set", "SIM_BEAUFORT", 6)
     assert code == 0, out + err

@@ -2,8 +2,10 @@
 //! or serial. Out, once per plant step (`dt_us`, default 2 ms = 500 Hz) for plant time `t`: one datagram
 //! holding `HIL_GPS` (when the plant releases a fix, 10 Hz by default), `HIL_STATE_QUATERNION` (truth,
 //! optionally with the paper's state noise), optionally `ODOMETRY` (the same truth at float precision),
-//! `BATTERY_STATUS` (the pack, every [`BATTERY_PERIOD_US`] = 0.1 s, when the plant has one) and
-//! `HIL_SENSOR` last (the autopilot ticks on it). In: `HIL_ACTUATOR_CONTROLS` with `time_usec == t`, whose
+//! `BATTERY_STATUS` (the pack, every [`BATTERY_PERIOD_US`] = 0.1 s, when the plant has one),
+//! `RC_CHANNELS` (the airframe's radio receiver, every [`rc::RC_PERIOD_US`] = 20 ms, while it has output:
+//! see [`crate::plant::Radio`] and the RC input port [`rc::RcInPort`]; `time_boot_ms` = plant time in ms)
+//! and `HIL_SENSOR` last (the autopilot ticks on it). In: `HIL_ACTUATOR_CONTROLS` with `time_usec == t`, whose
 //! four controls are the PWM (µs) of the paper's rotors 1..4 held over the step (1000 µs each when
 //! disarmed; stopped motors draw nothing from the pack).
 //!
@@ -36,12 +38,13 @@ use std::time::{Duration, Instant};
 use autopilot::core::estimator::GeoOrigin;
 use autopilot::core::hil::{
     ActuatorCommand, DecoderStats, FrameDecoder, HilInput, decode_hil_message, encode_battery_status, encode_frame_v2,
-    encode_hil_gps, encode_hil_sensor, encode_hil_state_quaternion, encode_odometry,
+    encode_hil_gps, encode_hil_sensor, encode_hil_state_quaternion, encode_odometry, encode_rc_channels,
 };
 use mavlink::MavHeader;
 use mavlink::dialects::common::{MavBatteryChargeState, MavMessage};
 
 mod fields;
+pub mod rc;
 
 pub use fields::{
     BATTERY_PERIOD_US, battery_due, battery_fields, home_origin, noisy_truth_fields, sensor_fields, truth_fields,
@@ -232,6 +235,8 @@ pub enum LinkError {
     Stopped,
     #[error("plant hook: {0}")]
     Hook(#[source] io::Error),
+    #[error("RC input port: {0}")]
+    RcIn(#[source] io::Error),
 }
 
 /// What the link saw; every field only grows.
@@ -243,6 +248,8 @@ pub struct LinkStats {
     pub sensor_sent: u64,
     /// `HIL_GPS` messages sent.
     pub gps_sent: u64,
+    /// `RC_CHANNELS` messages sent (the radio receiver's output).
+    pub rc_sent: u64,
     /// Sensor datagrams resent after `resend_timeout`.
     pub resends: u64,
     /// Actuator replies for another time than the one awaited.
@@ -273,6 +280,8 @@ pub struct PlantServer<T: Transport> {
     pacer: Option<Pacer>,
     /// Polled between steps (see [`PlantHook`]), with the wall time of its last poll.
     hook: Option<(Box<dyn PlantHook>, Instant)>,
+    /// The RC input port, read whenever `RC_CHANNELS` is due.
+    rc_in: Option<rc::RcInPort>,
 }
 
 impl PlantServer<UdpTransport> {
@@ -301,6 +310,7 @@ impl<T: Transport> PlantServer<T> {
             pending: None,
             pacer: None,
             hook: None,
+            rc_in: None,
         }
     }
 
@@ -326,6 +336,18 @@ impl<T: Transport> PlantServer<T> {
     /// Poll `hook` between steps from now on (replacing any earlier one).
     pub fn set_hook(&mut self, hook: Box<dyn PlantHook>) {
         self.hook = Some((hook, Instant::now()));
+    }
+
+    /// Read the pilot's radio from `port` from now on (its last good frame is the receiver's until a
+    /// schedule begins), whenever `RC_CHANNELS` is due.
+    pub fn set_rc_in(&mut self, port: rc::RcInPort) {
+        self.rc_in = Some(port);
+    }
+
+    /// The RC input port, if there is one.
+    #[must_use]
+    pub fn rc_in(&self) -> Option<&rc::RcInPort> {
+        self.rc_in.as_ref()
     }
 
     /// Poll the hook now, if there is one.
@@ -391,8 +413,8 @@ impl<T: Transport> PlantServer<T> {
 
     /// Sample the plant now (once per step: sampling advances the sensor noise and GPS schedule) and
     /// build the datagram: `HIL_GPS` if a fix is released, `HIL_STATE_QUATERNION` (truth, with
-    /// [`LinkConfig::truth_noise`] added), `HIL_SENSOR`.
-    fn sensor_datagram(&mut self) -> Vec<u8> {
+    /// [`LinkConfig::truth_noise`] added), `ODOMETRY`, `BATTERY_STATUS`, `RC_CHANNELS` when due, `HIL_SENSOR`.
+    fn sensor_datagram(&mut self) -> Result<Vec<u8>, LinkError> {
         let truth = self.plant.truth();
         let sample = self.plant.sample_sensors();
         let mut datagram = Vec::with_capacity(256);
@@ -420,9 +442,21 @@ impl<T: Transport> PlantServer<T> {
             ));
             datagram.extend(self.frame(&msg));
         }
+        if rc::rc_due(truth.time_us, self.config.dt_us) {
+            if let Some(port) = &mut self.rc_in
+                && let Some(frame) = port.poll().map_err(LinkError::RcIn)?
+            {
+                self.plant.radio_mut().set_port_frame(frame);
+            }
+            if let Some(frame) = self.plant.radio().output(truth.time_us) {
+                let time_boot_ms = u32::try_from(truth.time_us / 1000).unwrap_or(u32::MAX);
+                datagram.extend(self.frame(&MavMessage::RC_CHANNELS(encode_rc_channels(&frame, time_boot_ms))));
+                self.stats.rc_sent += 1;
+            }
+        }
         let msg = MavMessage::HIL_SENSOR(encode_hil_sensor(&sensor_fields(&sample)));
         datagram.extend(self.frame(&msg));
-        datagram
+        Ok(datagram)
     }
 
     /// One lockstep cycle: send the sensors for the current plant time `t`, wait for the reply for `t`,
@@ -449,7 +483,7 @@ impl<T: Transport> PlantServer<T> {
             Some((time_us, datagram)) if time_us == t => datagram,
             _ => {
                 self.stats.sensor_sent += 1;
-                self.sensor_datagram()
+                self.sensor_datagram()?
             }
         };
         let sent = self.transport.send(&datagram);

@@ -70,6 +70,10 @@
 //! motors run (0: by the current the rotors draw, the default), SIM_BAT_MIN_PCT (%, PX4's; default 0
 //! here, 50 in PX4) is the floor its state of charge never falls below; both act from the next step and
 //! start at the plant's `[battery]` values.
+//!
+//! The radio: SIM_RC_FAIL = 1 silences the airframe's radio receiver ([`crate::plant::Radio`]): no
+//! `RC_CHANNELS` goes to the autopilot from the next plant step until it is set back to 0, to rehearse
+//! RC loss; the held frame (RC input port, schedule) is kept and comes back with it.
 
 mod truth;
 
@@ -116,6 +120,7 @@ mod idx {
     pub const BEAUFORT: usize = 8;
     pub const BAT_DRAIN: usize = 9;
     pub const BAT_MIN_PCT: usize = 10;
+    pub const RC_FAIL: usize = 11;
 }
 
 /// A SIM_ parameter: the autopilot's parameter definition with no docs group and no config binding (the
@@ -163,7 +168,7 @@ const fn whole(name: &'static str, default: f32, min: f32, max: f32, description
 
 /// The SIM_ parameters. The defaults are the values with no wind configured (the plant's configured wind
 /// overrides them at start).
-pub static SIM_PARAMS: [SimParamDef; 11] = [
+pub static SIM_PARAMS: [SimParamDef; 12] = [
     real("SIM_WIND_N", 0.0, -30.0, 30.0, "m/s", "Steady wind toward north (NED)"),
     real("SIM_WIND_E", 0.0, -30.0, 30.0, "m/s", "Steady wind toward east (NED)"),
     real("SIM_WIND_D", 0.0, -10.0, 10.0, "m/s", "Steady wind downward (NED)"),
@@ -188,6 +193,7 @@ pub static SIM_PARAMS: [SimParamDef; 11] = [
         "> 0: the pack drains linearly from full to empty in this time while the motors run; 0: by the current drawn",
     ),
     real("SIM_BAT_MIN_PCT", 0.0, 0.0, 100.0, "%", "The pack's state of charge never falls below this"),
+    whole("SIM_RC_FAIL", 0.0, 0.0, 1.0, "1: the radio receiver has no output (no RC_CHANNELS sent), to rehearse RC loss"),
 ];
 
 /// The Beaufort force of a wind speed (m/s): the highest force whose range starts at or below it.
@@ -237,6 +243,7 @@ impl SimParamService {
         let battery = plant.config().battery;
         values[idx::BAT_DRAIN] = battery.drain_s as f32;
         values[idx::BAT_MIN_PCT] = (battery.min_remaining * 100.0) as f32;
+        values[idx::RC_FAIL] = f32::from(u8::from(plant.radio().failed()));
         Self {
             system_id,
             store: ParamStore::from_fn(&SIM_PARAMS, |i, _| values[i]),
@@ -319,6 +326,7 @@ fn apply(store: &mut ParamStore<(), ()>, index: usize, value: f32, plant: &mut P
         }
         idx::BAT_DRAIN => plant.battery_mut().set_drain_s(f64::from(value)),
         idx::BAT_MIN_PCT => plant.battery_mut().set_min_remaining(f64::from(value) / 100.0),
+        idx::RC_FAIL => plant.radio_mut().set_failed(value == 1.0),
         idx::TURB if value != value_of(store, idx::TURB) => {
             if value == 1.0 {
                 if plant.wind().gust().is_none() {
@@ -640,7 +648,8 @@ mod tests {
                 "SIM_TURB",
                 "SIM_BEAUFORT",
                 "SIM_BAT_DRAIN",
-                "SIM_BAT_MIN_PCT"
+                "SIM_BAT_MIN_PCT",
+                "SIM_RC_FAIL"
             ]
         );
         let spd = &SIM_PARAMS[idx::GUST_SPD];
@@ -652,6 +661,23 @@ mod tests {
         assert_eq!(beaufort_force_of(5.45), 3);
         assert_eq!(beaufort_force_of(30.0), 8);
         assert!((direction_ned(90.0) - Vector3::new(0.0, 1.0, 0.0)).norm() < 1e-12);
+    }
+
+    #[test]
+    fn given_sim_rc_fail_set_then_the_receiver_has_no_output_until_it_is_cleared() {
+        let mut plant = calm_plant();
+        let frame = autopilot::core::manual::RcFrame::of(&[1500; 8]);
+        plant.radio_mut().set_port_frame(frame);
+        let mut s = SimParamService::new(SYS, &plant);
+        assert_eq!(s.get("SIM_RC_FAIL"), Some(0.0));
+        assert_eq!(values(&s.on_message(&set_msg("SIM_RC_FAIL", 1.0), &mut plant)), [("SIM_RC_FAIL".into(), 1.0, 11, 12)]);
+        assert!(plant.radio().failed());
+        assert_eq!(plant.radio().output(plant.time_us()), None);
+        let refused = s.on_message(&set_msg("SIM_RC_FAIL", 2.0), &mut plant);
+        assert_eq!(values(&refused), [("SIM_RC_FAIL".into(), 1.0, 11, 12)], "refused: the value echoed unchanged");
+        assert!(plant.radio().failed());
+        s.on_message(&set_msg("SIM_RC_FAIL", 0.0), &mut plant);
+        assert_eq!(plant.radio().output(plant.time_us()), Some(frame), "the held frame comes back");
     }
 
     #[test]
@@ -668,7 +694,7 @@ mod tests {
         .expect("toml");
         let s = SimParamService::new(SYS, &plant_with(windy));
         let got: Vec<f32> = (0..SIM_PARAMS.len()).map(|i| s.value(i).expect("value")).collect();
-        assert_eq!(got, [1.0, -2.0, 0.5, 3.0, 0.0, 2.0, 0.0, 1.0, 2.0, 0.0, 0.0]);
+        assert_eq!(got, [1.0, -2.0, 0.5, 3.0, 0.0, 2.0, 0.0, 1.0, 2.0, 0.0, 0.0, 0.0]);
     }
 
     #[test]
@@ -702,7 +728,8 @@ mod tests {
                 (int, 0),
                 (int, 4),
                 (real, 0.0_f32.to_bits()),
-                (real, 0.0_f32.to_bits())
+                (real, 0.0_f32.to_bits()),
+                (int, 0)
             ]
         );
         // Another system's request, or one for the autopilot's component, is not ours.
@@ -729,10 +756,10 @@ mod tests {
         };
         assert_eq!(
             values(&s.on_message(&read(-1, "SIM_GUST_RISE"), &mut plant)),
-            [("SIM_GUST_RISE".into(), 1.0, 5, 11)]
+            [("SIM_GUST_RISE".into(), 1.0, 5, 12)]
         );
-        assert_eq!(values(&s.on_message(&read(8, ""), &mut plant)), [("SIM_BEAUFORT".into(), 4.0, 8, 11)]);
-        assert!(s.on_message(&read(11, ""), &mut plant).is_empty());
+        assert_eq!(values(&s.on_message(&read(8, ""), &mut plant)), [("SIM_BEAUFORT".into(), 4.0, 8, 12)]);
+        assert!(s.on_message(&read(12, ""), &mut plant).is_empty());
         let unknown = s.on_message(&read(-1, "SIM_NOPE"), &mut plant);
         assert!(values(&unknown).is_empty());
         assert_eq!(texts(&unknown), ["unknown parameter SIM_NOPE"], "the reason, not silence");
@@ -743,7 +770,7 @@ mod tests {
         let mut plant = calm_plant();
         let mut s = SimParamService::new(SYS, &plant);
         let replies = s.on_message(&set_msg("SIM_WIND_N", 2.5), &mut plant);
-        assert_eq!(values(&replies), [("SIM_WIND_N".into(), 2.5, 0, 11)]);
+        assert_eq!(values(&replies), [("SIM_WIND_N".into(), 2.5, 0, 12)]);
         assert_eq!(plant.wind().steady_ned_mps(), Vector3::new(2.5, 0.0, 0.0));
 
         // The autopilot's refusal texts, word for word.
@@ -756,7 +783,7 @@ mod tests {
             let before = s.get(name).expect("known");
             let replies = s.on_message(&set_msg(name, bad), &mut plant);
             assert_eq!(texts(&replies), [text], "{name} = {bad}: {replies:?}");
-            assert_eq!(values(&replies), [(name.to_owned(), before, index_of(name).unwrap() as u16, 11)]);
+            assert_eq!(values(&replies), [(name.to_owned(), before, index_of(name).unwrap() as u16, 12)]);
             assert_eq!(s.get(name), Some(before));
         }
         assert_eq!(plant.wind().steady_ned_mps(), Vector3::new(2.5, 0.0, 0.0));
@@ -766,10 +793,10 @@ mod tests {
 
         // Beaufort sets the gust speed, and the gust speed moves the Beaufort force.
         let replies = s.on_message(&set_msg("SIM_BEAUFORT", 6.0), &mut plant);
-        assert_eq!(values(&replies), [("SIM_BEAUFORT".into(), 6.0, 8, 11), ("SIM_GUST_SPD".into(), 12.3, 3, 11)]);
+        assert_eq!(values(&replies), [("SIM_BEAUFORT".into(), 6.0, 8, 12), ("SIM_GUST_SPD".into(), 12.3, 3, 12)]);
         // As a PX4 script sets an integer: INT32, bytewise; echoed so.
         let replies = s.on_message(&set_int32("SIM_BEAUFORT", 5), &mut plant);
-        assert_eq!(values(&replies), [("SIM_BEAUFORT".into(), 5.0, 8, 11), ("SIM_GUST_SPD".into(), 9.35, 3, 11)]);
+        assert_eq!(values(&replies), [("SIM_BEAUFORT".into(), 5.0, 8, 12), ("SIM_GUST_SPD".into(), 9.35, 3, 12)]);
         let MavMessage::PARAM_VALUE(echo) = &replies[0] else { panic!("{replies:?}") };
         assert_eq!((echo.param_type, echo.param_value.to_bits()), (MavParamType::MAV_PARAM_TYPE_INT32, 5));
         // A float where the int32's bytes belong is out of range, and an int32 for a real is refused.
@@ -779,7 +806,7 @@ mod tests {
         assert_eq!(texts(&replies), ["SIM_GUST_SPD: sent as INT32, it is REAL32"]);
         assert_eq!((s.get("SIM_BEAUFORT"), s.get("SIM_GUST_SPD")), (Some(5.0), Some(9.35)));
         let replies = s.on_message(&set_msg("SIM_GUST_SPD", 6.7), &mut plant);
-        assert_eq!(values(&replies), [("SIM_GUST_SPD".into(), 6.7, 3, 11), ("SIM_BEAUFORT".into(), 4.0, 8, 11)]);
+        assert_eq!(values(&replies), [("SIM_GUST_SPD".into(), 6.7, 3, 12), ("SIM_BEAUFORT".into(), 4.0, 8, 12)]);
     }
 
     #[test]
@@ -792,7 +819,7 @@ mod tests {
         }
         assert_eq!(plant.truth().wind_ned_mps, Vector3::zeros());
         let on = s.on_message(&set_msg("SIM_GUST_ON", 1.0), &mut plant);
-        assert_eq!(values(&on), [("SIM_GUST_ON".into(), 1.0, 6, 11)]);
+        assert_eq!(values(&on), [("SIM_GUST_ON".into(), 1.0, 6, 12)]);
         assert!(texts(&on)[0].contains("t=2.00"), "{:?}", texts(&on));
         // The wind is evaluated at the start of each step: the step from t = 2.0 holds s(2.0) = 0.
         plant.step([1000.0; 4], 2000);
@@ -835,7 +862,7 @@ mod tests {
     fn given_turbulence_on_then_it_blows_only_with_the_gust_and_off_removes_it() {
         let mut plant = calm_plant();
         let mut s = SimParamService::new(SYS, &plant);
-        assert_eq!(values(&s.on_message(&set_msg("SIM_TURB", 1.0), &mut plant)), [("SIM_TURB".into(), 1.0, 7, 11)]);
+        assert_eq!(values(&s.on_message(&set_msg("SIM_TURB", 1.0), &mut plant)), [("SIM_TURB".into(), 1.0, 7, 12)]);
         assert!(plant.wind().has_turbulence());
         step_to(&mut plant, 1.0);
         assert_eq!(plant.truth().wind_ned_mps, Vector3::zeros(), "no gust, no turbulence");
@@ -1063,7 +1090,7 @@ mod tests {
         );
         assert!(got.iter().any(|f| matches!(f.message, MavMessage::HEARTBEAT(_))), "a heartbeat: {got:?}");
         let echoed: Vec<_> = got.iter().map(|f| f.message.clone()).collect();
-        assert_eq!(values(&echoed)[..2], [("SIM_GUST_SPD".into(), 5.0, 3, 11), ("SIM_BEAUFORT".into(), 3.0, 8, 11)]);
+        assert_eq!(values(&echoed)[..2], [("SIM_GUST_SPD".into(), 5.0, 3, 12), ("SIM_BEAUFORT".into(), 3.0, 8, 12)]);
         assert_eq!(link.service().get("SIM_GUST_SPD"), Some(5.0));
         // No more heartbeats before a second has passed.
         link.poll(&mut plant).expect("poll");
@@ -1085,6 +1112,6 @@ mod tests {
         let frames = decoder.decode_datagram(&buf[..n]);
         assert_eq!(frames.len(), 1);
         assert_eq!(frames[0].version, MavlinkVersion::V1);
-        assert_eq!(values(&[frames[0].message.clone()]), [("SIM_WIND_N".into(), 0.0, 0, 11)]);
+        assert_eq!(values(&[frames[0].message.clone()]), [("SIM_WIND_N".into(), 0.0, 0, 12)]);
     }
 }

@@ -16,6 +16,7 @@
 pub mod airframe;
 pub mod battery;
 pub mod ground;
+pub mod radio;
 pub mod rigid_body;
 pub mod rotor;
 pub mod sensors;
@@ -29,6 +30,7 @@ use serde::Deserialize;
 pub use airframe::{Airframe, AirframeConfig};
 pub use battery::{Battery, BatteryConfig, BatteryReading};
 pub use ground::GroundConfig;
+pub use radio::{Radio, RcSchedule};
 pub use rigid_body::RigidBodyState;
 pub use sensors::{BaroSample, GpsSample, NoisyState, SensorConfig, SensorSample, Sensors, StateNoise};
 pub use wind::{GustConfig, TurbulenceConfig, Wind, WindConfig};
@@ -196,6 +198,8 @@ pub struct Plant {
     battery: Battery,
     /// The motors run (the actuator command's armed flag): they draw power from the pack.
     motors_running: bool,
+    /// The airframe's radio receiver (no output unless a schedule or the RC input port gives it one).
+    radio: Radio,
 }
 
 impl Plant {
@@ -244,6 +248,7 @@ impl Plant {
         let mut plant = Self {
             battery,
             motors_running: true,
+            radio: Radio::default(),
             state,
             time_us: 0,
             last_pwm_us,
@@ -301,6 +306,17 @@ impl Plant {
     /// The pack, for run-time changes (SIM_BAT_DRAIN, SIM_BAT_MIN_PCT).
     pub fn battery_mut(&mut self) -> &mut Battery {
         &mut self.battery
+    }
+
+    /// The radio receiver (what the plant link sends as `RC_CHANNELS`).
+    #[must_use]
+    pub fn radio(&self) -> &Radio {
+        &self.radio
+    }
+
+    /// The radio receiver, for its schedule, the RC input port's frames and SIM_RC_FAIL.
+    pub fn radio_mut(&mut self) -> &mut Radio {
+        &mut self.radio
     }
 
     /// Phase 1: the wind to hold over this step.
