@@ -614,6 +614,7 @@ mod tests {
     use super::*;
     use crate::plant::{InitialState, PlantConfig};
     use autopilot::core::hil::{encode_actuator_controls, encode_frame_v2};
+    use autopilot::core::manual::RcFrame;
     use mavlink::dialects::common::HEARTBEAT_DATA;
     use nalgebra::Vector3;
     use std::sync::Arc;
@@ -645,6 +646,9 @@ mod tests {
         sensor_times_us: Vec<u64>,
         gps: usize,
         truth: usize,
+        /// Each `RC_CHANNELS`: its `time_boot_ms`, its frame (as the autopilot decodes it) and the time of
+        /// the `HIL_SENSOR` that closed its datagram.
+        rc: Vec<(u32, RcFrame, Option<u64>)>,
     }
 
     /// A test autopilot: announce, then answer every new HIL_SENSOR with `pwm_us` until `n` sensor
@@ -667,8 +671,22 @@ mod tests {
             let mut skipped = std::collections::HashSet::new();
             while seen.sensor_times_us.len() < n {
                 let Ok((len, _)) = socket.recv_from(&mut buf) else { break };
-                for frame in decoder.decode_datagram(&buf[..len]) {
+                let frames = decoder.decode_datagram(&buf[..len]);
+                let closing_sensor = match frames.last().map(|f| &f.message) {
+                    Some(MavMessage::HIL_SENSOR(m)) => Some(m.time_usec),
+                    _ => None,
+                };
+                for frame in frames {
                     match frame.message {
+                        MavMessage::RC_CHANNELS(m) => {
+                            let home = GeoOrigin { lat_deg: 0.0, lon_deg: 0.0, alt_amsl_m: 0.0 };
+                            let Some(HilInput::Rc(rc)) =
+                                decode_hil_message(&MavMessage::RC_CHANNELS(m.clone()), &home)
+                            else {
+                                panic!("RC_CHANNELS is the autopilot's radio input")
+                            };
+                            seen.rc.push((m.time_boot_ms, rc, closing_sensor));
+                        }
                         MavMessage::HIL_GPS(_) => seen.gps += 1,
                         MavMessage::HIL_STATE_QUATERNION(_) => seen.truth += 1,
                         MavMessage::HIL_SENSOR(m) => {
@@ -878,5 +896,72 @@ mod tests {
         let truth = truth_fields(&plant.truth());
         let msg = encode_hil_state_quaternion(&truth, &home, 0.0);
         assert_eq!(msg.alt, ((home.alt_amsl_m + HOVER_ALT_M) * 1000.0).round() as i32);
+    }
+
+    /// One test autopilot answering `total` steps of `server`, run in `parts` (steps, then a change to the
+    /// server before the next part); the `RC_CHANNELS` it saw.
+    fn rc_seen(
+        server: &mut PlantServer<UdpTransport>,
+        parts: &[(u64, &dyn Fn(&mut PlantServer<UdpTransport>))],
+    ) -> Vec<(u32, RcFrame, Option<u64>)> {
+        let plant_addr = server.transport().local_addr().expect("addr");
+        let pwm = server.plant().config().airframe.hover_pwm_us();
+        let total: u64 = parts.iter().map(|p| p.0).sum();
+        let ap = autopilot(plant_addr, total as usize, pwm, |_, _| {}, |_| false);
+        for (steps, then) in parts {
+            assert_eq!(server.run(Some(*steps), &AtomicBool::new(false)).expect("run"), *steps);
+            then(server);
+        }
+        ap.join().expect("autopilot").rc
+    }
+
+    #[test]
+    fn given_a_radio_frame_then_rc_channels_go_every_20_ms_of_plant_time_before_the_sensor_and_sim_rc_fail_stops_them() {
+        let mut server = PlantServer::bind_udp(hover_plant(), "127.0.0.1:0", LinkConfig::default()).expect("bind");
+        let frame = RcFrame::of(&[1100, 1200, 1000, 2000, 1500, 1600, 1700, 1800, 1900, 2100]);
+        server.plant_mut().radio_mut().set_port_frame(frame);
+        // 100 steps of 2 ms (plant times 0..198 ms, RC at 0, 20, .., 180 ms), SIM_RC_FAIL for 100 steps,
+        // cleared for 20.
+        let fail = |s: &mut PlantServer<UdpTransport>| s.plant_mut().radio_mut().set_failed(true);
+        let clear = |s: &mut PlantServer<UdpTransport>| s.plant_mut().radio_mut().set_failed(false);
+        let rc = rc_seen(&mut server, &[(100, &fail), (100, &clear), (20, &|_| {})]);
+        let times: Vec<u32> = rc.iter().map(|r| r.0).collect();
+        let mut expected: Vec<u32> = (0..10).map(|k| k * 20).collect();
+        expected.extend([400, 420]);
+        assert_eq!(times, expected, "50 Hz of plant time (time_boot_ms = plant ms), none while SIM_RC_FAIL = 1");
+        for (ms, got, sensor_us) in &rc {
+            assert_eq!(got, &frame, "at {ms} ms: the frame's values exactly");
+            assert_eq!(*sensor_us, Some(u64::from(*ms) * 1000), "in the datagram of the HIL_SENSOR of its time");
+        }
+        assert_eq!(server.stats().rc_sent, 12);
+    }
+
+    #[test]
+    fn given_no_radio_then_the_link_sends_no_rc_channels() {
+        let mut server = PlantServer::bind_udp(hover_plant(), "127.0.0.1:0", LinkConfig::default()).expect("bind");
+        assert!(rc_seen(&mut server, &[(50, &|_| {})]).is_empty());
+        assert_eq!(server.stats().rc_sent, 0);
+    }
+
+    #[test]
+    fn given_a_datagram_on_the_rc_input_port_then_its_channels_go_out_as_rc_channels_and_are_held() {
+        let mut server = PlantServer::bind_udp(hover_plant(), "127.0.0.1:0", LinkConfig::default()).expect("bind");
+        let port = rc::RcInPort::bind("127.0.0.1:0").expect("bind rc in");
+        let rc_addr = port.local_addr().expect("addr");
+        server.set_rc_in(port);
+        let values = [1000_u16, 1500, 1000, 2000, 1500, 1500, 1500, 1500];
+        let send = move |_: &mut PlantServer<UdpTransport>| {
+            let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+            let tx = UdpSocket::bind("127.0.0.1:0").expect("bind sender");
+            tx.send_to(&bytes, rc_addr).expect("send");
+            tx.send_to(&[1, 2, 3], rc_addr).expect("send junk");
+        };
+        // Sent after 20 steps (plant time 40 ms); loopback UDP is queued at the receiver by the send.
+        let rc = rc_seen(&mut server, &[(20, &send), (100, &|_| {})]);
+        let times: Vec<u32> = rc.iter().map(|r| r.0).collect();
+        assert_eq!(times, (2..12).map(|k| k * 20).collect::<Vec<_>>(), "from the first RC time after the datagram, held");
+        assert!(rc.iter().all(|r| r.1 == RcFrame::of(&values)));
+        let stats = server.rc_in().expect("port").stats();
+        assert_eq!((stats.accepted, stats.dropped), (1, 1), "{stats:?}");
     }
 }
