@@ -9,6 +9,7 @@ use anyhow::{Context, Result, bail};
 use autopilot::runtime::ports::InstancePorts;
 use clap::Args;
 use sitl::link::Pacing;
+use sitl::link::rc::{RC_IN_PORT, RcInPort};
 use sitl::plant::{Airframe, InitialState, Plant, PlantConfig, SensorConfig};
 use sitl::scenario::metrics::{GustMetrics, TrackMetrics};
 use sitl::sim_params::SimParamLink;
@@ -34,6 +35,11 @@ pub(crate) struct PlantArgs {
     /// Seed of every noise and turbulence stream.
     #[arg(long, default_value_t = 1)]
     pub(crate) seed: u64,
+    /// The pilot's radio in, as ArduPilot SITL's RC input: UDP port on 127.0.0.1 taking datagrams of 8 to
+    /// 16 little-endian u16 PWM values (µs, 800..2200) = channels 1..N; the last good one is held and
+    /// sent to the autopilot as RC_CHANNELS at 50 Hz. Default 5501 + instance; 0 = off.
+    #[arg(long, value_name = "PORT")]
+    pub(crate) rc_in_port: Option<u16>,
 }
 
 impl PlantArgs {
@@ -61,6 +67,15 @@ impl PlantArgs {
     /// `--speed` or `--lockstep`; without either, real time.
     pub(crate) fn pacing(&self) -> Pacing {
         if self.lockstep { Pacing::Lockstep } else { self.speed.unwrap_or(REAL_TIME) }
+    }
+
+    /// The RC input port of instance `n`: `--rc-in-port`, else [`RC_IN_PORT`] + n; `None` when 0 (off).
+    pub(crate) fn rc_in_port(&self, n: u16) -> Option<u16> {
+        match self.rc_in_port {
+            Some(0) => None,
+            Some(port) => Some(port),
+            None => RC_IN_PORT.checked_add(n),
+        }
     }
 
     /// Whether the command line chose the pacing (`--speed` or `--lockstep`).
@@ -169,6 +184,20 @@ pub(crate) fn bind_sim_params(n: u16, plant: &Plant) -> Result<(SimParamLink, u1
     Ok((link, port))
 }
 
+/// The RC input port on 127.0.0.1:`port` (see [`PlantArgs::rc_in_port`]), or `None` when off.
+pub(crate) fn bind_rc_in(port: Option<u16>) -> Result<Option<RcInPort>> {
+    port.map(|port| {
+        RcInPort::bind(("127.0.0.1", port))
+            .with_context(|| format!("binding the RC input port udp 127.0.0.1:{port} (--rc-in-port PORT, or 0 for none)"))
+    })
+    .transpose()
+}
+
+/// How the startup line names the RC input port.
+pub(crate) fn describe_rc_in(port: Option<u16>) -> String {
+    port.map_or_else(|| "no RC input port".to_owned(), |p| format!("RC input on udp 127.0.0.1:{p}"))
+}
+
 /// The instance's ports: plant, autopilot, QGroundControl (14550, shared by every instance), API.
 pub(crate) fn instance_ports(n: u16) -> Result<(u16, u16, u16, u16)> {
     let p = InstancePorts::of(n)?;
@@ -224,6 +253,26 @@ mod tests {
         }
         let err = pacing_of("serve", &["--speed", "0"]).expect_err("0");
         assert_eq!(err.kind(), ErrorKind::ValueValidation, "{err}");
+    }
+
+    /// The RC input port `sitl <command> <args>` would bind.
+    fn rc_in_of(command: &str, args: &[&str]) -> Option<u16> {
+        let cli = Cli::try_parse_from(["sitl", command].iter().chain(args)).expect("parses");
+        match cli.command {
+            Command::Run(run) => run.plant.rc_in_port(run.instance),
+            Command::Serve(serve) => serve.plant.rc_in_port(serve.instance),
+            _ => panic!("{command} has no RC input"),
+        }
+    }
+
+    #[test]
+    fn run_and_serve_take_rc_in_on_5501_plus_the_instance_unless_told_a_port_or_0_for_none() {
+        for command in ["run", "serve"] {
+            assert_eq!(rc_in_of(command, &[]), Some(5501), "{command}");
+            assert_eq!(rc_in_of(command, &["-i", "3"]), Some(5504), "{command}");
+            assert_eq!(rc_in_of(command, &["--rc-in-port", "6000"]), Some(6000), "{command}");
+            assert_eq!(rc_in_of(command, &["-i", "3", "--rc-in-port", "0"]), None, "{command}");
+        }
     }
 
     #[test]

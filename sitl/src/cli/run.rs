@@ -18,7 +18,8 @@ use sitl::scenario::Scenario;
 use sitl::scenario::two_process::{self, TwoProcessOptions};
 
 use super::common::{
-    PlantArgs, bind_sim_params, describe_pacing, duration_us, gust_track_lines, instance_ports, realistic_plant_config,
+    PlantArgs, bind_rc_in, bind_sim_params, describe_pacing, describe_rc_in, duration_us, gust_track_lines,
+    instance_ports, realistic_plant_config,
 };
 use super::swarm::run_swarm;
 
@@ -80,6 +81,9 @@ pub(crate) struct RunArgs {
 
 pub(crate) fn run(args: &RunArgs) -> Result<()> {
     if args.count > 1 {
+        if args.plant.rc_in_port.is_some_and(|p| p != 0) {
+            bail!("--rc-in-port is for one vehicle: a swarm's plants take no radio");
+        }
         return run_swarm(args);
     }
     if args.scenario.is_some() && (args.plant.config.is_some() || args.plant.pacing_given() || args.duration.is_some())
@@ -122,6 +126,7 @@ pub(crate) fn run(args: &RunArgs) -> Result<()> {
             instance: n,
             estimator,
             autopilot_args: ap_args,
+            rc_in_port: args.plant.rc_in_port(n),
         };
         eprintln!(
             "sitl: instance {n}: flying scenario {} through plant and autopilot ({controller}), as fast as possible \
@@ -136,20 +141,26 @@ pub(crate) fn run(args: &RunArgs) -> Result<()> {
     let duration = duration_us(args.duration)?;
     let listen = format!("127.0.0.1:{plant_port}");
     let (sim_params, sim_port) = bind_sim_params(n, &plant)?;
+    let rc_port = args.plant.rc_in_port(n);
+    let rc_in = bind_rc_in(rc_port)?;
     let mut server = PlantServer::bind_udp(plant, listen.as_str(), run_link_config(args, pacing))
         .with_context(|| format!("binding {listen}"))?;
     server.set_hook(Box::new(sim_params));
+    if let Some(port) = rc_in {
+        server.set_rc_in(port);
+    }
     let ap_args = autopilot_args(args, n, &listen, args.state_dir.as_ref().map(OsString::from));
     let child = AutopilotChild::spawn(&autopilot, &ap_args)?;
     eprintln!(
         "sitl: instance {n} running {}{}; plant on udp {listen}, SIM_ parameters on udp 127.0.0.1:{sim_port} \
-         (system {}, component {}), autopilot pid {} (system id {}) listening on udp {ap_port} and tcp {}; ground \
+         (system {}, component {}), {}, autopilot pid {} (system id {}) listening on udp {ap_port} and tcp {}; ground \
          stations: listen on udp {qgc_port} (QGroundControl) or {api_port} (MAVSDK/API), or send to \
          127.0.0.1:{ap_port}. Ctrl-C stops both.",
         describe_pacing(pacing),
         if args.plant.pacing_given() { "" } else { " (`--speed 4` or `--speed max` to run faster)" },
         u32::from(n) + 1,
         sitl::link::PLANT_COMPONENT_ID,
+        describe_rc_in(rc_port),
         child.id(),
         u32::from(n) + 1,
         5760 + u32::from(n),

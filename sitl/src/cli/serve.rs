@@ -6,7 +6,9 @@ use clap::Args;
 use sitl::launch;
 use sitl::link::{LinkConfig, PlantServer};
 
-use super::common::{PlantArgs, bind_sim_params, describe_pacing, instance_ports, realistic_plant_config};
+use super::common::{
+    PlantArgs, bind_rc_in, bind_sim_params, describe_pacing, describe_rc_in, instance_ports, realistic_plant_config,
+};
 
 #[derive(Args)]
 pub(crate) struct ServeArgs {
@@ -37,17 +39,23 @@ pub(crate) fn serve(args: &ServeArgs) -> Result<()> {
     let link = LinkConfig { dt_us: args.dt_us, pacing, ..LinkConfig::default() };
     let stop = launch::ctrl_c_flag();
     let (sim_params, sim_port) = bind_sim_params(args.instance, &plant)?;
+    let rc_port = args.plant.rc_in_port(args.instance);
+    let rc_in = bind_rc_in(rc_port)?;
     let steps = if let Some(spec) = &args.serial {
         let (device, baud) = parse_serial_spec(spec).map_err(anyhow::Error::msg).context("--serial")?;
         let transport =
             SerialTransport::open(&device, baud, POLL_INTERVAL).with_context(|| format!("opening {device}"))?;
         eprintln!(
             "sitl: plant on serial {device} at {baud} baud, running {}; SIM_ parameters on udp \
-             127.0.0.1:{sim_port}",
-            describe_pacing(pacing)
+             127.0.0.1:{sim_port}; {}",
+            describe_pacing(pacing),
+            describe_rc_in(rc_port)
         );
         let mut server = PlantServer::new(plant, transport, link);
         server.set_hook(Box::new(sim_params));
+        if let Some(port) = rc_in {
+            server.set_rc_in(port);
+        }
         server.run(None, &stop)?
     } else {
         let port = instance_ports(args.instance)?.0;
@@ -55,10 +63,14 @@ pub(crate) fn serve(args: &ServeArgs) -> Result<()> {
         let mut server =
             PlantServer::bind_udp(plant, listen.as_str(), link).with_context(|| format!("binding {listen}"))?;
         server.set_hook(Box::new(sim_params));
+        if let Some(port) = rc_in {
+            server.set_rc_in(port);
+        }
         eprintln!(
-            "sitl: plant listening on udp {listen}, running {}; SIM_ parameters on udp 127.0.0.1:{sim_port}; \
+            "sitl: plant listening on udp {listen}, running {}; SIM_ parameters on udp 127.0.0.1:{sim_port}; {}; \
              waiting for an autopilot",
-            describe_pacing(pacing)
+            describe_pacing(pacing),
+            describe_rc_in(rc_port)
         );
         server.run(None, &stop)?
     };

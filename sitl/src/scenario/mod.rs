@@ -34,6 +34,7 @@ pub mod gcs;
 pub mod metrics;
 pub mod path;
 pub mod plot;
+pub mod rc;
 pub mod reference;
 pub mod runner;
 pub mod two_process;
@@ -42,6 +43,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use autopilot::core::control::{ControllerConfig, ControllerKind};
+use autopilot::core::manual::ManualConfig;
 use serde::{Deserialize, Serialize};
 
 use crate::plant::{AirframeConfig, StateNoise, WindConfig};
@@ -139,6 +141,14 @@ pub struct Scenario {
     pub wind: WindConfig,
     #[serde(default)]
     pub controller: ControllerConfig,
+    /// The pilot's radio: a stick schedule on plant time (see [`rc`]), sent to the autopilot as
+    /// `RC_CHANNELS`; two-process runs only (`sitl run --scenario`).
+    #[serde(default)]
+    pub rc: Vec<rc::RcEntry>,
+    /// The autopilot's manual-control settings (its configuration file's `[vehicle.manual]`: the radio's
+    /// map RC_MAP_*, calibration RCn_*, COM_FLTMODE1..6, MAN_ARM_GESTURE, ...); two-process runs only.
+    #[serde(default)]
+    pub manual: Option<ManualConfig>,
 }
 
 fn unit_scale() -> f64 {
@@ -205,6 +215,10 @@ impl Scenario {
             return Err(ScenarioError::Invalid("metrics must name at least one of steps, gust, track".into()));
         }
         self.reference.validate()?;
+        self.rc_schedule()?;
+        if let Some(manual) = &self.manual {
+            manual.validate().map_err(|e| ScenarioError::Invalid(format!("[manual]: {e}")))?;
+        }
         self.state_noise()?;
         self.validate_metric_windows()?;
         let unset = AirframeConfig::default().preset;
@@ -264,6 +278,14 @@ impl Scenario {
             }
         }
         Ok(())
+    }
+
+    /// The `[[rc]]` stick schedule (empty without one).
+    ///
+    /// # Errors
+    /// [`ScenarioError::Invalid`] naming the first bad entry.
+    pub fn rc_schedule(&self) -> Result<crate::plant::RcSchedule, ScenarioError> {
+        rc::schedule(&self.rc, self.duration_s).map_err(ScenarioError::Invalid)
     }
 
     /// The noise on the state the controller sees: `state_noise`'s σ times `state_noise_scale`.

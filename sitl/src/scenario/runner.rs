@@ -203,6 +203,13 @@ pub fn control_input(state: &NoisyState) -> ControlInput {
 /// A bad plant preset or override, or loop rates the controllers cannot run at.
 pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, ScenarioError> {
     let wall_start = Instant::now();
+    if !scenario.rc.is_empty() || scenario.manual.is_some() {
+        return Err(ScenarioError::Invalid(
+            "[[rc]] and [manual] are for the autopilot: the in-process runner flies the controller alone; fly the \
+             scenario with `sitl run --scenario`"
+                .into(),
+        ));
+    }
     let rates = opts.rates;
     if rates.inner_hz == 0 || 1_000_000 % rates.inner_hz != 0 {
         return Err(ScenarioError::Invalid(format!(

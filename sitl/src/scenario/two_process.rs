@@ -45,6 +45,7 @@ use super::reference::{ReferenceSpec, TrackSpec};
 use super::runner::plant_config;
 use super::{OverrideValue, Scenario, ScenarioError, StateNoiseKind};
 use crate::launch::{AutopilotChild, LaunchError, LaunchReport, TempConfig, run_with_child};
+use crate::link::rc::RcInPort;
 use crate::link::{LinkConfig, PlantServer, UdpTransport, home_origin};
 use crate::plant::{InitialState, Plant, SensorConfig};
 
@@ -90,6 +91,9 @@ pub struct TwoProcessOptions {
     pub estimator: Option<EstimatorSource>,
     /// Extra autopilot arguments (e.g. `--log-dir`).
     pub autopilot_args: Vec<OsString>,
+    /// The plant's RC input port on 127.0.0.1 (`crate::link::rc`), or `None` for none. The scenario's
+    /// `[[rc]]` schedule wins over it from its first entry on.
+    pub rc_in_port: Option<u16>,
 }
 
 /// The metrics of a two-process run (the JSON `sitl run --scenario --json` prints).
@@ -155,6 +159,9 @@ pub fn autopilot_config(
             }
         }
         ReferenceSpec::Attitude { .. } => return Err(TwoProcessError::NotHover(scenario.name.clone())),
+    }
+    if let Some(manual) = scenario.manual {
+        vehicle.manual = manual;
     }
     vehicle.estimator.source = estimator_of(scenario, opts);
     vehicle.estimator.truth_origin = Some(home_origin(&plant.config().sensors.home));
@@ -233,15 +240,26 @@ fn launch(
     scenario: &Scenario,
     opts: &TwoProcessOptions,
     autopilot: &Path,
-    plant: Plant,
+    mut plant: Plant,
     link: LinkConfig,
 ) -> Result<Launched, TwoProcessError> {
     let config_text = autopilot_config(scenario, opts, &plant)?;
+    plant.radio_mut().set_schedule(scenario.rc_schedule()?);
+    let rc_in = opts
+        .rc_in_port
+        .map(|port| {
+            let addr = format!("127.0.0.1:{port}");
+            RcInPort::bind(addr.as_str()).map_err(|source| TwoProcessError::Bind { addr, source })
+        })
+        .transpose()?;
     let config = TempConfig::write(&format!("i{}-autopilot", opts.instance), &config_text)
         .map_err(|(path, source)| TwoProcessError::Config { path, source })?;
     let addr = format!("127.0.0.1:{}", 4560 + opts.instance);
-    let server = PlantServer::bind_udp(plant, addr.as_str(), link)
+    let mut server = PlantServer::bind_udp(plant, addr.as_str(), link)
         .map_err(|source| TwoProcessError::Bind { addr: addr.clone(), source })?;
+    if let Some(port) = rc_in {
+        server.set_rc_in(port);
+    }
     let mut args: Vec<OsString> =
         vec!["--plant".into(), format!("udp://{addr}").into(), "-i".into(), opts.instance.to_string().into()];
     args.push("--config".into());
