@@ -680,8 +680,7 @@ mod tests {
                     match frame.message {
                         MavMessage::RC_CHANNELS(m) => {
                             let home = GeoOrigin { lat_deg: 0.0, lon_deg: 0.0, alt_amsl_m: 0.0 };
-                            let Some(HilInput::Rc(rc)) =
-                                decode_hil_message(&MavMessage::RC_CHANNELS(m.clone()), &home)
+                            let Some(HilInput::Rc(rc)) = decode_hil_message(&MavMessage::RC_CHANNELS(m.clone()), &home)
                             else {
                                 panic!("RC_CHANNELS is the autopilot's radio input")
                             };
@@ -898,11 +897,14 @@ mod tests {
         assert_eq!(msg.alt, ((home.alt_amsl_m + HOVER_ALT_M) * 1000.0).round() as i32);
     }
 
+    /// A change to a test server between two runs of steps.
+    type Between<'a> = &'a dyn Fn(&mut PlantServer<UdpTransport>);
+
     /// One test autopilot answering `total` steps of `server`, run in `parts` (steps, then a change to the
     /// server before the next part); the `RC_CHANNELS` it saw.
     fn rc_seen(
         server: &mut PlantServer<UdpTransport>,
-        parts: &[(u64, &dyn Fn(&mut PlantServer<UdpTransport>))],
+        parts: &[(u64, Between<'_>)],
     ) -> Vec<(u32, RcFrame, Option<u64>)> {
         let plant_addr = server.transport().local_addr().expect("addr");
         let pwm = server.plant().config().airframe.hover_pwm_us();
@@ -916,7 +918,8 @@ mod tests {
     }
 
     #[test]
-    fn given_a_radio_frame_then_rc_channels_go_every_20_ms_of_plant_time_before_the_sensor_and_sim_rc_fail_stops_them() {
+    fn given_a_radio_frame_then_rc_channels_go_every_20_ms_of_plant_time_before_the_sensor_and_sim_rc_fail_stops_them()
+    {
         let mut server = PlantServer::bind_udp(hover_plant(), "127.0.0.1:0", LinkConfig::default()).expect("bind");
         let frame = RcFrame::of(&[1100, 1200, 1000, 2000, 1500, 1600, 1700, 1800, 1900, 2100]);
         server.plant_mut().radio_mut().set_port_frame(frame);
@@ -959,7 +962,11 @@ mod tests {
         // Sent after 20 steps (plant time 40 ms); loopback UDP is queued at the receiver by the send.
         let rc = rc_seen(&mut server, &[(20, &send), (100, &|_| {})]);
         let times: Vec<u32> = rc.iter().map(|r| r.0).collect();
-        assert_eq!(times, (2..12).map(|k| k * 20).collect::<Vec<_>>(), "from the first RC time after the datagram, held");
+        assert_eq!(
+            times,
+            (2..12).map(|k| k * 20).collect::<Vec<_>>(),
+            "from the first RC time after the datagram, held"
+        );
         assert!(rc.iter().all(|r| r.1 == RcFrame::of(&values)));
         let stats = server.rc_in().expect("port").stats();
         assert_eq!((stats.accepted, stats.dropped), (1, 1), "{stats:?}");

@@ -193,7 +193,13 @@ pub static SIM_PARAMS: [SimParamDef; 12] = [
         "> 0: the pack drains linearly from full to empty in this time while the motors run; 0: by the current drawn",
     ),
     real("SIM_BAT_MIN_PCT", 0.0, 0.0, 100.0, "%", "The pack's state of charge never falls below this"),
-    whole("SIM_RC_FAIL", 0.0, 0.0, 1.0, "1: the radio receiver has no output (no RC_CHANNELS sent), to rehearse RC loss"),
+    whole(
+        "SIM_RC_FAIL",
+        0.0,
+        0.0,
+        1.0,
+        "1: the radio receiver has no output (no RC_CHANNELS sent), to rehearse RC loss",
+    ),
 ];
 
 /// The Beaufort force of a wind speed (m/s): the highest force whose range starts at or below it.
@@ -670,7 +676,10 @@ mod tests {
         plant.radio_mut().set_port_frame(frame);
         let mut s = SimParamService::new(SYS, &plant);
         assert_eq!(s.get("SIM_RC_FAIL"), Some(0.0));
-        assert_eq!(values(&s.on_message(&set_msg("SIM_RC_FAIL", 1.0), &mut plant)), [("SIM_RC_FAIL".into(), 1.0, 11, 12)]);
+        assert_eq!(
+            values(&s.on_message(&set_msg("SIM_RC_FAIL", 1.0), &mut plant)),
+            [("SIM_RC_FAIL".into(), 1.0, 11, 12)]
+        );
         assert!(plant.radio().failed());
         assert_eq!(plant.radio().output(plant.time_us()), None);
         let refused = s.on_message(&set_msg("SIM_RC_FAIL", 2.0), &mut plant);

@@ -187,8 +187,9 @@ pub(crate) fn bind_sim_params(n: u16, plant: &Plant) -> Result<(SimParamLink, u1
 /// The RC input port on 127.0.0.1:`port` (see [`PlantArgs::rc_in_port`]), or `None` when off.
 pub(crate) fn bind_rc_in(port: Option<u16>) -> Result<Option<RcInPort>> {
     port.map(|port| {
-        RcInPort::bind(("127.0.0.1", port))
-            .with_context(|| format!("binding the RC input port udp 127.0.0.1:{port} (--rc-in-port PORT, or 0 for none)"))
+        RcInPort::bind(("127.0.0.1", port)).with_context(|| {
+            format!("binding the RC input port udp 127.0.0.1:{port} (--rc-in-port PORT, or 0 for none)")
+        })
     })
     .transpose()
 }

@@ -188,6 +188,13 @@ pub(crate) fn run(args: &RunArgs) -> Result<()> {
         l.junk_datagrams,
         l.decoder.malformed(),
     );
+    if let Some(port) = server.rc_in() {
+        let rc = port.stats();
+        eprintln!(
+            "sitl: radio: {} RC_CHANNELS sent; RC input: {} datagrams taken, {} dropped",
+            l.rc_sent, rc.accepted, rc.dropped
+        );
+    }
     Ok(())
 }
 

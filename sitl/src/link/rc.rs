@@ -34,9 +34,7 @@ pub const RC_IN_MAX_CHANNELS: usize = 16;
 pub enum RcDatagramError {
     #[error("{0} bytes is not a whole number of u16 values")]
     OddLength(usize),
-    #[error(
-        "{0} values: a datagram carries {RC_IN_MIN_CHANNELS} to {RC_IN_MAX_CHANNELS} little-endian u16 PWM values"
-    )]
+    #[error("{0} values: a datagram carries {RC_IN_MIN_CHANNELS} to {RC_IN_MAX_CHANNELS} little-endian u16 PWM values")]
     Count(usize),
     #[error("channel {channel} = {value_us} us is outside {PWM_MIN_US}..={PWM_MAX_US}")]
     Range { channel: usize, value_us: u16 },

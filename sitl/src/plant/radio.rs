@@ -113,8 +113,9 @@ mod tests {
 
     #[test]
     fn given_a_schedule_then_each_entry_holds_from_its_time_until_the_next() {
-        let s = RcSchedule::new(vec![(1_000_000, Some(frame(1100))), (2_000_000, None), (3_000_000, Some(frame(1900)))])
-            .unwrap();
+        let s =
+            RcSchedule::new(vec![(1_000_000, Some(frame(1100))), (2_000_000, None), (3_000_000, Some(frame(1900)))])
+                .unwrap();
         assert_eq!(s.at(0), None, "before the first entry the schedule says nothing");
         assert_eq!(s.at(999_999), None);
         assert_eq!(s.at(1_000_000), Some(Some(frame(1100))));

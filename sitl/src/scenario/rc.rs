@@ -57,7 +57,9 @@ pub fn schedule(entries: &[RcEntry], duration_s: f64) -> Result<RcSchedule, Stri
             return Err(format!("{name}: at_s must be a plant time >= 0 s"));
         }
         if e.at_s < last_s {
-            return Err(format!("{name}: earlier than the entry before it (at_s = {last_s}): entries are in time order"));
+            return Err(format!(
+                "{name}: earlier than the entry before it (at_s = {last_s}): entries are in time order"
+            ));
         }
         if e.at_s > duration_s {
             return Err(format!("{name}: after the run's end (duration_s = {duration_s})"));
@@ -67,7 +69,9 @@ pub fn schedule(entries: &[RcEntry], duration_s: f64) -> Result<RcSchedule, Stri
             (Some(_), Some(_)) => return Err(format!("{name}: either ch or lost = true, not both")),
             (None, None) => return Err(format!("{name}: needs ch = {{ \"1\" = 1500, ... }} or lost = true")),
             (None, Some(false)) => {
-                return Err(format!("{name}: lost = false means nothing: give ch to set channels, lost = true to stop"));
+                return Err(format!(
+                    "{name}: lost = false means nothing: give ch to set channels, lost = true to stop"
+                ));
             }
             (None, Some(true)) => None,
             (Some(ch), None) => {
@@ -75,16 +79,14 @@ pub fn schedule(entries: &[RcEntry], duration_s: f64) -> Result<RcSchedule, Stri
                     return Err(format!("{name}: ch sets no channel"));
                 }
                 for (key, &value) in ch {
-                    let n = key
-                        .trim()
-                        .parse::<usize>()
-                        .ok()
-                        .filter(|n| (1..=SCHEDULE_CHANNELS).contains(n))
-                        .ok_or_else(|| format!("{name}: channel \"{key}\" is not a channel 1..{SCHEDULE_CHANNELS}"))?;
-                    let value_us = u16::try_from(value)
-                        .ok()
-                        .filter(|v| (PWM_MIN_US..=PWM_MAX_US).contains(v))
-                        .ok_or_else(|| format!("{name}: channel {n} = {value} us is outside {PWM_MIN_US}..={PWM_MAX_US}"))?;
+                    let n =
+                        key.trim().parse::<usize>().ok().filter(|n| (1..=SCHEDULE_CHANNELS).contains(n)).ok_or_else(
+                            || format!("{name}: channel \"{key}\" is not a channel 1..{SCHEDULE_CHANNELS}"),
+                        )?;
+                    let value_us =
+                        u16::try_from(value).ok().filter(|v| (PWM_MIN_US..=PWM_MAX_US).contains(v)).ok_or_else(
+                            || format!("{name}: channel {n} = {value} us is outside {PWM_MIN_US}..={PWM_MAX_US}"),
+                        )?;
                     channels_us[n - 1] = value_us;
                 }
                 Some(RcFrame::of(&channels_us))
@@ -149,10 +151,16 @@ mod tests {
             ("[[rc]]\nat_s = 1.0\nch = { \"17\" = 1000 }\n", "rc[0] (at_s = 1): channel \"17\" is not a channel 1..16"),
             ("[[rc]]\nat_s = 1.0\nch = { \"0\" = 1000 }\n", "rc[0] (at_s = 1): channel \"0\""),
             ("[[rc]]\nat_s = 1.0\nch = { \"yaw\" = 1000 }\n", "channel \"yaw\""),
-            ("[[rc]]\nat_s = 1.0\nch = { \"3\" = 2201 }\n", "rc[0] (at_s = 1): channel 3 = 2201 us is outside 800..=2200"),
+            (
+                "[[rc]]\nat_s = 1.0\nch = { \"3\" = 2201 }\n",
+                "rc[0] (at_s = 1): channel 3 = 2201 us is outside 800..=2200",
+            ),
             ("[[rc]]\nat_s = 1.0\nch = { \"3\" = 799 }\n", "channel 3 = 799 us"),
             ("[[rc]]\nat_s = 1.0\nch = { \"3\" = -5 }\n", "channel 3 = -5 us"),
-            ("[[rc]]\nat_s = 1.0\nch = { \"3\" = 1000 }\n[[rc]]\nat_s = 0.5\nlost = true\n", "rc[1] (at_s = 0.5): earlier"),
+            (
+                "[[rc]]\nat_s = 1.0\nch = { \"3\" = 1000 }\n[[rc]]\nat_s = 0.5\nlost = true\n",
+                "rc[1] (at_s = 0.5): earlier",
+            ),
             ("[[rc]]\nat_s = 11.0\nlost = true\n", "rc[0] (at_s = 11): after the run's end"),
             ("[[rc]]\nat_s = -1.0\nlost = true\n", "rc[0] (at_s = -1): at_s must be"),
             ("[[rc]]\nat_s = 1.0\nch = { \"3\" = 1000 }\nlost = true\n", "either ch or lost"),
@@ -195,19 +203,17 @@ mod tests {
             autopilot_args: Vec::new(),
             rc_in_port: None,
         };
-        let plant = crate::plant::Plant::new(
-            crate::plant::PlantConfig::default(),
-            &crate::plant::InitialState::default(),
-            1,
-        )
-        .unwrap();
+        let plant =
+            crate::plant::Plant::new(crate::plant::PlantConfig::default(), &crate::plant::InitialState::default(), 1)
+                .unwrap();
         let config = crate::scenario::two_process::autopilot_config(&s, &opts, &plant).unwrap();
         let file = autopilot::runtime::ConfigFile::from_toml_str(&config, "scenario").unwrap();
         assert_eq!(file.vehicle.manual.rc.map.fltmode, 5);
         assert_eq!(file.vehicle.manual.fltmodes, [2; 6]);
         let e = Scenario::from_toml("x", &with_rc("[manual]\nrc_map_fltmode = 5\n")).unwrap_err().to_string();
         assert!(e.contains("rc_map_fltmode"), "unknown keys are refused: {e}");
-        let e = Scenario::from_toml("x", &with_rc("[manual]\nfltmodes = [2, 2, 2, 2, 2, 99]\n")).unwrap_err().to_string();
+        let e =
+            Scenario::from_toml("x", &with_rc("[manual]\nfltmodes = [2, 2, 2, 2, 2, 99]\n")).unwrap_err().to_string();
         assert!(e.contains("[manual]") && e.contains("COM_FLTMODE6 = 99"), "checked as the autopilot would: {e}");
     }
 }
