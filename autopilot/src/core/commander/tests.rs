@@ -87,6 +87,8 @@ impl Sim {
             Intent::Land => Some(0.7),
             // Descend while it lands, hold the altitude otherwise.
             Intent::Auto(_) => Some(if self.landing { 0.7 } else { 0.0 }),
+            // Sticks centred: hold the altitude.
+            Intent::Manual(_) => Some(0.0),
             Intent::Idle => None,
         };
         let acc = match vel_cmd {
