@@ -89,7 +89,7 @@ impl ManualFlightConfig {
         if let Some((f, v)) = positive.into_iter().find(|(_, v)| !(v.is_finite() && *v > 0.0)) {
             return Some((f, v, "positive"));
         }
-        if !(self.tilt_max_deg < 90.0) {
+        if self.tilt_max_deg >= 90.0 {
             return Some(("manual.tilt_max_deg", self.tilt_max_deg, "below 90"));
         }
         let unit = [
@@ -110,13 +110,15 @@ impl ManualFlightConfig {
     }
 }
 
-/// The vertical limits the manual modes climb and descend with (m/s, m/s²; from the navigator's).
+/// The vertical limits the manual modes climb and descend with (m/s, m/s²; from the navigator's), and the
+/// lowest the reference goes (NED down, m: `land_below_ground_m` under the ground).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct VerticalLimits {
     pub climb_mps: f64,
     pub descent_mps: f64,
     pub acc_up_mps2: f64,
     pub acc_down_mps2: f64,
+    pub floor_d_m: f64,
 }
 
 /// The throttle stick above which Stabilized leaves the ground.
@@ -182,7 +184,6 @@ impl ManualFlight {
         dt_s: f64,
         cfg: &ManualFlightConfig,
         vertical: &VerticalLimits,
-        floor_d_m: f64,
     ) -> Option<Reference> {
         let s = sticks.unwrap_or_default();
         let yaw_rate = expo_deadzone(s.yaw, cfg.yaw_expo, cfg.hold_dz) * cfg.yaw_rate_max_degps.to_radians();
@@ -269,8 +270,8 @@ impl ManualFlight {
             m.jerk_ned_mps3.x = 0.0;
             m.jerk_ned_mps3.y = 0.0;
         }
-        if m.pos_ned_m.z > floor_d_m {
-            m.pos_ned_m.z = floor_d_m;
+        if m.pos_ned_m.z > vertical.floor_d_m {
+            m.pos_ned_m.z = vertical.floor_d_m;
             m.vel_ned_mps.z = m.vel_ned_mps.z.min(0.0);
             m.acc_ned_mps2.z = m.acc_ned_mps2.z.min(0.0);
         }
@@ -345,7 +346,8 @@ mod tests {
         }
     }
 
-    const VERT: VerticalLimits = VerticalLimits { climb_mps: 1.0, descent_mps: 1.0, acc_up_mps2: 1.0, acc_down_mps2: 1.0 };
+    const VERT: VerticalLimits =
+        VerticalLimits { climb_mps: 1.0, descent_mps: 1.0, acc_up_mps2: 1.0, acc_down_mps2: 1.0, floor_d_m: 0.5 };
 
     #[test]
     fn the_hover_thrust_default_is_the_nominal_airframes_within_0_005() {
@@ -363,20 +365,22 @@ mod tests {
         let dt = 0.002;
         let full = Sticks { pitch: 1.0, ..Sticks::default() };
         for _ in 0..5000 {
-            f.step(ManualMode::Position, Some(full), &input(false), dt, &cfg, &VERT, 0.5);
+            f.step(ManualMode::Position, Some(full), &input(false), dt, &cfg, &VERT);
         }
         assert!((f.motion().vel_ned_mps.x - cfg.vel_manual_mps).abs() < 1e-9);
         let x0 = f.motion().pos_ned_m.x;
         let mut last = x0;
         for _ in 0..5000 {
-            let r = f.step(ManualMode::Position, Some(Sticks::default()), &input(false), dt, &cfg, &VERT, 0.5).unwrap();
+            let r = f.step(ManualMode::Position, Some(Sticks::default()), &input(false), dt, &cfg, &VERT).unwrap();
             assert!(r.pos_ned_m.x >= last - 1e-12, "the stop never comes back");
             last = r.pos_ned_m.x;
         }
         assert_eq!(f.motion().vel_ned_mps, Vector3::zeros(), "settled exactly at rest");
         use super::super::trajectory::{Limits, Motion1, Profile};
-        let limits = Limits { vel_mps: cfg.vel_manual_mps, acc_mps2: cfg.acc_hor_max_mps2, jerk_mps3: cfg.jerk_max_mps3 };
-        let d_opt = Profile::stop(Motion1 { pos_m: 0.0, vel_mps: cfg.vel_manual_mps, acc_mps2: 0.0 }, limits).target_m();
+        let limits =
+            Limits { vel_mps: cfg.vel_manual_mps, acc_mps2: cfg.acc_hor_max_mps2, jerk_mps3: cfg.jerk_max_mps3 };
+        let d_opt =
+            Profile::stop(Motion1 { pos_m: 0.0, vel_mps: cfg.vel_manual_mps, acc_mps2: 0.0 }, limits).target_m();
         let d = last - x0;
         assert!((d - d_opt).abs() <= 0.01 * d_opt, "stopped in {d} m, the time-optimal stop is {d_opt} m");
     }
@@ -387,12 +391,15 @@ mod tests {
         let mut f = ManualFlight::new(Motion3::rest(Vector3::zeros()), 0.0);
         let centre = Sticks::default();
         for mode in [ManualMode::Position, ManualMode::Altitude] {
-            assert_eq!(f.step(mode, Some(centre), &input(true), 0.002, &cfg, &VERT, 0.5), None);
+            assert_eq!(f.step(mode, Some(centre), &input(true), 0.002, &cfg, &VERT), None);
             let up = Sticks { throttle: 0.8, ..centre };
-            let r = f.step(mode, Some(up), &input(true), 0.002, &cfg, &VERT, 0.5).unwrap();
+            let r = f.step(mode, Some(up), &input(true), 0.002, &cfg, &VERT).unwrap();
             assert!(r.acc_ned_mps2.z < 0.0, "climbing");
         }
-        assert_eq!(f.step(ManualMode::Stabilized, Some(Sticks { throttle: 0.05, ..centre }), &input(true), 0.002, &cfg, &VERT, 0.5), None);
+        assert_eq!(
+            f.step(ManualMode::Stabilized, Some(Sticks { throttle: 0.05, ..centre }), &input(true), 0.002, &cfg, &VERT),
+            None
+        );
     }
 
     #[test]
@@ -400,7 +407,7 @@ mod tests {
         let cfg = ManualFlightConfig::default();
         let mut f = ManualFlight::new(Motion3::rest(Vector3::zeros()), 0.3);
         let s = Sticks { roll: 0.5, pitch: 0.0, yaw: 0.0, throttle: 0.5 };
-        let r = f.step(ManualMode::Stabilized, Some(s), &input(false), 0.002, &cfg, &VERT, 0.5).unwrap();
+        let r = f.step(ManualMode::Stabilized, Some(s), &input(false), 0.002, &cfg, &VERT).unwrap();
         let att = r.attitude_rad.unwrap();
         assert!((att.x - 0.5 * cfg.tilt_max_deg.to_radians()).abs() < 1e-12);
         assert_eq!((att.y, att.z), (0.0, 0.3));
@@ -415,7 +422,7 @@ mod tests {
         let mut f = ManualFlight::new(Motion3::rest(Vector3::new(0.0, 0.0, -5.0)), 0.0);
         let s = Sticks { throttle: 0.75, ..Sticks::default() };
         for _ in 0..5000 {
-            f.step(ManualMode::Altitude, Some(s), &input(false), 0.002, &cfg, &VERT, 0.5);
+            f.step(ManualMode::Altitude, Some(s), &input(false), 0.002, &cfg, &VERT);
         }
         let want = expo_deadzone(0.5, cfg.z_expo, cfg.hold_dz) * VERT.climb_mps;
         assert!((-f.motion().vel_ned_mps.z - want).abs() < 1e-9);

@@ -54,10 +54,10 @@ pub mod trajectory;
 mod tests;
 
 pub use config::{ConfigError, NavigatorConfig};
-pub use manual::ManualFlightConfig;
-use manual::{ManualFlight, VerticalLimits};
 use executor::Executor;
 use leg::{MIN_LEG_M, Motion3};
+pub use manual::ManualFlightConfig;
+use manual::{ManualFlight, VerticalLimits};
 pub use offboard::OffboardSetpoint;
 pub(crate) use planner::{Climb, Flight, Planner};
 
@@ -428,9 +428,9 @@ impl Navigator {
             descent_mps: c.descent_speed_mps,
             acc_up_mps2: c.acc_up_mps2,
             acc_down_mps2: c.acc_down_mps2,
+            floor_d_m: input.ground_d_m() + c.land_below_ground_m,
         };
-        let floor_d_m = input.ground_d_m() + c.land_below_ground_m;
-        let reference = flight.step(mode, self.sticks, input, self.planner.dt_s, &c.manual, &vertical, floor_d_m);
+        let reference = flight.step(mode, self.sticks, input, self.planner.dt_s, &c.manual, &vertical);
         self.yaw_sp_rad = flight.yaw_sp_rad();
         self.planner.last = reference.map(|_| flight.motion());
         reference
