@@ -668,6 +668,82 @@ fn gust_hover_through_two_processes_reproduces_the_in_process_metrics_within_5_p
     println!("gust-hover two processes vs in-process: {}", report.join(", "));
 }
 
+/// The pilot's radio through both processes: `sitl run --scenario sitl/scenarios/pilot-arm.toml`, whose
+/// `[[rc]]` schedule the plant sends as RC_CHANNELS (Position on the mode switch at 0.5 s; throttle low
+/// and yaw right from 1.0 s to 2.5 s, the arming gesture; climb, hold, throttle low to land), judged on
+/// what the autopilot tells a ground station: its HEARTBEATs on the instance's API port, each placed in
+/// vehicle time between the telemetry's `time_boot_ms` before it and after it (ATTITUDE, SYSTEM_TIME).
+#[test]
+fn a_stick_schedule_arms_by_the_gesture_in_position_within_1_1_s_of_its_hold_time_as_the_heartbeat_reports() {
+    let _shared = run_shared();
+    let (n, api) = free_instance();
+    let scenario = format!("{}/scenarios/pilot-arm.toml", env!("CARGO_MANIFEST_DIR"));
+    let child = Command::new(sitl_binary())
+        .args(["run", "--scenario", &scenario, "--json", "-i", &n.to_string()])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .process_group(0)
+        .spawn()
+        .expect("sitl run --scenario pilot-arm");
+    let mut guard = Guard(child);
+    let sysid = u32::from(InstancePorts::of(n).expect("in range").system_id);
+    let (mut decoder, mut buf) = (FrameDecoder::new(), [0u8; 4096]);
+    // (vehicle time ms before it, after it, armed, PX4 main mode) of each HEARTBEAT.
+    let mut beats: Vec<(u32, u32, bool, u32)> = Vec::new();
+    let mut time_ms = 0;
+    let started = Instant::now();
+    let status = loop {
+        assert!(started.elapsed() < WALL_LIMIT, "the pilot scenario exceeded its {WALL_LIMIT:?} wall-clock limit");
+        let Ok(len) = api.recv(&mut buf) else {
+            match guard.0.try_wait().expect("wait") {
+                Some(status) => break status,
+                None => continue,
+            }
+        };
+        for frame in decoder.decode_datagram(&buf[..len]) {
+            if frame.header.system_id != sysid {
+                continue;
+            }
+            let stamp = match frame.message {
+                MavMessage::HEARTBEAT(h) => {
+                    let armed = h.base_mode.contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED);
+                    beats.push((time_ms, u32::MAX, armed, (h.custom_mode >> 16) & 0xff));
+                    None
+                }
+                MavMessage::ATTITUDE(a) => Some(a.time_boot_ms),
+                MavMessage::SYSTEM_TIME(t) => Some(t.time_boot_ms),
+                _ => None,
+            };
+            if let Some(t) = stamp {
+                time_ms = time_ms.max(t);
+                for b in beats.iter_mut().rev().take_while(|b| b.1 == u32::MAX) {
+                    b.1 = t;
+                }
+            }
+        }
+    };
+    let mut stdout = String::new();
+    std::io::Read::read_to_string(&mut guard.0.stdout.take().expect("piped"), &mut stdout).expect("stdout");
+    let mut stderr = String::new();
+    std::io::Read::read_to_string(&mut guard.0.stderr.take().expect("piped"), &mut stderr).expect("stderr");
+    assert!(status.success(), "{stderr}");
+    let metrics: serde_json::Value = serde_json::from_str(&stdout).expect("one JSON object");
+    println!("pilot-arm: {} heartbeats; metrics {}", beats.len(), metrics["pilot"]);
+    const POSITION: u32 = 3;
+    // THEN no HEARTBEAT says armed before the gesture has been held COM_RC_ARM_HYST (1 s from 1.0 s)...
+    assert!(beats.iter().filter(|b| b.1 < 2000).all(|b| !b.2), "armed before the gesture: {beats:?}");
+    // ... the first that does (at 1 Hz, within 1.1 s of it) says Position ...
+    let armed = beats.iter().find(|b| b.2).unwrap_or_else(|| panic!("never armed: {beats:?}\n{stderr}"));
+    assert!(armed.1 >= 2000 && armed.0 <= 3100, "armed between {} and {} ms: {beats:?}", armed.0, armed.1);
+    assert_eq!(armed.3, POSITION, "armed in Position: {beats:?}");
+    // ... and the vehicle landed and disarmed once the throttle went low at 8 s.
+    assert!(beats.iter().any(|b| b.0 > 8000 && !b.2), "never disarmed after landing: {beats:?}");
+    // The plant's side agrees: the autopilot's actuator commands armed at 2.0 s (to a step) and it climbed.
+    let armed_at_s = metrics["pilot"]["armed_at_s"].as_f64().expect("armed_at_s");
+    assert!((2.0..=2.01).contains(&armed_at_s), "{metrics}");
+    assert!(metrics["pilot"]["max_climb_m"].as_f64().expect("max_climb_m") > 0.3, "{metrics}");
+}
+
 #[test]
 fn figure8_flown_as_a_mission_through_two_processes_tracks_within_1_5x_of_the_in_process_scenario() {
     let _shared = run_shared();

@@ -18,8 +18,8 @@ use sitl::scenario::Scenario;
 use sitl::scenario::two_process::{self, TwoProcessOptions};
 
 use super::common::{
-    PlantArgs, bind_rc_in, bind_sim_params, describe_pacing, describe_rc_in, duration_us, gust_track_lines,
-    instance_ports, realistic_plant_config,
+    PlantArgs, bind_rc_in, bind_sim_params, describe_pacing, describe_rc_in, duration_us, fmt_seconds,
+    gust_track_lines, instance_ports, realistic_plant_config,
 };
 use super::swarm::run_swarm;
 
@@ -210,6 +210,14 @@ pub(crate) fn print_two_process(m: &two_process::TwoProcessMetrics, json: bool) 
     line += &gust_track_lines(m.gust.as_ref(), m.track.as_ref());
     if let Some((reached, total)) = m.items_reached {
         line += &format!("\n  mission: {reached} of {total} items reached");
+    }
+    if let Some(p) = m.pilot {
+        line += &format!(
+            "\n  pilot: armed at {}, disarmed at {}, climbed {:.2} m at most",
+            fmt_seconds(p.armed_at_s),
+            fmt_seconds(p.disarmed_at_s),
+            p.max_climb_m
+        );
     }
     line += &format!(
         "\n  non-finite: {}  pwm activity {:.2} us/tick  {:.1} sim s in {:.2} s wall ({:.0}x real time)",

@@ -20,6 +20,13 @@
 //!   A polyline track (`path = "polyline"`) is uploaded as straight waypoints (NAV_WAYPOINT, which stop
 //!   at each corner) and measured against its straight segments. A track run starts on the ground, so it
 //!   needs the ground on, and its noise is sensor noise, which `state_noise_scale` does not scale.
+//! - **Pilot scenarios** (a hover with a `[[rc]]` stick schedule): the vehicle starts where `[initial]`
+//!   puts it (on the ground at D = 0), disarmed, in the autopilot's boot mode (Hold), and the schedule is
+//!   the pilot: the plant sends it as the airframe's radio (`RC_CHANNELS`), so the mode switch, the
+//!   arming gesture and the sticks fly it, with the scenario's `[manual]` settings (the channel map, the
+//!   mode switch's modes). Truth-fed by default, as a hover; measured as a hover (against its step's
+//!   point) and reported as when the autopilot's actuator commands armed and disarmed and how high the
+//!   plant's truth climbed ([`PilotMetrics`]).
 //! - A hover's step is held as a point: feed-forward on it cannot reach the autopilot and is refused.
 //!
 //! Either way the autopilot runs its commander, MAVLink services and telemetry as in any flight, with no
@@ -115,6 +122,9 @@ pub struct TwoProcessMetrics {
     /// Track scenarios: the mission items reported reached, and how many the mission had.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub items_reached: Option<(usize, usize)>,
+    /// Pilot scenarios (`[[rc]]`): when the autopilot armed and disarmed, how high the vehicle climbed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pilot: Option<PilotMetrics>,
     pub non_finite: bool,
     /// Mean |PWM change| per tick over the run and rotors (µs), from the commands the plant applied.
     pub pwm_activity_us: f64,
@@ -124,6 +134,18 @@ pub struct TwoProcessMetrics {
     pub realtime_factor: f64,
     /// Sensor datagrams the plant had to resend (0 in a healthy lockstep run).
     pub resends: u64,
+}
+
+/// What a pilot-flown run ([`Scenario::rc`]) did, from the actuator commands the autopilot sent (their
+/// armed flag) and the plant's truth.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PilotMetrics {
+    /// Plant time (s) of the first armed actuator command, if the vehicle armed.
+    pub armed_at_s: Option<f64>,
+    /// Plant time (s) of the first disarmed command after that, if it disarmed again.
+    pub disarmed_at_s: Option<f64>,
+    /// The highest the truth rose above its start (m).
+    pub max_climb_m: f64,
 }
 
 /// The estimator a run uses.
@@ -150,7 +172,10 @@ pub fn autopilot_config(
     match &scenario.reference {
         ReferenceSpec::Position { steps } => {
             let [hold] = steps.as_slice() else { return Err(TwoProcessError::NotHover(scenario.name.clone())) };
-            vehicle.start_airborne = Some(AirborneStart { hold_ned_m: hold.pos_ned_m, yaw_rad: hold.yaw_rad });
+            // A pilot's scenario starts as a pilot does: on the ground, disarmed.
+            if scenario.rc.is_empty() {
+                vehicle.start_airborne = Some(AirborneStart { hold_ned_m: hold.pos_ned_m, yaw_rad: hold.yaw_rad });
+            }
         }
         ReferenceSpec::Track(_) => {
             if scenario.state_noise == StateNoiseKind::Paper {
@@ -312,8 +337,17 @@ fn run_hover(
     let duration_us = (scenario.duration_s * 1e6).round() as u64;
     let mut rec = Recorded::default();
     rec.sample(0.0, &server.plant().truth().pos_ned_m, &hold);
+    let start_d_m = server.plant().truth().pos_ned_m.z;
+    let mut pilot = PilotMetrics { armed_at_s: None, disarmed_at_s: None, max_climb_m: 0.0 };
     let report = child.and_then(|child| {
         run_with_child(&mut server, child, Some(duration_us), stop, |plant, cmd| {
+            let cmd_s = cmd.time_us as f64 * 1e-6;
+            match (cmd.armed, pilot.armed_at_s, pilot.disarmed_at_s) {
+                (true, None, _) => pilot.armed_at_s = Some(cmd_s),
+                (false, Some(_), None) => pilot.disarmed_at_s = Some(cmd_s),
+                _ => {}
+            }
+            pilot.max_climb_m = pilot.max_climb_m.max(start_d_m - plant.truth().pos_ned_m.z);
             let pwm = cmd.effective_pwm_us();
             rec.non_finite |= !pwm.iter().all(|p| p.is_finite());
             if let Some(prev) = rec.last_pwm {
@@ -346,6 +380,7 @@ fn run_hover(
         gust,
         track: None,
         items_reached: None,
+        pilot: (!scenario.rc.is_empty()).then_some(pilot),
         non_finite: rec.non_finite,
         pwm_activity_us: rec.pwm_change_sum / rec.ticks.saturating_sub(1).max(1) as f64,
         steps: report.steps,
@@ -579,6 +614,7 @@ fn run_track(
         gust: None,
         track: (!cross.is_empty()).then(|| metrics::track_metrics(&track_t_s, &cross, &alt)),
         items_reached: Some((items_reached, items.len())),
+        pilot: None,
         non_finite,
         pwm_activity_us: pwm_change_sum / ticks.saturating_sub(1).max(1) as f64,
         steps: report.steps,
