@@ -668,28 +668,31 @@ fn gust_hover_through_two_processes_reproduces_the_in_process_metrics_within_5_p
     println!("gust-hover two processes vs in-process: {}", report.join(", "));
 }
 
-/// The pilot's radio through both processes: `sitl run --scenario sitl/scenarios/pilot-arm.toml`, whose
-/// `[[rc]]` schedule the plant sends as RC_CHANNELS (Position on the mode switch at 0.5 s; throttle low
-/// and yaw right from 1.0 s to 2.5 s, the arming gesture; climb, hold, throttle low to land), judged on
-/// what the autopilot tells a ground station: its HEARTBEATs on the instance's API port, each placed in
-/// vehicle time between the telemetry's `time_boot_ms` before it and after it (ATTITUDE, SYSTEM_TIME).
-#[test]
-fn a_stick_schedule_arms_by_the_gesture_in_position_within_1_1_s_of_its_hold_time_as_the_heartbeat_reports() {
-    let _shared = run_shared();
+/// What a pilot's scenario run (`sitl run --scenario FILE --json`) told a ground station on the
+/// instance's API port, and its metrics.
+struct PilotRun {
+    /// (vehicle time ms before it, after it, armed, PX4 main mode) of each HEARTBEAT, placed between the
+    /// telemetry's `time_boot_ms` (ATTITUDE, SYSTEM_TIME) before and after it.
+    beats: Vec<(u32, u32, bool, u32)>,
+    /// (vehicle time ms before it, text) of each STATUSTEXT.
+    texts: Vec<(u32, String)>,
+    metrics: serde_json::Value,
+}
+
+/// Fly the pilot's scenario at `path` through both processes (lockstep), listening as a ground station.
+fn fly_pilot(path: &str) -> PilotRun {
     let (n, api) = free_instance();
-    let scenario = format!("{}/scenarios/pilot-arm.toml", env!("CARGO_MANIFEST_DIR"));
     let child = Command::new(sitl_binary())
-        .args(["run", "--scenario", &scenario, "--json", "-i", &n.to_string()])
+        .args(["run", "--scenario", path, "--json", "-i", &n.to_string()])
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .process_group(0)
         .spawn()
-        .expect("sitl run --scenario pilot-arm");
+        .expect("sitl run --scenario");
     let mut guard = Guard(child);
     let sysid = u32::from(InstancePorts::of(n).expect("in range").system_id);
     let (mut decoder, mut buf) = (FrameDecoder::new(), [0u8; 4096]);
-    // (vehicle time ms before it, after it, armed, PX4 main mode) of each HEARTBEAT.
-    let mut beats: Vec<(u32, u32, bool, u32)> = Vec::new();
+    let (mut beats, mut texts): (Vec<(u32, u32, bool, u32)>, Vec<(u32, String)>) = (Vec::new(), Vec::new());
     let mut time_ms = 0;
     let started = Instant::now();
     let status = loop {
@@ -710,6 +713,10 @@ fn a_stick_schedule_arms_by_the_gesture_in_position_within_1_1_s_of_its_hold_tim
                     beats.push((time_ms, u32::MAX, armed, (h.custom_mode >> 16) & 0xff));
                     None
                 }
+                MavMessage::STATUSTEXT(t) => {
+                    texts.push((time_ms, t.text.to_str().unwrap_or("(not UTF-8)").to_owned()));
+                    None
+                }
                 MavMessage::ATTITUDE(a) => Some(a.time_boot_ms),
                 MavMessage::SYSTEM_TIME(t) => Some(t.time_boot_ms),
                 _ => None,
@@ -728,12 +735,26 @@ fn a_stick_schedule_arms_by_the_gesture_in_position_within_1_1_s_of_its_hold_tim
     std::io::Read::read_to_string(&mut guard.0.stderr.take().expect("piped"), &mut stderr).expect("stderr");
     assert!(status.success(), "{stderr}");
     let metrics: serde_json::Value = serde_json::from_str(&stdout).expect("one JSON object");
-    println!("pilot-arm: {} heartbeats; metrics {}", beats.len(), metrics["pilot"]);
-    const POSITION: u32 = 3;
+    PilotRun { beats, texts, metrics }
+}
+
+/// PX4's main mode of Position (POSCTL).
+const POSITION: u32 = 3;
+
+/// The pilot's radio through both processes: `sitl run --scenario sitl/scenarios/pilot-arm.toml`, whose
+/// `[[rc]]` schedule the plant sends as RC_CHANNELS (Position on the mode switch at 0.5 s; throttle low
+/// and yaw right from 1.0 s to 2.5 s, the arming gesture; climb, hold, throttle low to land), judged on
+/// what the autopilot tells a ground station: its HEARTBEATs.
+#[test]
+fn a_stick_schedule_arms_by_the_gesture_in_position_within_1_1_s_of_its_hold_time_as_the_heartbeat_reports() {
+    let _shared = run_shared();
+    let run = fly_pilot(&format!("{}/scenarios/pilot-arm.toml", env!("CARGO_MANIFEST_DIR")));
+    let (beats, metrics) = (&run.beats, &run.metrics);
+    println!("pilot-arm: heartbeats {beats:?}; metrics {}", metrics["pilot"]);
     // THEN no HEARTBEAT says armed before the gesture has been held COM_RC_ARM_HYST (1 s from 1.0 s)...
     assert!(beats.iter().filter(|b| b.1 < 2000).all(|b| !b.2), "armed before the gesture: {beats:?}");
     // ... the first that does (at 1 Hz, within 1.1 s of it) says Position ...
-    let armed = beats.iter().find(|b| b.2).unwrap_or_else(|| panic!("never armed: {beats:?}\n{stderr}"));
+    let armed = beats.iter().find(|b| b.2).unwrap_or_else(|| panic!("never armed: {beats:?}"));
     assert!(armed.1 >= 2000 && armed.0 <= 3100, "armed between {} and {} ms: {beats:?}", armed.0, armed.1);
     assert_eq!(armed.3, POSITION, "armed in Position: {beats:?}");
     // ... and the vehicle landed and disarmed once the throttle went low at 8 s.
@@ -742,6 +763,33 @@ fn a_stick_schedule_arms_by_the_gesture_in_position_within_1_1_s_of_its_hold_tim
     let armed_at_s = metrics["pilot"]["armed_at_s"].as_f64().expect("armed_at_s");
     assert!((2.0..=2.01).contains(&armed_at_s), "{metrics}");
     assert!(metrics["pilot"]["max_climb_m"].as_f64().expect("max_climb_m") > 0.3, "{metrics}");
+}
+
+/// RC loss rehearsed through both processes: pilot-arm's schedule up to the hold, then `lost = true` at
+/// 6 s (the receiver stops: no more RC_CHANNELS). The autopilot announces the loss within COM_RC_LOSS_T
+/// (0.5 s) plus a telemetry period and returns (NAV_RCL_ACT = 2), landing and disarming at home.
+#[test]
+fn a_schedule_that_loses_the_radio_in_the_air_makes_the_autopilot_say_so_within_0_6_s_and_return() {
+    let _shared = run_shared();
+    let arm = std::fs::read_to_string(format!("{}/scenarios/pilot-arm.toml", env!("CARGO_MANIFEST_DIR")))
+        .expect("pilot-arm.toml");
+    let hold_at = arm.find("[[rc]]                          # down").expect("the landing entry");
+    let text = format!("{}[[rc]]\nat_s = 6.0\nlost = true\n", &arm[..hold_at])
+        .replace("duration_s = 16.0", "duration_s = 45.0");
+    let path = std::env::temp_dir().join(format!("pilot-rc-loss-{}.toml", std::process::id()));
+    std::fs::write(&path, text).expect("write the scenario");
+    let run = fly_pilot(path.to_str().expect("UTF-8 path"));
+    let _ = std::fs::remove_file(&path);
+    println!("pilot RC loss: texts {:?}; metrics {}", run.texts, run.metrics["pilot"]);
+    let lost = run
+        .texts
+        .iter()
+        .find(|t| t.1.starts_with("Failsafe: manual control lost"))
+        .unwrap_or_else(|| panic!("no loss announced: {:?}", run.texts));
+    assert!((6000..=6600).contains(&lost.0), "announced at {} ms", lost.0);
+    assert_eq!(lost.1, "Failsafe: manual control lost, returning");
+    let disarmed = run.metrics["pilot"]["disarmed_at_s"].as_f64();
+    assert!(disarmed.is_some_and(|t| t > 6.0), "returned, landed and disarmed: {}", run.metrics);
 }
 
 #[test]
