@@ -692,7 +692,8 @@ fn fly_pilot(path: &str) -> PilotRun {
     let mut guard = Guard(child);
     let sysid = u32::from(InstancePorts::of(n).expect("in range").system_id);
     let (mut decoder, mut buf) = (FrameDecoder::new(), [0u8; 4096]);
-    let (mut beats, mut texts): (Vec<(u32, u32, bool, u32)>, Vec<(u32, String)>) = (Vec::new(), Vec::new());
+    let mut beats: Vec<(u32, u32, bool, u32)> = Vec::new();
+    let mut texts: Vec<(u32, String)> = Vec::new();
     let mut time_ms = 0;
     let started = Instant::now();
     let status = loop {
