@@ -184,7 +184,8 @@ pub fn run(
                 );
                 let text = statustext(MavSeverity::MAV_SEVERITY_CRITICAL, PLANT_LOST_TEXT);
                 host.send_gcs(None, Destination::All, text);
-                let stopped = ActuatorCommand { time_us: host.now_us, pwm_us: [PWM_MIN_US; 4], armed: false };
+                let stopped =
+                    ActuatorCommand { time_us: host.now_us, pwm_us: [PWM_MIN_US; 4], armed: false, motor_test: false };
                 let frame = plant.frame(&MavMessage::HIL_ACTUATOR_CONTROLS(encode_actuator_controls(&stopped)));
                 transport.send(&frame).map_err(io)?;
             } else {

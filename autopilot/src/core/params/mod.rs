@@ -341,6 +341,12 @@ impl ParamStore {
     pub fn sdlog_mode(&self) -> i32 {
         self.get("SDLOG_MODE").map_or(0, |v| v as i32)
     }
+
+    /// Whether motor tests are allowed (COM_MOT_TEST_EN 1).
+    #[must_use]
+    pub fn motor_test_enabled(&self) -> bool {
+        self.get("COM_MOT_TEST_EN").is_some_and(|v| v == 1.0)
+    }
 }
 
 impl<G, B> ParamStore<G, B> {

@@ -243,6 +243,17 @@ impl Vehicle {
                 Ok(())
             }
             VehicleCommand::NoOp => Ok(()),
+            VehicleCommand::MotorTest(request) => {
+                // PX4's order: armed first, then the enable parameter.
+                if self.commander.armed() {
+                    return Err(Some("Motor test denied: armed".to_owned()));
+                }
+                if !self.params.motor_test_enabled() {
+                    return Err(Some("Motor test denied: disabled".to_owned()));
+                }
+                self.motor_test.request(now_us, request);
+                Ok(())
+            }
         }
     }
 

@@ -102,8 +102,9 @@ impl FlightLogger {
         self.flight.is_some()
     }
 
-    /// Before the step's messages are sent: a flight starts when the vehicle is armed (and SDLOG_MODE is
-    /// not -1), so that the step's "Armed" text is its first logged string.
+    /// Before the step's messages are sent: a flight starts when the vehicle is armed, or a motor test
+    /// spins a motor of the disarmed vehicle (and SDLOG_MODE is not -1), so that the step's "Armed" text
+    /// is its first logged string and a bench test leaves a record of what the motors were told.
     pub fn begin_step(&mut self, now_us: u64, vehicle: &Vehicle) {
         if self.close_pending
             && let Some(tx) = &self.tx
@@ -111,7 +112,7 @@ impl FlightLogger {
         {
             self.close_pending = false;
         }
-        if self.tx.is_none() || self.flight.is_some() || !vehicle.commander_output().armed {
+        if self.tx.is_none() || self.flight.is_some() || !motors_running(vehicle) {
             return;
         }
         if vehicle.params().sdlog_mode() < 0 {
@@ -131,8 +132,8 @@ impl FlightLogger {
         }
     }
 
-    /// After the step's messages: the topics due at `now_us`; when the vehicle has disarmed, a last
-    /// `vehicle_status` and the end of the flight.
+    /// After the step's messages: the topics due at `now_us`; when the motors stop (the vehicle disarmed,
+    /// or the motor test ended), a last `vehicle_status` and the end of the flight.
     pub fn end_step(&mut self, now_us: u64, vehicle: &Vehicle) {
         let Some(flight) = self.flight.as_mut() else { return };
         let out = vehicle.commander_output();
@@ -185,7 +186,7 @@ impl FlightLogger {
             flight.next_sync_us = now_us + SYNC_INTERVAL_US;
             self.pending.extend(ulog::sync());
         }
-        let ended = !status.0;
+        let ended = !motors_running(vehicle);
         self.send(now_us, false);
         if ended {
             self.close();
@@ -275,6 +276,11 @@ impl FlightLogger {
             armed_at_us: now_us,
         });
     }
+}
+
+/// Whether the motors run: armed, or a motor test on the disarmed vehicle.
+fn motors_running(vehicle: &Vehicle) -> bool {
+    vehicle.commander_output().armed || vehicle.motor_test_running()
 }
 
 fn wall_us() -> u64 {

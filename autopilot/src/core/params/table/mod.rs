@@ -118,6 +118,7 @@ const SECTIONS: &[&[ParamDef]] = &[
     commander::FAILSAFES,
     telemetry::ULOG,
     baselines::COMPETENT_CA,
+    commander::MOTOR_TEST,
 ];
 
 /// How many parameters the sections hold together.
@@ -159,7 +160,7 @@ mod tests {
 
     /// Every parameter's name at its `param_index`, as ground stations have cached them: a parameter
     /// moved, removed or inserted before the end changes an index and fails here.
-    const INDEX_ORDER: [&str; 91] = [
+    const INDEX_ORDER: [&str; 92] = [
         "ACO_POS_P",
         "ACO_VEL_P",
         "ACO_ROLL_P",
@@ -251,6 +252,7 @@ mod tests {
         "MRAC_WI_POS",
         "MRAC_EMOD",
         "MRAC_HEDGE",
+        "COM_MOT_TEST_EN",
     ];
 
     #[test]
