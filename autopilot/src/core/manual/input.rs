@@ -80,7 +80,14 @@ pub struct ManualConfig {
 
 impl Default for ManualConfig {
     fn default() -> Self {
-        Self { rc: RcConfig::default(), in_mode: 3, loss_s: 0.5, arm_gesture: true, arm_hyst_s: 1.0, fltmodes: [-1; 6] }
+        Self {
+            rc: RcConfig::default(),
+            in_mode: 3,
+            loss_s: 0.5,
+            arm_gesture: true,
+            arm_hyst_s: 1.0,
+            fltmodes: [-1; 6],
+        }
     }
 }
 
@@ -207,19 +214,18 @@ impl ManualInput {
         let loss_us = seconds_to_us(config.loss_s);
         let mode = config.in_mode();
         let rc = Self::fresh(self.rc_sticks, now_us, loss_us).filter(|_| mode.accepts(ManualSource::Rc));
-        let joystick = Self::fresh(self.joystick, now_us, loss_us).filter(|_| mode.accepts(ManualSource::Joystick));
+        let joystick =
+            Self::fresh(self.joystick, now_us, loss_us).filter(|_| mode.accepts(ManualSource::Joystick));
         let fresh = |s: ManualSource| match s {
             ManualSource::Rc => rc,
             ManualSource::Joystick => joystick,
         };
         let current = self.source.filter(|&s| fresh(s).is_some());
         let chosen = match mode {
-            RcInMode::KeepFirst => self
-                .first
-                .or_else(|| [ManualSource::Rc, ManualSource::Joystick].into_iter().find(|&s| fresh(s).is_some())),
-            _ => {
-                current.or_else(|| [ManualSource::Rc, ManualSource::Joystick].into_iter().find(|&s| fresh(s).is_some()))
-            }
+            RcInMode::KeepFirst => self.first.or_else(|| {
+                [ManualSource::Rc, ManualSource::Joystick].into_iter().find(|&s| fresh(s).is_some())
+            }),
+            _ => current.or_else(|| [ManualSource::Rc, ManualSource::Joystick].into_iter().find(|&s| fresh(s).is_some())),
         };
         let sticks = chosen.and_then(fresh);
         if sticks.is_some() {
@@ -237,8 +243,12 @@ impl ManualInput {
                 self.gesture_fired = false;
             }
         }
-        let status =
-            ManualStatus { sticks, source: sticks.and(chosen), rc: self.rc.map(|s| s.value), rc_fresh: rc.is_some() };
+        let status = ManualStatus {
+            sticks,
+            source: sticks.and(chosen),
+            rc: self.rc.map(|s| s.value),
+            rc_fresh: rc.is_some(),
+        };
         (status, std::mem::take(&mut self.actions))
     }
 
@@ -364,20 +374,14 @@ mod tests {
     #[test]
     fn switches_act_on_their_edges_and_an_arm_switch_found_on_does_not_arm() {
         let cfg = ManualConfig {
-            rc: RcConfig {
-                map: RcMap { fltmode: 5, kill_sw: 6, arm_sw: 7, ..RcMap::default() },
-                ..RcConfig::default()
-            },
+            rc: RcConfig { map: RcMap { fltmode: 5, kill_sw: 6, arm_sw: 7, ..RcMap::default() }, ..RcConfig::default() },
             fltmodes: [2, -1, -1, 1, -1, 3],
             ..ManualConfig::default()
         };
         let mut m = ManualInput::default();
         let frame = |mode, kill, arm| RcFrame::of(&[1500, 1500, 1000, 1500, mode, kill, arm]);
         m.on_rc(0, frame(1000, 1000, 2000), &cfg);
-        assert_eq!(
-            m.step(0, &cfg).1,
-            vec![PilotAction::ModeSwitch { slot: 0, mode: 2 }, PilotAction::KillSwitch(false)]
-        );
+        assert_eq!(m.step(0, &cfg).1, vec![PilotAction::ModeSwitch { slot: 0, mode: 2 }, PilotAction::KillSwitch(false)]);
         m.on_rc(20 * MS, frame(1500, 2000, 1000), &cfg);
         assert_eq!(
             m.step(20 * MS, &cfg).1,
@@ -397,10 +401,7 @@ mod tests {
     fn an_unflown_mode_on_the_switch_is_refused_when_set() {
         let cfg = ManualConfig { fltmodes: [12, -1, -1, -1, -1, -1], ..ManualConfig::default() };
         assert_eq!(cfg.validate(), Err(ManualConfigError::FlightMode { slot: 1, mode: 12 }));
-        assert_eq!(
-            ManualConfig { in_mode: 5, ..ManualConfig::default() }.validate(),
-            Err(ManualConfigError::InMode(5))
-        );
+        assert_eq!(ManualConfig { in_mode: 5, ..ManualConfig::default() }.validate(), Err(ManualConfigError::InMode(5)));
         assert_eq!(ManualConfig::default().validate(), Ok(()));
     }
 }
