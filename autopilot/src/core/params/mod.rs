@@ -336,7 +336,8 @@ impl ParamStore {
         self.get("ACO_WEIGHTS_HZ").unwrap_or(0.0)
     }
 
-    /// SDLOG_MODE: whether the shell writes a ULog for each armed flight (-1 never, 0 arm to disarm).
+    /// SDLOG_MODE: whether the shell writes a ULog for each armed flight and motor test (-1 never, 0 arm to
+    /// disarm).
     #[must_use]
     pub fn sdlog_mode(&self) -> i32 {
         self.get("SDLOG_MODE").map_or(0, |v| v as i32)
