@@ -108,6 +108,25 @@ fn given_a_motor_test_running_when_armed_then_the_test_ends_on_the_next_tick() {
 }
 
 #[test]
+fn given_a_motor_test_running_when_a_disarm_kill_or_termination_is_sent_then_every_motor_is_at_1000_us_on_the_next_tick()
+ {
+    for (stop, params) in [
+        (MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [0.0; 7]),
+        (MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [0.0, 21196.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+        (MavCmd::MAV_CMD_DO_FLIGHTTERMINATION, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+    ] {
+        let mut rig = settled();
+        assert_eq!(do_motor_test(&mut rig, 2.0, 60.0, 3.0).0, MavResult::MAV_RESULT_ACCEPTED);
+        rig.run_s(0.2, |_| {});
+        assert!(rig.plant.last_pwm_us()[1] > 1500.0);
+        let _ = command(&mut rig, stop, params);
+        rig.tick();
+        assert_eq!(rig.plant.last_pwm_us(), [1000.0; 4], "{stop:?} {params:?}");
+        assert!(!rig.vehicle.motor_test_running());
+    }
+}
+
+#[test]
 fn given_armed_when_a_motor_test_is_sent_then_denied_with_the_statustext_and_no_rotor_changes() {
     let mut rig = settled();
     rig.wait_until(30.0, "estimator convergence", |r| r.vehicle.estimate().flags.converged);

@@ -130,6 +130,10 @@ impl Vehicle {
     fn apply_command(&mut self, now_us: u64, cmd: &InboundCommand) -> Vec<MavMessage> {
         let mut extra = Vec::new();
         let facts = self.facts(now_us);
+        if matches!(cmd.effect, CommandEffect::Request(Request::Disarm { .. } | Request::Kill)) {
+            // A disarm, kill or termination stops a motor test too, whatever the commander answers.
+            self.motor_test.stop();
+        }
         let outcome = match cmd.effect.clone() {
             CommandEffect::Request(req @ (Request::Mission | Request::SetMode(FlightMode::Mission))) => self
                 .check_mission()

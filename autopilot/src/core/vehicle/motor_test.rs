@@ -6,8 +6,9 @@
 //!
 //! One motor at a time: a new test replaces the running one (PX4 keeps every output it was asked to
 //! test); a stop for the running motor ends it (one naming another motor changes nothing); the test ends
-//! at its timeout (the first step after `start + timeout`, PX4's `now > timeout`) and whenever the vehicle
-//! is armed.
+//! at its timeout (the first step after `start + timeout`, PX4's `now > timeout`), whenever the vehicle
+//! is armed, and at any disarm, kill or flight termination command ([`MotorTest::stop`]: whoever sends
+//! one wants the motors stopped).
 
 use crate::core::control::distributor::{PWM_MAX_US, PWM_MIN_US};
 use crate::core::mavlink::MotorTestRequest;
@@ -46,6 +47,11 @@ impl MotorTest {
                 }
             }
         }
+    }
+
+    /// Ends any test (from the next step).
+    pub fn stop(&mut self) {
+        self.running = None;
     }
 
     /// One step at `now_us`: the PWM while a test runs (it ends when `armed` or past its timeout).
