@@ -56,6 +56,7 @@ fn given_a_radio_when_streamed_then_rc_channels_at_5_hz_within_one_and_sys_statu
     // THEN RC_CHANNELS at 5 Hz (10 in 2 s, within one), as PX4 fills it: the frame's channels and count,
     // UINT16_MAX beyond it, its RSSI.
     let rc = rc_channels(&messages);
+    eprintln!("{} RC_CHANNELS in 2 s at the default rate", rc.len());
     assert!(rc.len().abs_diff(10) <= 1, "{} RC_CHANNELS in 2 s", rc.len());
     let last = rc.last().expect("one");
     assert_eq!((last.chancount, last.rssi), (8, 200));
@@ -75,6 +76,7 @@ fn given_a_radio_when_streamed_then_rc_channels_at_5_hz_within_one_and_sys_statu
     );
     rig.run_s(1.0, |_| {});
     let n = rc_channels(&rig.take_messages()).len();
+    eprintln!("{n} RC_CHANNELS in 1 s at 50 Hz");
     assert!(n.abs_diff(50) <= 1, "{n} RC_CHANNELS in 1 s at 50 Hz");
     let replies = rig.send(&autopilot::core::mavlink::command_long(
         1,
