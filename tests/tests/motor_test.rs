@@ -108,7 +108,7 @@ fn given_a_motor_test_running_when_armed_then_the_test_ends_on_the_next_tick() {
 }
 
 #[test]
-fn given_a_motor_test_running_when_a_disarm_kill_or_termination_is_sent_then_every_motor_is_at_1000_us_on_the_next_tick()
+fn given_a_motor_test_running_when_a_disarm_kill_or_termination_is_sent_then_every_motor_is_at_1000_us_on_the_next_tick_and_killed_refuses_more()
  {
     for (stop, params) in [
         (MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [0.0; 7]),
@@ -123,6 +123,15 @@ fn given_a_motor_test_running_when_a_disarm_kill_or_termination_is_sent_then_eve
         rig.tick();
         assert_eq!(rig.plant.last_pwm_us(), [1000.0; 4], "{stop:?} {params:?}");
         assert!(!rig.vehicle.motor_test_running());
+        // AND after a kill or termination no new test is accepted; after a disarm one is.
+        let killed = rig.vehicle.commander().state() == autopilot::core::commander::State::Killed;
+        assert_eq!(killed, params != [0.0; 7], "{stop:?} {params:?}");
+        let again = do_motor_test(&mut rig, 2.0, 60.0, 3.0);
+        if killed {
+            assert_eq!(again, (MavResult::MAV_RESULT_DENIED, vec!["Motor test denied: killed".to_owned()]));
+        } else {
+            assert_eq!(again.0, MavResult::MAV_RESULT_ACCEPTED);
+        }
     }
 }
 

@@ -255,6 +255,10 @@ impl Vehicle {
                 if !self.params.motor_test_enabled() {
                     return Err(Some("Motor test denied: disabled".to_owned()));
                 }
+                // Killed (a kill or flight termination): the motors stay stopped until the pilot rearms.
+                if self.commander.state() == crate::core::commander::State::Killed {
+                    return Err(Some("Motor test denied: killed".to_owned()));
+                }
                 self.motor_test.request(now_us, request);
                 Ok(())
             }

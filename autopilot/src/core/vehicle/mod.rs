@@ -16,6 +16,8 @@
 //! sample (per truth sample with the `Truth` source). Idle -> 1000 µs on every rotor and the controller
 //! rebuilt, so nothing adapts or integrates on the ground. PWM is 1000 whenever disarmed, killed or idle,
 //! and when the estimate is invalid while armed on the ground; it is clamped to [1000, 2000] and never NaN.
+//! The one exception is a motor test (`motor_test.rs`): one motor of the disarmed vehicle at its test
+//! value, flagged in [`VehicleOutputs::motor_test`].
 
 use ::mavlink::dialects::common::MavMessage;
 use nalgebra::Vector3;
