@@ -417,9 +417,9 @@ def fly_script(vehicle, steps, then):
     """Each step's sticks for its vehicle time; then land (throttle low) or Hold."""
     start_s = vehicle.now_s()
     for i, step in enumerate(steps, 1):
-        flight.say(f"step {i}/{len(steps)} for {step.for_s:g} s: {step.sticks.describe()}")
-        vehicle.sticks = step.sticks
         begin_s = vehicle.now_s()
+        flight.say(f"step {i}/{len(steps)} at t {begin_s:.2f} s for {step.for_s:g} s: {step.sticks.describe()}")
+        vehicle.sticks = step.sticks
         begin = vehicle.pos
         while vehicle.now_s() - begin_s < step.for_s:
             vehicle.pump()
