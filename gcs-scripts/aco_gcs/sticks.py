@@ -304,26 +304,40 @@ def gamepad_sticks(axis_values, axes):
 
 class PilotVehicle(Vehicle):
     """A Vehicle that streams the current sticks (`sticks`; None: nothing is sent) as MANUAL_CONTROL before
-    each receive, once `period_s` of vehicle time or of wall time has passed since the last one: every wait
-    of the flight keeps them flowing."""
+    each receive, every `period_s` of vehicle time or of wall time, whichever comes first: every wait of the
+    flight keeps them flowing."""
 
     def __init__(self, connect, target=None, wall_limit_s=600.0):
         super().__init__(connect, target, wall_limit_s)
         self.sticks: Sticks | None = None
         self.period_s = 1.0 / DEFAULT_RATE_HZ
         self.sent = 0
-        self._last_sticks = (-1e9, 0.0)
+        self.last_sent_s: float | None = None  # the vehicle time of the last MANUAL_CONTROL sent
+        self._next_sticks = (-1e9, -1e9)  # when the next is due: (vehicle s, wall s)
 
     def before_pump(self):
         super().before_pump()
         if self.sticks is None or self.system_id is None:
             return
-        last_vehicle_s, last_wall = self._last_sticks
-        now_wall = time.monotonic()
-        if self.now_s() - last_vehicle_s >= self.period_s or now_wall - last_wall >= self.period_s:
-            self._last_sticks = (self.now_s(), now_wall)
+        due_vehicle_s, due_wall = self._next_sticks
+        now_vehicle_s, now_wall = self.now_s(), time.monotonic()
+        vehicle_due, wall_due = now_vehicle_s >= due_vehicle_s - 1e-9, now_wall >= due_wall - 1e-9
+        if vehicle_due or wall_due:
+            # On the clock that called for it, due again one period after this one was due (the telemetry
+            # clock moves in 20 ms ticks: one period after the send itself would average fewer than
+            # `1 / period_s` a second), or a period from now if that has passed already; on the other
+            # clock, a period from now.
+            self._next_sticks = (
+                self._next_due(due_vehicle_s, now_vehicle_s) if vehicle_due else now_vehicle_s + self.period_s,
+                self._next_due(due_wall, now_wall) if wall_due else now_wall + self.period_s,
+            )
+            self.last_sent_s = now_vehicle_s
             self.send(manual_control_message(self.conn.mav, self.system_id, self.sticks))
             self.sent += 1
+
+    def _next_due(self, due, now):
+        after = due + self.period_s
+        return after if after > now else now + self.period_s
 
 
 class Track:

@@ -381,8 +381,8 @@ def test_sticks_stopping_in_position_mode_in_the_air_return_within_com_rc_loss_t
     vehicle.sticks = CENTRED
     vehicle.wait_until(10.0, "climb stopped", lambda: abs(vehicle.vel[2]) < 0.05)
     # The sticks stop: the vehicle time of the last MANUAL_CONTROL is the client's clock when it went out.
-    last_sent_s = vehicle._last_sticks[0]
     vehicle.sticks = None
+    last_sent_s = vehicle.last_sent_s
     text = "Failsafe: manual control lost, returning"
     vehicle.wait_until(
         5.0, "RTL, announced", lambda: said(vehicle, text) and vehicle.px4_mode() == (PX4_MAIN_AUTO, PX4_AUTO_RTL)

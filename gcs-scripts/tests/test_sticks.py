@@ -256,6 +256,14 @@ def test_the_stream_sends_the_current_sticks_every_period_of_vehicle_time(monkey
         wall[0] += 0.05
         pilot.before_pump()
         assert pilot.sent == 6
+        # On telemetry ticks of 20 ms, 25 a second of vehicle time on average (one per 40 ms), not one per
+        # 60 ms as "a period since the last send" would give with the vehicle time 20 ms coarse.
+        pilot.period_s = 1 / 25
+        for tick in range(1, 51):
+            pilot.now_ms = 6000 + 20 * tick
+            pilot.before_pump()
+        assert pilot.sent == 6 + 25
+        assert pilot.last_sent_s == pytest.approx(6.98), "6.02, 6.06, ... 6.98"
     finally:
         pilot.close()
         vehicle_sock.close()
