@@ -18,6 +18,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -124,7 +125,10 @@ async def watch(stream, update):
 
 
 async def mavsdk_manual_flight(instance, disarm_land_s):
-    from mavsdk import System
+    with warnings.catch_warnings():
+        # mavsdk 3.17.4 warns that the name moves to a new binding in 4.x; requirements.txt pins `mavsdk<4`.
+        warnings.filterwarnings("ignore", message="The 'mavsdk' package has been renamed", category=FutureWarning)
+        from mavsdk import System
 
     drone = System(port=random.randint(50100, 50900))
     await drone.connect(system_address=f"udpin://0.0.0.0:{link.api_port(instance)}")
@@ -162,7 +166,7 @@ async def mavsdk_manual_flight(instance, disarm_land_s):
         await drone.action.arm()
         await drone.manual_control.start_position_control()
         await w.until(3.0, "Position mode", lambda: w.modes and w.modes[-1][1] == "POSCTL")
-        position_from = w.now_s
+        position_from = len(w.modes) - 1
         # On the ground with the throttle centred the motors idle: it stays there.
         await w.hold(1.0)
         idle_rise_m = ground[2] - w.pos[2]
@@ -193,7 +197,7 @@ async def mavsdk_manual_flight(instance, disarm_land_s):
         await w.until(60.0, "landed (ON_GROUND)", lambda: w.landed == "ON_GROUND")
         on_ground_s = w.landed_at[-1][0]
         await w.until(disarm_land_s + 5.0, "disarmed", lambda: w.disarmed_at is not None)
-        modes_in_flight = [name for (at, name) in w.modes if at >= position_from]
+        modes_in_flight = [name for (_, name) in w.modes[position_from:]]
         return {
             "idle_rise_m": idle_rise_m,
             "climb_s": climb_s,
@@ -228,6 +232,7 @@ def test_mavsdk_manual_control_climbs_flies_forward_and_back_in_position_mode_an
     assert got["out_m"] > 2.0
     assert got["out_m"] - got["back_m"] > 2.0 and abs(got["back_m"]) < 0.5, "flown back to about the start"
     assert got["cross_m"] < 0.2, "no sideways drift with the roll stick centred"
+    assert "Disarmed after landing" in got["texts"], "a landing after a flight, not a preflight disarm"
     assert disarm_land_s - 0.2 <= got["disarm_after_s"] <= disarm_land_s + 0.5
 
 
@@ -317,7 +322,9 @@ def test_sticks_script_flies_position_mode_forward_and_stops_within_0_1_m_on_the
     assert ground[2] - forward_from[1][2] > 1.0, "climbed with the throttle stick"
     assert out_m > 2.0
     assert end_speed_mps < 0.1 and drift_m < 0.1, "stopped and holding with the sticks centred"
-    assert stopped_m - out_m < 2.0, "braked within the stopping distance"
+    # The reference's jerk-limited stop from MPC_VEL_MANUAL 2 m/s (MPC_ACC_HOR_MAX 2 m/s², MPC_JERK_MAX
+    # 4 m/s³) takes 1.5 m; the vehicle trails its reference a little (1.88 m measured on the truth).
+    assert stopped_m - out_m < 2.5, "braked within the stopping distance"
 
 
 # -- refusals ----------------------------------------------------------------------------------------------
@@ -338,10 +345,15 @@ def test_manual_modes_and_arming_without_manual_control_and_acro_are_refused_wit
     loss_s = Params(vehicle, 1).get("COM_RC_LOSS_T")
     custom = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
 
-    def refused(main, text):
+    def refused(main, *words):
+        """The ACK of DO_SET_MODE to PX4 main mode `main`, once a STATUSTEXT with all of `words` came."""
         since = vehicle.now_s()
         result = vehicle.command(mavlink.MAV_CMD_DO_SET_MODE, custom, main, 0)
-        vehicle.wait_until(2.0, f"STATUSTEXT {text!r}", lambda: text in vehicle.texts_since(since))
+        vehicle.wait_until(
+            2.0,
+            f"a STATUSTEXT saying {words}",
+            lambda: any(all(w in text for w in words) for text in vehicle.texts_since(since)),
+        )
         return result
 
     # No manual control ever: each manual mode is refused by name, and the mode stays.
@@ -351,7 +363,7 @@ def test_manual_modes_and_arming_without_manual_control_and_acro_are_refused_wit
     assert vehicle.px4_mode() == before
     # Acro is refused whatever the sticks do.
     vehicle.sticks = CENTRED
-    assert refused(PX4_MAIN_ACRO, "ACRO denied: controllers take no rate setpoints") == mavlink.MAV_RESULT_DENIED
+    assert refused(PX4_MAIN_ACRO, "ACRO", "controllers take no rate setpoints") == mavlink.MAV_RESULT_DENIED
     # With the sticks flowing Position is taken; once they stop, arming in it is refused.
     vehicle.set_px4_mode(PX4_MAIN_POSCTL, 0, "Position mode")
     vehicle.sticks = None
