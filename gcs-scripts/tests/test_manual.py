@@ -192,11 +192,14 @@ async def mavsdk_manual_flight(instance, disarm_land_s):
         sticks[0] = 0.0
         await w.until(10.0, "stopped after back", lambda: w.speed_mps() < 0.05)
         back_m = forward_m(start, w.pos, yaw)
-        # Throttle low: it descends, lands and disarms COM_DISARM_LAND after touchdown.
+        # Throttle low: it descends, lands and disarms COM_DISARM_LAND after touchdown. The times are the
+        # STATUSTEXTs' (sent as it happens); EXTENDED_SYS_STATE and HEARTBEAT come once a second.
         sticks[2] = 0.0
         await w.until(60.0, "landed (ON_GROUND)", lambda: w.landed == "ON_GROUND")
-        on_ground_s = w.landed_at[-1][0]
         await w.until(disarm_land_s + 5.0, "disarmed", lambda: w.disarmed_at is not None)
+        await w.until(2.0, "the disarm's STATUSTEXT", lambda: any(t.startswith("Disarmed") for _, t in w.texts))
+        touchdown_s = [at for (at, text) in w.texts if text == "Landing detected"][-1]
+        disarmed_s = [at for (at, text) in w.texts if text.startswith("Disarmed")][-1]
         modes_in_flight = [name for (_, name) in w.modes[position_from:]]
         return {
             "idle_rise_m": idle_rise_m,
@@ -207,7 +210,7 @@ async def mavsdk_manual_flight(instance, disarm_land_s):
             "out_m": out_m,
             "back_m": back_m,
             "cross_m": abs(-(w.pos[0] - start[0]) * math.sin(yaw) + (w.pos[1] - start[1]) * math.cos(yaw)),
-            "disarm_after_s": w.disarmed_at - on_ground_s,
+            "disarm_after_s": disarmed_s - touchdown_s,
             "modes": modes_in_flight,
             "texts": [text for (_, text) in w.texts],
         }
@@ -233,7 +236,7 @@ def test_mavsdk_manual_control_climbs_flies_forward_and_back_in_position_mode_an
     assert got["out_m"] - got["back_m"] > 2.0 and abs(got["back_m"]) < 0.5, "flown back to about the start"
     assert got["cross_m"] < 0.2, "no sideways drift with the roll stick centred"
     assert "Disarmed after landing" in got["texts"], "a landing after a flight, not a preflight disarm"
-    assert disarm_land_s - 0.2 <= got["disarm_after_s"] <= disarm_land_s + 0.5
+    assert abs(got["disarm_after_s"] - disarm_land_s) <= 0.1, "disarmed COM_DISARM_LAND after touchdown"
 
 
 # -- aco-sticks --script -----------------------------------------------------------------------------------
