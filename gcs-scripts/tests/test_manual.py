@@ -296,6 +296,17 @@ def test_sticks_script_flies_position_mode_forward_and_stops_within_0_1_m_on_the
         "[[step]]\nfor_s = 3.0\npitch = 1.0\n"  # forward
         "[[step]]\nfor_s = 4.0\n"  # sticks centred: brake and hold
     )
+    # Refused first: with the joystick not a source (COM_RC_IN_MODE 0, the radio only) Position is denied,
+    # and aco-sticks says why and exits 1 without arming.
+    vehicle = connect(sitl)
+    Params(vehicle, 1).require_set("COM_RC_IN_MODE", 0)
+    vehicle.close()
+    code, out, err = run_sticks("--instance", sitl.instance, "--script", script)
+    assert code == 1 and "Position denied: no manual control" in err, err
+    assert "armed at" not in out
+    vehicle = connect(sitl)
+    Params(vehicle, 1).require_set("COM_RC_IN_MODE", 3)
+    vehicle.close()
     code, out, err = run_sticks("--instance", sitl.instance, "--script", script)
     assert code == 0, err
     assert "Position mode at t" in out and "armed at t" in out and "landed and disarmed" in out
