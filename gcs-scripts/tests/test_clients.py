@@ -224,10 +224,12 @@ def test_pymavlink_knows_the_px4_modes_and_set_mode_loiter_switches(sitl):
     assert hb is not None and hb.autopilot == mavlink.MAV_AUTOPILOT_PX4
     mapping = conn.mode_mapping()
     assert {"LOITER", "MISSION", "RTL", "OFFBOARD", "POSCTL"} <= set(mapping), mapping
-    conn.set_mode("POSCTL")
     deadline = time.monotonic() + 30
     while conn.flightmode != "POSCTL":
         assert time.monotonic() < deadline, f"still {conn.flightmode}"
+        # POSCTL flies the sticks: a joystick's MANUAL_CONTROL (centred, throttle at hold) goes with it.
+        conn.mav.manual_control_send(conn.target_system, 0, 0, 500, 0, 0)
+        conn.set_mode("POSCTL")
         conn.recv_match(type="HEARTBEAT", blocking=True, timeout=1)
     conn.set_mode("LOITER")
     while conn.flightmode != "LOITER":
@@ -508,6 +510,8 @@ def test_the_qgroundcontrol_connection_sequence_completes(sitl):
         v.send(v.conn.mav.mission_ack_encode(sysid, 1, mavlink.MAV_MISSION_ACCEPTED, mission_type))
     # A mode change with the SET_MODE message (PX4 POSCTL), then back to Hold.
     for custom_mode in (3 << 16, (4 << 16) | (3 << 24)):
+        # POSCTL flies the sticks: a joystick's MANUAL_CONTROL (centred, throttle at hold) first.
+        v.send(v.conn.mav.manual_control_encode(sysid, 0, 0, 500, 0, 0))
         v.send(v.conn.mav.set_mode_encode(sysid, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, custom_mode))
         v.wait_until(10, f"custom mode {custom_mode:#x}", lambda c=custom_mode: v.custom_mode == c)
     # Takeoff before arming (AMSL altitude, NaN position), then arm: it climbs.

@@ -24,6 +24,20 @@ pub enum Intent {
     Land,
     /// The navigator decides (mission, return, offboard).
     Auto(AutoMode),
+    /// Fly the pilot's sticks (the navigator's input) in this manual mode.
+    Manual(ManualMode),
+}
+
+/// How the sticks fly (PX4's manual modes; MANUAL is flown as STABILIZED on a multicopter, as PX4 does).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ManualMode {
+    /// Sticks to attitude and yaw rate, throttle stick to thrust.
+    Stabilized,
+    /// Sticks to attitude and yaw rate, throttle stick to climb rate; the altitude held at centre.
+    Altitude,
+    /// Sticks to horizontal velocity and yaw rate, throttle stick to climb rate; the position held when
+    /// centred.
+    Position,
 }
 
 /// Where a [`Intent::Hold`] holds.

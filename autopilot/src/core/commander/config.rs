@@ -26,6 +26,12 @@ pub struct CommanderConfig {
     /// What the vehicle does when it is (PX4's NAV_DLL_ACT: 0 nothing, 1 hold, 2 return, 3 land, 5
     /// terminate; see [`FailsafeAction::from_px4`]).
     pub datalink_loss_action: u32,
+    /// What the vehicle does when manual control is lost (PX4's NAV_RCL_ACT: 0 nothing, 1 hold, 2 return,
+    /// 3 land, 5 terminate).
+    pub rc_loss_action: u32,
+    /// The modes manual-control loss leaves alone (PX4's COM_RCL_EXCEPT bits: 1 mission, 2 hold, 4
+    /// offboard).
+    pub rc_loss_except: u32,
     /// What the vehicle does at the battery's critical and emergency levels (PX4's COM_LOW_BAT_ACT: 0
     /// warn only, 2 land, 3 return at critical and land at emergency; see
     /// [`failsafe::low_battery_action`]).
@@ -46,6 +52,8 @@ impl Default for CommanderConfig {
             takeoff_acceptance_m: 0.1,
             datalink_loss_s: 10.0,
             datalink_loss_action: 0,
+            rc_loss_action: 2,
+            rc_loss_except: 0,
             low_battery_action: 3,
             battery: BatteryConfig::default(),
             geofence: GeofenceConfig::default(),
@@ -124,6 +132,20 @@ impl CommanderConfig {
                 field: "datalink_loss_action",
                 value: f64::from(n),
                 must: "0 (off), 1 hold, 2 return, 3 land or 5 terminate",
+            });
+        }
+        if let Err(n) = FailsafeAction::from_px4(self.rc_loss_action) {
+            return Err(ConfigError {
+                field: "rc_loss_action",
+                value: f64::from(n),
+                must: "0 (off), 1 hold, 2 return, 3 land or 5 terminate",
+            });
+        }
+        if self.rc_loss_except > 7 {
+            return Err(ConfigError {
+                field: "rc_loss_except",
+                value: f64::from(self.rc_loss_except),
+                must: "a sum of 1 (mission), 2 (hold), 4 (offboard)",
             });
         }
         Ok(())

@@ -9,6 +9,7 @@
 //! |---|---|---|---|
 //! | no ground-station HEARTBEAT (`MAV_TYPE_GCS`) for `COM_DL_LOSS_T` s, after one was heard | `COM_DL_LOSS_T`, `NAV_DLL_ACT` | 10 s, 0 (off) | PX4's NAV_DLL_ACT: 1 hold, 2 return, 3 land, 5 terminate |
 //! | offboard setpoints older than `COM_OF_LOSS_T` in offboard mode | `COM_OF_LOSS_T` | 0.5 s | hold |
+//! | manual control (sticks) older than `COM_RC_LOSS_T`, after it was present, unless the mode is exempt by `COM_RCL_EXCEPT` (1 mission, 2 hold, 4 offboard; landing and returning are never interrupted) | `COM_RC_LOSS_T`, `NAV_RCL_ACT`, `COM_RCL_EXCEPT` | 0.5 s, 2 (return), 0 | PX4's NAV_RCL_ACT: 1 hold, 2 return, 3 land, 5 terminate (0: only said) |
 //! | battery below `BAT_LOW_THR` while armed | `BAT_LOW_THR` | 15 % | warning (and arming refused below it) |
 //! | battery below `BAT_CRIT_THR` / `BAT_EMERGEN_THR` while armed | `COM_LOW_BAT_ACT`, thresholds | 3, 7 %, 5 % | PX4's COM_LOW_BAT_ACT: 0 warn, 2 land, 3 return at critical and land at emergency |
 //! | geofence breached, or predicted to be before the vehicle can stop, in the air | `GF_ACTION`, `GF_MAX_HOR_DIST`, `GF_MAX_VER_DIST`, the uploaded fence | 2, 0 (off), 0 (off) | PX4's GF_ACTION: 0 none, 1 warning, 2 hold, 3 return, 4 terminate, 5 land |
@@ -18,7 +19,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{Action, Conditions, Event, FlightMode, State};
+use super::{Action, Conditions, Event, State};
 use crate::core::battery::{BatterySample, BatteryWarning};
 use crate::core::geofence::Violation;
 use crate::core::seconds_to_us;
@@ -111,6 +112,8 @@ pub enum Trigger {
     Battery { level: BatteryWarning, remaining_pct: u8 },
     /// The geofence is breached, or would be before the vehicle could stop.
     Geofence(Violation),
+    /// The pilot's manual control (radio or joystick) stopped for COM_RC_LOSS_T.
+    ManualControlLost,
 }
 
 impl Trigger {
@@ -122,6 +125,7 @@ impl Trigger {
             Self::OffboardLost => "offboard setpoints lost".into(),
             Self::Battery { level, remaining_pct } => format!("battery {} ({remaining_pct}%)", level.word()),
             Self::Geofence(v) => format!("fence, {v}"),
+            Self::ManualControlLost => "manual control lost".into(),
         }
     }
 }
@@ -153,6 +157,37 @@ impl super::Commander {
             return;
         }
         let action = FailsafeAction::from_px4(self.config.datalink_loss_action).ok().flatten();
+        self.fail(now, trigger, action);
+    }
+
+    /// The manual-control row: manual control that was present stops (the vehicle's facts say it is no
+    /// longer fresh) while armed: said, and in the air `NAV_RCL_ACT`'s action, unless the mode is exempt
+    /// (`COM_RCL_EXCEPT`; a landing or return is never interrupted); regaining it is said.
+    pub(super) fn manual_failsafe(&mut self, now: u64) {
+        let fresh = self.facts.manual_fresh;
+        self.manual_seen |= fresh;
+        let lost = self.manual_seen && !fresh;
+        if lost == self.manual_lost {
+            return;
+        }
+        self.manual_lost = lost;
+        if !self.state.is_armed() {
+            return;
+        }
+        let trigger = Trigger::ManualControlLost;
+        if !lost {
+            self.events.push(Event::FailsafeCleared { trigger });
+            return;
+        }
+        let except = self.config.rc_loss_except;
+        let exempt = match self.state {
+            State::Mission => except & 1 != 0,
+            State::Hold => except & 2 != 0,
+            State::Offboard => except & 4 != 0,
+            State::Land | State::Rtl => true,
+            _ => false,
+        };
+        let action = FailsafeAction::from_px4(self.config.rc_loss_action).ok().flatten().filter(|_| !exempt);
         self.fail(now, trigger, action);
     }
 
@@ -205,9 +240,6 @@ impl super::Commander {
             FailsafeAction::Land => (Conditions::LAND_REQUESTED, Action::Land),
             FailsafeAction::Terminate => (Conditions::KILL, Action::Disarm),
         };
-        if action == FailsafeAction::Hold {
-            self.hold_mode = FlightMode::Hold;
-        }
         // Already in that mode (holding, returning, landing): nothing to change.
         let _ = self.transition(now, request, what);
     }

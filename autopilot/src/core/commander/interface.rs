@@ -66,6 +66,8 @@ pub struct CommanderInputs {
 pub struct Facts {
     pub mission_valid: bool,
     pub offboard_fresh: bool,
+    /// The pilot's sticks are fresh (younger than COM_RC_LOSS_T, from the source COM_RC_IN_MODE chooses).
+    pub manual_fresh: bool,
 }
 
 /// What a ground station (through the MAVLink handlers) asks of the commander.
@@ -79,6 +81,9 @@ pub enum Request {
     /// ARM_DISARM param1 0, param2 21196 (MAVSDK `kill()`): stop the motors now, from any state; stays
     /// killed (arming refused) until a [`Request::Disarm`].
     Kill,
+    /// The radio's kill switch moved: on stops the motors at once, from any state, and refuses arming
+    /// while on; off ends a kill (disarmed, ready to arm again).
+    KillSwitch(bool),
     /// NAV_TAKEOFF, to `alt_rel_m` above home (None: `takeoff_alt_m`). Accepted while disarmed: remembered
     /// and started on arming.
     Takeoff { alt_rel_m: Option<f64> },
@@ -113,6 +118,8 @@ pub enum Action {
     Return,
     Offboard,
     Reposition,
+    /// A change to this flight mode.
+    Mode(FlightMode),
 }
 
 impl fmt::Display for Action {
@@ -127,6 +134,7 @@ impl fmt::Display for Action {
             Self::Return => "RTL",
             Self::Offboard => "Offboard",
             Self::Reposition => "Reposition",
+            Self::Mode(mode) => return write!(f, "{mode}"),
         })
     }
 }
@@ -152,6 +160,10 @@ pub enum Refusal {
     NoPosition,
     #[error("Arming denied: battery {remaining_pct}% below {low_pct}%")]
     BatteryLow { remaining_pct: u8, low_pct: u8 },
+    #[error("{0} denied: no manual control")]
+    NoManualControl(Action),
+    #[error("Arming denied: kill switch engaged")]
+    KillSwitch,
 }
 
 /// Why the vehicle disarmed.
@@ -197,6 +209,8 @@ pub enum Event {
     BatteryLow {
         remaining_pct: u8,
     },
+    /// The radio's kill switch went off (the vehicle disarms, ready to arm again).
+    KillSwitchReleased,
 }
 
 impl Event {
@@ -222,8 +236,10 @@ impl Event {
             }
             Self::Failsafe { trigger, action: None } => format!("Failsafe: {}", trigger.what()),
             Self::FailsafeCleared { trigger: Trigger::DatalinkLost } => "GCS link regained".into(),
+            Self::FailsafeCleared { trigger: Trigger::ManualControlLost } => "Manual control regained".into(),
             Self::FailsafeCleared { trigger } => format!("Cleared: {}", trigger.what()),
             Self::BatteryLow { remaining_pct } => format!("Battery low: {remaining_pct}% remaining"),
+            Self::KillSwitchReleased => "Kill switch released".into(),
         }
     }
 

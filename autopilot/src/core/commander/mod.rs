@@ -38,7 +38,7 @@ pub use mode::{FlightMode, SystemStatus};
 pub use state_machine::{Conditions, State};
 
 use crate::core::battery::{BatteryMonitor, BatteryWarning};
-use crate::core::intent::{AutoMode, HoldAt, Intent, Progress};
+use crate::core::intent::{AutoMode, HoldAt, Intent, ManualMode, Progress};
 use land_detector::{LandDetectorSample, Phase};
 
 use crate::core::seconds_to_us;
@@ -49,11 +49,19 @@ pub struct Commander {
     config: CommanderConfig,
     state: State,
     mode: FlightMode,
-    /// The hold-like mode a Hold state shows (AUTO LOITER, POSCTL or ALTCTL).
-    hold_mode: FlightMode,
     pending_takeoff_alt_m: Option<f64>,
     /// Mission mode asked for while disarmed: the mission starts on arming.
     pending_mission: bool,
+    /// A manual mode asked for while disarmed (the mode shows it): flown once armed.
+    pending_manual: bool,
+    /// The vehicle left the ground since it was armed (the Manual state's auto-disarm: COM_DISARM_LAND
+    /// after a flight, COM_DISARM_PRFLT before one).
+    flew: bool,
+    /// The radio's kill switch is on: the motors stay stopped and arming is refused until it is off.
+    kill_switch: bool,
+    /// Manual control was fresh at some point (nothing to lose before), and a loss episode is under way.
+    manual_seen: bool,
+    manual_lost: bool,
     facts: Facts,
     /// The navigator's progress: the mission flew its last item; an automatic mode descends to land.
     mission_done: bool,
@@ -92,9 +100,13 @@ impl Commander {
             config,
             state: State::Disarmed,
             mode: FlightMode::Hold,
-            hold_mode: FlightMode::Hold,
             pending_takeoff_alt_m: None,
             pending_mission: false,
+            pending_manual: false,
+            flew: false,
+            kill_switch: false,
+            manual_seen: false,
+            manual_lost: false,
             facts: Facts::default(),
             mission_done: false,
             auto_landing: false,
@@ -203,6 +215,7 @@ impl Commander {
             State::Mission => Intent::Auto(AutoMode::Mission),
             State::Rtl => Intent::Auto(AutoMode::ReturnToLaunch),
             State::Offboard => Intent::Auto(AutoMode::Offboard),
+            State::Manual => Intent::Manual(self.mode.manual().unwrap_or(ManualMode::Position)),
         }
     }
 
@@ -214,7 +227,6 @@ impl Commander {
         self.home_ned_m = Some(Vector3::new(hold_ned_m.x, hold_ned_m.y, 0.0));
         self.state = State::Hold;
         self.hold_at = HoldAt::Stop;
-        self.hold_mode = FlightMode::Hold;
         self.set_mode(FlightMode::Hold);
     }
 
@@ -254,10 +266,14 @@ impl Commander {
         if landed && !was_landed && self.state != State::Disarmed {
             self.events.push(Event::Landed);
         }
-        let landing =
-            self.state == State::Land || (matches!(self.state, State::Mission | State::Rtl) && self.auto_landing);
+        if !landed && self.state.is_armed() && self.state != State::ArmedIdle {
+            self.flew = true;
+        }
+        let landing = matches!(self.state, State::Land | State::Manual)
+            || (matches!(self.state, State::Mission | State::Rtl) && self.auto_landing);
         self.touchdown_us = if landing && landed { Some(self.touchdown_us.unwrap_or(now)) } else { None };
         self.datalink_failsafe(now, inputs.gcs_heartbeat_us);
+        self.manual_failsafe(now);
         self.battery_failsafe(now, inputs.battery);
         self.geofence_failsafe(now, inputs.fence_breach);
         // A few rounds at most: arming with a pending takeoff goes ArmedIdle -> Takeoff on the next step.
@@ -318,6 +334,10 @@ impl Commander {
         let auto_disarm = match self.state {
             State::ArmedIdle => expired(self.config.disarm_preflight_s, Some(self.armed_idle_since_us)),
             State::Land | State::Mission | State::Rtl => expired(self.config.disarm_land_s, self.touchdown_us),
+            // Flown by hand: disarmed on the ground after a flight as after a landing, before one as
+            // when armed without taking off.
+            State::Manual if self.flew => expired(self.config.disarm_land_s, self.touchdown_us),
+            State::Manual => expired(self.config.disarm_preflight_s, self.touchdown_us),
             _ => false,
         };
         let alt_reached = self.state == State::Takeoff
@@ -334,13 +354,19 @@ impl Commander {
             .with(C::OFFBOARD_OK, self.facts.offboard_fresh)
             .with(C::OFFBOARD_LOST, !self.facts.offboard_fresh)
             .with(C::AUTO_LANDING, self.auto_landing)
+            .with(C::MANUAL_REQUESTED, self.pending_manual)
+            .with(C::MANUAL_OK, self.facts.manual_fresh)
     }
 
     fn apply(&mut self, now: u64, req: Request) -> Result<(), Refusal> {
         use Conditions as C;
         let state = self.state;
         match req {
+            Request::Arm { .. } if self.kill_switch => Err(Refusal::KillSwitch),
             Request::Arm { force } => match state {
+                State::Disarmed if self.mode.is_manual() && !self.facts.manual_fresh => {
+                    Err(Refusal::NoManualControl(Action::Arm))
+                }
                 State::Disarmed if !force && self.battery.status(now).level >= BatteryWarning::Low => {
                     let status = self.battery.status(now);
                     Err(Refusal::BatteryLow {
@@ -360,6 +386,18 @@ impl Commander {
                 State::Killed => Ok(()),
                 _ => self.transition(now, C::KILL, Action::Disarm),
             },
+            Request::KillSwitch(on) => {
+                self.kill_switch = on;
+                match (on, state) {
+                    (true, State::Killed) => Ok(()),
+                    (true, _) => self.transition(now, C::KILL, Action::Disarm),
+                    (false, State::Killed) => {
+                        self.events.push(Event::KillSwitchReleased);
+                        self.transition(now, C::DISARM_REQUESTED, Action::Disarm)
+                    }
+                    (false, _) => Ok(()),
+                }
+            }
             Request::Takeoff { alt_rel_m } => {
                 let alt = alt_rel_m.unwrap_or(self.config.takeoff_alt_m);
                 if !(alt.is_finite() && alt > 0.0) {
@@ -370,6 +408,7 @@ impl Commander {
                     State::Killed => Err(Refusal::NotInState { action: Action::Takeoff, state }),
                     State::Disarmed => {
                         self.pending_mission = false;
+                        self.pending_manual = false;
                         self.set_mode(FlightMode::Takeoff);
                         Ok(())
                     }
@@ -381,14 +420,17 @@ impl Commander {
                 State::Land => Ok(()),
                 _ => self.transition(now, C::LAND_REQUESTED, Action::Land),
             },
-            Request::Hold => self.hold_like(now, FlightMode::Hold),
+            Request::Hold => self.hold(now),
             Request::SetMode(mode) => match mode {
                 FlightMode::Takeoff => self.apply(now, Request::Takeoff { alt_rel_m: None }),
                 FlightMode::Land => self.apply(now, Request::Land),
                 FlightMode::Mission => self.apply(now, Request::Mission),
                 FlightMode::ReturnToLaunch => self.apply(now, Request::ReturnToLaunch),
                 FlightMode::Offboard => self.apply(now, Request::Offboard),
-                FlightMode::Altitude | FlightMode::Position | FlightMode::Hold => self.hold_like(now, mode),
+                FlightMode::Hold => self.hold(now),
+                FlightMode::Manual | FlightMode::Stabilized | FlightMode::Altitude | FlightMode::Position => {
+                    self.manual(now, mode)
+                }
             },
             Request::ReturnToLaunch => match state {
                 State::Rtl => Ok(()),
@@ -402,6 +444,7 @@ impl Commander {
                 State::Disarmed if !self.facts.mission_valid => Err(Refusal::NoMission(Action::Mission)),
                 State::Disarmed => {
                     self.pending_takeoff_alt_m = None;
+                    self.pending_manual = false;
                     self.pending_mission = true;
                     self.set_mode(FlightMode::Mission);
                     Ok(())
@@ -425,7 +468,6 @@ impl Commander {
                 if !self.state.is_armed() || self.state == State::ArmedIdle || self.land_detector.landed() {
                     return Err(Refusal::Landed(Action::Reposition));
                 }
-                self.hold_mode = FlightMode::Hold;
                 if self.state != State::Hold {
                     self.transition(now, C::HOLD_REQUESTED, Action::Reposition)?;
                 }
@@ -439,20 +481,47 @@ impl Commander {
         }
     }
 
-    /// Hold, POSCTL or ALTCTL: a mode change on the ground or in Hold; a Hold where the vehicle is when
-    /// taking off or landing.
-    fn hold_like(&mut self, now: u64, mode: FlightMode) -> Result<(), Refusal> {
-        self.hold_mode = mode;
+    /// Hold: a mode change on the ground or in Hold; a Hold where the vehicle is in the air.
+    fn hold(&mut self, now: u64) -> Result<(), Refusal> {
         match self.state {
             State::Killed => Err(Refusal::NotInState { action: Action::Hold, state: self.state }),
             State::Disarmed | State::ArmedIdle | State::Hold => {
                 self.pending_takeoff_alt_m = None;
                 self.pending_mission = false;
+                self.pending_manual = false;
+                self.set_mode(FlightMode::Hold);
+                Ok(())
+            }
+            State::Takeoff | State::Land | State::Mission | State::Rtl | State::Offboard | State::Manual => {
+                self.transition(now, Conditions::HOLD_REQUESTED, Action::Hold)
+            }
+        }
+    }
+
+    /// A manual mode (MANUAL, STABILIZED, ALTCTL, POSCTL): only with fresh manual control; on the ground
+    /// it is the mode the vehicle arms in; in the air the pilot takes over where the vehicle is.
+    fn manual(&mut self, now: u64, mode: FlightMode) -> Result<(), Refusal> {
+        let action = Action::Mode(mode);
+        if !self.facts.manual_fresh && self.state != State::Killed {
+            return Err(Refusal::NoManualControl(action));
+        }
+        match self.state {
+            State::Killed => Err(Refusal::NotInState { action, state: self.state }),
+            State::Disarmed => {
+                self.pending_takeoff_alt_m = None;
+                self.pending_mission = false;
+                self.pending_manual = true;
                 self.set_mode(mode);
                 Ok(())
             }
-            State::Takeoff | State::Land | State::Mission | State::Rtl | State::Offboard => {
-                self.transition(now, Conditions::HOLD_REQUESTED, Action::Hold)
+            State::Manual => {
+                self.set_mode(mode);
+                Ok(())
+            }
+            _ => {
+                self.transition(now, Conditions::MANUAL_REQUESTED, action)?;
+                self.set_mode(mode);
+                Ok(())
             }
         }
     }
@@ -471,6 +540,8 @@ impl Commander {
             Refusal::NoMission(action)
         } else if blocked.contains(Conditions::OFFBOARD_OK) {
             Refusal::NoSetpoints(action)
+        } else if blocked.contains(Conditions::MANUAL_OK) {
+            Refusal::NoManualControl(action)
         } else if blocked.contains(Conditions::LANDED) && action == Action::Return {
             Refusal::Landed(action)
         } else if blocked.contains(Conditions::LANDED) {
@@ -497,6 +568,7 @@ impl Commander {
         }
         if to != State::ArmedIdle {
             self.pending_mission = false;
+            self.pending_manual = false;
         }
         self.state = to;
         match to {
@@ -513,12 +585,16 @@ impl Commander {
                     DisarmReason::AutoPreflight
                 };
                 self.events.push(Event::Disarmed { reason });
-                if !self.mode.is_hold_like() {
-                    self.set_mode(self.hold_mode);
+                // A manual mode stays the mode to arm in (as PX4); any other becomes Hold.
+                if !self.mode.is_manual() {
+                    self.set_mode(FlightMode::Hold);
                 }
             }
             State::ArmedIdle => {
                 self.armed_idle_since_us = now;
+                self.flew = false;
+                // Armed in a manual mode: flown by hand from the next step.
+                self.pending_manual = self.mode.is_manual();
                 self.home_ned_m = Some(pos);
                 self.events.push(Event::Armed { forced: c.contains(C::FORCE) });
             }
@@ -532,18 +608,16 @@ impl Commander {
                 self.hold_yaw_rad = None;
                 if from == State::Takeoff && !c.contains(C::HOLD_REQUESTED) {
                     self.hold_at = HoldAt::TakeoffPoint;
-                    self.hold_mode = FlightMode::Hold;
                     self.events.push(Event::TakeoffComplete);
                 } else {
                     // Stop and hold where the vehicle stops, as PX4's Hold does.
                     self.hold_at = HoldAt::Stop;
                 }
                 if from == State::Offboard && c.contains(C::OFFBOARD_LOST) && !c.contains(C::HOLD_REQUESTED) {
-                    self.hold_mode = FlightMode::Hold;
                     let trigger = Trigger::OffboardLost;
                     self.events.push(Event::Failsafe { trigger, action: Some(FailsafeAction::Hold) });
                 }
-                self.set_mode(self.hold_mode);
+                self.set_mode(FlightMode::Hold);
             }
             State::Land => {
                 self.touchdown_us = self.land_detector.landed().then_some(now);
@@ -558,6 +632,10 @@ impl Commander {
             State::Mission => self.set_mode(FlightMode::Mission),
             State::Rtl => self.set_mode(FlightMode::ReturnToLaunch),
             State::Offboard => self.set_mode(FlightMode::Offboard),
+            State::Manual => {
+                // Entered with the mode already shown (a mode change sets it after the transition).
+                self.touchdown_us = self.land_detector.landed().then_some(now);
+            }
         }
     }
 }

@@ -6,13 +6,15 @@ use std::fmt;
 
 use serde::{Deserialize, Serialize};
 
-/// The flight modes this commander can be in. Modes it refuses (MANUAL, ACRO, STABILIZED, AUTO READY) are
-/// not here: the MAVLink layer (`mavlink::identity::Px4Mode`) names them for the refusal.
+use crate::core::intent::ManualMode;
+
+/// The flight modes this commander can be in. Modes it refuses (ACRO, AUTO READY) are not here: the
+/// MAVLink layer (`mavlink::identity::Px4Mode`) names them for the refusal.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum FlightMode {
-    /// ALTCTL without sticks: hold the altitude (and, having no stick input, the position).
+    /// ALTCTL: sticks to attitude, throttle to climb rate, the altitude held at centre.
     Altitude,
-    /// POSCTL without sticks: hold the position.
+    /// POSCTL: sticks to velocity, the position held when centred.
     Position,
     /// AUTO TAKEOFF.
     Takeoff,
@@ -26,13 +28,28 @@ pub enum FlightMode {
     ReturnToLaunch,
     /// OFFBOARD: fly the setpoints a companion or ground station streams.
     Offboard,
+    /// MANUAL: on a multicopter flown as Stabilized (as PX4 does).
+    Manual,
+    /// STABILIZED: sticks to attitude and yaw rate, throttle stick to thrust.
+    Stabilized,
 }
 
 impl FlightMode {
-    /// Whether this is a position-holding mode (the target of a Hold-like request).
+    /// How the sticks fly this mode, if it is a manual one (MANUAL, STABILIZED, ALTCTL, POSCTL).
     #[must_use]
-    pub const fn is_hold_like(self) -> bool {
-        matches!(self, Self::Altitude | Self::Position | Self::Hold)
+    pub const fn manual(self) -> Option<ManualMode> {
+        match self {
+            Self::Manual | Self::Stabilized => Some(ManualMode::Stabilized),
+            Self::Altitude => Some(ManualMode::Altitude),
+            Self::Position => Some(ManualMode::Position),
+            _ => None,
+        }
+    }
+
+    /// Whether the pilot's sticks fly this mode.
+    #[must_use]
+    pub const fn is_manual(self) -> bool {
+        self.manual().is_some()
     }
 }
 
@@ -47,6 +64,8 @@ impl fmt::Display for FlightMode {
             Self::Mission => "Mission",
             Self::ReturnToLaunch => "Return",
             Self::Offboard => "Offboard",
+            Self::Manual => "Manual",
+            Self::Stabilized => "Stabilized",
         })
     }
 }

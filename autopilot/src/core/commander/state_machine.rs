@@ -30,11 +30,13 @@ pub enum State {
     Rtl,
     /// Following offboard setpoints (OFFBOARD).
     Offboard,
+    /// Flown by the pilot's sticks (MANUAL, STABILIZED, ALTCTL, POSCTL), on the ground or in the air.
+    Manual,
 }
 
 impl State {
     /// Every state, in declaration order.
-    pub const ALL: [Self; 9] = [
+    pub const ALL: [Self; 10] = [
         Self::Disarmed,
         Self::ArmedIdle,
         Self::Takeoff,
@@ -44,6 +46,7 @@ impl State {
         Self::Mission,
         Self::Rtl,
         Self::Offboard,
+        Self::Manual,
     ];
 
     /// This state as a one-bit [`StateSet`].
@@ -57,7 +60,14 @@ impl State {
     pub const fn is_armed(self) -> bool {
         matches!(
             self,
-            Self::ArmedIdle | Self::Takeoff | Self::Hold | Self::Land | Self::Mission | Self::Rtl | Self::Offboard
+            Self::ArmedIdle
+                | Self::Takeoff
+                | Self::Hold
+                | Self::Land
+                | Self::Mission
+                | Self::Rtl
+                | Self::Offboard
+                | Self::Manual
         )
     }
 }
@@ -74,6 +84,7 @@ impl fmt::Display for State {
             Self::Mission => "flying the mission",
             Self::Rtl => "returning",
             Self::Offboard => "in offboard control",
+            Self::Manual => "flown by hand",
         })
     }
 }
@@ -90,7 +101,8 @@ impl StateSet {
             | State::Land.set().0
             | State::Mission.set().0
             | State::Rtl.set().0
-            | State::Offboard.set().0,
+            | State::Offboard.set().0
+            | State::Manual.set().0,
     );
     pub const NOT_KILLED: Self = Self(Self::ARMED.0 | State::Disarmed.set().0);
 
@@ -145,11 +157,16 @@ impl Conditions {
     pub const OFFBOARD_LOST: Self = Self(1 << 17);
     /// An automatic mode is descending to land.
     pub const AUTO_LANDING: Self = Self(1 << 18);
+    /// A manual mode (MANUAL, STABILIZED, ALTCTL, POSCTL) is requested or pending (asked for while
+    /// disarmed).
+    pub const MANUAL_REQUESTED: Self = Self(1 << 19);
+    /// The pilot's manual control is fresh (younger than COM_RC_LOSS_T).
+    pub const MANUAL_OK: Self = Self(1 << 20);
 
     /// Every bit any row reads.
-    pub const ALL: Self = Self((1 << 19) - 1);
+    pub const ALL: Self = Self((1 << 21) - 1);
     /// How many bits there are.
-    pub const COUNT: u32 = 19;
+    pub const COUNT: u32 = 21;
 
     #[must_use]
     pub const fn or(self, other: Self) -> Self {
@@ -208,7 +225,8 @@ use Conditions as C;
 use State as S;
 
 const AUTO: StateSet = S::Mission.set().or(S::Rtl.set()).or(S::Offboard.set());
-const TAKEOFF_HOLD_LAND: StateSet = S::Takeoff.set().or(S::Hold.set()).or(S::Land.set()).or(AUTO);
+/// Every state that flies (or may): the automatic ones and the pilot's.
+const TAKEOFF_HOLD_LAND: StateSet = S::Takeoff.set().or(S::Hold.set()).or(S::Land.set()).or(AUTO).or(S::Manual.set());
 
 /// The transitions, in priority order: requests first (kill, disarm, arm, takeoff, mode changes, hold,
 /// land), then the automatic ones (takeoff complete, mission done, offboard lost, auto-disarm). Force is
@@ -255,9 +273,17 @@ pub const TRANSITIONS: &[Transition] = &[
         C::OFFBOARD_OK.or(C::ESTIMATOR_OK),
         S::Offboard,
     ),
-    // Hold (or a hold-like mode) interrupts a takeoff, a landing or an automatic mode where the vehicle is.
-    row(S::Takeoff.set().or(S::Land.set()).or(AUTO), C::HOLD_REQUESTED, C::NONE, S::Hold),
-    row(S::ArmedIdle.set().or(S::Takeoff.set()).or(S::Hold.set()).or(AUTO), C::LAND_REQUESTED, C::NONE, S::Land),
+    // A manual mode, from the ground or the air, only with fresh manual control (a pending one starts once
+    // armed).
+    row(S::ArmedIdle.set().or(TAKEOFF_HOLD_LAND), C::MANUAL_REQUESTED, C::MANUAL_OK.or(C::ESTIMATOR_OK), S::Manual),
+    // Hold interrupts a takeoff, a landing, an automatic mode or the pilot where the vehicle is.
+    row(S::Takeoff.set().or(S::Land.set()).or(AUTO).or(S::Manual.set()), C::HOLD_REQUESTED, C::NONE, S::Hold),
+    row(
+        S::ArmedIdle.set().or(S::Takeoff.set()).or(S::Hold.set()).or(AUTO).or(S::Manual.set()),
+        C::LAND_REQUESTED,
+        C::NONE,
+        S::Land,
+    ),
     // Automatic.
     row(S::Takeoff.set(), C::TAKEOFF_ALT_REACHED, C::NONE, S::Hold),
     Transition {
@@ -271,6 +297,7 @@ pub const TRANSITIONS: &[Transition] = &[
     row(S::Land.set(), C::AUTO_DISARM_EXPIRED, C::LANDED, S::Disarmed),
     row(S::Mission.set().or(S::Rtl.set()), C::AUTO_DISARM_EXPIRED, C::LANDED.or(C::AUTO_LANDING), S::Disarmed),
     row(S::ArmedIdle.set(), C::AUTO_DISARM_EXPIRED, C::NONE, S::Disarmed),
+    row(S::Manual.set(), C::AUTO_DISARM_EXPIRED, C::LANDED, S::Disarmed),
 ];
 
 impl Transition {
@@ -379,6 +406,12 @@ mod tests {
             (S::Rtl, C::HOLD_REQUESTED, S::Hold),
             (S::Mission, C::LAND_REQUESTED, S::Land),
             (S::Offboard, C::TAKEOFF_REQUESTED | C::ESTIMATOR_OK, S::Takeoff),
+            (S::ArmedIdle, C::MANUAL_REQUESTED | C::MANUAL_OK | C::ESTIMATOR_OK, S::Manual),
+            (S::Mission, C::MANUAL_REQUESTED | C::MANUAL_OK | C::ESTIMATOR_OK, S::Manual),
+            (S::Manual, C::HOLD_REQUESTED, S::Hold),
+            (S::Manual, C::RTL_REQUESTED | C::ESTIMATOR_OK, S::Rtl),
+            (S::Manual, C::AUTO_DISARM_EXPIRED | C::LANDED, S::Disarmed),
+            (S::Manual, C::AUTO_DISARM_EXPIRED, S::Manual),
         ];
         for &(from, c, to) in cases {
             assert_eq!(next(from, c), to, "{from:?} under {c:?}");
@@ -400,6 +433,7 @@ mod tests {
             (S::Hold, C::OFFBOARD_REQUESTED | C::ESTIMATOR_OK, C::OFFBOARD_OK),
             (S::Mission, C::MISSION_DONE | C::AUTO_LANDING, C::AUTO_LANDING),
             (S::Mission, C::AUTO_DISARM_EXPIRED | C::LANDED, C::AUTO_LANDING),
+            (S::Hold, C::MANUAL_REQUESTED | C::ESTIMATOR_OK, C::MANUAL_OK),
         ];
         for &(from, c, missing) in cases {
             assert_eq!(next(from, c), from, "{from:?} under {c:?}");
@@ -417,7 +451,8 @@ mod tests {
             (S::Hold, C::ARM_REQUESTED | C::HOLD_REQUESTED | C::TAKEOFF_ALT_REACHED | C::AUTO_DISARM_EXPIRED),
             (S::Land, C::LAND_REQUESTED | C::LANDED),
             (S::Killed, C::ARM_REQUESTED | C::FORCE | C::KILL | C::TAKEOFF_REQUESTED | C::ESTIMATOR_OK),
-            (S::Takeoff, C(1 << 20)),
+            (S::Takeoff, C(1 << 25)),
+            (S::Hold, C::MANUAL_REQUESTED | C::ESTIMATOR_OK),
         ];
         for &(from, c) in cases {
             assert_eq!(next(from, c), from, "{from:?} under {c:?}");

@@ -4,7 +4,7 @@
 use nalgebra::Vector3;
 
 use super::*;
-use crate::core::intent::{AutoMode, HoldAt, Intent, Progress};
+use crate::core::intent::{AutoMode, HoldAt, Intent, ManualMode, Progress};
 
 const STEP_US: u64 = 10_000;
 const G: f64 = 9.81;
@@ -87,6 +87,8 @@ impl Sim {
             Intent::Land => Some(0.7),
             // Descend while it lands, hold the altitude otherwise.
             Intent::Auto(_) => Some(if self.landing { 0.7 } else { 0.0 }),
+            // Sticks centred: hold the altitude.
+            Intent::Manual(_) => Some(0.0),
             Intent::Idle => None,
         };
         let acc = match vel_cmd {
@@ -396,14 +398,19 @@ fn given_set_mode_requests_then_supported_modes_switch_and_others_are_refused_in
     }
     assert!(c.request(sim.now_us, sim.facts, Request::ReturnToLaunch).is_err());
 
-    c.request(sim.now_us, sim.facts, Request::SetMode(FlightMode::Position)).expect("POSCTL on the ground");
-    assert_eq!((c.state(), c.mode()), (State::ArmedIdle, FlightMode::Position));
+    // The manual modes fly the sticks: refused without them, in words, changing nothing.
+    let err = c.request(sim.now_us, sim.facts, Request::SetMode(FlightMode::Position)).unwrap_err();
+    assert_eq!(err.to_string(), "Position denied: no manual control");
+    assert_eq!(c, before);
+    let sticks = Facts { manual_fresh: true, ..sim.facts };
+    c.request(sim.now_us, sticks, Request::SetMode(FlightMode::Position)).expect("POSCTL on the ground");
+    assert_eq!((c.state(), c.mode()), (State::Manual, FlightMode::Position));
     c.request(sim.now_us, sim.facts, Request::SetMode(FlightMode::Takeoff)).expect("AUTO TAKEOFF");
     assert_eq!((c.state(), c.mode()), (State::Takeoff, AUTO_TAKEOFF));
     sim.run(&mut c, 60);
-    c.request(sim.now_us, sim.facts, Request::SetMode(FlightMode::Altitude)).expect("ALTCTL during takeoff");
-    assert_eq!((c.state(), c.mode()), (State::Hold, FlightMode::Altitude));
-    assert_eq!(c.intent(), Intent::Hold { at: HoldAt::Stop, yaw_rad: None }, "held where it stops");
+    c.request(sim.now_us, sticks, Request::SetMode(FlightMode::Altitude)).expect("ALTCTL during takeoff");
+    assert_eq!((c.state(), c.mode()), (State::Manual, FlightMode::Altitude));
+    assert_eq!(c.intent(), Intent::Manual(ManualMode::Altitude), "the pilot flies from where it is");
     c.request(sim.now_us, sim.facts, Request::SetMode(FlightMode::Hold)).expect("AUTO LOITER");
     assert_eq!((c.state(), c.mode()), (State::Hold, AUTO_LOITER));
     c.request(sim.now_us, sim.facts, Request::SetMode(FlightMode::Land)).expect("AUTO LAND");

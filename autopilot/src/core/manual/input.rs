@@ -15,6 +15,7 @@ use thiserror::Error;
 
 use super::rc::{RcConfig, RcConfigError, Switches};
 use super::{RcFrame, Sticks};
+use crate::core::commander::FlightMode;
 use crate::core::seconds_to_us;
 
 /// PX4's COM_RC_IN_MODE.
@@ -80,14 +81,7 @@ pub struct ManualConfig {
 
 impl Default for ManualConfig {
     fn default() -> Self {
-        Self {
-            rc: RcConfig::default(),
-            in_mode: 3,
-            loss_s: 0.5,
-            arm_gesture: true,
-            arm_hyst_s: 1.0,
-            fltmodes: [-1; 6],
-        }
+        Self { rc: RcConfig::default(), in_mode: 3, loss_s: 0.5, arm_gesture: true, arm_hyst_s: 1.0, fltmodes: [-1; 6] }
     }
 }
 
@@ -126,6 +120,27 @@ impl ManualConfig {
     fn in_mode(&self) -> RcInMode {
         RcInMode::from_px4(self.in_mode).unwrap_or(RcInMode::KeepFirst)
     }
+}
+
+/// The flight mode of PX4's COM_FLTMODE number `n`, or the refusal's words.
+///
+/// # Errors
+/// The STATUSTEXT for a mode this vehicle does not fly (ACRO, or a number not a mode).
+pub fn fltmode_flight_mode(n: i32) -> Result<FlightMode, &'static str> {
+    Ok(match n {
+        0 => FlightMode::Manual,
+        1 => FlightMode::Altitude,
+        2 => FlightMode::Position,
+        3 => FlightMode::Mission,
+        4 => FlightMode::Hold,
+        5 => FlightMode::ReturnToLaunch,
+        6 => return Err("Mode not supported: ACRO takes no rate setpoints"),
+        7 => FlightMode::Offboard,
+        8 => FlightMode::Stabilized,
+        10 => FlightMode::Takeoff,
+        11 => FlightMode::Land,
+        _ => return Err("Mode switch: no such mode"),
+    })
 }
 
 /// PX4's COM_FLTMODE numbers this vehicle flies: 0 Manual, 1 Altitude, 2 Position, 3 Mission, 4 Hold,
@@ -209,23 +224,30 @@ impl ManualInput {
         sample.filter(|s| now_us.saturating_sub(s.at_us) <= loss_us).map(|s| s.value)
     }
 
+    /// The sticks that would be in use at `now_us` (as [`Self::step`] chooses them), without stepping.
+    #[must_use]
+    pub fn sticks(&self, now_us: u64, config: &ManualConfig) -> Option<Sticks> {
+        self.clone().step(now_us, config).0.sticks
+    }
+
     /// The status at `now_us`, and the pilot's actions since the last step (see the module docs).
     pub fn step(&mut self, now_us: u64, config: &ManualConfig) -> (ManualStatus, Vec<PilotAction>) {
         let loss_us = seconds_to_us(config.loss_s);
         let mode = config.in_mode();
         let rc = Self::fresh(self.rc_sticks, now_us, loss_us).filter(|_| mode.accepts(ManualSource::Rc));
-        let joystick =
-            Self::fresh(self.joystick, now_us, loss_us).filter(|_| mode.accepts(ManualSource::Joystick));
+        let joystick = Self::fresh(self.joystick, now_us, loss_us).filter(|_| mode.accepts(ManualSource::Joystick));
         let fresh = |s: ManualSource| match s {
             ManualSource::Rc => rc,
             ManualSource::Joystick => joystick,
         };
         let current = self.source.filter(|&s| fresh(s).is_some());
         let chosen = match mode {
-            RcInMode::KeepFirst => self.first.or_else(|| {
-                [ManualSource::Rc, ManualSource::Joystick].into_iter().find(|&s| fresh(s).is_some())
-            }),
-            _ => current.or_else(|| [ManualSource::Rc, ManualSource::Joystick].into_iter().find(|&s| fresh(s).is_some())),
+            RcInMode::KeepFirst => self
+                .first
+                .or_else(|| [ManualSource::Rc, ManualSource::Joystick].into_iter().find(|&s| fresh(s).is_some())),
+            _ => {
+                current.or_else(|| [ManualSource::Rc, ManualSource::Joystick].into_iter().find(|&s| fresh(s).is_some()))
+            }
         };
         let sticks = chosen.and_then(fresh);
         if sticks.is_some() {
@@ -243,12 +265,8 @@ impl ManualInput {
                 self.gesture_fired = false;
             }
         }
-        let status = ManualStatus {
-            sticks,
-            source: sticks.and(chosen),
-            rc: self.rc.map(|s| s.value),
-            rc_fresh: rc.is_some(),
-        };
+        let status =
+            ManualStatus { sticks, source: sticks.and(chosen), rc: self.rc.map(|s| s.value), rc_fresh: rc.is_some() };
         (status, std::mem::take(&mut self.actions))
     }
 
@@ -374,14 +392,18 @@ mod tests {
     #[test]
     fn switches_act_on_their_edges_and_an_arm_switch_found_on_does_not_arm() {
         let cfg = ManualConfig {
-            rc: RcConfig { map: RcMap { fltmode: 5, kill_sw: 6, arm_sw: 7, ..RcMap::default() }, ..RcConfig::default() },
+            rc: RcConfig {
+                map: RcMap { fltmode: 5, kill_sw: 6, arm_sw: 7, ..RcMap::default() },
+                ..RcConfig::default()
+            },
             fltmodes: [2, -1, -1, 1, -1, 3],
             ..ManualConfig::default()
         };
         let mut m = ManualInput::default();
         let frame = |mode, kill, arm| RcFrame::of(&[1500, 1500, 1000, 1500, mode, kill, arm]);
         m.on_rc(0, frame(1000, 1000, 2000), &cfg);
-        assert_eq!(m.step(0, &cfg).1, vec![PilotAction::ModeSwitch { slot: 0, mode: 2 }, PilotAction::KillSwitch(false)]);
+        // The first frame: the mode switch's mode is asked for; a kill switch found off is nothing to do.
+        assert_eq!(m.step(0, &cfg).1, vec![PilotAction::ModeSwitch { slot: 0, mode: 2 }]);
         m.on_rc(20 * MS, frame(1500, 2000, 1000), &cfg);
         assert_eq!(
             m.step(20 * MS, &cfg).1,
@@ -401,7 +423,10 @@ mod tests {
     fn an_unflown_mode_on_the_switch_is_refused_when_set() {
         let cfg = ManualConfig { fltmodes: [12, -1, -1, -1, -1, -1], ..ManualConfig::default() };
         assert_eq!(cfg.validate(), Err(ManualConfigError::FlightMode { slot: 1, mode: 12 }));
-        assert_eq!(ManualConfig { in_mode: 5, ..ManualConfig::default() }.validate(), Err(ManualConfigError::InMode(5)));
+        assert_eq!(
+            ManualConfig { in_mode: 5, ..ManualConfig::default() }.validate(),
+            Err(ManualConfigError::InMode(5))
+        );
         assert_eq!(ManualConfig::default().validate(), Ok(()));
     }
 }

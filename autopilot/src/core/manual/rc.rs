@@ -90,7 +90,9 @@ impl Default for RcConfig {
 /// A radio setting that cannot be used.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum RcConfigError {
-    #[error("RC{channel}: MIN {min_us} < TRIM {trim_us} < MAX {max_us} must hold, with DZ {dz_us} below (MAX - MIN) / 2")]
+    #[error(
+        "RC{channel}: MIN {min_us} < TRIM {trim_us} < MAX {max_us} must hold, with DZ {dz_us} below (MAX - MIN) / 2"
+    )]
     Calibration { channel: usize, min_us: f64, trim_us: f64, max_us: f64, dz_us: f64 },
     #[error("RC{channel}_REV = {rev} must be 1 or -1")]
     Reverse { channel: usize, rev: f64 },
@@ -167,7 +169,12 @@ impl RcConfig {
         let m = &self.map;
         let centred = |mapped| self.channel(frame, mapped).map(|(v, c)| c.centred(v));
         let (t, tc) = self.channel(frame, m.throttle)?;
-        Some(Sticks { roll: centred(m.roll)?, pitch: centred(m.pitch)?, yaw: centred(m.yaw)?, throttle: tc.unipolar(t) })
+        Some(Sticks {
+            roll: centred(m.roll)?,
+            pitch: centred(m.pitch)?,
+            yaw: centred(m.yaw)?,
+            throttle: tc.unipolar(t),
+        })
     }
 
     /// The switches' positions in a frame.
@@ -220,7 +227,8 @@ mod tests {
 
     #[test]
     fn a_three_position_mode_switch_selects_slots_1_4_and_6() {
-        let rc = RcConfig { map: RcMap { fltmode: 5, kill_sw: 6, arm_sw: 7, ..RcMap::default() }, ..RcConfig::default() };
+        let rc =
+            RcConfig { map: RcMap { fltmode: 5, kill_sw: 6, arm_sw: 7, ..RcMap::default() }, ..RcConfig::default() };
         let slot = |pwm| rc.switches(&RcFrame::of(&[1500, 1500, 1000, 1500, pwm, 1000, 2000])).mode_slot;
         assert_eq!([slot(1000), slot(1500), slot(2000)], [Some(0), Some(3), Some(5)]);
         let sw = rc.switches(&RcFrame::of(&[1500, 1500, 1000, 1500, 1000, 1000, 2000]));

@@ -48,6 +48,8 @@ pub const fn px4_mode(mode: FlightMode) -> (u8, u8) {
         FlightMode::Mission => (m::AUTO, a::MISSION),
         FlightMode::ReturnToLaunch => (m::AUTO, a::RTL),
         FlightMode::Offboard => (m::OFFBOARD, 0),
+        FlightMode::Manual => (m::MANUAL, 0),
+        FlightMode::Stabilized => (m::STABILIZED, 0),
     }
 }
 
@@ -70,7 +72,10 @@ pub const fn custom_mode(mode: FlightMode) -> u32 {
 pub fn base_mode(mode: FlightMode, armed: bool) -> MavModeFlag {
     use MavModeFlag as F;
     let mode_flags = match mode {
-        FlightMode::Altitude => F::MAV_MODE_FLAG_MANUAL_INPUT_ENABLED | F::MAV_MODE_FLAG_STABILIZE_ENABLED,
+        FlightMode::Manual => F::MAV_MODE_FLAG_MANUAL_INPUT_ENABLED,
+        FlightMode::Stabilized | FlightMode::Altitude => {
+            F::MAV_MODE_FLAG_MANUAL_INPUT_ENABLED | F::MAV_MODE_FLAG_STABILIZE_ENABLED
+        }
         FlightMode::Position => {
             F::MAV_MODE_FLAG_MANUAL_INPUT_ENABLED | F::MAV_MODE_FLAG_STABILIZE_ENABLED | F::MAV_MODE_FLAG_GUIDED_ENABLED
         }
@@ -114,9 +119,9 @@ impl Px4Mode {
             (m::AUTO, a::MISSION) => Self::Supported(FlightMode::Mission),
             (m::AUTO, a::READY) => Self::Unsupported { name: "AUTO READY", reason: "use Hold" },
             (m::OFFBOARD, _) => Self::Supported(FlightMode::Offboard),
-            (m::MANUAL, _) => Self::Unsupported { name: "MANUAL", reason: "needs RC sticks" },
-            (m::ACRO, _) => Self::Unsupported { name: "ACRO", reason: "needs RC sticks" },
-            (m::STABILIZED, _) => Self::Unsupported { name: "STABILIZED", reason: "needs RC sticks" },
+            (m::MANUAL, _) => Self::Supported(FlightMode::Manual),
+            (m::ACRO, _) => Self::Unsupported { name: "ACRO", reason: "takes no rate setpoints" },
+            (m::STABILIZED, _) => Self::Supported(FlightMode::Stabilized),
             _ => Self::Unknown,
         }
     }
@@ -233,7 +238,9 @@ mod tests {
 
     #[test]
     fn given_modes_not_flown_when_decoded_then_they_are_named_not_supported() {
-        assert!(matches!(Px4Mode::decode(1, 0), Px4Mode::Unsupported { name: "MANUAL", .. }));
+        assert!(matches!(Px4Mode::decode(5, 0), Px4Mode::Unsupported { name: "ACRO", .. }));
+        assert_eq!(Px4Mode::decode(1, 0), Px4Mode::Supported(FlightMode::Manual));
+        assert_eq!(Px4Mode::decode(7, 0), Px4Mode::Supported(FlightMode::Stabilized));
         assert!(matches!(Px4Mode::decode(4, 1), Px4Mode::Unsupported { name: "AUTO READY", .. }));
         assert_eq!(Px4Mode::decode(4, 4), Px4Mode::Supported(FlightMode::Mission));
         assert_eq!(Px4Mode::decode(4, 5), Px4Mode::Supported(FlightMode::ReturnToLaunch));

@@ -23,6 +23,7 @@ pub mod command;
 pub mod frame;
 pub mod housekeeping;
 pub mod identity;
+pub mod manual;
 pub mod mission;
 pub mod offboard;
 pub mod params;

@@ -4,7 +4,7 @@
 //! reaches two services and none is claimed by a hand-kept predicate), and that service's
 //! [`ServiceReply`]: the messages to send back, and what it asks of the vehicle (an effect the vehicle
 //! applies: a parameter change, a mission event, a command, an offboard setpoint, a ground station's
-//! HEARTBEAT for the datalink failsafe).
+//! HEARTBEAT for the datalink failsafe, the pilot's sticks).
 
 use ::mavlink::MavHeader;
 use ::mavlink::dialects::common::{MavMessage, MavSeverity, MavType};
@@ -34,6 +34,8 @@ pub enum Service {
     Command,
     /// HEARTBEAT: a ground station's keeps the datalink alive.
     Heartbeat,
+    /// MANUAL_CONTROL, RC_CHANNELS_OVERRIDE: the pilot's sticks.
+    Manual,
 }
 
 /// The service `msg` belongs to (None: nothing of ours, such as a ground station's HEARTBEAT).
@@ -59,6 +61,7 @@ pub fn route(msg: &MavMessage) -> Option<Service> {
         | M::MISSION_SET_CURRENT(_) => Service::Mission,
         M::COMMAND_LONG(_) | M::COMMAND_INT(_) | M::SET_MODE(_) => Service::Command,
         M::HEARTBEAT(_) => Service::Heartbeat,
+        M::MANUAL_CONTROL(_) | M::RC_CHANNELS_OVERRIDE(_) => Service::Manual,
         _ => return None,
     })
 }

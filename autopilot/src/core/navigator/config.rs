@@ -34,6 +34,8 @@ pub struct NavigatorConfig {
     pub offboard_timeout_s: f64,
     /// How far below the ground the landing reference goes (m): bounds the push into the ground.
     pub land_below_ground_m: f64,
+    /// The manual modes' stick shaping and limits (MPC_MAN_*, MPC_VEL_MANUAL, ...).
+    pub manual: super::ManualFlightConfig,
 }
 
 impl Default for NavigatorConfig {
@@ -52,6 +54,7 @@ impl Default for NavigatorConfig {
             rtl_return_alt_m: 10.0,
             offboard_timeout_s: 0.5,
             land_below_ground_m: 0.5,
+            manual: super::ManualFlightConfig::default(),
         }
     }
 }
@@ -94,6 +97,9 @@ impl NavigatorConfig {
             if !(value.is_finite() && value >= 0.0) {
                 return Err(ConfigError { field, value, must: "not negative" });
             }
+        }
+        if let Some((field, value, must)) = self.manual.invalid() {
+            return Err(ConfigError { field, value, must });
         }
         Ok(())
     }

@@ -36,12 +36,14 @@ use nalgebra::{Vector2, Vector3};
 use crate::core::control::Reference;
 use crate::core::estimator::GeoOrigin;
 use crate::core::geofence::Rally;
-pub use crate::core::intent::{AutoMode, HoldAt, Intent, Progress};
+pub use crate::core::intent::{AutoMode, HoldAt, Intent, ManualMode, Progress};
+use crate::core::manual::Sticks;
 pub use crate::core::mission::{NavCommand, NavItem, NavTarget, nav_items};
 
 mod config;
 mod executor;
 pub mod leg;
+pub mod manual;
 mod offboard;
 mod planner;
 mod rtl;
@@ -54,6 +56,8 @@ mod tests;
 pub use config::{ConfigError, NavigatorConfig};
 use executor::Executor;
 use leg::{MIN_LEG_M, Motion3};
+pub use manual::ManualFlightConfig;
+use manual::{ManualFlight, VerticalLimits};
 pub use offboard::OffboardSetpoint;
 pub(crate) use planner::{Climb, Flight, Planner};
 
@@ -152,6 +156,9 @@ pub struct Navigator {
     reported_done: bool,
     /// The point an airborne start holds, until the intent changes.
     start_point: Option<Vector3<f64>>,
+    /// The pilot's sticks of this step (None: no fresh manual control), and the manual flight under way.
+    sticks: Option<Sticks>,
+    manual: Option<ManualFlight>,
 }
 
 /// The reference of a motion with a yaw.
@@ -193,6 +200,8 @@ impl Navigator {
             reported_landing: false,
             reported_done: false,
             start_point: None,
+            sticks: None,
+            manual: None,
         }
     }
 
@@ -234,6 +243,12 @@ impl Navigator {
     /// The latest offboard setpoint.
     pub fn set_offboard(&mut self, setpoint: OffboardSetpoint) {
         self.offboard.set(setpoint);
+    }
+
+    /// The pilot's sticks for the next step (None: no fresh manual control; a manual mode then flies them
+    /// centred).
+    pub fn set_sticks(&mut self, sticks: Option<Sticks>) {
+        self.sticks = sticks;
     }
 
     /// DO_CHANGE_SPEED outside a mission: the speed of the following legs.
@@ -278,6 +293,12 @@ impl Navigator {
     pub fn update(&mut self, intent: Intent, input: &NavInput, rally: &Rally) -> Option<Reference> {
         self.planner.dt_s = self.last_update_us.map_or(0.0, |t| input.now_us.saturating_sub(t) as f64 * 1e-6).min(0.05);
         self.last_update_us = Some(input.now_us);
+        if !matches!(intent, Intent::Manual(_))
+            && let Some(flight) = self.manual.take()
+        {
+            // Leaving a manual mode: the next legs keep the yaw the pilot left.
+            self.yaw_sp_rad = flight.yaw_sp_rad();
+        }
         if intent != self.intent {
             self.latch(intent, input);
             self.intent = intent;
@@ -327,6 +348,7 @@ impl Navigator {
                 Some(self.direct(input, Aim::Point(to), Climb::Land, yaw_rad))
             }
             Intent::Auto(mode) => Some(self.auto(mode, input)),
+            Intent::Manual(mode) => self.manual(mode, input),
         };
         self.report();
         reference
@@ -389,6 +411,29 @@ impl Navigator {
         });
         let m = d.flight.fly(planner, input);
         track(&m, yaw_rad)
+    }
+
+    /// A manual mode: the pilot's sticks through the mode's setpoint generator (`manual.rs`), started from
+    /// the reference's motion.
+    fn manual(&mut self, mode: ManualMode, input: &NavInput) -> Option<Reference> {
+        if self.last_auto.is_some() || self.direct.is_some() {
+            self.leave();
+        }
+        let start = self.planner.start(input);
+        let yaw_rad = self.yaw_sp_rad;
+        let flight = self.manual.get_or_insert_with(|| ManualFlight::new(start, yaw_rad));
+        let c = &self.planner.config;
+        let vertical = VerticalLimits {
+            climb_mps: c.climb_speed_mps,
+            descent_mps: c.descent_speed_mps,
+            acc_up_mps2: c.acc_up_mps2,
+            acc_down_mps2: c.acc_down_mps2,
+            floor_d_m: input.ground_d_m() + c.land_below_ground_m,
+        };
+        let reference = flight.step(mode, self.sticks, input, self.planner.dt_s, &c.manual, &vertical);
+        self.yaw_sp_rad = flight.yaw_sp_rad();
+        self.planner.last = reference.map(|_| flight.motion());
+        reference
     }
 
     fn auto(&mut self, mode: AutoMode, input: &NavInput) -> Reference {

@@ -45,11 +45,12 @@ pub enum ParamGroup {
     Commander,
     Navigator,
     Telemetry,
+    Radio,
 }
 
 impl ParamGroup {
     /// Every group, in the order of the docs.
-    pub const ALL: [Self; 8] = [
+    pub const ALL: [Self; 9] = [
         Self::Aco,
         Self::Loop,
         Self::Airframe,
@@ -57,6 +58,7 @@ impl ParamGroup {
         Self::Mrac,
         Self::Commander,
         Self::Navigator,
+        Self::Radio,
         Self::Telemetry,
     ];
 
@@ -72,6 +74,7 @@ impl ParamGroup {
             Self::Commander => "Commander",
             Self::Navigator => "Navigator",
             Self::Telemetry => "Telemetry",
+            Self::Radio => "Radio and manual control",
         }
     }
 
@@ -99,6 +102,11 @@ impl ParamGroup {
             Self::Commander => "Arming, takeoff and landing (`commander::CommanderConfig`), under PX4's names.",
             Self::Navigator => "The automatic modes (`navigator::NavigatorConfig`), under PX4's names.",
             Self::Telemetry => "The autopilot's own telemetry.",
+            Self::Radio => {
+                "The pilot's input (`manual::ManualConfig`): the radio's channel map and calibration, the \
+                 source of the sticks, their loss and its failsafe, the arming gestures and the mode switch, \
+                 under PX4's names."
+            }
         }
     }
 }

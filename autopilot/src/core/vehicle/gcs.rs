@@ -11,7 +11,10 @@ use super::{ShellEffect, Vehicle, weights_interval_us};
 use crate::core::commander::{Facts, FlightMode, Request};
 use crate::core::estimator::EstimatorState;
 use crate::core::geofence::{Fence, Rally, Violation};
+use crate::core::manual::PilotAction;
+use crate::core::manual::input::fltmode_flight_mode;
 use crate::core::mavlink::command::{AUTOPILOT_VERSION_ID, InboundCommand};
+use crate::core::mavlink::manual::ManualControlInput;
 use crate::core::mavlink::mission::MissionEvent;
 use crate::core::mavlink::offboard::OffboardContext;
 use crate::core::mavlink::params::{ParamChange, param_value};
@@ -39,6 +42,8 @@ enum Effect {
     /// A ground station's HEARTBEAT at this vehicle time (µs), the datalink failsafe's clock.
     GcsHeartbeat(u64),
     Command(InboundCommand),
+    /// The pilot's sticks (MANUAL_CONTROL) or radio (RC_CHANNELS_OVERRIDE).
+    Manual(ManualControlInput),
 }
 
 impl Vehicle {
@@ -78,6 +83,7 @@ impl Vehicle {
                 (Vec::new(), GcsHeartbeats.handle(&ctx, msg, &mut ()).effect.map(Effect::GcsHeartbeat))
             }
             Service::Command => (Vec::new(), Commands.handle(&ctx, msg, &mut ()).effect.map(Effect::Command)),
+            Service::Manual => (Vec::new(), self.manual_service.handle(&ctx, msg, &mut ()).effect.map(Effect::Manual)),
         };
         match effect {
             Some(effect) => self.apply(now_us, messages, effect),
@@ -122,7 +128,39 @@ impl Vehicle {
                 replies.extend(self.apply_command(now_us, &cmd));
                 replies
             }
+            Effect::Manual(ManualControlInput::Joystick(sticks)) => {
+                self.manual.on_joystick(now_us, sticks);
+                replies
+            }
+            Effect::Manual(ManualControlInput::Rc(frame)) => {
+                self.manual.on_rc(now_us, frame, &self.config.manual);
+                replies
+            }
         }
+    }
+
+    /// A request of the commander with the vehicle's facts, a mission checked against the fence first.
+    fn request(&mut self, now_us: u64, facts: Facts, req: Request) -> Result<(), String> {
+        if matches!(req, Request::Mission | Request::SetMode(FlightMode::Mission)) {
+            self.check_mission()?;
+        }
+        self.commander.request(now_us, facts, req).map_err(|r| r.to_string())
+    }
+
+    /// What the pilot did with a switch or the sticks (see [`PilotAction`]), as a request of the
+    /// commander; the refusal's words when it is refused (the pilot has no ACK: a STATUSTEXT says it).
+    pub(super) fn pilot_action(&mut self, now_us: u64, action: PilotAction) -> Result<(), String> {
+        let facts = self.facts(now_us);
+        let req = match action {
+            PilotAction::ModeSwitch { mode, .. } => Request::SetMode(fltmode_flight_mode(mode)?),
+            PilotAction::KillSwitch(on) => Request::KillSwitch(on),
+            PilotAction::ArmGesture if !self.commander.mode().is_manual() => {
+                return Err("Arming denied: switch to a manual mode".to_owned());
+            }
+            PilotAction::ArmSwitch(true) | PilotAction::ArmGesture => Request::Arm { force: false },
+            PilotAction::ArmSwitch(false) | PilotAction::DisarmGesture => Request::Disarm { force: false },
+        };
+        self.request(now_us, facts, req)
     }
 
     /// Applies a command and answers it: its ACK (and STATUSTEXT on refusal), then any message it asked
@@ -131,11 +169,7 @@ impl Vehicle {
         let mut extra = Vec::new();
         let facts = self.facts(now_us);
         let outcome = match cmd.effect.clone() {
-            CommandEffect::Request(req @ (Request::Mission | Request::SetMode(FlightMode::Mission))) => self
-                .check_mission()
-                .map_err(Some)
-                .and_then(|()| self.commander.request(now_us, facts, req).map_err(|r| Some(r.to_string()))),
-            CommandEffect::Request(req) => self.commander.request(now_us, facts, req).map_err(|r| Some(r.to_string())),
+            CommandEffect::Request(req) => self.request(now_us, facts, req).map_err(Some),
             CommandEffect::Vehicle(command) => self.vehicle_command(now_us, facts, command, &mut extra),
             CommandEffect::Deny(text) => Err(Some(text)),
             CommandEffect::Unsupported => Err(None),

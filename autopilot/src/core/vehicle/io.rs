@@ -8,10 +8,10 @@ use nalgebra::Vector3;
 use crate::core::battery::{BatterySample, BatteryStatus};
 use crate::core::commander::{FlightMode, LandedState};
 use crate::core::control::{ControllerKind, Reference};
-use crate::core::manual::{ManualStatus, RcFrame};
 use crate::core::estimator::{
     BaroSample, Estimator, EstimatorSource, EstimatorState, GpsSample, ImuSample, Innovations, MagSample, TruthSample,
 };
+use crate::core::manual::{ManualStatus, RcFrame};
 
 /// One step's sensor inputs (any may be absent).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

@@ -17,7 +17,7 @@
 //! rebuilt, so nothing adapts or integrates on the ground. PWM is 1000 whenever disarmed, killed or idle,
 //! and when the estimate is invalid while armed on the ground; it is clamped to [1000, 2000] and never NaN.
 
-use ::mavlink::dialects::common::MavMessage;
+use ::mavlink::dialects::common::{MavMessage, MavSeverity};
 use nalgebra::Vector3;
 
 use crate::core::commander::{Commander, CommanderInputs, CommanderOutput, Estimate, Facts};
@@ -25,11 +25,12 @@ pub use crate::core::config::{AirborneStart, VehicleConfig, VehicleError};
 use crate::core::control::{Controller, Reference};
 use crate::core::estimator::{Estimator, EstimatorState, GpsSample};
 use crate::core::manual::{ManualInput, ManualStatus};
+use crate::core::mavlink::manual::ManualControlService;
 use crate::core::mavlink::mission::MissionService;
 use crate::core::mavlink::params::ParamService;
 use crate::core::mavlink::router::OffboardReceiver;
 use crate::core::mavlink::{
-    Home, LinkErrors, MavlinkService, Stream, TelemetrySnapshot, nav_event_message, plant_lost_heartbeat,
+    Home, LinkErrors, MavlinkService, Stream, TelemetrySnapshot, nav_event_message, plant_lost_heartbeat, statustext,
     sys_status_plant_lost,
 };
 use crate::core::navigator::{NavEvent, NavInput, Navigator};
@@ -79,6 +80,7 @@ pub struct Vehicle {
     /// The pilot's input (radio and joystick), and what it gave at the last step.
     manual: ManualInput,
     manual_status: ManualStatus,
+    manual_service: ManualControlService,
 }
 
 impl std::fmt::Debug for Vehicle {
@@ -143,6 +145,7 @@ impl Vehicle {
             effects: Vec::new(),
             manual: ManualInput::default(),
             manual_status: ManualStatus::default(),
+            manual_service: ManualControlService::default(),
             config,
         })
     }
@@ -257,6 +260,7 @@ impl Vehicle {
         Facts {
             mission_valid: self.navigator.mission_len() > 0 && self.estimator.state().origin.is_some(),
             offboard_fresh: self.offboard.fresh(now_us, self.config.navigator.offboard_timeout_s),
+            manual_fresh: self.manual.sticks(now_us, &self.config.manual).is_some(),
         }
     }
 
@@ -297,8 +301,15 @@ impl Vehicle {
         if let Some(frame) = inputs.rc {
             self.manual.on_rc(now_us, frame, &self.config.manual);
         }
-        let (manual_status, _pilot_actions) = self.manual.step(now_us, &self.config.manual);
+        let (manual_status, pilot_actions) = self.manual.step(now_us, &self.config.manual);
         self.manual_status = manual_status;
+        self.navigator.set_sticks(manual_status.sticks);
+        // The pilot's switches and gestures, before the commander steps (a refusal is said at once).
+        let pilot_refusals: Vec<MavMessage> = pilot_actions
+            .into_iter()
+            .filter_map(|action| self.pilot_action(now_us, action).err())
+            .map(|why| statustext(MavSeverity::MAV_SEVERITY_WARNING, &why))
+            .collect();
         let state = *self.estimator.state();
         for progress in self.navigator.take_progress() {
             self.commander.on_progress(progress);
@@ -339,6 +350,7 @@ impl Vehicle {
         let events = std::mem::take(&mut self.output.events);
         let due = self.mavlink.due_with_home(now_us, &events, home.map(|h| h.pos_ned_m));
         let mut messages = due.messages(&self.snapshot(now_us, home.as_ref()), &events);
+        messages.extend(pilot_refusals);
         messages.extend(self.missions.poll(now_us).messages);
         messages.extend(self.param_service.due(&self.params));
         for event in self.navigator.take_events() {

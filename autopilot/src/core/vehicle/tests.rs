@@ -121,6 +121,13 @@ fn given_arm_takeoff_and_mode_changes_when_heartbeats_then_px4_custom_and_base_m
     assert_eq!(hb[0].1, HOLD);
     assert!(hb[0].2.contains(custom) && !hb[0].2.contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED));
     let mode = |main: f32, sub: f32| long(MavCmd::MAV_CMD_DO_SET_MODE, [1.0, main, sub, 0.0, 0.0, 0.0, 0.0], 1);
+    // POSCTL flies the sticks: a joystick's MANUAL_CONTROL first (throttle centred).
+    let sticks = MavMessage::MANUAL_CONTROL(::mavlink::dialects::common::MANUAL_CONTROL_DATA {
+        target: 1,
+        z: 500,
+        ..Default::default()
+    });
+    v.handle_message(t, &GCS, &sticks);
     let replies = v.handle_message(t, &GCS, &mode(3.0, 0.0));
     assert_eq!(ack_of(&replies).map(|a| a.1), Some(MavResult::MAV_RESULT_ACCEPTED));
     let hb = heartbeats(&run(&mut v, &mut t, 0.01));

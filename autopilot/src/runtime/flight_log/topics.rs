@@ -52,6 +52,8 @@ pub const fn px4_nav_state(mode: FlightMode) -> u8 {
         FlightMode::Offboard => 14,
         FlightMode::Takeoff => 17,
         FlightMode::Land => 18,
+        FlightMode::Manual => 0,
+        FlightMode::Stabilized => 15,
     }
 }
 

@@ -99,6 +99,7 @@ mod aco;
 mod baselines;
 mod commander;
 mod control;
+mod manual;
 mod navigation;
 mod telemetry;
 
@@ -118,6 +119,9 @@ const SECTIONS: &[&[ParamDef]] = &[
     commander::FAILSAFES,
     telemetry::ULOG,
     baselines::COMPETENT_CA,
+    manual::RADIO,
+    manual::MANUAL_FLIGHT,
+    manual::RADIO_CALIBRATION,
 ];
 
 /// How many parameters the sections hold together.
@@ -159,7 +163,7 @@ mod tests {
 
     /// Every parameter's name at its `param_index`, as ground stations have cached them: a parameter
     /// moved, removed or inserted before the end changes an index and fails here.
-    const INDEX_ORDER: [&str; 91] = [
+    const INDEX_ORDER: [&str; 121] = [
         "ACO_POS_P",
         "ACO_VEL_P",
         "ACO_ROLL_P",
@@ -251,11 +255,47 @@ mod tests {
         "MRAC_WI_POS",
         "MRAC_EMOD",
         "MRAC_HEDGE",
+        "RC_MAP_ROLL",
+        "RC_MAP_PITCH",
+        "RC_MAP_YAW",
+        "RC_MAP_THROTTLE",
+        "RC_MAP_FLTMODE",
+        "RC_MAP_KILL_SW",
+        "RC_MAP_ARM_SW",
+        "COM_RC_IN_MODE",
+        "COM_RC_LOSS_T",
+        "COM_RC_ARM_HYST",
+        "MAN_ARM_GESTURE",
+        "COM_FLTMODE1",
+        "COM_FLTMODE2",
+        "COM_FLTMODE3",
+        "COM_FLTMODE4",
+        "COM_FLTMODE5",
+        "COM_FLTMODE6",
+        "NAV_RCL_ACT",
+        "COM_RCL_EXCEPT",
+        "MPC_MAN_TILT_MAX",
+        "MPC_MAN_Y_MAX",
+        "MPC_MANTHR_MIN",
+        "MPC_THR_HOVER",
+        "MPC_VEL_MANUAL",
+        "MPC_ACC_HOR_MAX",
+        "MPC_JERK_MAX",
+        "MPC_HOLD_DZ",
+        "MPC_XY_MAN_EXPO",
+        "MPC_Z_MAN_EXPO",
+        "MPC_YAW_EXPO",
     ];
+
+    /// The radio's calibration, appended last: RC1_MIN .. RC18_DZ, channel by channel.
+    fn rc_calibration_names() -> impl Iterator<Item = String> {
+        (1..=18).flat_map(|n| ["MIN", "MAX", "TRIM", "REV", "DZ"].map(|s| format!("RC{n}_{s}")))
+    }
 
     #[test]
     fn given_the_table_when_listed_then_every_parameter_keeps_its_param_index() {
         let names: Vec<&str> = PARAMS.iter().map(|d| d.name).collect();
-        assert_eq!(names, INDEX_ORDER);
+        let expected: Vec<String> = INDEX_ORDER.iter().map(|s| (*s).to_owned()).chain(rc_calibration_names()).collect();
+        assert_eq!(names, expected);
     }
 }
