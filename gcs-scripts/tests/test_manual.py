@@ -3,11 +3,14 @@
 with the throttle stick, forward and back with the pitch stick, land with the throttle low), `aco-sticks
 --script` as a user runs it, and the refusals: a manual mode or arming without manual control, Acro, and
 the failsafe when the sticks stop in the air. The autopilot runs with `--estimator truth`, so
-LOCAL_POSITION_NED is the plant's truth: every flight is judged on where the vehicle really was. Paced
-(MAVSDK at 2x: it streams the sticks on the wall clock, every 50 ms, and the vehicle loses them after
-COM_RC_LOSS_T = 0.5 s of its own time; the pymavlink flights at 4x, as test_failsafes.py, so wall
-latencies of a few milliseconds stay well under the 0.1 s the loss timing is held to). Every wait is on
-the vehicle's clock; a wall-clock limit only stops a hung run."""
+LOCAL_POSITION_NED is the plant's truth: every flight is judged on where the vehicle really was.
+
+Paced, because the vehicle loses the sticks after COM_RC_LOSS_T = 0.5 s of its own time and a client
+stalled that long on a loaded machine lets them lapse: MAVSDK at real time (it streams on the wall clock,
+every 50 ms here), aco-sticks at 2x (it streams on the vehicle's clock, but a reader stalled for 0.25 wall
+seconds still falls 0.5 s behind), the loss timing at real time (a reader's backlog is counted in the
+0.1 s it is held to, at 1x a few milliseconds), the refusals on the ground at 4x. Every wait is on the
+vehicle's clock; a wall-clock limit only stops a hung run."""
 
 import asyncio
 import math
@@ -220,7 +223,7 @@ async def mavsdk_manual_flight(instance, disarm_land_s):
 
 
 def test_mavsdk_manual_control_climbs_flies_forward_and_back_in_position_mode_and_lands_by_throttle(run_sitl):
-    sitl = run_sitl("2")
+    sitl = run_sitl("1")
     vehicle = connect(sitl)
     disarm_land_s = Params(vehicle, 1).get("COM_DISARM_LAND")
     vel_manual_mps = Params(vehicle, 1).get("MPC_VEL_MANUAL")
@@ -288,7 +291,7 @@ def tlog_track(path, system_id):
 
 
 def test_sticks_script_flies_position_mode_forward_and_stops_within_0_1_m_on_the_truth(run_sitl, tmp_path):
-    sitl = run_sitl("4")
+    sitl = run_sitl("2")
     script = tmp_path / "forward.toml"
     script.write_text(
         "[[step]]\nfor_s = 3.0\nthrottle = 1.0\n"  # climb
@@ -359,15 +362,11 @@ def test_manual_modes_and_arming_without_manual_control_and_acro_are_refused_wit
     loss_s = Params(vehicle, 1).get("COM_RC_LOSS_T")
     custom = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
 
-    def refused(main, *words):
-        """The ACK of DO_SET_MODE to PX4 main mode `main`, once a STATUSTEXT with all of `words` came."""
+    def refused(main, text):
+        """The ACK of DO_SET_MODE to PX4 main mode `main`, once the STATUSTEXT `text` came."""
         since = vehicle.now_s()
         result = vehicle.command(mavlink.MAV_CMD_DO_SET_MODE, custom, main, 0)
-        vehicle.wait_until(
-            2.0,
-            f"a STATUSTEXT saying {words}",
-            lambda: any(all(w in text for w in words) for text in vehicle.texts_since(since)),
-        )
+        vehicle.wait_until(2.0, f"STATUSTEXT {text!r}", lambda: text in vehicle.texts_since(since))
         return result
 
     # No manual control ever: each manual mode is refused by name, and the mode stays.
@@ -377,7 +376,7 @@ def test_manual_modes_and_arming_without_manual_control_and_acro_are_refused_wit
     assert vehicle.px4_mode() == before
     # Acro is refused whatever the sticks do.
     vehicle.sticks = CENTRED
-    assert refused(PX4_MAIN_ACRO, "ACRO", "controllers take no rate setpoints") == mavlink.MAV_RESULT_DENIED
+    assert refused(PX4_MAIN_ACRO, "Mode not supported: ACRO takes no rate setpoints") == mavlink.MAV_RESULT_DENIED
     # With the sticks flowing Position is taken; once they stop, arming in it is refused.
     vehicle.set_px4_mode(PX4_MAIN_POSCTL, 0, "Position mode")
     vehicle.sticks = None
@@ -393,7 +392,7 @@ def test_manual_modes_and_arming_without_manual_control_and_acro_are_refused_wit
 
 
 def test_sticks_stopping_in_position_mode_in_the_air_return_within_com_rc_loss_t_plus_0_1_s(run_sitl):
-    vehicle = pilot(run_sitl("4"))
+    vehicle = pilot(run_sitl("1"))
     params = Params(vehicle, 1)
     loss_s = params.get("COM_RC_LOSS_T")
     assert params.get("NAV_RCL_ACT") == 2, "the default: return"
