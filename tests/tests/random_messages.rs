@@ -1,15 +1,18 @@
 //! A flying vehicle driven by random ground-station message sequences (commands with any parameters,
-//! mode changes, offboard setpoints with any numbers, parameter sets, mission, fence and rally transfers),
+//! mode changes, offboard setpoints with any numbers, parameter sets, mission, fence and rally transfers,
+//! the pilot's sticks as MANUAL_CONTROL and RC_CHANNELS_OVERRIDE),
 //! in lockstep with the real plant, built with overflow checks on (the test profile keeps them). The
 //! invariants a pilot relies on, checked every tick: nothing panics; the motor commands stay finite and in
-//! 1000-2000 µs (the rig asserts it); the vehicle never arms without an ARM command; and with
+//! 1000-2000 µs (the rig asserts it); the vehicle never arms without an ARM command or the pilot's arming
+//! gesture (throttle low, yaw right); and with
 //! GF_MAX_HOR_DIST set it never gets farther from home than the limit plus a margin, on the plant's truth.
 
 use autopilot::core::estimator::EstimatorSource;
 use autopilot::core::mavlink::command_long;
 use autopilot::core::mavlink::common::{
-    COMMAND_INT_DATA, HEARTBEAT_DATA, MISSION_COUNT_DATA, MavCmd, MavFrame, MavMessage, MavMissionType, MavParamType,
-    PARAM_SET_DATA, PositionTargetTypemask, SET_POSITION_TARGET_LOCAL_NED_DATA,
+    COMMAND_INT_DATA, HEARTBEAT_DATA, MANUAL_CONTROL_DATA, MISSION_COUNT_DATA, MavCmd, MavFrame, MavMessage,
+    MavMissionType, MavParamType, PARAM_SET_DATA, PositionTargetTypemask, RC_CHANNELS_OVERRIDE_DATA,
+    SET_POSITION_TARGET_LOCAL_NED_DATA,
 };
 use autopilot::core::mavlink::gcs_heartbeat;
 use autopilot::core::params::PARAMS;
@@ -66,8 +69,8 @@ fn any_message() -> impl Strategy<Value = MavMessage> {
             let command = COMMANDS[i];
             (command != MavCmd::MAV_CMD_DO_SET_HOME).then(|| command_long(1, 1, command, p))
         }),
-        // PX4 modes as ground stations ask for them (main 1..6, sub 0..6): offboard, mission, RTL, hold, ...
-        3 => (1_u8..7, 0_u8..7).prop_map(|(main, sub)| {
+        // PX4 modes as ground stations ask for them (main 1..7, sub 0..6): manual, offboard, mission, RTL, ...
+        3 => (1_u8..8, 0_u8..7).prop_map(|(main, sub)| {
             command_long(1, 1, MavCmd::MAV_CMD_DO_SET_MODE, [1.0, f32::from(main), f32::from(sub), 0.0, 0.0, 0.0, 0.0])
         }),
         // Offboard velocities that push anywhere, up to 5 m/s.
@@ -149,6 +152,25 @@ fn any_message() -> impl Strategy<Value = MavMessage> {
             MavMessage::MISSION_ITEM_INT(item)
         }),
         1 => Just(gcs_heartbeat()),
+        // The pilot: a joystick's sticks anywhere (the gesture's corner too), and a radio's channels.
+        4 => (any::<i16>(), any::<i16>(), any::<i16>(), any::<i16>(), any::<bool>()).prop_map(|(x, y, z, r, corner)| {
+            let (z, r) = if corner { (0, 1000) } else { (z, r) };
+            MavMessage::MANUAL_CONTROL(MANUAL_CONTROL_DATA { target: 1, x, y, z, r, ..Default::default() })
+        }),
+        2 => proptest::array::uniform8(prop_oneof![3 => 900_u16..2100, 1 => any::<u16>()]).prop_map(|c| {
+            MavMessage::RC_CHANNELS_OVERRIDE(RC_CHANNELS_OVERRIDE_DATA {
+                target_system: 1,
+                chan1_raw: c[0],
+                chan2_raw: c[1],
+                chan3_raw: c[2],
+                chan4_raw: c[3],
+                chan5_raw: c[4],
+                chan6_raw: c[5],
+                chan7_raw: c[6],
+                chan8_raw: c[7],
+                ..Default::default()
+            })
+        }),
     ]
 }
 
@@ -172,8 +194,18 @@ fn flying() -> Rig {
     rig
 }
 
+/// An ARM command, or the pilot's sticks in the arming gesture's corner (throttle low, yaw right: the
+/// joystick's z and r, the radio's channels 3 and 4 in the default map).
 fn is_arm_command(msg: &MavMessage) -> bool {
-    matches!(msg, MavMessage::COMMAND_LONG(c) if c.command == MavCmd::MAV_CMD_COMPONENT_ARM_DISARM && c.param1 == 1.0)
+    match msg {
+        MavMessage::COMMAND_LONG(c) => c.command == MavCmd::MAV_CMD_COMPONENT_ARM_DISARM && c.param1 == 1.0,
+        MavMessage::MANUAL_CONTROL(m) => m.z < 100 && m.r > 900 && m.r != i16::MAX,
+        // An override keeps the channels a later one leaves at u16::MAX: counted as the gesture too.
+        MavMessage::RC_CHANNELS_OVERRIDE(m) => {
+            (m.chan3_raw < 1100 || m.chan3_raw == u16::MAX) && (m.chan4_raw > 1900 || m.chan4_raw == u16::MAX)
+        }
+        _ => false,
+    }
 }
 
 proptest! {
