@@ -506,7 +506,8 @@ def fly_keyboard(vehicle, args):
 
     saved = termios.tcgetattr(fd)
     try:
-        tty.setcbreak(fd)
+        # TCSADRAIN, not tty's default TCSAFLUSH: a key typed before the terminal switched is kept.
+        tty.setcbreak(fd, termios.TCSADRAIN)
         _keyboard_loop(vehicle, args, read_input)
     finally:
         termios.tcsetattr(fd, termios.TCSADRAIN, saved)

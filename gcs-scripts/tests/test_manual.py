@@ -1,7 +1,7 @@
 """Flying by hand through `sitl run`, as the field's ground stations do it: MAVSDK's ManualControl plugin
 (its own example's order: the sticks streaming before `start_position_control`, arm, Position mode, climb
 with the throttle stick, forward and back with the pitch stick, land with the throttle low), `aco-sticks
---script` as a user runs it, and the refusals: a manual mode or arming without manual control, Acro, and
+--script` and `aco-sticks --keyboard` (on a pseudo-terminal) as a user runs them, and the refusals: a manual mode or arming without manual control, Acro, and
 the failsafe when the sticks stop in the air. The autopilot runs with `--estimator truth`, so
 LOCAL_POSITION_NED is the plant's truth: every flight is judged on where the vehicle really was.
 
@@ -13,10 +13,12 @@ seconds still falls 0.5 s behind), the loss timing at real time (a reader's back
 vehicle's clock; a wall-clock limit only stops a hung run."""
 
 import asyncio
+import contextlib
 import math
 import os
 import random
 import re
+import select
 import signal
 import subprocess
 import sys
@@ -342,6 +344,79 @@ def test_sticks_script_flies_position_mode_forward_and_stops_within_0_1_m_on_the
     # The reference's jerk-limited stop from MPC_VEL_MANUAL 2 m/s (MPC_ACC_HOR_MAX 2 m/s², MPC_JERK_MAX
     # 4 m/s³) takes 1.5 m; the vehicle trails its reference a little (1.88 m measured on the truth).
     assert stopped_m - out_m < 2.5, "braked within the stopping distance"
+
+
+class Terminal:
+    """`python -m aco_gcs.sticks args...` on a pseudo-terminal, as a user at a keyboard runs it: keys are
+    typed into it, and its output is read until a line says what the test waits for (no sleeps)."""
+
+    def __init__(self, *args):
+        import pty
+
+        self.pid, self.fd = pty.fork()
+        if self.pid == 0:  # the child: the script, its standard input a terminal
+            os.environ["PYTHONPATH"] = os.pathsep.join([str(ROOT / "gcs-scripts"), os.environ.get("PYTHONPATH", "")])
+            os.execv(sys.executable, [sys.executable, "-m", "aco_gcs.sticks", *map(str, args)])
+        self.out = ""
+        self.cursor = 0  # where the last match ended: the next one is looked for after it
+
+    def type(self, keys):
+        os.write(self.fd, keys.encode())
+
+    def _read(self, timeout_s):
+        """What the script printed within `timeout_s`; False once it has closed the terminal."""
+        if not select.select([self.fd], [], [], timeout_s)[0]:
+            return True
+        try:
+            self.out += os.read(self.fd, 65536).decode(errors="replace")
+        except OSError:
+            return False
+        return True
+
+    def read_until(self, pattern, wall_s=120.0):
+        """The first match of regex `pattern` after the last match (a wall-clock hang guard only)."""
+        regex, end = re.compile(pattern), time.monotonic() + wall_s
+        while (m := regex.search(self.out, self.cursor)) is None:
+            assert time.monotonic() < end, f"{pattern!r} not seen in:\n{self.out[-3000:]}"
+            assert self._read(0.5), f"the script ended before {pattern!r}:\n{self.out[-3000:]}"
+        self.cursor = m.end()
+        return m
+
+    def exit_code(self, wall_s=120.0):
+        end = time.monotonic() + wall_s
+        while time.monotonic() < end:
+            pid, status = os.waitpid(self.pid, os.WNOHANG)
+            if pid:
+                return os.waitstatus_to_exitcode(status)
+            self._read(0.2)
+        pytest.fail(f"aco-sticks --keyboard did not exit:\n{self.out[-3000:]}")
+
+
+def test_sticks_keyboard_arms_climbs_and_on_x_lands_before_quitting(run_sitl):
+    sitl = run_sitl("2")
+    term = Terminal("--instance", sitl.instance, "--keyboard", "--track", "0.5")
+    try:
+        term.read_until(r"Position mode at t")
+        term.read_until(r"keys \(each press")  # the terminal reads single keys from here on
+        term.type("t")
+        term.read_until(r"armed at t")
+        term.type("rrr")  # throttle 0.8: climbs
+        term.read_until(r"throttle 0\.80")
+        term.read_until(r"D +-1\.[5-9]\d m")  # 1.5 m up
+        term.type(" ")  # centred: holds
+        term.read_until(r"throttle 0\.50")
+        term.type("x")  # in the air: lands first, then quits
+        term.read_until(r"in the air: landing before quitting")
+        term.read_until(r"landed and disarmed after")
+        code = term.exit_code()
+    finally:
+        with contextlib.suppress(ProcessLookupError, ChildProcessError):  # already exited and reaped
+            os.kill(term.pid, signal.SIGKILL)
+            os.waitpid(term.pid, 0)
+        os.close(term.fd)
+    print(term.out[-2000:])
+    assert code == 0, term.out[-3000:]
+    assert "Failsafe" not in term.out, "the sticks never lapsed"
 
 
 # -- refusals ----------------------------------------------------------------------------------------------
