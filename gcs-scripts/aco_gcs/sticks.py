@@ -69,7 +69,7 @@ MAX_STEP_S = 3600.0
 STICK_RANGES = {"pitch": (-1.0, 1.0), "roll": (-1.0, 1.0), "yaw": (-1.0, 1.0), "throttle": (0.0, 1.0)}
 STEP_KEYS = ("for_s", *STICK_RANGES)
 # The arming gesture (MAN_ARM_GESTURE): throttle low and yaw right held for COM_RC_ARM_HYST (1 s default).
-GESTURE_HOLD_S = 1.5
+DEFAULT_ARM_HYST_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -373,10 +373,11 @@ def arm(vehicle, how):
     """Arm by ARM_DISARM ("command") or the stick gesture ("gesture": throttle low, yaw right, held longer
     than COM_RC_ARM_HYST); the sticks are centred afterwards. Fails with the vehicle's reason."""
     if how == "gesture":
+        hyst_s = Params(vehicle, AUTOPILOT_COMPONENT).get("COM_RC_ARM_HYST") or DEFAULT_ARM_HYST_S
         since = vehicle.now_s()
         vehicle.sticks = Sticks(throttle=0.0, yaw=1.0)
         try:
-            vehicle.wait_until(GESTURE_HOLD_S + 2.0, "armed by the stick gesture", lambda: vehicle.armed)
+            vehicle.wait_until(hyst_s + 2.0, "armed by the stick gesture", lambda: vehicle.armed)
         except CheckFailed as e:
             texts = "; ".join(vehicle.texts_since(since))
             raise CheckFailed(f"{e}" + (f" ({texts})" if texts else "")) from None
@@ -399,10 +400,6 @@ def hold_mode(vehicle):
             f"COM_RCL_EXCEPT = {int(exempt)} does not exempt Hold (bit 2): once the sticks stop, the vehicle "
             "takes its manual-control-loss action (NAV_RCL_ACT) after COM_RC_LOSS_T"
         )
-
-
-def in_air(vehicle):
-    return vehicle.armed and vehicle.landed_state not in (None, mavlink.MAV_LANDED_STATE_ON_GROUND)
 
 
 def check_still_flying(vehicle, since_s):
@@ -460,10 +457,18 @@ KEYBOARD_HELP = """keys (each press moves a stick one notch; it stays there):
 
 
 def quit_flight(vehicle):
-    """Before the stream stops: in the air, land by throttle low and wait for the disarm."""
-    if in_air(vehicle):
-        flight.say("in the air: landing before quitting (Ctrl-C quits at once)")
-        land_by_throttle(vehicle)
+    """Before the stream stops, armed: on the ground, disarm (ARM_DISARM); in the air (or when the vehicle
+    refuses the disarm: it may have left the ground since its last EXTENDED_SYS_STATE), land by throttle low
+    and wait for the disarm."""
+    if not vehicle.armed:
+        return
+    on_ground = vehicle.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND
+    if on_ground and vehicle.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0) == mavlink.MAV_RESULT_ACCEPTED:
+        vehicle.wait_until(2.0, "disarmed HEARTBEAT", lambda: not vehicle.armed)
+        flight.say(f"disarmed on the ground at t {vehicle.now_s():.2f} s")
+        return
+    flight.say("in the air: landing before quitting (Ctrl-C quits at once)")
+    land_by_throttle(vehicle)
 
 
 def _keyboard_loop(vehicle, args, read_input):

@@ -1,9 +1,10 @@
 """Flying by hand through `sitl run`, as the field's ground stations do it: MAVSDK's ManualControl plugin
 (its own example's order: the sticks streaming before `start_position_control`, arm, Position mode, climb
 with the throttle stick, forward and back with the pitch stick, land with the throttle low), `aco-sticks
---script` and `aco-sticks --keyboard` (on a pseudo-terminal) as a user runs them, and the refusals: a manual mode or arming without manual control, Acro, and
-the failsafe when the sticks stop in the air. The autopilot runs with `--estimator truth`, so
-LOCAL_POSITION_NED is the plant's truth: every flight is judged on where the vehicle really was.
+--script` and `aco-sticks --keyboard` (on a pseudo-terminal) as a user runs them, and the refusals: a
+manual mode or arming without manual control, Acro, and the failsafe when the sticks stop in the air.
+The autopilot runs with `--estimator truth`, so LOCAL_POSITION_NED is the plant's truth: every flight is
+judged on where the vehicle really was.
 
 Paced, because the vehicle loses the sticks after COM_RC_LOSS_T = 0.5 s of its own time and a client
 stalled that long on a loaded machine lets them lapse: MAVSDK at real time (it streams on the wall clock,
@@ -392,13 +393,13 @@ class Terminal:
         pytest.fail(f"aco-sticks --keyboard did not exit:\n{self.out[-3000:]}")
 
 
-def test_sticks_keyboard_arms_climbs_and_on_x_lands_before_quitting(run_sitl):
+def test_sticks_keyboard_arms_by_the_gesture_climbs_and_on_x_lands_before_quitting(run_sitl):
     sitl = run_sitl("2")
-    term = Terminal("--instance", sitl.instance, "--keyboard", "--track", "0.5")
+    term = Terminal("--instance", sitl.instance, "--keyboard", "--arm", "gesture", "--track", "0.5")
     try:
         term.read_until(r"Position mode at t")
         term.read_until(r"keys \(each press")  # the terminal reads single keys from here on
-        term.type("t")
+        term.type("t")  # the gesture: throttle low, yaw right, for COM_RC_ARM_HYST
         term.read_until(r"armed at t")
         term.type("rrr")  # throttle 0.8: climbs
         term.read_until(r"throttle 0\.80")
@@ -416,6 +417,7 @@ def test_sticks_keyboard_arms_climbs_and_on_x_lands_before_quitting(run_sitl):
         os.close(term.fd)
     print(term.out[-2000:])
     assert code == 0, term.out[-3000:]
+    assert "[vehicle] Armed" in term.out, "armed by the gesture, as the vehicle says"
     assert "Failsafe" not in term.out, "the sticks never lapsed"
 
 
