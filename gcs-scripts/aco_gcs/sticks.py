@@ -27,8 +27,9 @@ Sources of the sticks, one of:
                       space            centre every stick (throttle 0.5: hold)
                       t                arm (--arm: ARM_DISARM or the gesture)
                       l                land: throttle low, the rest centred
-                      x                quit (in the air: land with the throttle low first; Ctrl-C quits at
-                                       once and leaves the vehicle to its manual-control-loss failsafe)
+                      x                quit (armed: disarm on the ground, land with the throttle low
+                                       first in the air; Ctrl-C quits at once and leaves the vehicle to
+                                       its manual-control-loss failsafe)
   --gamepad [DEV] a Linux joystick device (default /dev/input/js0), read as raw js_event records with no
                   extra dependency: --axes says which axis is which (default 3,4,1,0: roll = right stick
                   X, pitch = right stick Y, throttle = left stick Y, yaw = left stick X, the Mode 2 layout
