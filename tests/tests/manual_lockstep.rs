@@ -262,7 +262,7 @@ fn given_no_manual_control_then_manual_modes_and_arming_in_them_are_refused_in_w
 }
 
 #[test]
-fn given_sticks_that_stop_in_position_mode_then_nav_rcl_act_return_starts_within_com_rc_loss_t_plus_0_1_s_and_is_announced()
+fn given_sticks_that_stop_in_position_mode_then_nav_rcl_act_return_starts_within_com_rc_loss_t_plus_0_1_s_is_announced_and_the_pilot_takes_back()
  {
     let mut rig = hovering_by_hand(3.0);
     texts(&mut rig);
@@ -281,6 +281,12 @@ fn given_sticks_that_stop_in_position_mode_then_nav_rcl_act_return_starts_within
     assert!(after_s <= loss_s + 0.1, "returned {after_s:.3} s after the last stick input");
     let t = said(&mut rig, "Failsafe: manual control lost, returning");
     assert_eq!(t.len(), 1, "announced once");
+    // The sticks come back: said; the vehicle keeps returning until the pilot takes it (as PX4).
+    fly(&mut rig, 1.0, Some(centre()), |_| {});
+    assert_eq!(said(&mut rig, "Manual control regained").len(), 1);
+    assert_eq!(rig.vehicle.commander().mode(), FlightMode::ReturnToLaunch);
+    assert_eq!(set_mode(&mut rig, 3.0), MavResult::MAV_RESULT_ACCEPTED);
+    assert_eq!(rig.vehicle.commander().mode(), FlightMode::Position);
 }
 
 #[test]

@@ -9,7 +9,7 @@
 //! |---|---|---|---|
 //! | no ground-station HEARTBEAT (`MAV_TYPE_GCS`) for `COM_DL_LOSS_T` s, after one was heard | `COM_DL_LOSS_T`, `NAV_DLL_ACT` | 10 s, 0 (off) | PX4's NAV_DLL_ACT: 1 hold, 2 return, 3 land, 5 terminate |
 //! | offboard setpoints older than `COM_OF_LOSS_T` in offboard mode | `COM_OF_LOSS_T` | 0.5 s | hold |
-//! | manual control (sticks) older than `COM_RC_LOSS_T`, after it was present, unless the mode is exempt by `COM_RCL_EXCEPT` (1 mission, 2 hold, 4 offboard; landing and returning are never interrupted) | `COM_RC_LOSS_T`, `NAV_RCL_ACT`, `COM_RCL_EXCEPT` | 0.5 s, 2 (return), 0 | PX4's NAV_RCL_ACT: 1 hold, 2 return, 3 land, 5 terminate (0: only said) |
+//! | manual control (sticks) older than `COM_RC_LOSS_T`, after it was present (and not already lost when the vehicle armed), unless the mode is exempt by `COM_RCL_EXCEPT` (1 mission, 2 hold and takeoff, 4 offboard; landing and returning are never interrupted) | `COM_RC_LOSS_T`, `NAV_RCL_ACT`, `COM_RCL_EXCEPT` | 0.5 s, 2 (return), 0 | PX4's NAV_RCL_ACT: 1 hold, 2 return, 3 land, 5 terminate (0: only said) |
 //! | battery below `BAT_LOW_THR` while armed | `BAT_LOW_THR` | 15 % | warning (and arming refused below it) |
 //! | battery below `BAT_CRIT_THR` / `BAT_EMERGEN_THR` while armed | `COM_LOW_BAT_ACT`, thresholds | 3, 7 %, 5 % | PX4's COM_LOW_BAT_ACT: 0 warn, 2 land, 3 return at critical and land at emergency |
 //! | geofence breached, or predicted to be before the vehicle can stop, in the air | `GF_ACTION`, `GF_MAX_HOR_DIST`, `GF_MAX_VER_DIST`, the uploaded fence | 2, 0 (off), 0 (off) | PX4's GF_ACTION: 0 none, 1 warning, 2 hold, 3 return, 4 terminate, 5 land |
@@ -166,7 +166,12 @@ impl super::Commander {
     pub(super) fn manual_failsafe(&mut self, now: u64) {
         let fresh = self.facts.manual_fresh;
         self.manual_seen |= fresh;
-        let lost = self.manual_seen && !fresh;
+        // Armed without manual control (a script that never sent any since): nothing to lose until it
+        // comes back, as PX4 ignores a loss that was already there at arming.
+        if fresh || !self.state.is_armed() {
+            self.manual_lost_at_arming = self.state == State::Disarmed && !fresh;
+        }
+        let lost = self.manual_seen && !fresh && !self.manual_lost_at_arming;
         if lost == self.manual_lost {
             return;
         }
@@ -182,7 +187,8 @@ impl super::Commander {
         let except = self.config.rc_loss_except;
         let exempt = match self.state {
             State::Mission => except & 1 != 0,
-            State::Hold => except & 2 != 0,
+            // PX4 exempts a takeoff with the hold bit too.
+            State::Hold | State::Takeoff => except & 2 != 0,
             State::Offboard => except & 4 != 0,
             State::Land | State::Rtl => true,
             _ => false,

@@ -62,6 +62,8 @@ pub struct Commander {
     /// Manual control was fresh at some point (nothing to lose before), and a loss episode is under way.
     manual_seen: bool,
     manual_lost: bool,
+    /// Manual control was not fresh when the vehicle armed: its loss is ignored until it comes back.
+    manual_lost_at_arming: bool,
     facts: Facts,
     /// The navigator's progress: the mission flew its last item; an automatic mode descends to land.
     mission_done: bool,
@@ -107,6 +109,7 @@ impl Commander {
             kill_switch: false,
             manual_seen: false,
             manual_lost: false,
+            manual_lost_at_arming: false,
             facts: Facts::default(),
             mission_done: false,
             auto_landing: false,

@@ -745,3 +745,49 @@ fn given_gf_action_hold_when_a_breach_starts_in_the_air_then_hold_once_and_rearm
     config.geofence.action = 6;
     assert!(c.set_config(config).is_err());
 }
+
+#[test]
+fn given_manual_control_already_lost_at_arming_then_its_loss_is_not_a_failsafe_until_it_returns_and_stops_again() {
+    let mut sim = Sim::new();
+    let mut c = commander();
+    // The sticks came once (a script's one MANUAL_CONTROL), then stopped before arming.
+    sim.facts.manual_fresh = true;
+    sim.run(&mut c, 5);
+    sim.facts.manual_fresh = false;
+    sim.run(&mut c, 5);
+    c.request(sim.now_us, sim.facts, Request::Arm { force: false }).expect("arm");
+    c.request(sim.now_us, sim.facts, Request::Takeoff { alt_rel_m: None }).expect("takeoff");
+    let outs = sim.run_until(&mut c, 20.0, |o| o.state == State::Hold);
+    let failsafe = |outs: &[CommanderOutput]| {
+        outs.iter()
+            .flat_map(|o| &o.events)
+            .any(|e| matches!(e, Event::Failsafe { trigger: Trigger::ManualControlLost, .. }))
+    };
+    assert!(!failsafe(&outs), "a loss that was there at arming is no failsafe");
+    // They come back (nothing to say: no loss was announced), and stop again in the air: now it is one,
+    // PX4's NAV_RCL_ACT (return).
+    sim.facts.manual_fresh = true;
+    let outs = sim.run(&mut c, 5);
+    assert!(!outs.iter().flat_map(|o| &o.events).any(|e| e.text() == "Manual control regained"));
+    sim.facts.manual_fresh = false;
+    let outs = sim.run(&mut c, 5);
+    assert!(failsafe(&outs));
+    assert_eq!(c.state(), State::Rtl);
+    assert!(outs.iter().flat_map(|o| &o.events).any(|e| e.text() == "Failsafe: manual control lost, returning"));
+}
+
+#[test]
+fn given_com_rcl_except_hold_when_the_sticks_stop_in_a_takeoff_then_it_goes_on_and_without_it_returns() {
+    for (except, want) in [(2, State::Takeoff), (0, State::Rtl)] {
+        let mut sim = Sim::new();
+        let mut c = Commander::new(CommanderConfig { rc_loss_except: except, ..CommanderConfig::default() }).unwrap();
+        sim.facts.manual_fresh = true;
+        sim.run(&mut c, 1);
+        c.request(sim.now_us, sim.facts, Request::Arm { force: false }).expect("arm");
+        c.request(sim.now_us, sim.facts, Request::Takeoff { alt_rel_m: None }).expect("takeoff");
+        sim.run(&mut c, 100);
+        sim.facts.manual_fresh = false;
+        sim.run(&mut c, 2);
+        assert_eq!(c.state(), want, "COM_RCL_EXCEPT {except}");
+    }
+}

@@ -316,6 +316,8 @@ impl ManualInput {
 
 #[cfg(test)]
 mod tests {
+    use proptest::prelude::*;
+
     use super::*;
     use crate::core::manual::RcMap;
 
@@ -417,6 +419,77 @@ mod tests {
         assert!(m.step(40 * MS, &cfg).1.is_empty());
         m.on_rc(60 * MS, frame(1500, 2000, 2000), &cfg);
         assert_eq!(m.step(60 * MS, &cfg).1, vec![PilotAction::ArmSwitch(true)]);
+    }
+
+    #[derive(Debug, Clone)]
+    enum Ev {
+        Rc(Vec<u16>, u8),
+        Joy(i16, i16, i16, i16),
+        Wait(u64),
+    }
+
+    fn any_event() -> impl Strategy<Value = Ev> {
+        prop_oneof![
+            (proptest::collection::vec(prop_oneof![3 => 900_u16..2100, 1 => any::<u16>()], 0..19), any::<u8>())
+                .prop_map(|(c, rssi)| Ev::Rc(c, rssi)),
+            (any::<i16>(), any::<i16>(), any::<i16>(), any::<i16>()).prop_map(|(x, y, z, r)| Ev::Joy(x, y, z, r)),
+            (0_u64..800_000).prop_map(Ev::Wait),
+        ]
+    }
+
+    proptest! {
+        /// Any sequence of radio frames, joystick samples and waits, under any COM_RC_IN_MODE: the sticks are
+        /// in range, come only from a source the mode accepts, only while that source is younger than
+        /// COM_RC_LOSS_T, and an arm switch found on never arms.
+        #[test]
+        fn any_input_sequence_gives_sticks_in_range_from_an_accepted_fresh_source(
+            in_mode in 0_u32..5, events in proptest::collection::vec(any_event(), 1..80),
+        ) {
+            let cfg = ManualConfig {
+                in_mode,
+                rc: RcConfig { map: RcMap { fltmode: 5, kill_sw: 6, arm_sw: 7, ..RcMap::default() }, ..RcConfig::default() },
+                fltmodes: [2, 1, 3, 4, 5, 8],
+                ..ManualConfig::default()
+            };
+            let mode = RcInMode::from_px4(in_mode).unwrap();
+            let mut m = ManualInput::default();
+            let mut now = 0;
+            let (mut last_rc, mut last_joy): (Option<u64>, Option<u64>) = (None, None);
+            let mut arm_switch_seen = false;
+            for ev in events {
+                match ev {
+                    Ev::Rc(c, rssi) => {
+                        let frame = RcFrame { rssi, ..RcFrame::of(&c) };
+                        m.on_rc(now, frame, &cfg);
+                        if frame.count > 0 && rssi != 0 && cfg.rc.sticks(&frame).is_some() {
+                            last_rc = Some(now);
+                        }
+                    }
+                    Ev::Joy(x, y, z, r) => {
+                        m.on_joystick(now, Sticks::from_manual_control(x, y, z, r));
+                        last_joy = Some(now);
+                    }
+                    Ev::Wait(us) => now += us,
+                }
+                let (status, actions) = m.step(now, &cfg);
+                if let Some(s) = status.sticks {
+                    for v in [s.roll, s.pitch, s.yaw] {
+                        prop_assert!((-1.0..=1.0).contains(&v));
+                    }
+                    prop_assert!((0.0..=1.0).contains(&s.throttle));
+                    let source = status.source.expect("a source with the sticks");
+                    prop_assert!(mode.accepts(source), "{source:?} under mode {in_mode}");
+                    let last = match source { ManualSource::Rc => last_rc, ManualSource::Joystick => last_joy };
+                    prop_assert!(last.is_some_and(|t| now - t <= seconds_to_us(cfg.loss_s)), "stale sticks");
+                }
+                for a in actions {
+                    if let PilotAction::ArmSwitch(true) = a {
+                        prop_assert!(arm_switch_seen, "an arm switch found on armed");
+                    }
+                }
+                arm_switch_seen |= m.switches.is_some_and(|s| s.arm.is_some());
+            }
+        }
     }
 
     #[test]
