@@ -69,7 +69,8 @@ fn bench_vehicle_step(c: &mut Criterion) {
             for m in &out.messages {
                 bytes += encode_frame_v2(header, m).len();
             }
-            let cmd = ActuatorCommand { time_us: t_us, pwm_us: out.pwm_us, armed: out.armed };
+            let cmd =
+                ActuatorCommand { time_us: t_us, pwm_us: out.pwm_us, armed: out.armed, motor_test: out.motor_test };
             let reply = MavMessage::HIL_ACTUATOR_CONTROLS(encode_actuator_controls(&cmd));
             bytes += encode_frame_v2(header, &reply).len();
             t_us += DT_US;

@@ -323,15 +323,19 @@ impl GcsMessage {
     }
 }
 
-/// The invariants of every vehicle step, whatever came in: motor commands finite and in 1000-2000 µs, the
+/// The invariants of every vehicle step, whatever came in: motor commands finite and in 1000-2000 µs, all
+/// at 1000 µs while disarmed except one motor during a motor test, never a motor test while armed; the
 /// estimate and the reference finite.
 ///
 /// # Panics
 /// When one does not hold (the fuzzer records the input).
 pub fn check_step(vehicle: &Vehicle, out: &VehicleOutputs) {
     assert!(out.pwm_us.iter().all(|p| p.is_finite() && (1000.0..=2000.0).contains(p)), "pwm {:?}", out.pwm_us);
+    assert!(!(out.armed && out.motor_test), "a motor test while armed");
     if !out.armed {
-        assert!(out.pwm_us.iter().all(|p| *p == 1000.0), "disarmed but pwm {:?}", out.pwm_us);
+        let moving = out.pwm_us.iter().filter(|p| **p != 1000.0).count();
+        let allowed = usize::from(out.motor_test);
+        assert!(moving <= allowed, "disarmed but pwm {:?} (motor test: {})", out.pwm_us, out.motor_test);
     }
     check_vehicle(vehicle);
 }

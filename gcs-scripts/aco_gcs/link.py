@@ -473,6 +473,9 @@ class Vehicle(VehicleState, Link):
         since = self.now_s()
         result = self.command(command, *params, **kwargs)
         if result != mavlink.MAV_RESULT_ACCEPTED:
+            if not self.texts_since(since):
+                # The reason's STATUSTEXT may follow the ACK: a second of vehicle time for it.
+                self.next_message(1.0, lambda m: m.get_type() == "STATUSTEXT")
             texts = "; ".join(self.texts_since(since))
             raise CheckFailed(f"{what}: the vehicle answered {result_name(result)}" + (f" ({texts})" if texts else ""))
 

@@ -30,6 +30,7 @@ SCRIPTS = [
     "tlog_plot",
     "ulog_plot",
     "sweep",
+    "sticks",
 ]
 # Wall-clock limits of a script run (a hang guard: the scripts' own waits are on vehicle time).
 FLIGHT_WALL_S = 300

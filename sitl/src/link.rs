@@ -507,7 +507,7 @@ impl<T: Transport> PlantServer<T> {
         let command = reply?;
         self.pending = None;
         self.pace(t)?;
-        self.plant.set_motors_running(command.armed);
+        self.plant.set_motors_running(command.motors_running());
         self.plant.step(command.effective_pwm_us(), self.config.dt_us);
         self.stats.steps += 1;
         self.last_command = Some(command);
@@ -636,7 +636,7 @@ mod tests {
     }
 
     fn reply(t: u64, pwm_us: f64) -> Vec<u8> {
-        let cmd = ActuatorCommand { time_us: t, pwm_us: [pwm_us; 4], armed: true };
+        let cmd = ActuatorCommand { time_us: t, pwm_us: [pwm_us; 4], armed: true, motor_test: false };
         encode_frame_v2(ap_header(), &MavMessage::HIL_ACTUATOR_CONTROLS(encode_actuator_controls(&cmd)))
     }
 

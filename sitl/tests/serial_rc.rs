@@ -57,7 +57,12 @@ fn given_a_radio_frame_when_the_plant_serves_over_a_pty_then_the_autopilot_decod
                         if let Some((ms, got)) = pending.take() {
                             rc.push((ms, got, fields.time_us));
                         }
-                        let cmd = ActuatorCommand { time_us: fields.time_us, pwm_us: [1000.0; 4], armed: false };
+                        let cmd = ActuatorCommand {
+                            time_us: fields.time_us,
+                            pwm_us: [1000.0; 4],
+                            armed: false,
+                            motor_test: false,
+                        };
                         let header = MavHeader { system_id: 1, component_id: 1, sequence: 0 };
                         let reply = MavMessage::HIL_ACTUATOR_CONTROLS(encode_actuator_controls(&cmd));
                         autopilot_end.write_all(&encode_frame_v2(header, &reply)).expect("reply");

@@ -100,7 +100,7 @@ impl Rig {
             }
             self.messages.push((self.now_us, m));
         }
-        self.plant.set_motors_running(out.armed);
+        self.plant.set_motors_running(out.armed || out.motor_test);
         self.plant.step(out.pwm_us, DT_US);
     }
 

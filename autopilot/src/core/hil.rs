@@ -7,6 +7,15 @@
 //! `HIL_ACTUATOR_CONTROLS` (`controls[i] = (pwm_us - 1000) / 1000` for the paper's rotors 1..4, the armed
 //! flag in `mode`, `time_usec` echoing the sensor sample it answers).
 //!
+//! # Who runs the motors
+//!
+//! The plant runs its motors on `controls` when `mode` has `MAV_MODE_FLAG_SAFETY_ARMED` (the vehicle is
+//! armed) or `MAV_MODE_FLAG_TEST_ENABLED` (a motor test, MAV_CMD_ACTUATOR_TEST or MAV_CMD_DO_MOTOR_TEST,
+//! drives the outputs of the disarmed vehicle, as PX4's actuator test drives a disarmed board's ESCs);
+//! with neither it holds every motor at 1000 µs whatever `controls` says
+//! ([`ActuatorCommand::effective_pwm_us`]). The test flag is its own bit rather than a borrowed "armed",
+//! so that the plant (and a log of the link) can tell a bench test from a flight.
+//!
 //! The plant-independent encoders live here too (from the neutral [`HilSensorFields`] and the estimator
 //! types), so both ends share one definition of every scale factor; `sitl::link` only maps its plant types
 //! onto them.
@@ -474,18 +483,27 @@ pub struct ActuatorCommand {
     pub pwm_us: [f64; 4],
     /// `MAV_MODE_FLAG_SAFETY_ARMED`.
     pub armed: bool,
+    /// `MAV_MODE_FLAG_TEST_ENABLED`: a motor test drives the outputs of the disarmed vehicle.
+    pub motor_test: bool,
 }
 
 impl ActuatorCommand {
-    /// What the motors get: `pwm_us` when armed, 1000 µs each when disarmed.
+    /// Whether the motors run on `pwm_us`: armed, or a motor test (see the module docs).
+    #[must_use]
+    pub fn motors_running(&self) -> bool {
+        self.armed || self.motor_test
+    }
+
+    /// What the motors get: `pwm_us` while they run, 1000 µs each otherwise.
     #[must_use]
     pub fn effective_pwm_us(&self) -> [f64; 4] {
-        if self.armed { self.pwm_us } else { [PWM_MIN_US; 4] }
+        if self.motors_running() { self.pwm_us } else { [PWM_MIN_US; 4] }
     }
 }
 
 /// [`ActuatorCommand`] -> `HIL_ACTUATOR_CONTROLS`: `controls[0..4]` from the PWM (see [`pwm_us_to_control`]),
-/// the rest 0; `mode` = SAFETY_ARMED when armed, else empty; `flags` = LOCKSTEP.
+/// the rest 0; `mode` = SAFETY_ARMED when armed, TEST_ENABLED during a motor test, else empty; `flags` =
+/// LOCKSTEP.
 #[must_use]
 pub fn encode_actuator_controls(cmd: &ActuatorCommand) -> HIL_ACTUATOR_CONTROLS_DATA {
     let mut controls = [0.0_f32; 16];
@@ -496,7 +514,8 @@ pub fn encode_actuator_controls(cmd: &ActuatorCommand) -> HIL_ACTUATOR_CONTROLS_
         time_usec: cmd.time_us,
         flags: HilActuatorControlsFlags::HIL_ACTUATOR_CONTROLS_FLAGS_LOCKSTEP,
         controls,
-        mode: if cmd.armed { MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED } else { MavModeFlag::empty() },
+        mode: (if cmd.armed { MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED } else { MavModeFlag::empty() })
+            | if cmd.motor_test { MavModeFlag::MAV_MODE_FLAG_TEST_ENABLED } else { MavModeFlag::empty() },
     }
 }
 
@@ -507,6 +526,7 @@ pub fn decode_actuator_controls(msg: &HIL_ACTUATOR_CONTROLS_DATA) -> ActuatorCom
         time_us: msg.time_usec,
         pwm_us: [0, 1, 2, 3].map(|i| control_to_pwm_us(msg.controls[i])),
         armed: msg.mode.bits() & MODE_FLAG_SAFETY_ARMED != 0,
+        motor_test: msg.mode.contains(MavModeFlag::MAV_MODE_FLAG_TEST_ENABLED),
     }
 }
 
@@ -849,13 +869,16 @@ mod tests {
         }
 
         #[test]
-        fn pwm_round_trips_within_f32(pwm in prop::array::uniform4(1000.0_f64..=2000.0), t in any::<u64>(), armed in any::<bool>()) {
-            let cmd = ActuatorCommand { time_us: t, pwm_us: pwm, armed };
+        fn pwm_round_trips_within_f32(
+            pwm in prop::array::uniform4(1000.0_f64..=2000.0), t in any::<u64>(), armed in any::<bool>(),
+            motor_test in any::<bool>(),
+        ) {
+            let cmd = ActuatorCommand { time_us: t, pwm_us: pwm, armed, motor_test };
             let frame = encode_frame_v2(header(), &MavMessage::HIL_ACTUATOR_CONTROLS(encode_actuator_controls(&cmd)));
             let decoded = FrameDecoder::new().decode_datagram(&frame);
             let MavMessage::HIL_ACTUATOR_CONTROLS(msg) = &decoded[0].message else { panic!("not HIL_ACTUATOR_CONTROLS") };
             let back = decode_actuator_controls(msg);
-            prop_assert_eq!((back.time_us, back.armed), (t, armed));
+            prop_assert_eq!((back.time_us, back.armed, back.motor_test), (t, armed, motor_test));
             for (a, b) in back.pwm_us.iter().zip(pwm) {
                 prop_assert!((a - b).abs() <= 3e-5, "{} vs {}", a, b);
             }
@@ -881,7 +904,8 @@ mod tests {
         assert_eq!(control_to_pwm_us(1.5), 2000.0);
         assert_eq!(control_to_pwm_us(f32::NAN), 1000.0);
         assert_eq!(control_to_pwm_us(f32::INFINITY), 1000.0);
-        let cmd = ActuatorCommand { time_us: 5, pwm_us: [f64::NAN, 3000.0, 500.0, 1234.5], armed: true };
+        let cmd =
+            ActuatorCommand { time_us: 5, pwm_us: [f64::NAN, 3000.0, 500.0, 1234.5], armed: true, motor_test: false };
         let msg = encode_actuator_controls(&cmd);
         assert_eq!(&msg.controls[..4], &[0.0, 1.0, 0.0, 0.2345]);
         assert!(msg.controls[4..].iter().all(|&c| c == 0.0));
@@ -893,6 +917,13 @@ mod tests {
         assert!(!disarmed.armed);
         assert_eq!(encode_actuator_controls(&disarmed).mode.bits(), 0);
         assert_eq!(disarmed.effective_pwm_us(), [1000.0; 4]);
+        // A motor test on the disarmed vehicle: its own flag, and the plant runs the motors on the PWM.
+        let test = ActuatorCommand { armed: false, motor_test: true, pwm_us: [1000.0, 1000.0, 1200.0, 1000.0], ..cmd };
+        let msg = encode_actuator_controls(&test);
+        assert_eq!(msg.mode, MavModeFlag::MAV_MODE_FLAG_TEST_ENABLED);
+        let back = decode_actuator_controls(&msg);
+        assert!(back.motor_test && !back.armed && back.motors_running());
+        assert!((back.effective_pwm_us()[2] - 1200.0).abs() < 3e-5);
     }
 
     #[test]

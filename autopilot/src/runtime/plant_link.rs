@@ -184,7 +184,8 @@ pub fn run(
                 );
                 let text = statustext(MavSeverity::MAV_SEVERITY_CRITICAL, PLANT_LOST_TEXT);
                 host.send_gcs(None, Destination::All, text);
-                let stopped = ActuatorCommand { time_us: host.now_us, pwm_us: [PWM_MIN_US; 4], armed: false };
+                let stopped =
+                    ActuatorCommand { time_us: host.now_us, pwm_us: [PWM_MIN_US; 4], armed: false, motor_test: false };
                 let frame = plant.frame(&MavMessage::HIL_ACTUATOR_CONTROLS(encode_actuator_controls(&stopped)));
                 transport.send(&frame).map_err(io)?;
             } else {
@@ -527,6 +528,42 @@ mod tests {
         assert_eq!(system_statuses(&resumed[regained..]).first(), Some(&MavState::MAV_STATE_STANDBY));
         assert_eq!((stats.plant_losses, stats.plant_restarts), (1, 0));
         assert_eq!(stats.last_time_us, Some(1_000_000));
+    }
+
+    #[test]
+    fn a_motor_test_reaches_the_plant_as_test_enabled_not_armed_with_only_its_motor_moved_until_its_timeout() {
+        let h = start(2);
+        let mut buf = vec![0u8; 2048];
+        let (_, autopilot) = h.plant.recv_from(&mut buf).expect("announce");
+        let mut decoder = FrameDecoder::new();
+        for k in 0..10_u64 {
+            step(&h, autopilot, &mut decoder, k * 2_000);
+        }
+        // WHEN a ground station tests motor 3 at 20 % for 0.2 s.
+        let test = crate::core::mavlink::command_long(
+            2,
+            1,
+            crate::core::mavlink::common::MavCmd::MAV_CMD_DO_MOTOR_TEST,
+            [3.0, 0.0, 20.0, 0.2, 0.0, 0.0, 0.0],
+        );
+        let header = MavHeader { system_id: 255, component_id: 190, sequence: 0 };
+        let peer = "127.0.0.1:14550".parse().expect("addr");
+        let incoming = Incoming { link: 0, peer, header, message: test, version: mavlink::MavlinkVersion::V2 };
+        h.in_tx.try_send(incoming).expect("queued");
+        // THEN the plant is sent output 3 at 1200 µs flagged TEST_ENABLED (not armed), for 0.2 s of its
+        // time (100 steps, one more at most for when the command landed), then 1000 µs unflagged again.
+        let commands: Vec<ActuatorCommand> =
+            (10..400_u64).map(|k| step(&h, autopilot, &mut decoder, k * 2_000)).collect();
+        h.stop.store(true, Ordering::Relaxed);
+        h.thread.join().expect("join").expect("clean stop");
+        let tested: Vec<&ActuatorCommand> = commands.iter().filter(|c| c.motor_test).collect();
+        assert!((100..=101).contains(&tested.len()), "{} steps tested", tested.len());
+        for c in &tested {
+            assert!(!c.armed && c.motors_running(), "{c:?}");
+            assert!((c.pwm_us[2] - 1200.0).abs() < 0.1 && [0, 1, 3].iter().all(|&i| c.pwm_us[i] == 1000.0), "{c:?}");
+        }
+        let last = commands.last().expect("stepped");
+        assert!(!last.motors_running() && last.effective_pwm_us() == [PWM_MIN_US; 4], "{last:?}");
     }
 
     #[test]

@@ -225,6 +225,12 @@ impl Record {
     }
 
     #[must_use]
+    pub fn u16(mut self, v: u16) -> Self {
+        self.bytes.extend_from_slice(&v.to_le_bytes());
+        self
+    }
+
+    #[must_use]
     pub fn u32(mut self, v: u32) -> Self {
         self.bytes.extend_from_slice(&v.to_le_bytes());
         self

@@ -183,7 +183,12 @@ impl VehicleHost {
                 let inputs = std::mem::take(&mut self.inputs);
                 let link_errors = self.link_errors(plant_malformed);
                 let Some(vehicle) = self.vehicle()? else {
-                    return Ok(Some(ActuatorCommand { time_us: now_us, pwm_us: [PWM_MIN_US; 4], armed: false }));
+                    return Ok(Some(ActuatorCommand {
+                        time_us: now_us,
+                        pwm_us: [PWM_MIN_US; 4],
+                        armed: false,
+                        motor_test: false,
+                    }));
                 };
                 vehicle.set_link_errors(link_errors);
                 let outputs = vehicle.step(now_us, &inputs);
@@ -199,7 +204,12 @@ impl VehicleHost {
                     self.gcs.out.flight_log.end_step(now_us, vehicle);
                 }
                 self.apply_effects();
-                return Ok(Some(ActuatorCommand { time_us: now_us, pwm_us: outputs.pwm_us, armed: outputs.armed }));
+                return Ok(Some(ActuatorCommand {
+                    time_us: now_us,
+                    pwm_us: outputs.pwm_us,
+                    armed: outputs.armed,
+                    motor_test: outputs.motor_test,
+                }));
             }
             _ => {}
         }

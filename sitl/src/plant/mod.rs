@@ -196,7 +196,7 @@ pub struct Plant {
     state_noise_rng: ChaCha8Rng,
     on_ground: bool,
     battery: Battery,
-    /// The motors run (the actuator command's armed flag): they draw power from the pack.
+    /// The motors run (the actuator command's armed or motor-test flag): they draw power from the pack.
     motors_running: bool,
     /// The airframe's radio receiver (no output unless a schedule or the RC input port gives it one).
     radio: Radio,
@@ -291,7 +291,7 @@ impl Plant {
         self.battery.step(dt_s, &self.state.rotor_lift_n, self.motors_running, rho);
     }
 
-    /// Whether the motors run from the next step (the armed flag of the actuator command): stopped
+    /// Whether the motors run from the next step (the armed or motor-test flag of the actuator command): stopped
     /// motors draw nothing from the pack. A new plant's motors run (the paper's runs start in the air).
     pub fn set_motors_running(&mut self, running: bool) {
         self.motors_running = running;

@@ -582,7 +582,10 @@ impl Commander {
                     } else {
                         DisarmReason::Requested
                     }
-                } else if matches!(from, State::Land | State::Mission | State::Rtl) {
+                } else if matches!(from, State::Land | State::Mission | State::Rtl)
+                    || (from == State::Manual && self.flew)
+                {
+                    // Flown by hand and landed with the throttle: a landing, as the automatic ones.
                     DisarmReason::AutoLanded
                 } else {
                     DisarmReason::AutoPreflight

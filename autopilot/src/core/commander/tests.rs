@@ -87,8 +87,8 @@ impl Sim {
             Intent::Land => Some(0.7),
             // Descend while it lands, hold the altitude otherwise.
             Intent::Auto(_) => Some(if self.landing { 0.7 } else { 0.0 }),
-            // Sticks centred: hold the altitude.
-            Intent::Manual(_) => Some(0.0),
+            // Sticks centred: hold the altitude; throttle low (`landing`): descend.
+            Intent::Manual(_) => Some(if self.landing { 0.7 } else { 0.0 }),
             Intent::Idle => None,
         };
         let acc = match vel_cmd {
@@ -367,6 +367,25 @@ fn given_hold_when_landing_then_descends_detects_touchdown_and_disarms_exactly_a
     assert_eq!(disarm.status, SystemStatus::Standby);
     assert_eq!(disarm.landed, LandedState::OnGround);
     assert_eq!(disarm.mode, AUTO_LOITER, "back to Hold after landing");
+}
+
+#[test]
+fn given_a_flight_by_hand_when_the_throttle_lands_it_then_disarmed_com_disarm_land_after_touchdown_as_a_landing() {
+    let mut sim = Sim::new();
+    let mut c = holding(&mut sim);
+    sim.facts.manual_fresh = true;
+    c.request(sim.now_us, sim.facts, Request::SetMode(FlightMode::Position)).expect("POSCTL in the air");
+    assert_eq!(c.state(), State::Manual);
+    // Throttle low: it descends and touches down, still in Position.
+    sim.landing = true;
+    sim.run_until(&mut c, 20.0, |o| o.events.contains(&Event::Landed));
+    let landed_at_us = sim.now_us - STEP_US;
+    let outs = sim.run_until(&mut c, 5.0, |o| !o.armed);
+    assert!(outs[..outs.len() - 1].iter().all(|o| o.state == State::Manual));
+    assert_eq!(sim.now_us - STEP_US, landed_at_us + 2_000_000, "COM_DISARM_LAND after the detection");
+    let disarm = outs.last().expect("disarmed");
+    assert_eq!(disarm.events, vec![Event::Disarmed { reason: DisarmReason::AutoLanded }], "not 'no takeoff'");
+    assert_eq!(disarm.mode, FlightMode::Position, "a manual mode stays the mode to arm in");
 }
 
 #[test]

@@ -14,7 +14,10 @@
 //! - NAV_RETURN_TO_LAUNCH (20), MISSION_START (300), DO_FLIGHTTERMINATION (185, param1 1: a kill).
 //! - Answered by the vehicle ([`VehicleCommand`]): REQUEST_MESSAGE (512) and
 //!   REQUEST_AUTOPILOT_CAPABILITIES (520), SET_/GET_MESSAGE_INTERVAL (511/510), DO_CHANGE_SPEED (178),
-//!   DO_SET_HOME (179), DO_REPOSITION (192: all-NaN position = pause here), PREFLIGHT_REBOOT_SHUTDOWN (246).
+//!   DO_SET_HOME (179), DO_REPOSITION (192: all-NaN position = pause here), PREFLIGHT_REBOOT_SHUTDOWN (246),
+//!   and the motor test ([`MotorTestRequest`], as PX4's commander reads it): ACTUATOR_TEST (310: param1
+//!   value, param2 timeout s, param5 output function, MOTOR1..4 = 1..4) and DO_MOTOR_TEST (209: param1
+//!   motor 1-based, param2 throttle type, param3 value, param4 timeout s, param5 motor count).
 //! - Anything else: UNSUPPORTED.
 //!
 //! The ACK carries the sender in its target fields, and the caller sends it only to the peer the command
@@ -83,6 +86,92 @@ pub enum VehicleCommand {
     Reboot,
     /// Accepted, nothing to do (PREFLIGHT_REBOOT_SHUTDOWN param1 0).
     NoOp,
+    /// ACTUATOR_TEST (310) or DO_MOTOR_TEST (209): spin one motor, or stop it (disarmed only).
+    MotorTest(MotorTestRequest),
+}
+
+/// How many motors the vehicle has: motor N = output N = the paper's rotor N (1 right, 2 rear, 3 front,
+/// 4 left).
+pub const MOTOR_COUNT: u8 = 4;
+
+/// The longest a motor test runs (µs), PX4's cap (and its timeout when none is given).
+pub const MOTOR_TEST_MAX_US: u64 = 3_000_000;
+
+/// A motor test as PX4's commander decodes it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MotorTestRequest {
+    /// Run `motor` (1..=[`MOTOR_COUNT`]) at `thrust` of its output range (0 = 1000 µs, 1 = 2000 µs) for
+    /// `timeout_us` (1 ms ..= [`MOTOR_TEST_MAX_US`]); it replaces any test running.
+    Run { motor: u8, thrust: f64, timeout_us: u64 },
+    /// Stop `motor`'s test (ACTUATOR_TEST with timeout 0 or value NaN or below 0; DO_MOTOR_TEST with
+    /// value 0).
+    Stop { motor: u8 },
+}
+
+/// PX4's `(int)(x + 0.5)` for the values a command can sensibly carry; None for NaN or beyond ±1e6.
+fn round_half_up(x: f64) -> Option<i64> {
+    (x.is_finite() && x.abs() <= 1e6).then(|| (x + 0.5).floor() as i64)
+}
+
+/// The motor of an output function or motor number, or the refusal.
+fn motor_of(n: i64, what: &str) -> Result<u8, CommandEffect> {
+    match u8::try_from(n) {
+        Ok(m @ 1..=MOTOR_COUNT) => Ok(m),
+        _ => Err(CommandEffect::Deny(format!("Motor test: no {what} {n} (motors 1-{MOTOR_COUNT})"))),
+    }
+}
+
+/// ACTUATOR_TEST (310), as PX4's commander: the function (param5, rounded) names the motor (MOTOR1..4 =
+/// 1..4; another motor or servo function this vehicle lacks is DENIED, anything else UNSUPPORTED); a
+/// timeout (param2, s, rounded to ms) of 0 or less stops the motor, else it is capped at 3 s; the value
+/// (param1) NaN or below 0 stops the motor (a non-reversible motor's "off"), else it is the thrust,
+/// clamped to [0, 1].
+fn actuator_test(value: f32, timeout_s: f32, function: f64) -> CommandEffect {
+    let Some(function) = round_half_up(function) else { return CommandEffect::Unsupported };
+    if !(1..=16).contains(&function) && !(33..=48).contains(&function) {
+        return CommandEffect::Unsupported;
+    }
+    let motor = match motor_of(function, "output function") {
+        Ok(m) => m,
+        Err(refusal) => return refusal,
+    };
+    let timeout_ms = round_half_up(f64::from(timeout_s) * 1e3).unwrap_or(if timeout_s > 0.0 { i64::MAX } else { 0 });
+    let value = f64::from(value);
+    if timeout_ms <= 0 || value.is_nan() || value < -f64::from(f32::EPSILON) {
+        return CommandEffect::Vehicle(VehicleCommand::MotorTest(MotorTestRequest::Stop { motor }));
+    }
+    let timeout_us =
+        u64::try_from(timeout_ms).map_or(MOTOR_TEST_MAX_US, |ms| ms.saturating_mul(1000).min(MOTOR_TEST_MAX_US));
+    CommandEffect::Vehicle(VehicleCommand::MotorTest(MotorTestRequest::Run {
+        motor,
+        thrust: value.clamp(0.0, 1.0),
+        timeout_us,
+    }))
+}
+
+/// DO_MOTOR_TEST (209), as PX4's commander: the motor (param1, rounded, 1-based); only throttle type 0
+/// (percent) and one motor at a time (param5 count 0 or 1) are supported (UNSUPPORTED otherwise, as
+/// PX4); the value (param3, %) clamped to [0, 100], 0 (or NaN) stopping the motor; the timeout (param4,
+/// s, rounded to ms) capped at 3 s, 0 (or less, or NaN) meaning 3 s. param6 (the order) is not read.
+fn motor_test(p: [f32; 4], count: f64) -> CommandEffect {
+    let motor = match round_half_up(f64::from(p[0])).map(|n| motor_of(n, "motor")) {
+        Some(Ok(m)) => m,
+        Some(Err(refusal)) => return refusal,
+        None => return CommandEffect::Deny(format!("Motor test: no motor {}", p[0])),
+    };
+    if round_half_up(f64::from(p[1])) != Some(0) || round_half_up(count).unwrap_or(0) > 1 {
+        return CommandEffect::Unsupported;
+    }
+    let thrust = (f64::from(p[2]) / 100.0).clamp(0.0, 1.0);
+    if thrust.is_nan() || thrust < f64::from(f32::EPSILON) {
+        return CommandEffect::Vehicle(VehicleCommand::MotorTest(MotorTestRequest::Stop { motor }));
+    }
+    let timeout_ms = round_half_up(f64::from(p[3]) * 1e3).unwrap_or(0);
+    let timeout_us = u64::try_from(timeout_ms)
+        .ok()
+        .filter(|&ms| ms > 0)
+        .map_or(MOTOR_TEST_MAX_US, |ms| ms.saturating_mul(1000).min(MOTOR_TEST_MAX_US));
+    CommandEffect::Vehicle(VehicleCommand::MotorTest(MotorTestRequest::Run { motor, thrust, timeout_us }))
 }
 
 /// A command for this vehicle, decoded.
@@ -250,6 +339,8 @@ fn effect(command: MavCmd, a: &Params, ctx: &CommandContext) -> CommandEffect {
             Some(message_id) => vehicle(VehicleCommand::GetMessageInterval { message_id }),
             None => CommandEffect::Deny(format!("Message interval: invalid id {}", p[0])),
         },
+        MavCmd::MAV_CMD_ACTUATOR_TEST => actuator_test(p[0], p[1], a.x),
+        MavCmd::MAV_CMD_DO_MOTOR_TEST => motor_test(p, a.x),
         _ => CommandEffect::Unsupported,
     }
 }

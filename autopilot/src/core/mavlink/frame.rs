@@ -250,7 +250,7 @@ mod tests {
     }
 
     fn actuator_frame(t: u64, pwm: [f64; 4]) -> Vec<u8> {
-        let cmd = ActuatorCommand { time_us: t, pwm_us: pwm, armed: true };
+        let cmd = ActuatorCommand { time_us: t, pwm_us: pwm, armed: true, motor_test: false };
         encode_frame_v2(header(), &MavMessage::HIL_ACTUATOR_CONTROLS(encode_actuator_controls(&cmd)))
     }
 
@@ -331,7 +331,8 @@ mod tests {
 
     #[test]
     fn decoder_reads_v1_frames_several_per_datagram_and_byte_by_byte() {
-        let cmd = ActuatorCommand { time_us: 9, pwm_us: [1000.0, 1250.0, 1500.0, 2000.0], armed: true };
+        let cmd =
+            ActuatorCommand { time_us: 9, pwm_us: [1000.0, 1250.0, 1500.0, 2000.0], armed: true, motor_test: false };
         let msg = MavMessage::HIL_ACTUATOR_CONTROLS(encode_actuator_controls(&cmd));
         let v1 = encode_frame_v1(header(), &msg).expect("id 93 fits v1");
         let v2 = encode_frame_v2(header(), &msg);

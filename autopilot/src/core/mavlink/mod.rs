@@ -36,8 +36,8 @@ pub use ::mavlink::MavHeader;
 pub use ::mavlink::dialects::common;
 
 pub use command::{
-    CommandContext, CommandEffect, CommandPoint, InboundCommand, VehicleCommand, command_long, command_replies,
-    decode_command,
+    CommandContext, CommandEffect, CommandPoint, InboundCommand, MOTOR_COUNT, MOTOR_TEST_MAX_US, MotorTestRequest,
+    VehicleCommand, command_long, command_replies, decode_command,
 };
 pub use identity::{gcs_heartbeat, heartbeat, plant_lost_heartbeat};
 pub use telemetry::{

@@ -4,8 +4,9 @@
 //! ([`Stream::default_interval_us`]): SYS_STATUS 1 Hz, ATTITUDE 20 Hz, ATTITUDE_QUATERNION 10 Hz (as
 //! PX4's normal mode), LOCAL_POSITION_NED 10 Hz, GLOBAL_POSITION_INT 10 Hz (once an origin exists),
 //! GPS_RAW_INT 5 Hz (once a fix arrived), EXTENDED_SYS_STATE 1 Hz, HOME_POSITION 0.5 Hz (once home is
-//! set), VFR_HUD 4 Hz, BATTERY_STATUS 1 Hz, MISSION_CURRENT 1 Hz (once a mission is loaded), and the
-//! controller's adaptive weights and mass estimate as DEBUG_VECTs ([`WEIGHT_VECTORS`]; 2 Hz by default,
+//! set), VFR_HUD 4 Hz, BATTERY_STATUS 1 Hz, MISSION_CURRENT 1 Hz (once a mission is loaded), RC_CHANNELS
+//! 5 Hz (PX4's normal-link rate, once a radio frame has arrived; QGroundControl's radio page reads it), and
+//! the controller's adaptive weights and mass estimate as DEBUG_VECTs ([`WEIGHT_VECTORS`]; 2 Hz by default,
 //! the ACO_WEIGHTS_HZ parameter). A stream due without its data is skipped, not queued. Every rate can
 //! be changed per message id (SET_MESSAGE_INTERVAL).
 //!
@@ -20,7 +21,8 @@ use ::mavlink::dialects::common::{
     ATTITUDE_DATA, ATTITUDE_QUATERNION_DATA, BATTERY_STATUS_DATA, DEBUG_VECT_DATA, EXTENDED_SYS_STATE_DATA,
     GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA,
     MISSION_CURRENT_DATA, MISSION_ITEM_REACHED_DATA, MavBatteryChargeState, MavBatteryFunction, MavBatteryType,
-    MavMessage, MavSeverity, MavSysStatusSensor, MavVtolState, STATUSTEXT_DATA, SYS_STATUS_DATA, VFR_HUD_DATA,
+    MavMessage, MavSeverity, MavSysStatusSensor, MavVtolState, RC_CHANNELS_DATA, STATUSTEXT_DATA, SYS_STATUS_DATA,
+    VFR_HUD_DATA,
 };
 use nalgebra::Vector3;
 
@@ -29,7 +31,7 @@ use crate::core::battery::{BatteryStatus, BatteryWarning};
 use crate::core::commander::{CommanderOutput, Event, LandedState};
 use crate::core::control::Controller;
 use crate::core::estimator::{EstimatorFlags, EstimatorState, GpsSample};
-use crate::core::hil::encode_battery_status;
+use crate::core::hil::{encode_battery_status, encode_rc_channels};
 use crate::core::navigator::NavEvent;
 
 /// Home: where the vehicle armed (m, NED about the estimator's origin) and, with an origin, geodetic.
@@ -82,10 +84,12 @@ pub enum Stream {
     MissionCurrent,
     /// The controller's adaptive weights and mass estimate, as DEBUG_VECTs ([`WEIGHT_VECTORS`]).
     AdaptiveWeights,
+    /// The radio's last frame ([`rc_channels`]).
+    RcChannels,
 }
 
 impl Stream {
-    pub const ALL: [Self; 12] = [
+    pub const ALL: [Self; 13] = [
         Self::SysStatus,
         Self::Attitude,
         Self::AttitudeQuaternion,
@@ -98,6 +102,7 @@ impl Stream {
         Self::BatteryStatus,
         Self::MissionCurrent,
         Self::AdaptiveWeights,
+        Self::RcChannels,
     ];
 
     /// The MAVLink message id.
@@ -116,6 +121,7 @@ impl Stream {
             Self::BatteryStatus => 147,
             Self::MissionCurrent => 42,
             Self::AdaptiveWeights => 250,
+            Self::RcChannels => 65,
         }
     }
 
@@ -130,6 +136,7 @@ impl Stream {
             Self::GpsRawInt => 200_000,
             Self::HomePosition => 2_000_000,
             Self::VfrHud => 250_000,
+            Self::RcChannels => 200_000,
         }
     }
 
@@ -154,7 +161,9 @@ impl Stream {
     #[must_use]
     pub fn message(self, snap: &TelemetrySnapshot<'_>) -> Option<MavMessage> {
         match self {
-            Self::SysStatus => Some(sys_status(&snap.estimate.flags, &snap.commander.battery, snap.link_errors)),
+            Self::SysStatus => {
+                Some(sys_status(&snap.estimate.flags, &snap.commander.battery, snap.link_errors, &snap.manual))
+            }
             Self::Attitude => Some(attitude(snap)),
             Self::AttitudeQuaternion => Some(attitude_quaternion(snap)),
             Self::LocalPositionNed => Some(local_position_ned(snap)),
@@ -166,6 +175,7 @@ impl Stream {
             Self::BatteryStatus => Some(battery_status(&snap.commander.battery)),
             Self::MissionCurrent => snap.mission_seq.map(mission_current),
             Self::AdaptiveWeights => snap.controller.and_then(|c| adaptive_weights(snap.now_us, c).into_iter().next()),
+            Self::RcChannels => rc_channels(snap.now_us, &snap.manual),
         }
     }
 }
@@ -309,12 +319,59 @@ fn sensors(bits: &[(bool, MavSysStatusSensor)]) -> MavSysStatusSensor {
     bits.iter().filter(|(on, _)| *on).fold(MavSysStatusSensor::empty(), |acc, (_, b)| acc | *b)
 }
 
+/// RC_CHANNELS as PX4 streams it, from the radio's last frame (None before the first): channels beyond
+/// the frame's count as UINT16_MAX, `chancount` the frame's; `rssi` the frame's while the radio is fresh,
+/// 0 once it is lost (PX4 reports 0 without channels).
+#[must_use]
+pub fn rc_channels(now_us: u64, manual: &ManualStatus) -> Option<MavMessage> {
+    let frame = manual.rc?;
+    let mut m: RC_CHANNELS_DATA = encode_rc_channels(&frame, time_boot_ms(now_us));
+    let count = usize::from(m.chancount);
+    for (i, channel) in [
+        &mut m.chan1_raw,
+        &mut m.chan2_raw,
+        &mut m.chan3_raw,
+        &mut m.chan4_raw,
+        &mut m.chan5_raw,
+        &mut m.chan6_raw,
+        &mut m.chan7_raw,
+        &mut m.chan8_raw,
+        &mut m.chan9_raw,
+        &mut m.chan10_raw,
+        &mut m.chan11_raw,
+        &mut m.chan12_raw,
+        &mut m.chan13_raw,
+        &mut m.chan14_raw,
+        &mut m.chan15_raw,
+        &mut m.chan16_raw,
+        &mut m.chan17_raw,
+        &mut m.chan18_raw,
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        if i >= count {
+            *channel = u16::MAX;
+        }
+    }
+    if count == 0 || !manual.rc_fresh {
+        m.rssi = 0;
+    }
+    Some(MavMessage::RC_CHANNELS(m))
+}
+
 /// SYS_STATUS: gyro, accel, mag, baro, GPS and PREARM_CHECK present and enabled; healthy from the estimator
 /// flags (IMU: attitude valid; PREARM_CHECK: converged, i.e. armable). The battery present while it
-/// reports, healthy above its critical level; its voltage, current and remaining. `errors_comm` and
-/// `errors_count1`: see [`LinkErrors`].
+/// reports, healthy above its critical level; its voltage, current and remaining. The RC receiver present
+/// and enabled once a radio frame has arrived, healthy while the radio is fresh (`manual.rc_fresh`).
+/// `errors_comm` and `errors_count1`: see [`LinkErrors`].
 #[must_use]
-pub fn sys_status(flags: &EstimatorFlags, battery: &BatteryStatus, errors: LinkErrors) -> MavMessage {
+pub fn sys_status(
+    flags: &EstimatorFlags,
+    battery: &BatteryStatus,
+    errors: LinkErrors,
+    manual: &ManualStatus,
+) -> MavMessage {
     use MavSysStatusSensor as S;
     let all = S::MAV_SYS_STATUS_SENSOR_3D_GYRO
         | S::MAV_SYS_STATUS_SENSOR_3D_ACCEL
@@ -322,7 +379,8 @@ pub fn sys_status(flags: &EstimatorFlags, battery: &BatteryStatus, errors: LinkE
         | S::MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
         | S::MAV_SYS_STATUS_SENSOR_GPS
         | S::MAV_SYS_STATUS_PREARM_CHECK
-        | if battery.sample.is_some() { S::MAV_SYS_STATUS_SENSOR_BATTERY } else { S::empty() };
+        | if battery.sample.is_some() { S::MAV_SYS_STATUS_SENSOR_BATTERY } else { S::empty() }
+        | if manual.rc.is_some() { S::MAV_SYS_STATUS_SENSOR_RC_RECEIVER } else { S::empty() };
     let health = sensors(&[
         // No geofence exists, so none is breached: healthy, neither present nor enabled (MAVProxy reads
         // a clear health bit as a breach).
@@ -334,6 +392,7 @@ pub fn sys_status(flags: &EstimatorFlags, battery: &BatteryStatus, errors: LinkE
         (flags.gps_ok, S::MAV_SYS_STATUS_SENSOR_GPS),
         (flags.converged, S::MAV_SYS_STATUS_PREARM_CHECK),
         (battery.level < BatteryWarning::Critical, S::MAV_SYS_STATUS_SENSOR_BATTERY),
+        (manual.rc.is_some() && manual.rc_fresh, S::MAV_SYS_STATUS_SENSOR_RC_RECEIVER),
     ]);
     let sample = battery.sample;
     MavMessage::SYS_STATUS(SYS_STATUS_DATA {
@@ -354,11 +413,11 @@ pub fn sys_status(flags: &EstimatorFlags, battery: &BatteryStatus, errors: LinkE
 
 /// SYS_STATUS while the plant link is lost (no sensor sample arrives): the sensors stay present and
 /// enabled but none is healthy (gyro, accel, mag, baro, GPS, and PREARM_CHECK: nothing could be checked),
-/// and the battery, read over the same link, is not reported (MAVLink's unknown values), as with no
-/// reading. The error counts as in [`sys_status`].
+/// and the battery and the radio, read over the same link, are not reported (MAVLink's unknown values for
+/// the battery, as with no reading). The error counts as in [`sys_status`].
 #[must_use]
 pub fn sys_status_plant_lost(errors: LinkErrors) -> MavMessage {
-    sys_status(&EstimatorFlags::default(), &BatteryStatus::default(), errors)
+    sys_status(&EstimatorFlags::default(), &BatteryStatus::default(), errors, &ManualStatus::default())
 }
 
 /// What the shell's links have dropped so far, as SYS_STATUS reports it (each saturating at 65535).

@@ -125,3 +125,77 @@ fn given_a_long_refusal_when_sent_as_statustext_then_cut_to_50_bytes() {
     };
     assert_eq!(s.text.to_str().expect("utf-8").len(), 50);
 }
+
+/// The effect of a COMMAND_LONG `command` with params 1-7 sent to us.
+fn effect_of(command: MavCmd, p: [f32; 7]) -> CommandEffect {
+    decode_command(1, &GCS, &long(command, p, 1, 1), &CommandContext::default()).expect("for us").effect
+}
+
+fn run(motor: u8, thrust: f64, timeout_us: u64) -> CommandEffect {
+    CommandEffect::Vehicle(VehicleCommand::MotorTest(MotorTestRequest::Run { motor, thrust, timeout_us }))
+}
+
+fn stop(motor: u8) -> CommandEffect {
+    CommandEffect::Vehicle(VehicleCommand::MotorTest(MotorTestRequest::Stop { motor }))
+}
+
+#[test]
+fn given_actuator_test_when_decoded_then_motor_value_and_timeout_as_px4_reads_them_capped_at_3_s() {
+    let at = |value: f32, timeout_s: f32, function: f32| {
+        effect_of(MavCmd::MAV_CMD_ACTUATOR_TEST, [value, timeout_s, 0.0, 0.0, function, 0.0, 0.0])
+    };
+    // ACTUATOR_OUTPUT_FUNCTION_MOTOR3 = 3 at 0.2 for 2 s.
+    assert_eq!(at(0.2, 2.0, 3.0), run(3, f64::from(0.2_f32), 2_000_000));
+    // The timeout is capped at PX4's 3 s; the value clamped to the output range.
+    assert_eq!(at(1.5, 10.0, 1.0), run(1, 1.0, MOTOR_TEST_MAX_US));
+    assert_eq!(at(0.0, 0.5, 4.0), run(4, 0.0, 500_000), "0: the output's minimum, running");
+    // Stops: timeout 0 (PX4's release), value NaN or below 0 (a non-reversible motor's "off").
+    assert_eq!(at(0.5, 0.0, 2.0), stop(2));
+    assert_eq!(at(f32::NAN, 1.0, 2.0), stop(2));
+    assert_eq!(at(-1.0, 1.0, 2.0), stop(2));
+    // Motors 5-16 and servos: this vehicle has none (DENIED with a reason); anything else UNSUPPORTED.
+    assert!(matches!(at(0.2, 1.0, 5.0), CommandEffect::Deny(t) if t.contains("no output function 5")));
+    assert!(matches!(at(0.2, 1.0, 33.0), CommandEffect::Deny(_)));
+    assert_eq!(at(0.2, 1.0, 0.0), CommandEffect::Unsupported);
+    assert_eq!(at(0.2, 1.0, f32::NAN), CommandEffect::Unsupported);
+}
+
+#[test]
+fn given_do_motor_test_when_decoded_then_percent_only_one_motor_and_0_percent_stops() {
+    let mt = |motor: f32, kind: f32, pct: f32, timeout_s: f32, count: f32| {
+        effect_of(MavCmd::MAV_CMD_DO_MOTOR_TEST, [motor, kind, pct, timeout_s, count, 0.0, 0.0])
+    };
+    assert_eq!(mt(3.0, 0.0, 20.0, 2.0, 0.0), run(3, 0.2, 2_000_000));
+    assert_eq!(mt(1.0, 0.0, 150.0, 0.0, 1.0), run(1, 1.0, MOTOR_TEST_MAX_US), "timeout 0: PX4's 3 s");
+    assert_eq!(mt(2.0, 0.0, 0.0, 2.0, 0.0), stop(2), "0 %: stop");
+    assert_eq!(mt(2.0, 1.0, 1500.0, 2.0, 0.0), CommandEffect::Unsupported, "PWM throttle");
+    assert_eq!(mt(2.0, 2.0, 50.0, 2.0, 0.0), CommandEffect::Unsupported, "pilot passthrough");
+    assert_eq!(mt(2.0, 0.0, 50.0, 2.0, 4.0), CommandEffect::Unsupported, "a sequence of motors");
+    assert!(matches!(mt(5.0, 0.0, 20.0, 2.0, 0.0), CommandEffect::Deny(t) if t.contains("no motor 5")));
+    assert!(matches!(mt(0.0, 0.0, 20.0, 2.0, 0.0), CommandEffect::Deny(_)));
+}
+
+proptest::proptest! {
+    /// Any parameters decode, without a panic, into a refusal or a test within limits: motor 1-4, thrust
+    /// in [0, 1] (so PWM 1000-2000 µs, never NaN), timeout 1 ms-3 s.
+    #[test]
+    fn any_motor_test_params_decode_to_a_refusal_or_a_test_within_limits(
+        actuator in proptest::bool::ANY,
+        p in proptest::array::uniform7(proptest::num::f32::ANY),
+    ) {
+        let command = if actuator { MavCmd::MAV_CMD_ACTUATOR_TEST } else { MavCmd::MAV_CMD_DO_MOTOR_TEST };
+        match effect_of(command, p) {
+            CommandEffect::Vehicle(VehicleCommand::MotorTest(MotorTestRequest::Run { motor, thrust, timeout_us })) => {
+                proptest::prop_assert!((1..=MOTOR_COUNT).contains(&motor));
+                proptest::prop_assert!((0.0..=1.0).contains(&thrust), "{}", thrust);
+                proptest::prop_assert!((1_000..=MOTOR_TEST_MAX_US).contains(&timeout_us), "{}", timeout_us);
+            }
+            CommandEffect::Vehicle(VehicleCommand::MotorTest(MotorTestRequest::Stop { motor })) => {
+                proptest::prop_assert!((1..=MOTOR_COUNT).contains(&motor));
+            }
+            CommandEffect::Deny(text) => proptest::prop_assert!(!text.is_empty()),
+            CommandEffect::Unsupported => {}
+            other => proptest::prop_assert!(false, "{:?}", other),
+        }
+    }
+}

@@ -344,10 +344,17 @@ impl ParamStore {
         self.get("ACO_WEIGHTS_HZ").unwrap_or(0.0)
     }
 
-    /// SDLOG_MODE: whether the shell writes a ULog for each armed flight (-1 never, 0 arm to disarm).
+    /// SDLOG_MODE: whether the shell writes a ULog for each armed flight and motor test (-1 never, 0 arm to
+    /// disarm).
     #[must_use]
     pub fn sdlog_mode(&self) -> i32 {
         self.get("SDLOG_MODE").map_or(0, |v| v as i32)
+    }
+
+    /// Whether motor tests are allowed (COM_MOT_TEST_EN 1).
+    #[must_use]
+    pub fn motor_test_enabled(&self) -> bool {
+        self.get("COM_MOT_TEST_EN").is_some_and(|v| v == 1.0)
     }
 }
 

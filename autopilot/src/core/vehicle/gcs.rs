@@ -168,6 +168,10 @@ impl Vehicle {
     fn apply_command(&mut self, now_us: u64, cmd: &InboundCommand) -> Vec<MavMessage> {
         let mut extra = Vec::new();
         let facts = self.facts(now_us);
+        if matches!(cmd.effect, CommandEffect::Request(Request::Disarm { .. } | Request::Kill)) {
+            // A disarm, kill or termination stops a motor test too, whatever the commander answers.
+            self.motor_test.stop();
+        }
         let outcome = match cmd.effect.clone() {
             CommandEffect::Request(req) => self.request(now_us, facts, req).map_err(Some),
             CommandEffect::Vehicle(command) => self.vehicle_command(now_us, facts, command, &mut extra),
@@ -277,6 +281,21 @@ impl Vehicle {
                 Ok(())
             }
             VehicleCommand::NoOp => Ok(()),
+            VehicleCommand::MotorTest(request) => {
+                // PX4's order: armed first, then the enable parameter.
+                if self.commander.armed() {
+                    return Err(Some("Motor test denied: armed".to_owned()));
+                }
+                if !self.params.motor_test_enabled() {
+                    return Err(Some("Motor test denied: disabled".to_owned()));
+                }
+                // Killed (a kill or flight termination): the motors stay stopped until the pilot rearms.
+                if self.commander.state() == crate::core::commander::State::Killed {
+                    return Err(Some("Motor test denied: killed".to_owned()));
+                }
+                self.motor_test.request(now_us, request);
+                Ok(())
+            }
         }
     }
 

@@ -79,8 +79,18 @@ pub struct VehicleOutputs {
     /// Motor commands (µs), rotors 1..4 as in the paper; 1000 when the motors are off.
     pub pwm_us: [f64; 4],
     pub armed: bool,
+    /// A motor test drives the outputs this step (the vehicle is disarmed): the plant must run them.
+    pub motor_test: bool,
     /// Telemetry due this step (HEARTBEAT, STATUSTEXT of events, streams), for every ground station.
     pub messages: Vec<MavMessage>,
+}
+
+impl VehicleOutputs {
+    /// Whether the motors run on these outputs: armed, or a motor test while disarmed.
+    #[must_use]
+    pub fn motors_running(&self) -> bool {
+        self.armed || self.motor_test
+    }
 }
 
 /// What the onboard log records of the vehicle after a step, copied out so that the shell encodes it
@@ -95,7 +105,7 @@ pub struct LogSnapshot {
     pub reference: Option<Reference>,
     /// The attitude (roll, pitch, yaw) the controller's position loop last asked for (rad).
     pub attitude_setpoint_rad: Vector3<f64>,
-    /// Motor commands (µs), rotors 1..4 as in the paper.
+    /// Motor commands (µs), rotors 1..4 as in the paper (a motor test's while one runs).
     pub pwm_us: [f64; 4],
     pub armed: bool,
     pub mode: FlightMode,
@@ -104,6 +114,8 @@ pub struct LogSnapshot {
     pub controller: ControllerKind,
     /// The pilot's input: the sticks in use (manual_control_setpoint) and the last radio frame (input_rc).
     pub manual: ManualStatus,
+    /// When the last radio frame arrived (µs of vehicle time; None: never).
+    pub rc_at_us: Option<u64>,
 }
 
 /// What the vehicle asks of the shell around it.

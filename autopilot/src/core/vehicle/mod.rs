@@ -16,6 +16,8 @@
 //! sample (per truth sample with the `Truth` source). Idle -> 1000 µs on every rotor and the controller
 //! rebuilt, so nothing adapts or integrates on the ground. PWM is 1000 whenever disarmed, killed or idle,
 //! and when the estimate is invalid while armed on the ground; it is clamped to [1000, 2000] and never NaN.
+//! The one exception is a motor test (`motor_test.rs`): one motor of the disarmed vehicle at its test
+//! value, flagged in [`VehicleOutputs::motor_test`].
 
 use ::mavlink::dialects::common::{MavMessage, MavSeverity};
 use nalgebra::Vector3;
@@ -40,9 +42,11 @@ use crate::core::plan::{Frame, Plan, SetpointGuard};
 mod control_stage;
 mod gcs;
 mod io;
+mod motor_test;
 
 use control_stage::ControlStage;
 pub use io::{LogSnapshot, ShellEffect, VehicleInputs, VehicleOutputs};
+use motor_test::MotorTest;
 
 /// The motor command range (µs): one definition, the distributor's.
 pub use crate::core::control::distributor::{PWM_MAX_US, PWM_MIN_US};
@@ -81,6 +85,10 @@ pub struct Vehicle {
     manual: ManualInput,
     manual_status: ManualStatus,
     manual_service: ManualControlService,
+    /// The motor test (ACTUATOR_TEST, DO_MOTOR_TEST), disarmed only.
+    motor_test: MotorTest,
+    /// When the last radio frame arrived (µs of vehicle time; the log's `input_rc.timestamp_last_signal`).
+    rc_at_us: Option<u64>,
 }
 
 impl std::fmt::Debug for Vehicle {
@@ -146,6 +154,8 @@ impl Vehicle {
             manual: ManualInput::default(),
             manual_status: ManualStatus::default(),
             manual_service: ManualControlService::default(),
+            motor_test: MotorTest::default(),
+            rc_at_us: None,
             config,
         })
     }
@@ -205,14 +215,27 @@ impl Vehicle {
             innovations: self.estimator.innovations(),
             reference: self.reference,
             attitude_setpoint_rad: self.control.controller().attitude_setpoint_rad(),
-            pwm_us: self.control.pwm_us(),
+            pwm_us: self.pwm_us(),
             armed: self.output.armed,
             mode: self.output.mode,
             landed: self.output.landed,
             battery: self.output.battery,
             controller: self.control.controller().kind(),
             manual: self.manual_status,
+            rc_at_us: self.rc_at_us,
         }
+    }
+
+    /// The motor commands of the last step (µs): the controller's, or a motor test's while one runs.
+    #[must_use]
+    pub fn pwm_us(&self) -> [f64; 4] {
+        self.motor_test.last_pwm_us().unwrap_or_else(|| self.control.pwm_us())
+    }
+
+    /// Whether a motor test drove the motors at the last step (disarmed).
+    #[must_use]
+    pub fn motor_test_running(&self) -> bool {
+        self.motor_test.last_pwm_us().is_some()
     }
 
     /// What the shell's links have dropped so far (reported in SYS_STATUS, see [`LinkErrors`]).
@@ -272,7 +295,7 @@ impl Vehicle {
             gps: self.last_gps.as_ref(),
             home,
             commander: &self.output,
-            pwm_us: self.control.pwm_us(),
+            pwm_us: self.pwm_us(),
             link_errors: self.link_errors,
             mission_seq: (self.navigator.mission_len() > 0).then(|| self.navigator.current_seq()),
             controller: Some(self.control.controller()),
@@ -300,6 +323,7 @@ impl Vehicle {
         }
         if let Some(frame) = inputs.rc {
             self.manual.on_rc(now_us, frame, &self.config.manual);
+            self.rc_at_us = Some(now_us);
         }
         let (manual_status, pilot_actions) = self.manual.step(now_us, &self.config.manual);
         self.manual_status = manual_status;
@@ -346,6 +370,9 @@ impl Vehicle {
         };
         self.reference = self.navigator.update(out.intent, &nav_input, self.plan.rally());
         let pwm_us = self.control.step(tick, &state, &out, self.reference, &self.config);
+        // A motor test (disarmed only) drives the outputs instead; arming ends it.
+        let motor_test = self.motor_test.step(now_us, out.armed);
+        let pwm_us = motor_test.unwrap_or(pwm_us);
         self.output = out;
         let events = std::mem::take(&mut self.output.events);
         let due = self.mavlink.due_with_home(now_us, &events, home.map(|h| h.pos_ned_m));
@@ -360,7 +387,7 @@ impl Vehicle {
             messages.push(nav_event_message(&event));
         }
         self.output.events = events;
-        VehicleOutputs { pwm_us, armed: self.output.armed, messages }
+        VehicleOutputs { pwm_us, armed: self.output.armed, motor_test: motor_test.is_some(), messages }
     }
 }
 

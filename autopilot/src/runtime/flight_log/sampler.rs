@@ -10,7 +10,7 @@ use tokio::sync::mpsc;
 use tokio::sync::mpsc::error::TrySendError;
 
 use super::LogItem;
-use super::topics::{RecordContext, TOPICS, definitions, fields, param_value, px4_nav_state, record};
+use super::topics::{RecordContext, TOPICS, definitions, fields, logged, param_value, px4_nav_state, record};
 use crate::core::control::ControllerKind;
 use crate::core::vehicle::Vehicle;
 use crate::runtime::ulog::{self, Topic};
@@ -46,6 +46,8 @@ struct Flight {
     next_sync_us: u64,
     next_param_check_us: u64,
     armed_at_us: u64,
+    /// Sticks have been in use in this flight (`manual_control_setpoint` is logged from then on).
+    manual_seen: bool,
 }
 
 /// The sampler: see the module docs. The default logs nothing.
@@ -102,8 +104,9 @@ impl FlightLogger {
         self.flight.is_some()
     }
 
-    /// Before the step's messages are sent: a flight starts when the vehicle is armed (and SDLOG_MODE is
-    /// not -1), so that the step's "Armed" text is its first logged string.
+    /// Before the step's messages are sent: a flight starts when the vehicle is armed, or a motor test
+    /// spins a motor of the disarmed vehicle (and SDLOG_MODE is not -1), so that the step's "Armed" text
+    /// is its first logged string and a bench test leaves a record of what the motors were told.
     pub fn begin_step(&mut self, now_us: u64, vehicle: &Vehicle) {
         if self.close_pending
             && let Some(tx) = &self.tx
@@ -111,7 +114,7 @@ impl FlightLogger {
         {
             self.close_pending = false;
         }
-        if self.tx.is_none() || self.flight.is_some() || !vehicle.commander_output().armed {
+        if self.tx.is_none() || self.flight.is_some() || !motors_running(vehicle) {
             return;
         }
         if vehicle.params().sdlog_mode() < 0 {
@@ -131,8 +134,8 @@ impl FlightLogger {
         }
     }
 
-    /// After the step's messages: the topics due at `now_us`; when the vehicle has disarmed, a last
-    /// `vehicle_status` and the end of the flight.
+    /// After the step's messages: the topics due at `now_us`; when the motors stop (the vehicle disarmed,
+    /// or the motor test ended), a last `vehicle_status` and the end of the flight.
     pub fn end_step(&mut self, now_us: u64, vehicle: &Vehicle) {
         let Some(flight) = self.flight.as_mut() else { return };
         let out = vehicle.commander_output();
@@ -151,6 +154,9 @@ impl FlightLogger {
             .any(|(i, t)| due(i) && matches!(t.name.as_str(), "controller_status" | "aco_weights"));
         let snap = if any_due { Some(vehicle.log_snapshot()) } else { None };
         let telemetry = if wants_telemetry { vehicle.controller().telemetry() } else { Vec::new() };
+        if let Some(snap) = snap.as_ref() {
+            flight.manual_seen |= snap.manual.sticks.is_some();
+        }
         for (i, topic) in flight.topics.iter().enumerate() {
             let Some(snap) = snap.as_ref() else { break };
             if now_us < flight.due_us[i] {
@@ -159,6 +165,9 @@ impl FlightLogger {
             let interval = flight.intervals_us[i];
             flight.due_us[i] =
                 if now_us - flight.due_us[i] < interval { flight.due_us[i] + interval } else { now_us + interval };
+            if !logged(&topic.name, snap, flight.manual_seen) {
+                continue;
+            }
             let ctx = RecordContext {
                 sysid: self.sysid,
                 armed_at_us: flight.armed_at_us,
@@ -185,7 +194,7 @@ impl FlightLogger {
             flight.next_sync_us = now_us + SYNC_INTERVAL_US;
             self.pending.extend(ulog::sync());
         }
-        let ended = !status.0;
+        let ended = !motors_running(vehicle);
         self.send(now_us, false);
         if ended {
             self.close();
@@ -273,8 +282,14 @@ impl FlightLogger {
             next_sync_us: now_us + SYNC_INTERVAL_US,
             next_param_check_us: now_us + PARAM_CHECK_INTERVAL_US,
             armed_at_us: now_us,
+            manual_seen: false,
         });
     }
+}
+
+/// Whether the motors run: armed, or a motor test on the disarmed vehicle.
+fn motors_running(vehicle: &Vehicle) -> bool {
+    vehicle.commander_output().armed || vehicle.motor_test_running()
 }
 
 fn wall_us() -> u64 {
@@ -287,6 +302,7 @@ pub(crate) mod tests {
     use crate::core::commander::State;
     use crate::core::config::VehicleConfig;
     use crate::core::estimator::{EstimatorSource, GeoOrigin};
+    use crate::core::manual::RcFrame;
     use crate::core::mavlink::MavHeader;
     use crate::core::mavlink::command_long;
     use crate::core::mavlink::common::{MavCmd, MavMessage};
@@ -315,9 +331,14 @@ pub(crate) mod tests {
 
     /// Steps the vehicle for `seconds` as the plant link does, the logger around each step.
     fn fly(v: &mut Vehicle, log: &mut FlightLogger, t_us: &mut u64, seconds: f64) {
+        fly_with(v, log, t_us, seconds, None);
+    }
+
+    /// As [`fly`], with the radio frame `rc` arriving at every step.
+    fn fly_with(v: &mut Vehicle, log: &mut FlightLogger, t_us: &mut u64, seconds: f64, rc: Option<RcFrame>) {
         let end = *t_us + (seconds * 1e6) as u64;
         while *t_us < end {
-            let out = v.step(*t_us, &at_rest(*t_us));
+            let out = v.step(*t_us, &VehicleInputs { rc, ..at_rest(*t_us) });
             log.begin_step(*t_us, v);
             for m in &out.messages {
                 if let MavMessage::STATUSTEXT(s) = m {
@@ -478,6 +499,95 @@ pub(crate) mod tests {
         let bytes = std::fs::read(&closed[0]).expect("read");
         let (_, msgs) = read_messages(&bytes).expect("a file with a gap still parses");
         assert!(msgs.iter().any(|m| m.kind == b'O'), "a dropout marker");
+        let _ = std::fs::remove_dir_all(&root);
+    }
+
+    fn f32_at(r: &[u8], at: usize) -> f32 {
+        f32::from_le_bytes(r[at..at + 4].try_into().expect("4 bytes"))
+    }
+
+    #[test]
+    fn a_flight_with_a_radio_logs_input_rc_and_manual_control_setpoint_as_px4_names_them_and_one_without_logs_neither()
+    {
+        let root = scratch("radio");
+        let (tx, mut rx) = mpsc::channel(ULOG_CHANNEL_CAPACITY);
+        let mut log = FlightLogger::new(Some(tx), root.clone(), 1);
+        let mut writer = UlogWriter::default();
+        let (mut v, mut t) = (vehicle(), 0);
+        let arm = command_long(1, 0, MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        let disarm = command_long(1, 0, MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [0.0; 7]);
+        // GIVEN a flight without a radio: neither topic has a record.
+        fly(&mut v, &mut log, &mut t, 0.5);
+        v.handle_message(t, &GCS, &arm);
+        fly(&mut v, &mut log, &mut t, 1.0);
+        v.handle_message(t, &GCS, &disarm);
+        fly(&mut v, &mut log, &mut t, 0.1);
+        let closed = drain(&mut rx, &mut writer);
+        let data = topics_of(&std::fs::read(&closed[0]).expect("read"));
+        assert!(!data.contains_key("input_rc") && !data.contains_key("manual_control_setpoint"), "{:?}", data.keys());
+        // WHEN a radio (AETR: roll right of centre, throttle a quarter, RSSI 200 of 254) sends every step
+        // through an armed flight of 2 s.
+        let mut frame = RcFrame::of(&[1600, 1500, 1250, 1500, 1000, 2000, 1000, 1000]);
+        frame.rssi = 200;
+        fly_with(&mut v, &mut log, &mut t, 0.5, Some(frame));
+        v.handle_message(t, &GCS, &arm);
+        fly_with(&mut v, &mut log, &mut t, 2.0, Some(frame));
+        let sticks = v.log_snapshot().manual.sticks.expect("the radio's sticks in use");
+        v.handle_message(t, &GCS, &disarm);
+        fly_with(&mut v, &mut log, &mut t, 0.1, Some(frame));
+        let closed = drain(&mut rx, &mut writer);
+        let data = topics_of(&std::fs::read(&closed[0]).expect("read"));
+        // THEN input_rc every 500 ms: the frame's channels, count, RSSI on PX4's 0-100 scale, the last
+        // signal this step's, not lost.
+        let rc = &data["input_rc"];
+        assert!((4..=5).contains(&rc.len()), "{}", rc.len());
+        for r in rc {
+            let stamp = u64::from_le_bytes(r[..8].try_into().expect("8"));
+            assert_eq!(u64::from_le_bytes(r[8..16].try_into().expect("8")), stamp, "timestamp_last_signal");
+            assert_eq!((r[16], i32::from_le_bytes(r[17..21].try_into().expect("4"))), (8, 79), "count, rssi");
+            assert_eq!((r[21], r[22]), (0, 0), "not in failsafe, not lost");
+            let values: Vec<u16> = (0..18).map(|i| u16::from_le_bytes([r[23 + 2 * i], r[24 + 2 * i]])).collect();
+            assert_eq!(values, frame.channels_us);
+        }
+        // AND manual_control_setpoint every 200 ms: valid, from the radio (1), the sticks in use with PX4's
+        // throttle in [-1, 1].
+        let mc = &data["manual_control_setpoint"];
+        assert!((10..=11).contains(&mc.len()), "{}", mc.len());
+        for r in mc {
+            assert_eq!((r[8], r[9]), (1, 1), "valid, SOURCE_RC");
+            let logged = [f32_at(r, 10), f32_at(r, 14), f32_at(r, 18), f32_at(r, 22)];
+            let want = [sticks.roll, sticks.pitch, sticks.yaw, 2.0 * sticks.throttle - 1.0].map(|x| x as f32);
+            assert_eq!(logged, want);
+        }
+        assert!(sticks.roll > 0.1 && sticks.throttle < 0.5, "{sticks:?}");
+        let _ = std::fs::remove_dir_all(&root);
+    }
+
+    #[test]
+    fn a_motor_test_on_the_disarmed_vehicle_is_logged_with_actuator_outputs_showing_the_motor_at_its_pwm() {
+        let root = scratch("motortest");
+        let (tx, mut rx) = mpsc::channel(ULOG_CHANNEL_CAPACITY);
+        let mut log = FlightLogger::new(Some(tx), root.clone(), 1);
+        let mut writer = UlogWriter::default();
+        let (mut v, mut t) = (vehicle(), 0);
+        fly(&mut v, &mut log, &mut t, 0.2);
+        // WHEN motor 3 is tested at 20 % for 1 s on the disarmed vehicle.
+        let test = command_long(1, 0, MavCmd::MAV_CMD_DO_MOTOR_TEST, [3.0, 0.0, 20.0, 1.0, 0.0, 0.0, 0.0]);
+        v.handle_message(t, &GCS, &test);
+        fly(&mut v, &mut log, &mut t, 1.5);
+        // THEN one file, closed when the test ended, whose actuator_outputs show output 3 at 1200 µs and
+        // the others at 1000 µs, for the test's second (50 Hz: 50 records, one more at each end at most).
+        assert!(!log.logging() && !v.commander_output().armed);
+        let closed = drain(&mut rx, &mut writer);
+        assert_eq!(closed.len(), 1, "{closed:?}");
+        let data = topics_of(&std::fs::read(&closed[0]).expect("read"));
+        let outputs: Vec<[f32; 4]> = data["actuator_outputs"]
+            .iter()
+            .map(|r| [f32_at(r, 12), f32_at(r, 16), f32_at(r, 20), f32_at(r, 24)])
+            .collect();
+        let spinning = outputs.iter().filter(|o| **o == [1000.0, 1000.0, 1200.0, 1000.0]).count();
+        assert!((50..=51).contains(&spinning), "{spinning} of {outputs:?}");
+        assert!(outputs.iter().all(|o| *o == [1000.0, 1000.0, 1200.0, 1000.0] || *o == [1000.0; 4]), "{outputs:?}");
         let _ = std::fs::remove_dir_all(&root);
     }
 }

@@ -9,6 +9,7 @@ use crate::runtime::utc::UtcTime;
 use crate::core::battery::BatteryWarning;
 use crate::core::commander::FlightMode;
 use crate::core::estimator::eskf::GRAVITY_MPS2 as G_MPS2;
+use crate::core::manual::{ManualSource, RC_CHANNELS_MAX};
 use crate::core::params::{ParamKind, ParamStore};
 use crate::core::vehicle::{LogSnapshot, Vehicle};
 
@@ -18,7 +19,10 @@ use crate::core::vehicle::{LogSnapshot, Vehicle};
 /// this autopilot's own. `vehicle_status` is also logged whenever the arming state or the mode changes.
 /// PX4's default logger profile takes attitude and setpoints at 20-50 Hz and positions at 10 Hz; the
 /// control-side topics are taken at 50 Hz here because the controller is what this autopilot studies.
-pub const TOPICS: [(&str, u64); 10] = [
+/// The pilot's input at PX4's default intervals: `input_rc` (the radio's last frame) every 500 ms once a
+/// frame has arrived, `manual_control_setpoint` (the sticks in use) every 200 ms once sticks have been in
+/// use (see [`logged`]).
+pub const TOPICS: [(&str, u64); 12] = [
     ("vehicle_status", 1_000_000),
     ("vehicle_attitude", 20_000),
     ("vehicle_local_position", 20_000),
@@ -29,7 +33,34 @@ pub const TOPICS: [(&str, u64); 10] = [
     ("estimator_innovations", 100_000),
     ("battery_status", 200_000),
     ("aco_weights", 100_000),
+    ("input_rc", 500_000),
+    ("manual_control_setpoint", 200_000),
 ];
+
+/// Whether topic `name` has a record at this step: `input_rc` once a radio frame has arrived,
+/// `manual_control_setpoint` while sticks are in use or once they have been in this flight (`manual_seen`;
+/// then with `valid` false, as PX4 publishes the loss); every other topic always.
+pub(super) fn logged(name: &str, snap: &LogSnapshot, manual_seen: bool) -> bool {
+    match name {
+        "input_rc" => snap.manual.rc.is_some(),
+        "manual_control_setpoint" => manual_seen || snap.manual.sticks.is_some(),
+        _ => true,
+    }
+}
+
+/// PX4's `input_rc.rssi` (0-100, -1 unknown) of RC_CHANNELS' (0-254, 255 unknown).
+fn px4_rssi(rssi: u8) -> i32 {
+    if rssi == u8::MAX { -1 } else { (f64::from(rssi) * 100.0 / 254.0).round() as i32 }
+}
+
+/// PX4's `manual_control_setpoint.data_source`: 1 the radio, 2 MAVLink (instance 0), 0 none.
+const fn px4_data_source(source: Option<ManualSource>) -> u8 {
+    match source {
+        Some(ManualSource::Rc) => 1,
+        Some(ManualSource::Joystick) => 2,
+        None => 0,
+    }
+}
 
 /// `aco_weights`: the ACO weight vectors and the telemetry names of their N/E/D or x/y/z values.
 const ACO_WEIGHTS: [(&str, [&str; 3]); 5] = [
@@ -76,7 +107,7 @@ fn field_name(telemetry: &str) -> String {
 
 /// The fields (after `timestamp`) of topic `name`; `telemetry` names the controller's values.
 pub(super) fn fields(name: &str, telemetry: &[&'static str]) -> Vec<Field> {
-    use FieldType::{Bool, F32, F64, U8, U32, U64};
+    use FieldType::{Bool, F32, F64, I32, U8, U16, U32, U64};
     let f = |n: &str| Field::scalar(F32, n);
     match name {
         "vehicle_status" => vec![
@@ -128,6 +159,19 @@ pub(super) fn fields(name: &str, telemetry: &[&'static str]) -> Vec<Field> {
             v
         }
         "aco_weights" => ACO_WEIGHTS.iter().map(|(n, _)| Field::array(F32, 3, n)).collect(),
+        "input_rc" => vec![
+            Field::scalar(U64, "timestamp_last_signal"),
+            Field::scalar(U8, "channel_count"),
+            Field::scalar(I32, "rssi"),
+            Field::scalar(Bool, "rc_failsafe"),
+            Field::scalar(Bool, "rc_lost"),
+            Field::array(U16, RC_CHANNELS_MAX, "values"),
+        ],
+        "manual_control_setpoint" => {
+            let mut v = vec![Field::scalar(Bool, "valid"), Field::scalar(U8, "data_source")];
+            v.extend(["roll", "pitch", "yaw", "throttle"].map(f));
+            v
+        }
         _ => Vec::new(),
     }
 }
@@ -216,6 +260,24 @@ pub(super) fn record(name: &str, now_us: u64, snap: &LogSnapshot, ctx: &RecordCo
                 .bool(s.is_some())
         }
         "aco_weights" => ACO_WEIGHTS.iter().fold(r, |r, (_, names)| r.f32s(&names.map(value))),
+        "input_rc" => {
+            let frame = snap.manual.rc.unwrap_or_default();
+            // The receiver's own failsafe: a frame without channels or without signal.
+            let failsafe = snap.manual.rc.is_some() && (frame.count == 0 || frame.rssi == 0);
+            let r = r
+                .u64(snap.rc_at_us.unwrap_or(0))
+                .u8(frame.count)
+                .i32(px4_rssi(frame.rssi))
+                .bool(failsafe)
+                .bool(!snap.manual.rc_fresh);
+            frame.channels_us.iter().fold(r, |r, &c| r.u16(c))
+        }
+        "manual_control_setpoint" => {
+            let m = &snap.manual;
+            // PX4's throttle is [-1, 1] (-1 minimum); the sticks' is [0, 1].
+            let sticks = m.sticks.map_or([f64::NAN; 4], |s| [s.roll, s.pitch, s.yaw, 2.0 * s.throttle - 1.0]);
+            r.bool(m.sticks.is_some()).u8(px4_data_source(m.source)).f32s(&sticks)
+        }
         _ => r,
     }
 }

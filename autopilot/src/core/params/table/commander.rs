@@ -1,4 +1,4 @@
-//! The parameter table's commander sections: arming, take-off and landing, and the failsafes.
+//! The parameter table's commander sections: arming, take-off and landing, the failsafes, and the motor test.
 
 use crate::core::params::{Binding, ParamDef, ParamGroup, ParamKind};
 
@@ -147,3 +147,17 @@ pub(super) const FAILSAFES: &[ParamDef] = &[
         commander.geofence.max_ver_dist_m
     ),
 ];
+
+/// The motor test: kept in the store only, read when a motor test is asked for.
+pub(super) const MOTOR_TEST: &[ParamDef] = &[ParamDef {
+    name: "COM_MOT_TEST_EN",
+    group: ParamGroup::Commander,
+    kind: ParamKind::Boolean,
+    default: 1.0,
+    min: 0.0,
+    max: 1.0,
+    unit: "0/1",
+    restart: false,
+    description: "Whether a ground station may spin a motor while disarmed (MAV_CMD_ACTUATOR_TEST, MAV_CMD_DO_MOTOR_TEST; at most 3 s per command); 0 refuses them (\"Motor test denied: disabled\").",
+    binding: Binding::StoreOnly,
+}];

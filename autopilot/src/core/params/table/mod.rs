@@ -119,6 +119,7 @@ const SECTIONS: &[&[ParamDef]] = &[
     commander::FAILSAFES,
     telemetry::ULOG,
     baselines::COMPETENT_CA,
+    commander::MOTOR_TEST,
     manual::RADIO,
     manual::MANUAL_FLIGHT,
     manual::RADIO_CALIBRATION,
@@ -163,7 +164,7 @@ mod tests {
 
     /// Every parameter's name at its `param_index`, as ground stations have cached them: a parameter
     /// moved, removed or inserted before the end changes an index and fails here.
-    const INDEX_ORDER: [&str; 121] = [
+    const INDEX_ORDER: [&str; 122] = [
         "ACO_POS_P",
         "ACO_VEL_P",
         "ACO_ROLL_P",
@@ -255,6 +256,7 @@ mod tests {
         "MRAC_WI_POS",
         "MRAC_EMOD",
         "MRAC_HEDGE",
+        "COM_MOT_TEST_EN",
         "RC_MAP_ROLL",
         "RC_MAP_PITCH",
         "RC_MAP_YAW",

@@ -27,6 +27,6 @@ pub(super) const ULOG: &[ParamDef] = &[ParamDef {
     max: 0.0,
     unit: "",
     restart: false,
-    description: "When the onboard ULog flight log is written: -1 never, 0 from arming until disarming (PX4's default; PX4's other modes are not offered). Read at each arming.",
+    description: "When the onboard ULog flight log is written: -1 never, 0 from arming until disarming, and while a motor test spins a motor (PX4's default; PX4's other modes are not offered). Read at each arming.",
     binding: Binding::StoreOnly,
 }];
