@@ -3,7 +3,7 @@
 //! and MAVSDK do, and a radio on the board (RC_CHANNELS frames into the vehicle's inputs). Judged on the
 //! plant's truth against what the sticks command, and on what the vehicle says.
 
-use autopilot::core::commander::FlightMode;
+use autopilot::core::commander::{FlightMode, LandedState};
 use autopilot::core::control::ControllerKind;
 use autopilot::core::estimator::EstimatorSource;
 use autopilot::core::manual::{RcFrame, Sticks, expo_deadzone};
@@ -428,4 +428,47 @@ fn given_each_controller_then_position_holds_within_0_10_m_stabilized_tilts_with
             assert!((mean - cfg.vel_manual_mps).abs() <= 0.05 * cfg.vel_manual_mps, "{kind}: speed {mean:.3} m/s");
         }
     }
+}
+
+#[test]
+fn given_the_disarm_gesture_in_the_air_then_it_is_refused_in_words_and_on_the_ground_it_disarms() {
+    let mut rig = radio_rig();
+    rig.rc = Some(radio(1000, 1500, 1000, 1000));
+    fly(&mut rig, 0.2, None, |_| {});
+    rig.rc = Some(radio(1000, 2000, 1000, 1000));
+    fly(&mut rig, 1.2, None, |_| {});
+    assert!(rig.vehicle.commander().armed());
+    rig.rc = Some(radio(2000, 1500, 1000, 1000));
+    fly(&mut rig, 3.0, None, |_| {});
+    texts(&mut rig);
+    // Throttle low (descending) with yaw left in the air: refused, said once.
+    rig.rc = Some(radio(1000, 1000, 1000, 1000));
+    fly(&mut rig, 1.2, None, |_| {});
+    assert!(rig.vehicle.commander().armed());
+    assert_eq!(said(&mut rig, "Disarming denied: in air (use force)").len(), 1);
+    // Down on the ground (throttle low), the gesture made again: disarmed.
+    rig.rc = Some(radio(1000, 1500, 1000, 1000));
+    rig.wait_until(30.0, "touchdown", |r| r.vehicle.commander().landed_state() == LandedState::OnGround);
+    rig.rc = Some(radio(1000, 1000, 1000, 1000));
+    fly(&mut rig, 1.2, None, |_| {});
+    assert!(!rig.vehicle.commander().armed(), "the disarm gesture on the ground");
+}
+
+#[test]
+fn given_sticks_that_stop_on_the_ground_armed_in_position_then_the_loss_is_only_said_and_the_vehicle_disarms_unflown() {
+    let mut rig = converged();
+    fly(&mut rig, 0.2, Some(centre()), |_| {});
+    assert_eq!(set_mode(&mut rig, 3.0), MavResult::MAV_RESULT_ACCEPTED);
+    assert_eq!(
+        rig.command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    fly(&mut rig, 1.0, Some(centre()), |_| {});
+    texts(&mut rig);
+    fly(&mut rig, 1.0, None, |_| {});
+    assert_eq!(said(&mut rig, "Failsafe: manual control lost").len(), 1);
+    assert_eq!(rig.vehicle.commander().mode(), FlightMode::Position);
+    let preflight_s = rig.vehicle.config().commander.disarm_preflight_s;
+    fly(&mut rig, preflight_s, None, |_| {});
+    assert!(!rig.vehicle.commander().armed(), "disarmed COM_DISARM_PRFLT after arming without a flight");
 }

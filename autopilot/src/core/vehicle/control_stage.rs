@@ -16,17 +16,25 @@ pub(crate) struct ControlStage {
     /// The controller has run since it was last (re)built.
     dirty: bool,
     pwm_us: [f64; 4],
-    /// At or below this mean PWM (µs: 30 % of the hover lift per rotor) the thrust counts as low, for the
-    /// land detector.
+    /// At or below this mean PWM (µs) the thrust counts as low, for the land detector: 30 % of the hover
+    /// thrust on the normalized scale (PX4's, 0 at the lowest rotor lift, 1 at the highest), as PX4's land
+    /// detector reads "low thrust". The paper's rotors lift 88 % of the hover lift at 1000 µs, so 30 % of
+    /// the hover lift itself lies below the lift curve (435 µs) and no command could ever reach it.
     throttle_low_pwm_us: f64,
+}
+
+/// The mean PWM (µs) at 30 % of the hover thrust on the normalized scale of `limits`.
+fn throttle_low_pwm_us(airframe: &crate::core::control::Airframe, limits: &distributor::ActuatorLimits) -> f64 {
+    let span_n = limits.rotor_max_n - limits.rotor_min_n;
+    let hover_frac = (airframe.hover_rotor_lift_n() - limits.rotor_min_n) / span_n;
+    distributor::pwm_from_lift_us(limits.rotor_min_n + 0.3 * hover_frac * span_n)
 }
 
 impl ControlStage {
     /// The controller `config` names, motors at minimum.
     pub fn new(config: &VehicleConfig) -> Result<Self, VehicleError> {
         let controller = try_new_controller(config.controller, &config.control)?;
-        let airframe = &config.control.aco.airframe;
-        let throttle_low_pwm_us = distributor::pwm_from_lift_us(0.3 * airframe.hover_rotor_lift_n());
+        let throttle_low_pwm_us = throttle_low_pwm_us(&config.control.aco.airframe, &config.control.aco.limits);
         Ok(Self { controller, dirty: false, pwm_us: [PWM_MIN_US; 4], throttle_low_pwm_us })
     }
 
@@ -106,5 +114,20 @@ impl ControlStage {
         self.controller
             .update(&input, &reference)
             .map(|p| if p.is_finite() { p.clamp(PWM_MIN_US, PWM_MAX_US) } else { PWM_MIN_US })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::control::Airframe;
+    use crate::core::control::distributor::ActuatorLimits;
+
+    #[test]
+    fn the_low_thrust_threshold_is_reachable_above_1000_us_and_below_hover() {
+        let airframe = Airframe::default();
+        let pwm = throttle_low_pwm_us(&airframe, &ActuatorLimits::default());
+        let hover = distributor::pwm_from_lift_us(airframe.hover_rotor_lift_n());
+        assert!(PWM_MIN_US < pwm && pwm < hover, "{pwm} µs (hover {hover} µs)");
     }
 }
