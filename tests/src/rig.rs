@@ -6,7 +6,9 @@
 use autopilot::core::estimator::{BaroSample, EstimatorSource, GeoOrigin, ImuSample, MagSample, TruthSample};
 use autopilot::core::mavlink::MavHeader;
 use autopilot::core::mavlink::command_long;
-use autopilot::core::mavlink::common::{MavCmd, MavLandedState, MavMessage, MavModeFlag, MavResult};
+use autopilot::core::mavlink::common::{MavCmd, MavLandedState, MavMessage, MavModeFlag, MavResult, PARAM_SET_DATA};
+use autopilot::core::mavlink::params::{decode_value, encode_value};
+use autopilot::core::params::PARAMS;
 use autopilot::core::vehicle::{Vehicle, VehicleConfig, VehicleInputs};
 use sitl::plant::{InitialState, Plant, PlantConfig, SensorConfig};
 
@@ -142,6 +144,27 @@ impl Rig {
     /// A message to the vehicle now; its replies.
     pub fn send(&mut self, msg: &MavMessage) -> Vec<MavMessage> {
         self.vehicle.handle_message(self.now_us, &GCS, msg)
+    }
+
+    /// PARAM_SET as a PX4 ground station sends it, in the parameter's own type (an INT32 in PX4's bytewise
+    /// encoding, as MAVSDK's `set_param_int`), and the echo, decoded by its type, checked.
+    ///
+    /// # Panics
+    /// When `name` is not a parameter, or the vehicle does not echo the value.
+    pub fn set_param(&mut self, name: &str, value: f32) {
+        let kind = PARAMS.iter().find(|d| d.name == name).expect("a parameter").kind;
+        let replies = self.send(&MavMessage::PARAM_SET(PARAM_SET_DATA {
+            param_value: encode_value(kind, value),
+            target_system: 1,
+            target_component: 1,
+            param_id: name.into(),
+            param_type: kind.mav_param_type(),
+        }));
+        assert!(
+            replies.iter().any(|m| matches!(m, MavMessage::PARAM_VALUE(p)
+                if p.param_type == kind.mav_param_type() && decode_value(p.param_type, p.param_value) == Some(value))),
+            "{name} = {value}: {replies:?}"
+        );
     }
 
     /// The messages sent since the last call.

@@ -5,32 +5,12 @@
 
 use autopilot::core::commander::FlightMode;
 use autopilot::core::estimator::EstimatorSource;
-use autopilot::core::mavlink::common::{MavCmd, MavMessage, PARAM_SET_DATA};
+use autopilot::core::mavlink::common::{MavCmd, MavMessage};
 use autopilot::core::mavlink::gcs_heartbeat;
-use autopilot::core::mavlink::params::{decode_value, encode_value};
-use autopilot::core::params::PARAMS;
 use nalgebra::Vector3;
 use tests::rig::{Rig, mission_item};
 
 const NAN: f32 = f32::NAN;
-
-/// PARAM_SET as a PX4 ground station sends it, in the parameter's own type (NAV_DLL_ACT as an INT32 in
-/// PX4's bytewise encoding, as MAVSDK's `set_param_int`), and the echo, decoded by its type, checked.
-fn set_param(rig: &mut Rig, name: &str, value: f32) {
-    let kind = PARAMS.iter().find(|d| d.name == name).expect("a parameter").kind;
-    let replies = rig.send(&MavMessage::PARAM_SET(PARAM_SET_DATA {
-        param_value: encode_value(kind, value),
-        target_system: 1,
-        target_component: 1,
-        param_id: name.into(),
-        param_type: kind.mav_param_type(),
-    }));
-    assert!(
-        replies.iter().any(|m| matches!(m, MavMessage::PARAM_VALUE(p)
-            if p.param_type == kind.mav_param_type() && decode_value(p.param_type, p.param_value) == Some(value))),
-        "{name} = {value}: {replies:?}"
-    );
-}
 
 /// Ticks for `seconds`, sending a GCS HEARTBEAT every second of vehicle time while `heartbeats`.
 fn fly(rig: &mut Rig, seconds: f64, heartbeats: bool) {
@@ -63,8 +43,8 @@ fn given_nav_dll_act_return_when_the_gcs_goes_silent_in_a_mission_then_it_return
     // GIVEN NAV_DLL_ACT = 2 (return), COM_DL_LOSS_T = 5 s and a mission out to 20 m, flown while the
     // ground station heartbeats.
     let mut rig = converged_rig();
-    set_param(&mut rig, "NAV_DLL_ACT", 2.0);
-    set_param(&mut rig, "COM_DL_LOSS_T", 5.0);
+    rig.set_param("NAV_DLL_ACT", 2.0);
+    rig.set_param("COM_DL_LOSS_T", 5.0);
     let home = rig.plant.truth().pos_ned_m;
     let origin = rig.vehicle.estimate().origin.expect("origin");
     let est_home = rig.vehicle.home().expect("home").pos_ned_m;
@@ -109,8 +89,8 @@ fn given_nav_dll_act_return_when_the_gcs_goes_silent_in_a_mission_then_it_return
 #[test]
 fn given_nav_dll_act_hold_when_the_link_returns_then_it_says_so_and_stays_in_hold() {
     let mut rig = converged_rig();
-    set_param(&mut rig, "NAV_DLL_ACT", 1.0);
-    set_param(&mut rig, "COM_DL_LOSS_T", 5.0);
+    rig.set_param("NAV_DLL_ACT", 1.0);
+    rig.set_param("COM_DL_LOSS_T", 5.0);
     let nan = NAN;
     rig.command(MavCmd::MAV_CMD_NAV_TAKEOFF, [0.0, 0.0, 0.0, nan, nan, nan, 3.0]);
     rig.command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
@@ -155,8 +135,8 @@ fn given_com_low_bat_act_3_when_sim_bat_drain_empties_the_pack_in_a_mission_then
     let mut rig = Rig::with(config, EstimatorSource::Fused, |_| {});
     rig.wait_until(30.0, "estimator convergence", |r| r.vehicle.estimate().flags.converged);
     fly(&mut rig, 1.0, true);
-    set_param(&mut rig, "BAT_CRIT_THR", 0.10);
-    set_param(&mut rig, "BAT_EMERGEN_THR", 0.03);
+    rig.set_param("BAT_CRIT_THR", 0.10);
+    rig.set_param("BAT_EMERGEN_THR", 0.03);
     let home = rig.plant.truth().pos_ned_m;
     let origin = rig.vehicle.estimate().origin.expect("origin");
     let est_home = rig.vehicle.home().expect("home").pos_ned_m;
@@ -260,7 +240,7 @@ fn airborne_rig() -> Rig {
 fn given_gf_max_hor_dist_10_when_a_goto_20_m_away_is_asked_then_it_is_refused_with_the_reason() {
     use autopilot::core::mavlink::common::MavResult;
     let mut rig = airborne_rig();
-    set_param(&mut rig, "GF_MAX_HOR_DIST", 10.0);
+    rig.set_param("GF_MAX_HOR_DIST", 10.0);
     let replies = reposition_north(&mut rig, 20.0);
     assert!(
         matches!(&replies[0], MavMessage::COMMAND_ACK(a) if a.result == MavResult::MAV_RESULT_DENIED),
@@ -284,7 +264,7 @@ fn given_gf_max_hor_dist_10_when_a_goto_20_m_away_is_asked_then_it_is_refused_wi
 fn given_gf_max_hor_dist_10_when_an_offboard_velocity_pushes_outward_then_it_holds_before_10_5_m_on_the_truth() {
     // GIVEN GF_MAX_HOR_DIST 10 m and GF_ACTION 2 (hold, the default), hovering at home.
     let mut rig = airborne_rig();
-    set_param(&mut rig, "GF_MAX_HOR_DIST", 10.0);
+    rig.set_param("GF_MAX_HOR_DIST", 10.0);
     let home = rig.plant.truth().pos_ned_m;
     // WHEN an offboard stream flies north at 1.5 m/s (20 Hz), for 30 s.
     let replies = rig.send(&velocity_target(1.5, 0.0));

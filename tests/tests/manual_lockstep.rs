@@ -7,11 +7,9 @@ use autopilot::core::commander::{FlightMode, LandedState};
 use autopilot::core::control::ControllerKind;
 use autopilot::core::estimator::EstimatorSource;
 use autopilot::core::manual::{RcFrame, Sticks, expo_deadzone};
-use autopilot::core::mavlink::common::{MANUAL_CONTROL_DATA, MavCmd, MavMessage, MavResult, PARAM_SET_DATA};
-use autopilot::core::mavlink::params::{decode_value, encode_value};
+use autopilot::core::mavlink::common::{MANUAL_CONTROL_DATA, MavCmd, MavMessage, MavResult};
 use autopilot::core::navigator::ManualFlightConfig;
 use autopilot::core::navigator::trajectory::{Limits, Motion1, Profile};
-use autopilot::core::params::PARAMS;
 use nalgebra::Vector3;
 use sitl::plant::{PlantConfig, SensorConfig};
 use tests::rig::{DT_US, Rig, mission_item};
@@ -19,22 +17,6 @@ use tests::rig::{DT_US, Rig, mission_item};
 const NAN: f32 = f32::NAN;
 /// MANUAL_CONTROL every 20 ms (50 Hz), as QGroundControl's joystick.
 const STICK_PERIOD_US: u64 = 20_000;
-
-fn set_param(rig: &mut Rig, name: &str, value: f32) {
-    let kind = PARAMS.iter().find(|d| d.name == name).expect("a parameter").kind;
-    let replies = rig.send(&MavMessage::PARAM_SET(PARAM_SET_DATA {
-        param_value: encode_value(kind, value),
-        target_system: 1,
-        target_component: 1,
-        param_id: name.into(),
-        param_type: kind.mav_param_type(),
-    }));
-    assert!(
-        replies.iter().any(|m| matches!(m, MavMessage::PARAM_VALUE(p)
-            if decode_value(p.param_type, p.param_value) == Some(value))),
-        "{name} = {value}: {replies:?}"
-    );
-}
 
 fn manual_control(s: &Sticks) -> MavMessage {
     let (x, y, z, r) = s.to_manual_control();
@@ -67,6 +49,19 @@ fn texts(rig: &mut Rig) -> Vec<(u64, String)> {
 
 fn said(rig: &mut Rig, text: &str) -> Vec<u64> {
     texts(rig).into_iter().filter(|(_, t)| t == text).map(|(t, _)| t).collect()
+}
+
+/// A command refused (not ACCEPTED), its reason said in a STATUSTEXT with the ACK.
+fn refused_in_words(rig: &mut Rig, command: MavCmd, params: [f32; 7], text: &str) {
+    let replies = rig.send(&autopilot::core::mavlink::command_long(1, 1, command, params));
+    assert!(
+        replies.iter().any(|m| matches!(m, MavMessage::COMMAND_ACK(a) if a.result != MavResult::MAV_RESULT_ACCEPTED)),
+        "{replies:?}"
+    );
+    assert!(
+        replies.iter().any(|m| matches!(m, MavMessage::STATUSTEXT(s) if s.text.to_str().is_ok_and(|t| t == text))),
+        "{text}: {replies:?}"
+    );
 }
 
 fn set_mode(rig: &mut Rig, main: f32) -> MavResult {
@@ -223,41 +218,29 @@ fn given_no_manual_control_then_manual_modes_and_arming_in_them_are_refused_in_w
     texts(&mut rig);
     assert_eq!(set_mode(&mut rig, 3.0), MavResult::MAV_RESULT_DENIED);
     // The refusal's words come with the ACK.
-    let replies = rig.send(&autopilot::core::mavlink::command_long(
-        1,
-        1,
+    refused_in_words(
+        &mut rig,
         MavCmd::MAV_CMD_DO_SET_MODE,
         [1.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    ));
-    assert!(
-        replies.iter().any(|m| matches!(m, MavMessage::STATUSTEXT(s) if s.text.to_str().is_ok_and(|t| t == "Altitude denied: no manual control"))),
-        "{replies:?}"
+        "Altitude denied: no manual control",
     );
     // Armed in Position while the sticks come, then they stop: arming is refused.
     fly(&mut rig, 0.1, Some(centre()), |_| {});
     assert_eq!(set_mode(&mut rig, 3.0), MavResult::MAV_RESULT_ACCEPTED);
     fly(&mut rig, 1.0, None, |_| {});
-    let replies = rig.send(&autopilot::core::mavlink::command_long(
-        1,
-        1,
+    refused_in_words(
+        &mut rig,
         MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
         [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    ));
-    assert!(
-        replies.iter().any(|m| matches!(m, MavMessage::STATUSTEXT(s) if s.text.to_str().is_ok_and(|t| t == "Arming denied: no manual control"))),
-        "{replies:?}"
+        "Arming denied: no manual control",
     );
     assert!(!rig.vehicle.commander().armed());
     // Acro stays refused.
-    let replies = rig.send(&autopilot::core::mavlink::command_long(
-        1,
-        1,
+    refused_in_words(
+        &mut rig,
         MavCmd::MAV_CMD_DO_SET_MODE,
         [1.0, 5.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    ));
-    assert!(
-        replies.iter().any(|m| matches!(m, MavMessage::STATUSTEXT(s) if s.text.to_str().is_ok_and(|t| t == "Mode not supported: ACRO takes no rate setpoints"))),
-        "{replies:?}"
+        "Mode not supported: ACRO takes no rate setpoints",
     );
 }
 
@@ -292,7 +275,7 @@ fn given_sticks_that_stop_in_position_mode_then_nav_rcl_act_return_starts_within
 #[test]
 fn given_com_rcl_except_mission_when_the_sticks_stop_in_a_mission_then_the_mission_goes_on() {
     let mut rig = converged();
-    set_param(&mut rig, "COM_RCL_EXCEPT", 1.0);
+    rig.set_param("COM_RCL_EXCEPT", 1.0);
     let origin = rig.vehicle.estimate().origin.expect("origin");
     let home = rig.vehicle.home().expect("home").pos_ned_m;
     let (lat, lon, _) = origin.geodetic_from_ned(&(home + Vector3::new(15.0, 0.0, 0.0)));
@@ -315,11 +298,11 @@ fn given_com_rcl_except_mission_when_the_sticks_stop_in_a_mission_then_the_missi
 /// switch on 5, the kill switch on 6.
 fn radio_rig() -> Rig {
     let mut rig = converged();
-    set_param(&mut rig, "RC_MAP_FLTMODE", 5.0);
-    set_param(&mut rig, "RC_MAP_KILL_SW", 6.0);
-    set_param(&mut rig, "COM_FLTMODE1", 2.0);
-    set_param(&mut rig, "COM_FLTMODE4", 1.0);
-    set_param(&mut rig, "COM_FLTMODE6", 4.0);
+    rig.set_param("RC_MAP_FLTMODE", 5.0);
+    rig.set_param("RC_MAP_KILL_SW", 6.0);
+    rig.set_param("COM_FLTMODE1", 2.0);
+    rig.set_param("COM_FLTMODE4", 1.0);
+    rig.set_param("COM_FLTMODE6", 4.0);
     rig
 }
 
@@ -363,15 +346,11 @@ fn given_a_radio_on_the_board_then_the_mode_switch_selects_the_stick_gesture_arm
     assert_eq!(said(&mut rig, "Kill switch engaged").len(), 1);
     // Arming is refused while it is on.
     rig.run_s(0.5, |_| {});
-    let replies = rig.send(&autopilot::core::mavlink::command_long(
-        1,
-        1,
+    refused_in_words(
+        &mut rig,
         MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
         [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    ));
-    assert!(
-        replies.iter().any(|m| matches!(m, MavMessage::STATUSTEXT(s) if s.text.to_str().is_ok_and(|t| t == "Arming denied: kill switch engaged"))),
-        "{replies:?}"
+        "Arming denied: kill switch engaged",
     );
     rig.rc = Some(radio(1000, 1500, 1000, 1000));
     fly(&mut rig, 0.1, None, |_| {});
