@@ -5,9 +5,7 @@
 //! lift rises to that of the test's PWM. Pure simulated time: no sleeps.
 
 use autopilot::core::estimator::EstimatorSource;
-use autopilot::core::mavlink::common::{MavCmd, MavMessage, MavResult, PARAM_SET_DATA};
-use autopilot::core::mavlink::params::encode_value;
-use autopilot::core::params::PARAMS;
+use autopilot::core::mavlink::common::{MavCmd, MavMessage, MavResult};
 use sitl::plant::rotor::lift_from_pwm_n;
 use tests::rig::{DT_US, Rig};
 
@@ -160,14 +158,7 @@ fn given_armed_when_a_motor_test_is_sent_then_denied_with_the_statustext_and_no_
 fn given_com_mot_test_en_0_when_a_motor_test_is_sent_then_denied_with_the_statustext_and_every_rotor_stays_at_1000_us()
 {
     let mut rig = settled();
-    let kind = PARAMS.iter().find(|d| d.name == "COM_MOT_TEST_EN").expect("declared").kind;
-    rig.send(&MavMessage::PARAM_SET(PARAM_SET_DATA {
-        param_value: encode_value(kind, 0.0),
-        target_system: 1,
-        target_component: 1,
-        param_id: "COM_MOT_TEST_EN".into(),
-        param_type: kind.mav_param_type(),
-    }));
+    rig.set_param("COM_MOT_TEST_EN", 0.0);
     let (result, texts) = command(&mut rig, MavCmd::MAV_CMD_ACTUATOR_TEST, [0.2, 2.0, 0.0, 0.0, 3.0, 0.0, 0.0]);
     assert_eq!(result, MavResult::MAV_RESULT_DENIED);
     assert_eq!(texts, ["Motor test denied: disabled"]);
