@@ -368,3 +368,26 @@ fn tune_writes_the_same_files_on_one_thread_and_two_and_evaluate_flies_them_held
     assert!(!dir.join("bad").exists(), "nothing written");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `sitl serve` stopped with Ctrl-C (SIGINT) closes with its radio line, as `sitl run` does.
+#[test]
+fn serve_stopped_by_ctrl_c_ends_with_the_radio_summary_line() {
+    use std::io::{BufRead, BufReader, Read};
+    let mut child = Command::new(env!("CARGO_BIN_EXE_sitl"))
+        .args(["serve", "-i", "61", "--rc-in-port", "5671"])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("sitl serve starts");
+    let mut stderr = BufReader::new(child.stderr.take().expect("stderr"));
+    let mut line = String::new();
+    while !line.contains("waiting for an autopilot") {
+        line.clear();
+        assert!(stderr.read_line(&mut line).expect("reads") > 0, "serve ended before listening");
+    }
+    let interrupted = Command::new("kill").args(["-INT", &child.id().to_string()]).status().expect("kill runs");
+    assert!(interrupted.success());
+    let mut rest = String::new();
+    stderr.read_to_string(&mut rest).expect("reads to the end");
+    assert!(child.wait().expect("serve exits").success(), "{rest}");
+    assert!(rest.contains("sitl: radio: 0 RC_CHANNELS sent; RC input: 0 datagrams taken, 0 dropped"), "{rest}");
+}

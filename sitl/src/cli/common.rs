@@ -213,6 +213,20 @@ pub(crate) fn duration_us(seconds: Option<f64>) -> Result<Option<u64>> {
     }
 }
 
+/// The radio's closing line of a run or a serve (`sitl: radio: N RC_CHANNELS sent; RC input: a datagrams
+/// taken, d dropped`), when the RC input port was open.
+pub(crate) fn radio_summary<T: sitl::link::Transport>(server: &sitl::link::PlantServer<T>) -> Option<String> {
+    server.rc_in().map(|port| {
+        let rc = port.stats();
+        format!(
+            "sitl: radio: {} RC_CHANNELS sent; RC input: {} datagrams taken, {} dropped",
+            server.stats().rc_sent,
+            rc.accepted,
+            rc.dropped
+        )
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -19,7 +19,7 @@ use sitl::scenario::two_process::{self, TwoProcessOptions};
 
 use super::common::{
     PlantArgs, bind_rc_in, bind_sim_params, describe_pacing, describe_rc_in, duration_us, fmt_seconds,
-    gust_track_lines, instance_ports, realistic_plant_config,
+    gust_track_lines, instance_ports, radio_summary, realistic_plant_config,
 };
 use super::swarm::run_swarm;
 
@@ -188,12 +188,8 @@ pub(crate) fn run(args: &RunArgs) -> Result<()> {
         l.junk_datagrams,
         l.decoder.malformed(),
     );
-    if let Some(port) = server.rc_in() {
-        let rc = port.stats();
-        eprintln!(
-            "sitl: radio: {} RC_CHANNELS sent; RC input: {} datagrams taken, {} dropped",
-            l.rc_sent, rc.accepted, rc.dropped
-        );
+    if let Some(line) = radio_summary(&server) {
+        eprintln!("{line}");
     }
     Ok(())
 }
