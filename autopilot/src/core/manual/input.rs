@@ -170,6 +170,8 @@ pub struct ManualStatus {
     pub source: Option<ManualSource>,
     /// The last radio frame (fresh or not), for telemetry and the log.
     pub rc: Option<RcFrame>,
+    /// When it arrived (µs of vehicle time; the log's `input_rc.timestamp_last_signal`).
+    pub rc_at_us: Option<u64>,
     /// Whether the radio is fresh (RC_CHANNELS telemetry, SYS_STATUS).
     pub rc_fresh: bool,
 }
@@ -227,11 +229,11 @@ impl ManualInput {
     /// The sticks that would be in use at `now_us` (as [`Self::step`] chooses them), without stepping.
     #[must_use]
     pub fn sticks(&self, now_us: u64, config: &ManualConfig) -> Option<Sticks> {
-        self.clone().step(now_us, config).0.sticks
+        self.select(now_us, config).1
     }
 
-    /// The status at `now_us`, and the pilot's actions since the last step (see the module docs).
-    pub fn step(&mut self, now_us: u64, config: &ManualConfig) -> (ManualStatus, Vec<PilotAction>) {
+    /// The source chosen at `now_us` (None: none is fresh), its sticks, and whether the radio is fresh.
+    fn select(&self, now_us: u64, config: &ManualConfig) -> (Option<ManualSource>, Option<Sticks>, bool) {
         let loss_us = seconds_to_us(config.loss_s);
         let mode = config.in_mode();
         let rc = Self::fresh(self.rc_sticks, now_us, loss_us).filter(|_| mode.accepts(ManualSource::Rc));
@@ -250,6 +252,12 @@ impl ManualInput {
             }
         };
         let sticks = chosen.and_then(fresh);
+        (chosen.filter(|_| sticks.is_some()), sticks, rc.is_some())
+    }
+
+    /// The status at `now_us`, and the pilot's actions since the last step (see the module docs).
+    pub fn step(&mut self, now_us: u64, config: &ManualConfig) -> (ManualStatus, Vec<PilotAction>) {
+        let (chosen, sticks, rc_fresh) = self.select(now_us, config);
         if sticks.is_some() {
             self.source = chosen;
             self.first = self.first.or(chosen);
@@ -265,8 +273,13 @@ impl ManualInput {
                 self.gesture_fired = false;
             }
         }
-        let status =
-            ManualStatus { sticks, source: sticks.and(chosen), rc: self.rc.map(|s| s.value), rc_fresh: rc.is_some() };
+        let status = ManualStatus {
+            sticks,
+            source: chosen,
+            rc: self.rc.map(|s| s.value),
+            rc_at_us: self.rc.map(|s| s.at_us),
+            rc_fresh,
+        };
         (status, std::mem::take(&mut self.actions))
     }
 

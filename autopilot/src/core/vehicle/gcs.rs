@@ -134,7 +134,6 @@ impl Vehicle {
             }
             Effect::Manual(ManualControlInput::Rc(frame)) => {
                 self.manual.on_rc(now_us, frame, &self.config.manual);
-                self.rc_at_us = Some(now_us);
                 replies
             }
         }

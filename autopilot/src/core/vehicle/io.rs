@@ -114,8 +114,6 @@ pub struct LogSnapshot {
     pub controller: ControllerKind,
     /// The pilot's input: the sticks in use (manual_control_setpoint) and the last radio frame (input_rc).
     pub manual: ManualStatus,
-    /// When the last radio frame arrived (µs of vehicle time; None: never).
-    pub rc_at_us: Option<u64>,
 }
 
 /// What the vehicle asks of the shell around it.

@@ -87,8 +87,6 @@ pub struct Vehicle {
     manual_service: ManualControlService,
     /// The motor test (ACTUATOR_TEST, DO_MOTOR_TEST), disarmed only.
     motor_test: MotorTest,
-    /// When the last radio frame arrived (µs of vehicle time; the log's `input_rc.timestamp_last_signal`).
-    rc_at_us: Option<u64>,
 }
 
 impl std::fmt::Debug for Vehicle {
@@ -155,7 +153,6 @@ impl Vehicle {
             manual_status: ManualStatus::default(),
             manual_service: ManualControlService::default(),
             motor_test: MotorTest::default(),
-            rc_at_us: None,
             config,
         })
     }
@@ -222,7 +219,6 @@ impl Vehicle {
             battery: self.output.battery,
             controller: self.control.controller().kind(),
             manual: self.manual_status,
-            rc_at_us: self.rc_at_us,
         }
     }
 
@@ -323,7 +319,6 @@ impl Vehicle {
         }
         if let Some(frame) = inputs.rc {
             self.manual.on_rc(now_us, frame, &self.config.manual);
-            self.rc_at_us = Some(now_us);
         }
         let (manual_status, pilot_actions) = self.manual.step(now_us, &self.config.manual);
         self.manual_status = manual_status;

@@ -265,7 +265,7 @@ pub(super) fn record(name: &str, now_us: u64, snap: &LogSnapshot, ctx: &RecordCo
             // The receiver's own failsafe: a frame without channels or without signal.
             let failsafe = snap.manual.rc.is_some() && (frame.count == 0 || frame.rssi == 0);
             let r = r
-                .u64(snap.rc_at_us.unwrap_or(0))
+                .u64(snap.manual.rc_at_us.unwrap_or(0))
                 .u8(frame.count)
                 .i32(px4_rssi(frame.rssi))
                 .bool(failsafe)
