@@ -4,29 +4,12 @@
 
 use crate::core::params::{Binding, ParamDef, ParamGroup, ParamKind};
 
-/// A live REAL32 radio parameter whose name is built (`concat!`) rather than written out.
-macro_rules! rc_real {
-    ($name:expr, $default:literal, [$min:literal, $max:literal], $unit:literal, $desc:literal, $($field:tt)+) => {
-        ParamDef {
-            name: $name,
-            group: ParamGroup::Radio,
-            kind: ParamKind::Real,
-            default: $default,
-            min: $min,
-            max: $max,
-            unit: $unit,
-            restart: false,
-            description: $desc,
-            binding: Binding::Config { get: |c| c.$($field)+, set: |c, v| c.$($field)+ = v },
-        }
-    };
-}
-
 /// One channel's five calibration parameters (PX4's RCn_MIN, _MAX, _TRIM, _REV, _DZ).
 macro_rules! rc_channel {
     ($n:literal, $i:literal) => {
         [
-            rc_real!(
+            real!(
+                Radio,
                 concat!("RC", $n, "_MIN"),
                 1000.0,
                 [800.0, 1500.0],
@@ -34,7 +17,8 @@ macro_rules! rc_channel {
                 "Channel's lowest PWM (calibration).",
                 manual.rc.channels[$i].min_us
             ),
-            rc_real!(
+            real!(
+                Radio,
                 concat!("RC", $n, "_MAX"),
                 2000.0,
                 [1500.0, 2200.0],
@@ -42,7 +26,8 @@ macro_rules! rc_channel {
                 "Channel's highest PWM (calibration).",
                 manual.rc.channels[$i].max_us
             ),
-            rc_real!(
+            real!(
+                Radio,
                 concat!("RC", $n, "_TRIM"),
                 1500.0,
                 [800.0, 2200.0],
@@ -50,7 +35,8 @@ macro_rules! rc_channel {
                 "Channel's centre PWM (calibration).",
                 manual.rc.channels[$i].trim_us
             ),
-            rc_real!(
+            real!(
+                Radio,
                 concat!("RC", $n, "_REV"),
                 1.0,
                 [-1.0, 1.0],
@@ -58,7 +44,8 @@ macro_rules! rc_channel {
                 "Channel direction: 1 normal, -1 reversed.",
                 manual.rc.channels[$i].rev
             ),
-            rc_real!(
+            real!(
+                Radio,
                 concat!("RC", $n, "_DZ"),
                 10.0,
                 [0.0, 100.0],

@@ -10,9 +10,9 @@
 
 use super::ParamDef;
 
-/// A live REAL32 parameter on one f64 config field.
+/// A live REAL32 parameter on one f64 config field (its name a literal, or built with `concat!`).
 macro_rules! real {
-    ($group:ident, $name:literal, $default:literal, [$min:literal, $max:literal], $unit:literal, $desc:literal,
+    ($group:ident, $name:expr, $default:literal, [$min:literal, $max:literal], $unit:literal, $desc:literal,
      $($field:tt)+) => {
         ParamDef {
             name: $name,
