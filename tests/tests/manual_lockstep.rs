@@ -77,6 +77,19 @@ fn euler_truth(rig: &Rig) -> Vector3<f64> {
     Vector3::new(r, p, y)
 }
 
+/// Full forward stick for 4 s, then 2 s more: the forward direction (the heading, NE) and the truth's
+/// forward speed (m/s) every tick of those 2 s.
+fn full_forward_stick(rig: &mut Rig) -> (Vector3<f64>, Vec<f64>) {
+    // Forward is along the vehicle's own yaw (the one it had at arming).
+    let yaw = euler_truth(rig).z;
+    let fwd = Vector3::new(yaw.cos(), yaw.sin(), 0.0);
+    let full = Sticks { pitch: 1.0, ..centre() };
+    fly(rig, 4.0, Some(full), |_| {});
+    let mut speeds = Vec::new();
+    fly(rig, 2.0, Some(full), |r| speeds.push(r.plant.truth().vel_ned_mps.dot(&fwd)));
+    (fwd, speeds)
+}
+
 fn converged() -> Rig {
     converged_with(ControllerKind::Aco)
 }
@@ -136,13 +149,7 @@ fn given_position_mode_full_forward_stick_then_speed_within_5_percent_of_mpc_vel
  {
     let mut rig = hovering_by_hand(3.0);
     let cfg = ManualFlightConfig::default();
-    // Heading north (the vehicle's yaw at arming is its own): forward is along the yaw.
-    let yaw = euler_truth(&rig).z;
-    let fwd = Vector3::new(yaw.cos(), yaw.sin(), 0.0);
-    let full = Sticks { pitch: 1.0, ..centre() };
-    fly(&mut rig, 4.0, Some(full), |_| {});
-    let mut speeds = Vec::new();
-    fly(&mut rig, 2.0, Some(full), |r| speeds.push(r.plant.truth().vel_ned_mps.dot(&fwd)));
+    let (fwd, speeds) = full_forward_stick(&mut rig);
     let mean = speeds.iter().sum::<f64>() / speeds.len() as f64;
     assert!((mean - cfg.vel_manual_mps).abs() <= 0.05 * cfg.vel_manual_mps, "speed {mean:.3} m/s");
     // Released: the jerk-limited stop from the speed it flies.
@@ -389,12 +396,7 @@ fn given_each_controller_then_position_holds_within_0_10_m_stabilized_tilts_with
         fly(&mut rig, 1.5, Some(centre()), |_| {});
         assert_eq!(set_mode(&mut rig, 3.0), MavResult::MAV_RESULT_ACCEPTED);
         fly(&mut rig, 5.0, Some(centre()), |_| {});
-        let yaw = euler_truth(&rig).z;
-        let fwd = Vector3::new(yaw.cos(), yaw.sin(), 0.0);
-        let full = Sticks { pitch: 1.0, ..centre() };
-        fly(&mut rig, 4.0, Some(full), |_| {});
-        let mut speeds = Vec::new();
-        fly(&mut rig, 2.0, Some(full), |r| speeds.push(r.plant.truth().vel_ned_mps.dot(&fwd)));
+        let (_, speeds) = full_forward_stick(&mut rig);
         let mean = speeds.iter().sum::<f64>() / speeds.len() as f64;
         let (lo, hi) = speeds.iter().fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
         println!(

@@ -128,6 +128,7 @@ mod tests {
         let airframe = Airframe::default();
         let pwm = throttle_low_pwm_us(&airframe, &ActuatorLimits::default());
         let hover = distributor::pwm_from_lift_us(airframe.hover_rotor_lift_n());
+        println!("throttle low at or below {pwm:.1} µs (hover {hover:.1} µs)");
         assert!(PWM_MIN_US < pwm && pwm < hover, "{pwm} µs (hover {hover} µs)");
     }
 }
