@@ -48,6 +48,7 @@ fn inputs(time_us: u64) -> VehicleInputs {
             cells: 6,
         }),
         rc: None,
+        plant_ack: None,
     }
 }
 

@@ -40,6 +40,7 @@ fuzz_target!(|data: &[u8]| {
                 Some(HilInput::Gps(gps)) => inputs.gps = Some(gps),
                 Some(HilInput::Battery(b)) => inputs.battery = Some(b),
                 Some(HilInput::Rc(frame)) => inputs.rc = Some(frame),
+                Some(HilInput::CommandAck(ack)) => inputs.plant_ack = Some(ack),
                 Some(HilInput::Truth(t)) if home.is_some() => inputs.truth = Some(t),
                 Some(HilInput::LocalTruth(local)) => {
                     if let Some(t) = inputs.truth.as_mut().filter(|t| t.time_us == local.time_us) {

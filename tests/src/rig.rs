@@ -29,6 +29,8 @@ pub struct Rig {
     pub messages: Vec<(u64, MavMessage)>,
     /// The radio as the board reads it: this frame goes to the vehicle with every tick (None: no radio).
     pub rc: Option<autopilot::core::manual::RcFrame>,
+    /// Drops every GPS fix on its way to the vehicle (a receiver that stopped, as the board would see it).
+    pub gps_cut: bool,
 }
 
 impl Rig {
@@ -57,6 +59,7 @@ impl Rig {
             landed_state: None,
             messages: Vec::new(),
             rc: None,
+            gps_cut: false,
         }
     }
 
@@ -75,7 +78,7 @@ impl Rig {
             }),
             mag: Some(MagSample { field_frd_gauss: s.mag_frd_gauss }),
             baro: Some(BaroSample { pressure_alt_m: s.baro.pressure_alt_m }),
-            gps: s.gps,
+            gps: s.gps.filter(|_| !self.gps_cut),
             truth: Some(TruthSample {
                 time_us: t.time_us,
                 pos_ned_m: t.pos_ned_m,
@@ -90,6 +93,7 @@ impl Rig {
                 .filter(|_| sitl::link::battery_due(s.time_us, DT_US))
                 .map(|b| sitl::link::battery_fields(&b.reading())),
             rc: self.rc,
+            plant_ack: None,
         };
         self.now_us = s.time_us;
         let out = self.vehicle.step(self.now_us, &inputs);

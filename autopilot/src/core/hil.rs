@@ -7,6 +7,17 @@
 //! `HIL_ACTUATOR_CONTROLS` (`controls[i] = (pwm_us - 1000) / 1000` for the paper's rotors 1..4, the armed
 //! flag in `mode`, `time_usec` echoing the sensor sample it answers).
 //!
+//! # Forwarded commands (failure injection)
+//!
+//! A ground station's MAV_CMD_INJECT_FAILURE (420) is the plant's business: the autopilot (with
+//! `SYS_FAILURE_EN` = 1, `core::mavlink::failure`) forwards it as a `COMMAND_LONG` (command 420, param1 the
+//! FAILURE_UNIT, param2 the FAILURE_TYPE, param3 the instance, 0 = all; target 0/0) written on the plant
+//! link just before the step's `HIL_ACTUATOR_CONTROLS`, in the same datagram or serial write. The plant
+//! answers each with exactly one `COMMAND_ACK` (command 420; ACCEPTED, UNSUPPORTED for a combination it
+//! does not simulate, DENIED for one it refuses) before the `HIL_SENSOR` of a following step (the sensor
+//! message stays last: the autopilot ticks on it). A real board that does not know the command simply
+//! never answers; the autopilot then answers the ground station UNSUPPORTED after 0.3 s.
+//!
 //! # Who runs the motors
 //!
 //! The plant runs its motors on `controls` when `mode` has `MAV_MODE_FLAG_SAFETY_ARMED` (the vehicle is
@@ -47,9 +58,9 @@
 //! shared with the ground-station links; their names are re-exported here.
 
 use mavlink::dialects::common::{
-    BATTERY_STATUS_DATA, HIL_ACTUATOR_CONTROLS_DATA, HIL_GPS_DATA, HIL_SENSOR_DATA, HIL_STATE_QUATERNION_DATA,
+    BATTERY_STATUS_DATA, COMMAND_LONG_DATA, HIL_ACTUATOR_CONTROLS_DATA, HIL_GPS_DATA, HIL_SENSOR_DATA, HIL_STATE_QUATERNION_DATA,
     HilActuatorControlsFlags, HilSensorUpdatedFlags, MavBatteryChargeState, MavBatteryFunction, MavBatteryType,
-    MavFrame, MavMessage, MavModeFlag, ODOMETRY_DATA, RC_CHANNELS_DATA,
+    MavCmd, MavFrame, MavMessage, MavModeFlag, MavResult, ODOMETRY_DATA, RC_CHANNELS_DATA,
 };
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
@@ -656,6 +667,29 @@ pub fn decode_rc_channels(m: &RC_CHANNELS_DATA) -> RcFrame {
 // Dispatch and framing
 // ---------------------------------------------------------------------------------------------------------
 
+/// The plant's answer to a command the autopilot forwarded on the plant link (`COMMAND_ACK`): which
+/// command (its MAVLink id, e.g. 420 for MAV_CMD_INJECT_FAILURE) and the result.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlantCommandAck {
+    pub command_id: u32,
+    pub result: MavResult,
+}
+
+/// The COMMAND_LONG that forwards a failure injection to the plant (see the module docs): unit, type and
+/// instance as MAV_CMD_INJECT_FAILURE's param1..3, addressed to whoever is at the other end of the link.
+#[must_use]
+pub fn encode_inject_failure(unit: u8, failure_type: u8, instance: u8) -> COMMAND_LONG_DATA {
+    COMMAND_LONG_DATA {
+        param1: f32::from(unit),
+        param2: f32::from(failure_type),
+        param3: f32::from(instance),
+        command: MavCmd::MAV_CMD_INJECT_FAILURE,
+        target_system: 0,
+        target_component: 0,
+        ..Default::default()
+    }
+}
+
 /// A decoded plant-protocol message.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum HilInput {
@@ -668,6 +702,8 @@ pub enum HilInput {
     Battery(BatterySample),
     /// The board's radio receiver.
     Rc(RcFrame),
+    /// The plant's answer to a forwarded command.
+    CommandAck(PlantCommandAck),
 }
 
 /// The plant-protocol content of `msg` (truth positions about `home`), or `None` for any other message.
@@ -681,6 +717,9 @@ pub fn decode_hil_message(msg: &MavMessage, home: &GeoOrigin) -> Option<HilInput
         MavMessage::HIL_ACTUATOR_CONTROLS(m) => Some(HilInput::Actuators(decode_actuator_controls(m))),
         MavMessage::BATTERY_STATUS(m) => Some(HilInput::Battery(decode_battery_status(m))),
         MavMessage::RC_CHANNELS(m) => Some(HilInput::Rc(decode_rc_channels(m))),
+        MavMessage::COMMAND_ACK(m) => {
+            Some(HilInput::CommandAck(PlantCommandAck { command_id: m.command as u32, result: m.result }))
+        }
         _ => None,
     }
 }

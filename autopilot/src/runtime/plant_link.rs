@@ -212,8 +212,12 @@ pub fn run(
                     reply = Some(cmd);
                 }
             }
-            if let Some(cmd) = reply {
-                let frame = plant.frame(&MavMessage::HIL_ACTUATOR_CONTROLS(encode_actuator_controls(&cmd)));
+            if let Some(reply) = reply {
+                let mut frame = Vec::new();
+                for message in &reply.before {
+                    frame.extend(plant.frame(message));
+                }
+                frame.extend(plant.frame(&MavMessage::HIL_ACTUATOR_CONTROLS(encode_actuator_controls(&reply.actuators))));
                 transport.send(&frame).map_err(io)?;
                 last_sensor = Some(Instant::now());
                 if lost {

@@ -15,6 +15,14 @@ use crate::runtime::link::{Destination, Incoming, LinkId};
 use crate::runtime::plant_link::{PLANT_RESTARTED_TEXT, PlantLinkStats};
 use crate::runtime::state::{FENCE_FILE, MISSION_FILE, PARAMS_FILE, Persisted, RALLY_FILE};
 
+/// What the plant link writes back after a sensor sample: the messages for the plant first (a forwarded
+/// failure injection), then the actuator command, in one datagram or serial write.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlantReply {
+    pub actuators: ActuatorCommand,
+    pub before: Vec<MavMessage>,
+}
+
 /// The vehicle, what it was built from, and where its messages go.
 #[derive(Debug)]
 pub struct VehicleHost {
@@ -121,13 +129,14 @@ impl VehicleHost {
         }
     }
 
-    /// One plant frame; returns the actuator reply to send if it carried a `HIL_SENSOR`. `plant_malformed`
-    /// is what the plant link's decoder has dropped so far.
+    /// One plant frame; returns the reply to send if it carried a `HIL_SENSOR`: the actuator command, and
+    /// the messages to write before it (a forwarded failure injection). `plant_malformed` is what the plant
+    /// link's decoder has dropped so far.
     pub fn on_plant_frame(
         &mut self,
         message: &MavMessage,
         plant_malformed: u64,
-    ) -> Result<Option<ActuatorCommand>, VehicleError> {
+    ) -> Result<Option<PlantReply>, VehicleError> {
         if self.home.is_none()
             && let MavMessage::HIL_STATE_QUATERNION(m) = message
         {
@@ -142,6 +151,7 @@ impl VehicleHost {
             Some(HilInput::Gps(gps)) => self.inputs.gps = Some(gps),
             Some(HilInput::Battery(battery)) => self.inputs.battery = Some(battery),
             Some(HilInput::Rc(frame)) => self.inputs.rc = Some(frame),
+            Some(HilInput::CommandAck(ack)) => self.inputs.plant_ack = Some(ack),
             Some(HilInput::Truth(truth)) if self.home.is_some() => self.inputs.truth = Some(truth),
             Some(HilInput::LocalTruth(local)) => {
                 // ODOMETRY positions are about the plant's origin, but a home latched from the first
@@ -183,11 +193,14 @@ impl VehicleHost {
                 let inputs = std::mem::take(&mut self.inputs);
                 let link_errors = self.link_errors(plant_malformed);
                 let Some(vehicle) = self.vehicle()? else {
-                    return Ok(Some(ActuatorCommand {
-                        time_us: now_us,
-                        pwm_us: [PWM_MIN_US; 4],
-                        armed: false,
-                        motor_test: false,
+                    return Ok(Some(PlantReply {
+                        actuators: ActuatorCommand {
+                            time_us: now_us,
+                            pwm_us: [PWM_MIN_US; 4],
+                            armed: false,
+                            motor_test: false,
+                        },
+                        before: Vec::new(),
                     }));
                 };
                 vehicle.set_link_errors(link_errors);
@@ -204,11 +217,14 @@ impl VehicleHost {
                     self.gcs.out.flight_log.end_step(now_us, vehicle);
                 }
                 self.apply_effects();
-                return Ok(Some(ActuatorCommand {
-                    time_us: now_us,
-                    pwm_us: outputs.pwm_us,
-                    armed: outputs.armed,
-                    motor_test: outputs.motor_test,
+                return Ok(Some(PlantReply {
+                    actuators: ActuatorCommand {
+                        time_us: now_us,
+                        pwm_us: outputs.pwm_us,
+                        armed: outputs.armed,
+                        motor_test: outputs.motor_test,
+                    },
+                    before: outputs.plant_messages,
                 }));
             }
             _ => {}

@@ -5,6 +5,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use super::failsafe::{self, FailsafeAction};
+use super::failure_detector::FailureDetectorConfig;
 use super::land_detector::LandDetectorConfig;
 use crate::core::battery::{BatteryConfig, BatteryWarning};
 use crate::core::geofence::GeofenceConfig;
@@ -41,6 +42,11 @@ pub struct CommanderConfig {
     /// The geofence's action and distance limits (GF_ACTION, GF_MAX_HOR_DIST, GF_MAX_VER_DIST).
     pub geofence: GeofenceConfig,
     pub land_detector: LandDetectorConfig,
+    /// How long the estimate may have no valid position in the air before the vehicle lands (s;
+    /// COM_POS_FS_DELAY).
+    pub position_loss_delay_s: f64,
+    /// The attitude failure detector (FD_FAIL_R, FD_FAIL_P, FD_FAIL_R_TTRI, FD_FAIL_P_TTRI, FD_ACT).
+    pub failure_detector: FailureDetectorConfig,
 }
 
 impl Default for CommanderConfig {
@@ -58,6 +64,8 @@ impl Default for CommanderConfig {
             battery: BatteryConfig::default(),
             geofence: GeofenceConfig::default(),
             land_detector: LandDetectorConfig::default(),
+            position_loss_delay_s: 1.0,
+            failure_detector: FailureDetectorConfig::default(),
         }
     }
 }
@@ -139,6 +147,25 @@ impl CommanderConfig {
                 field: "rc_loss_action",
                 value: f64::from(n),
                 must: "0 (off), 1 hold, 2 return, 3 land or 5 terminate",
+            });
+        }
+        let fd = &self.failure_detector;
+        for (field, value, lo, hi, must) in [
+            ("position_loss_delay_s", self.position_loss_delay_s, 0.0, 100.0, "in 0..100 s"),
+            ("failure_detector.roll_max_deg", fd.roll_max_deg, 0.0, 180.0, "in 0..180 deg (0: off)"),
+            ("failure_detector.pitch_max_deg", fd.pitch_max_deg, 0.0, 180.0, "in 0..180 deg (0: off)"),
+            ("failure_detector.roll_trigger_s", fd.roll_trigger_s, 0.02, 5.0, "in 0.02..5 s"),
+            ("failure_detector.pitch_trigger_s", fd.pitch_trigger_s, 0.02, 5.0, "in 0.02..5 s"),
+        ] {
+            if !(value.is_finite() && (lo..=hi).contains(&value)) {
+                return Err(ConfigError { field, value, must });
+            }
+        }
+        if failsafe::attitude_failure_action(fd.action).is_err() {
+            return Err(ConfigError {
+                field: "failure_detector.action",
+                value: f64::from(fd.action),
+                must: "0 (only said), 1 land or 2 terminate",
             });
         }
         if self.rc_loss_except > 7 {

@@ -84,6 +84,20 @@ pub const fn low_battery_action(n: u32, level: BatteryWarning) -> Result<Option<
     }
 }
 
+/// `FD_ACT`, what the attitude failure detector makes the vehicle do: 0 only said (`Ok(None)`), 1 land,
+/// 2 terminate.
+///
+/// # Errors
+/// `Err(n)` for any other number.
+pub const fn attitude_failure_action(n: u32) -> Result<Option<FailsafeAction>, u32> {
+    match n {
+        0 => Ok(None),
+        1 => Ok(Some(FailsafeAction::Land)),
+        2 => Ok(Some(FailsafeAction::Terminate)),
+        other => Err(other),
+    }
+}
+
 /// PX4's `GF_ACTION`: 0 none (`Ok(None)`: not even said), 1 warning (`Ok(Some(None))`: said only), 2 hold,
 /// 3 return, 4 terminate, 5 land.
 ///
@@ -114,6 +128,11 @@ pub enum Trigger {
     Geofence(Violation),
     /// The pilot's manual control (radio or joystick) stopped for COM_RC_LOSS_T.
     ManualControlLost,
+    /// The estimate has had no valid position for COM_POS_FS_DELAY in a mode that needs one.
+    PositionLost,
+    /// The attitude failure detector: roll or pitch (deg, as estimated when it fired) beyond FD_FAIL_R /
+    /// FD_FAIL_P for their trigger times.
+    AttitudeFailure { roll_deg: i16, pitch_deg: i16 },
 }
 
 impl Trigger {
@@ -126,6 +145,10 @@ impl Trigger {
             Self::Battery { level, remaining_pct } => format!("battery {} ({remaining_pct}%)", level.word()),
             Self::Geofence(v) => format!("fence, {v}"),
             Self::ManualControlLost => "manual control lost".into(),
+            Self::PositionLost => "position lost".into(),
+            Self::AttitudeFailure { roll_deg, pitch_deg } => {
+                format!("attitude failure (roll {roll_deg} deg, pitch {pitch_deg} deg)")
+            }
         }
     }
 }
@@ -229,6 +252,61 @@ impl super::Commander {
         if let Ok(Some(action)) = geofence_action(self.config.geofence.action) {
             self.fail(now, Trigger::Geofence(violation), action);
         }
+    }
+
+    /// The position row: in the air, in a mode that flies to positions (hold, takeoff, mission, return,
+    /// offboard, Position by hand), the estimate without a valid position for `COM_POS_FS_DELAY`: land
+    /// where it is, flown level without a position (PX4's Descend); a landing or an attitude mode (the pilot's
+    /// Stabilized or Altitude) needs no position and is left alone. Regaining the position is said; the
+    /// vehicle keeps landing.
+    pub(super) fn position_failsafe(&mut self, now: u64) {
+        let in_air = self.state.is_armed() && self.state != State::ArmedIdle && !self.land_detector.landed();
+        let needs_position = match self.state {
+            State::Hold | State::Takeoff | State::Mission | State::Rtl | State::Offboard => true,
+            State::Manual => self.mode == super::FlightMode::Position,
+            _ => false,
+        };
+        let invalid = !self.est.position_valid;
+        self.position_invalid_since_us = if invalid && in_air {
+            Some(self.position_invalid_since_us.unwrap_or(now))
+        } else {
+            None
+        };
+        let delay_over = self
+            .position_invalid_since_us
+            .is_some_and(|t| now.saturating_sub(t) >= seconds_to_us(self.config.position_loss_delay_s));
+        if self.position_lost {
+            if !invalid {
+                self.position_lost = false;
+                self.events.push(Event::FailsafeCleared { trigger: Trigger::PositionLost });
+            }
+            return;
+        }
+        if delay_over && needs_position {
+            self.position_lost = true;
+            self.fail(now, Trigger::PositionLost, Some(FailsafeAction::Land));
+        }
+    }
+
+    /// The attitude row: in the air, the failure detector (FD_FAIL_R/P for FD_FAIL_R/P_TTRI) fires:
+    /// FD_ACT's action (terminate by default), said with the angles; once per flight (it re-arms on the
+    /// ground).
+    pub(super) fn attitude_failsafe(&mut self, now: u64, roll_rad: f64, pitch_rad: f64) {
+        let in_air = self.state.is_armed() && self.state != State::ArmedIdle && !self.land_detector.landed();
+        if !in_air {
+            self.failure_detector.reset();
+            self.attitude_failed = false;
+            return;
+        }
+        let failed = self.failure_detector.update(now, roll_rad, pitch_rad, &self.config.failure_detector);
+        if !failed || self.attitude_failed {
+            return;
+        }
+        self.attitude_failed = true;
+        let deg = |a: f64| if a.is_finite() { a.to_degrees().round() as i16 } else { i16::MAX };
+        let trigger = Trigger::AttitudeFailure { roll_deg: deg(roll_rad), pitch_deg: deg(pitch_rad) };
+        let action = attitude_failure_action(self.config.failure_detector.action).ok().flatten();
+        self.fail(now, trigger, action);
     }
 
     /// A failsafe fired: take `action` if the vehicle is in the air, and say so (what happened and what

@@ -19,6 +19,9 @@ use crate::core::intent::Intent;
 pub struct Estimate {
     pub pos_ned_m: Vector3<f64>,
     pub vel_ned_mps: Vector3<f64>,
+    /// Roll and pitch (rad, ZYX), for the attitude failure detector.
+    pub roll_rad: f64,
+    pub pitch_rad: f64,
     pub yaw_rad: f64,
     /// Position (and velocity) usable for control.
     pub position_valid: bool,
@@ -33,6 +36,8 @@ impl Default for Estimate {
         Self {
             pos_ned_m: Vector3::zeros(),
             vel_ned_mps: Vector3::zeros(),
+            roll_rad: 0.0,
+            pitch_rad: 0.0,
             yaw_rad: 0.0,
             position_valid: false,
             converged: false,
@@ -237,6 +242,7 @@ impl Event {
             Self::Failsafe { trigger, action: None } => format!("Failsafe: {}", trigger.what()),
             Self::FailsafeCleared { trigger: Trigger::DatalinkLost } => "GCS link regained".into(),
             Self::FailsafeCleared { trigger: Trigger::ManualControlLost } => "Manual control regained".into(),
+            Self::FailsafeCleared { trigger: Trigger::PositionLost } => "Position regained".into(),
             Self::FailsafeCleared { trigger } => format!("Cleared: {}", trigger.what()),
             Self::BatteryLow { remaining_pct } => format!("Battery low: {remaining_pct}% remaining"),
             Self::KillSwitchReleased => "Kill switch released".into(),

@@ -21,6 +21,7 @@ use nalgebra::Vector3;
 
 mod config;
 pub mod failsafe;
+pub mod failure_detector;
 mod interface;
 pub mod land_detector;
 pub mod mode;
@@ -39,6 +40,8 @@ pub use state_machine::{Conditions, State};
 
 use crate::core::battery::{BatteryMonitor, BatteryWarning};
 use crate::core::intent::{AutoMode, HoldAt, Intent, ManualMode, Progress};
+use failure_detector::FailureDetector;
+pub use failure_detector::FailureDetectorConfig;
 use land_detector::{LandDetectorSample, Phase};
 
 use crate::core::seconds_to_us;
@@ -88,6 +91,13 @@ pub struct Commander {
     battery: BatteryMonitor,
     /// A geofence breach episode is under way (the action was taken at its start).
     fence_breached: bool,
+    /// Since when the estimate has had no valid position in the air, and whether the position failsafe
+    /// has fired for this loss.
+    position_invalid_since_us: Option<u64>,
+    position_lost: bool,
+    /// The attitude failure detector, and whether it fired in this flight.
+    failure_detector: FailureDetector,
+    attitude_failed: bool,
     events: Vec<Event>,
 }
 
@@ -131,6 +141,10 @@ impl Commander {
                 must: BATTERY_ORDER,
             })?,
             fence_breached: false,
+            position_invalid_since_us: None,
+            position_lost: false,
+            failure_detector: FailureDetector::default(),
+            attitude_failed: false,
             events: Vec::new(),
         })
     }
@@ -279,6 +293,8 @@ impl Commander {
         self.manual_failsafe(now);
         self.battery_failsafe(now, inputs.battery);
         self.geofence_failsafe(now, inputs.fence_breach);
+        self.position_failsafe(now);
+        self.attitude_failsafe(now, inputs.estimate.roll_rad, inputs.estimate.pitch_rad);
         // A few rounds at most: arming with a pending takeoff goes ArmedIdle -> Takeoff on the next step.
         for _ in 0..State::ALL.len() {
             let c = self.conditions(now);

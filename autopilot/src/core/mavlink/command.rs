@@ -18,6 +18,8 @@
 //!   and the motor test ([`MotorTestRequest`], as PX4's commander reads it): ACTUATOR_TEST (310: param1
 //!   value, param2 timeout s, param5 output function, MOTOR1..4 = 1..4) and DO_MOTOR_TEST (209: param1
 //!   motor 1-based, param2 throttle type, param3 value, param4 timeout s, param5 motor count).
+//! - INJECT_FAILURE (420): param1 unit, param2 type, param3 instance, whole numbers 0-255 (else DENIED);
+//!   answered by the failure-injection service ([`super::failure`]), possibly a few steps later.
 //! - Anything else: UNSUPPORTED.
 //!
 //! The ACK carries the sender in its target fields, and the caller sends it only to the peer the command
@@ -29,6 +31,7 @@ use ::mavlink::dialects::common::{
 };
 
 use super::addressed_to_us;
+use super::failure::FailureRequest;
 use super::identity::Px4Mode;
 use super::telemetry::statustext;
 use crate::core::commander::Request;
@@ -88,6 +91,8 @@ pub enum VehicleCommand {
     NoOp,
     /// ACTUATOR_TEST (310) or DO_MOTOR_TEST (209): spin one motor, or stop it (disarmed only).
     MotorTest(MotorTestRequest),
+    /// INJECT_FAILURE (420): param1 unit, param2 type, param3 instance (see [`super::failure`]).
+    InjectFailure(FailureRequest),
 }
 
 /// How many motors the vehicle has: motor N = output N = the paper's rotor N (1 right, 2 rear, 3 front,
@@ -341,6 +346,10 @@ fn effect(command: MavCmd, a: &Params, ctx: &CommandContext) -> CommandEffect {
         },
         MavCmd::MAV_CMD_ACTUATOR_TEST => actuator_test(p[0], p[1], a.x),
         MavCmd::MAV_CMD_DO_MOTOR_TEST => motor_test(p, a.x),
+        MavCmd::MAV_CMD_INJECT_FAILURE => match FailureRequest::from_params(p[0], p[1], p[2]) {
+            Some(request) => CommandEffect::Vehicle(VehicleCommand::InjectFailure(request)),
+            None => CommandEffect::Deny("Failure injection: unit, type and instance must be whole numbers 0-255".into()),
+        },
         _ => CommandEffect::Unsupported,
     }
 }

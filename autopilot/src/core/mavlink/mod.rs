@@ -8,6 +8,8 @@
 //!   vehicle time and at once on any arm or mode change.
 //! - `command`: COMMAND_LONG, COMMAND_INT and SET_MODE -> commander requests; COMMAND_ACK for every
 //!   command, STATUSTEXT with the refusal text on DENIED, UNSUPPORTED for anything else.
+//! - `failure`: MAV_CMD_INJECT_FAILURE (SYS_FAILURE_EN): forwarded to the plant, or the autopilot's own
+//!   ground-station link and manual-control inputs switched off.
 //! - `telemetry`: the default streams (SYS_STATUS, ATTITUDE(+_QUATERNION), LOCAL_POSITION_NED,
 //!   GLOBAL_POSITION_INT, GPS_RAW_INT, EXTENDED_SYS_STATE, HOME_POSITION, VFR_HUD, BATTERY_STATUS) on
 //!   vehicle time, and STATUSTEXT on events.
@@ -20,6 +22,7 @@ use nalgebra::Vector3;
 use crate::core::commander::Event;
 
 pub mod command;
+pub mod failure;
 pub mod frame;
 pub mod housekeeping;
 pub mod identity;

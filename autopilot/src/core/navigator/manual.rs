@@ -341,6 +341,7 @@ mod tests {
             home_ned_m: Some(Vector3::zeros()),
             home_alt_amsl_m: None,
             landed,
+            position_valid: true,
             takeoff_alt_m: 2.5,
             takeoff_acceptance_m: 0.1,
         }

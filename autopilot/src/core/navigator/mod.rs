@@ -87,10 +87,34 @@ pub struct NavInput {
     /// Home altitude (m AMSL), for AMSL targets.
     pub home_alt_amsl_m: Option<f64>,
     pub landed: bool,
+    /// The estimate's position is valid. Without it a reference that steers by position is flown level
+    /// instead (its height and yaw kept), as PX4 flies Descend: see [`without_position`].
+    pub position_valid: bool,
     /// Default takeoff altitude above home (m; MIS_TAKEOFF_ALT).
     pub takeoff_alt_m: f64,
     /// Takeoff acceptance (m).
     pub takeoff_acceptance_m: f64,
+}
+
+/// A reference flown without a valid position: level (roll and pitch 0, its yaw), its vertical part (the
+/// height, and the climb or descent with its feed-forward) kept: the N and E loops would chase a position
+/// the estimate no longer has (a GPS loss), while the height still comes from the barometer. An attitude
+/// reference (the pilot's Stabilized or Altitude, offboard attitude) already needs no position and is
+/// returned as it is. The commander's position failsafe lands after COM_POS_FS_DELAY; until then the
+/// vehicle holds its height, level.
+#[must_use]
+pub fn without_position(reference: Reference) -> Reference {
+    if reference.attitude_rad.is_some() {
+        return reference;
+    }
+    let vertical = |v: Vector3<f64>| Vector3::new(0.0, 0.0, v.z);
+    Reference {
+        vel_ned_mps: vertical(reference.vel_ned_mps),
+        acc_ned_mps2: vertical(reference.acc_ned_mps2),
+        jerk_ned_mps3: vertical(reference.jerk_ned_mps3),
+        attitude_rad: Some(Vector3::new(0.0, 0.0, reference.yaw_rad)),
+        ..reference
+    }
 }
 
 impl NavInput {
@@ -351,7 +375,7 @@ impl Navigator {
             Intent::Manual(mode) => self.manual(mode, input),
         };
         self.report();
-        reference
+        if input.position_valid { reference } else { reference.map(without_position) }
     }
 
     /// Latches the points a new intent flies to (see [`Intent`]).

@@ -48,6 +48,7 @@ impl Ideal {
             home_ned_m: Some(Vector3::zeros()),
             home_alt_amsl_m: Some(ORIGIN.alt_amsl_m),
             landed: self.pos.z >= -1e-3,
+            position_valid: true,
             takeoff_alt_m: 2.5,
             takeoff_acceptance_m: 0.1,
         }
@@ -521,6 +522,7 @@ proptest::proptest! {
                     home_ned_m: Some(Vector3::zeros()),
                     home_alt_amsl_m: Some(ORIGIN.alt_amsl_m),
                     landed: false,
+                    position_valid: true,
                     takeoff_alt_m: 2.5,
                     takeoff_acceptance_m: 0.1,
                 };

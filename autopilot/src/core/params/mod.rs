@@ -351,6 +351,12 @@ impl ParamStore {
         self.get("SDLOG_MODE").map_or(0, |v| v as i32)
     }
 
+    /// Whether a ground station may inject failures (SYS_FAILURE_EN 1).
+    #[must_use]
+    pub fn failure_injection_enabled(&self) -> bool {
+        self.get("SYS_FAILURE_EN").is_some_and(|v| v == 1.0)
+    }
+
     /// Whether motor tests are allowed (COM_MOT_TEST_EN 1).
     #[must_use]
     pub fn motor_test_enabled(&self) -> bool {

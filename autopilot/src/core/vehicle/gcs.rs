@@ -14,6 +14,7 @@ use crate::core::geofence::{Fence, Rally, Violation};
 use crate::core::manual::PilotAction;
 use crate::core::manual::input::fltmode_flight_mode;
 use crate::core::mavlink::command::{AUTOPILOT_VERSION_ID, InboundCommand};
+use crate::core::mavlink::failure::Requester;
 use crate::core::mavlink::manual::ManualControlInput;
 use crate::core::mavlink::mission::MissionEvent;
 use crate::core::mavlink::offboard::OffboardContext;
@@ -52,6 +53,10 @@ impl Vehicle {
     /// their replies; offboard setpoints are taken; anything else, or anything for another system, gets
     /// nothing.
     pub fn handle_message(&mut self, now_us: u64, header: &MavHeader, msg: &MavMessage) -> Vec<MavMessage> {
+        // An injected link or manual-control failure: the vehicle does not hear it (`mavlink::failure`).
+        if !self.failures.hears(msg) {
+            return Vec::new();
+        }
         let Some(service) = router::route(msg) else {
             return Vec::new();
         };
@@ -166,6 +171,11 @@ impl Vehicle {
     /// Applies a command and answers it: its ACK (and STATUSTEXT on refusal), then any message it asked
     /// for.
     fn apply_command(&mut self, now_us: u64, cmd: &InboundCommand) -> Vec<MavMessage> {
+        if let CommandEffect::Vehicle(VehicleCommand::InjectFailure(request)) = cmd.effect {
+            // Answered by the failure-injection service: now, or when the plant has answered.
+            let from = Requester { system: cmd.sender_system, component: cmd.sender_component };
+            return self.failures.inject(now_us, from, request, self.params.failure_injection_enabled());
+        }
         let mut extra = Vec::new();
         let facts = self.facts(now_us);
         if matches!(cmd.effect, CommandEffect::Request(Request::Disarm { .. } | Request::Kill)) {
@@ -281,6 +291,8 @@ impl Vehicle {
                 Ok(())
             }
             VehicleCommand::NoOp => Ok(()),
+            // Never reached: `apply_command` hands it to the failure-injection service first.
+            VehicleCommand::InjectFailure(_) => Err(None),
             VehicleCommand::MotorTest(request) => {
                 // PX4's order: armed first, then the enable parameter.
                 if self.commander.armed() {

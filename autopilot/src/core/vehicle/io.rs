@@ -11,6 +11,7 @@ use crate::core::control::{ControllerKind, Reference};
 use crate::core::estimator::{
     BaroSample, Estimator, EstimatorSource, EstimatorState, GpsSample, ImuSample, Innovations, MagSample, TruthSample,
 };
+use crate::core::hil::PlantCommandAck;
 use crate::core::manual::{ManualStatus, RcFrame};
 
 /// One step's sensor inputs (any may be absent).
@@ -25,6 +26,8 @@ pub struct VehicleInputs {
     pub battery: Option<BatterySample>,
     /// A frame of the radio receiver (RC_CHANNELS from the plant or the ARM board).
     pub rc: Option<RcFrame>,
+    /// The plant's answer to a command the vehicle forwarded to it (a failure injection).
+    pub plant_ack: Option<PlantCommandAck>,
 }
 
 impl VehicleInputs {
@@ -83,6 +86,9 @@ pub struct VehicleOutputs {
     pub motor_test: bool,
     /// Telemetry due this step (HEARTBEAT, STATUSTEXT of events, streams), for every ground station.
     pub messages: Vec<MavMessage>,
+    /// Messages for the plant, to write on the plant link before this step's actuator message (a
+    /// forwarded failure injection; see `core::hil`).
+    pub plant_messages: Vec<MavMessage>,
 }
 
 impl VehicleOutputs {

@@ -27,6 +27,7 @@ pub use crate::core::config::{AirborneStart, VehicleConfig, VehicleError};
 use crate::core::control::{Controller, Reference};
 use crate::core::estimator::{Estimator, EstimatorState, GpsSample};
 use crate::core::manual::{ManualInput, ManualStatus};
+use crate::core::mavlink::failure::FailureInjection;
 use crate::core::mavlink::manual::ManualControlService;
 use crate::core::mavlink::mission::MissionService;
 use crate::core::mavlink::params::ParamService;
@@ -87,6 +88,8 @@ pub struct Vehicle {
     manual_service: ManualControlService,
     /// The motor test (ACTUATOR_TEST, DO_MOTOR_TEST), disarmed only.
     motor_test: MotorTest,
+    /// Failure injection (INJECT_FAILURE): what waits for the plant, and the inputs switched off.
+    failures: FailureInjection,
 }
 
 impl std::fmt::Debug for Vehicle {
@@ -153,6 +156,7 @@ impl Vehicle {
             manual_status: ManualStatus::default(),
             manual_service: ManualControlService::default(),
             motor_test: MotorTest::default(),
+            failures: FailureInjection::default(),
             config,
         })
     }
@@ -336,6 +340,8 @@ impl Vehicle {
         let estimate = Estimate {
             pos_ned_m: state.pos_ned_m,
             vel_ned_mps: state.vel_ned_mps,
+            roll_rad: state.euler_rad.x,
+            pitch_rad: state.euler_rad.y,
             yaw_rad: state.euler_rad.z,
             position_valid: state.flags.position_valid,
             converged: state.flags.converged,
@@ -360,6 +366,7 @@ impl Vehicle {
             home_ned_m: home.map(|h| h.pos_ned_m),
             home_alt_amsl_m: self.home_alt_amsl_m(),
             landed: out.landed == crate::core::commander::LandedState::OnGround,
+            position_valid: state.flags.position_valid,
             takeoff_alt_m: self.config.commander.takeoff_alt_m,
             takeoff_acceptance_m: self.config.commander.takeoff_acceptance_m,
         };
@@ -381,8 +388,18 @@ impl Vehicle {
             }
             messages.push(nav_event_message(&event));
         }
+        if let Some(ack) = inputs.plant_ack {
+            messages.extend(self.failures.on_plant_ack(ack));
+        }
+        messages.extend(self.failures.step(now_us));
         self.output.events = events;
-        VehicleOutputs { pwm_us, armed: self.output.armed, motor_test: motor_test.is_some(), messages }
+        VehicleOutputs {
+            pwm_us,
+            armed: self.output.armed,
+            motor_test: motor_test.is_some(),
+            messages,
+            plant_messages: self.failures.take_plant_messages(),
+        }
     }
 }
 

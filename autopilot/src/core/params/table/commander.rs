@@ -161,3 +161,75 @@ pub(super) const MOTOR_TEST: &[ParamDef] = &[ParamDef {
     description: "Whether a ground station may spin a motor while disarmed (MAV_CMD_ACTUATOR_TEST, MAV_CMD_DO_MOTOR_TEST; at most 3 s per command); 0 refuses them (\"Motor test denied: disabled\").",
     binding: Binding::StoreOnly,
 }];
+
+/// Faults: failure injection (kept in the store only, read when an injection comes), the position-loss
+/// failsafe's delay and the attitude failure detector.
+pub(super) const FAULTS: &[ParamDef] = &[
+    ParamDef {
+        name: "SYS_FAILURE_EN",
+        group: ParamGroup::Commander,
+        kind: ParamKind::Boolean,
+        default: 0.0,
+        min: 0.0,
+        max: 1.0,
+        unit: "0/1",
+        restart: false,
+        description: "Whether a ground station may inject failures (MAV_CMD_INJECT_FAILURE, forwarded to the plant); 0 answers DENIED, as PX4.",
+        binding: Binding::StoreOnly,
+    },
+    real!(
+        Commander,
+        "COM_POS_FS_DELAY",
+        1.0,
+        [0.0, 100.0],
+        "s",
+        "How long the estimate may have no valid position in the air, in a mode that flies to positions, before the vehicle lands (flown level, PX4's Descend).",
+        commander.position_loss_delay_s
+    ),
+    real!(
+        Commander,
+        "FD_FAIL_R",
+        60.0,
+        [0.0, 180.0],
+        "deg",
+        "Attitude failure detector: roll beyond which the attitude has failed (0: off).",
+        commander.failure_detector.roll_max_deg
+    ),
+    real!(
+        Commander,
+        "FD_FAIL_P",
+        60.0,
+        [0.0, 180.0],
+        "deg",
+        "Attitude failure detector: pitch beyond which the attitude has failed (0: off).",
+        commander.failure_detector.pitch_max_deg
+    ),
+    real!(
+        Commander,
+        "FD_FAIL_R_TTRI",
+        0.3,
+        [0.02, 5.0],
+        "s",
+        "How long the roll must stay beyond FD_FAIL_R before the detector fires.",
+        commander.failure_detector.roll_trigger_s
+    ),
+    real!(
+        Commander,
+        "FD_FAIL_P_TTRI",
+        0.3,
+        [0.02, 5.0],
+        "s",
+        "How long the pitch must stay beyond FD_FAIL_P before the detector fires.",
+        commander.failure_detector.pitch_trigger_s
+    ),
+    whole!(
+        Commander,
+        "FD_ACT",
+        2.0,
+        [0.0, 2.0],
+        "",
+        restart = false,
+        "What the vehicle does when the attitude failure detector fires in the air: 0 only said, 1 land, 2 terminate (motors off). PX4 chooses by CBRK_FLIGHTTERM.",
+        commander.failure_detector.action
+    ),
+];

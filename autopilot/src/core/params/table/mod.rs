@@ -123,6 +123,7 @@ const SECTIONS: &[&[ParamDef]] = &[
     manual::RADIO,
     manual::MANUAL_FLIGHT,
     manual::RADIO_CALIBRATION,
+    commander::FAULTS,
 ];
 
 /// How many parameters the sections hold together.
@@ -289,7 +290,7 @@ mod tests {
         "MPC_YAW_EXPO",
     ];
 
-    /// The radio's calibration, appended last: RC1_MIN .. RC18_DZ, channel by channel.
+    /// The radio's calibration, appended after the manual flight's: RC1_MIN .. RC18_DZ, channel by channel.
     fn rc_calibration_names() -> impl Iterator<Item = String> {
         (1..=18).flat_map(|n| ["MIN", "MAX", "TRIM", "REV", "DZ"].map(|s| format!("RC{n}_{s}")))
     }
@@ -297,7 +298,13 @@ mod tests {
     #[test]
     fn given_the_table_when_listed_then_every_parameter_keeps_its_param_index() {
         let names: Vec<&str> = PARAMS.iter().map(|d| d.name).collect();
-        let expected: Vec<String> = INDEX_ORDER.iter().map(|s| (*s).to_owned()).chain(rc_calibration_names()).collect();
+        let faults = ["SYS_FAILURE_EN", "COM_POS_FS_DELAY", "FD_FAIL_R", "FD_FAIL_P", "FD_FAIL_R_TTRI", "FD_FAIL_P_TTRI", "FD_ACT"];
+        let expected: Vec<String> = INDEX_ORDER
+            .iter()
+            .map(|s| (*s).to_owned())
+            .chain(rc_calibration_names())
+            .chain(faults.iter().map(|s| (*s).to_owned()))
+            .collect();
         assert_eq!(names, expected);
     }
 }

@@ -1,0 +1,400 @@
+//! Failure injection (MAV_CMD_INJECT_FAILURE, 420) with PX4's semantics, gated by `SYS_FAILURE_EN`. In:
+//! the decoded injection ([`FailureRequest`]) with its sender, the plant's answer to a forwarded one
+//! ([`PlantCommandAck`]), vehicle time. Out: the COMMAND_LONG to forward on the plant link, the
+//! COMMAND_ACK (and a STATUSTEXT) for the ground station, and two filters the vehicle applies to what it
+//! hears (the ground-station link, manual control).
+//!
+//! Who simulates what: a fault of something the plant simulates (a motor, GPS, baro, magnetometer,
+//! accelerometer, gyro, the pack, the board's radio) is the plant's: it is forwarded, and the plant's
+//! COMMAND_ACK is the answer (ACCEPTED, UNSUPPORTED for a combination it does not simulate, DENIED for a
+//! value it refuses; see `core::hil` for the protocol). A plant that does not answer within
+//! [`PLANT_ANSWER_TIMEOUT_US`] of vehicle time (a real board that does not know the command) gets the
+//! ground station UNSUPPORTED. The autopilot's own inputs are its own, as in PX4 where the MAVLink module
+//! handles the link's failure: `MAVLINK_SIGNAL` OFF makes the vehicle deaf to every ground-station message
+//! but this command (so OK can restore it), and `RC_SIGNAL` OFF, once the plant has silenced the board's
+//! radio, makes it ignore MANUAL_CONTROL and RC_CHANNELS_OVERRIDE too.
+//!
+//! What never happens here: the vehicle's reactions. The estimator and the commander do not see this
+//! module; they react to the data the fault changes (a GPS that stops, a rotor that lifts less), as they
+//! would to the fault itself.
+
+use ::mavlink::dialects::common::{COMMAND_ACK_DATA, MavCmd, MavMessage, MavResult, MavSeverity};
+
+use super::telemetry::statustext;
+use crate::core::hil::{PlantCommandAck, encode_inject_failure};
+
+/// How long the vehicle waits for the plant's answer to a forwarded injection (µs of vehicle time).
+pub const PLANT_ANSWER_TIMEOUT_US: u64 = 300_000;
+
+/// MAVLink's FAILURE_UNIT values this module names.
+pub mod unit {
+    pub const GYRO: u8 = 0;
+    pub const ACCEL: u8 = 1;
+    pub const MAG: u8 = 2;
+    pub const BARO: u8 = 3;
+    pub const GPS: u8 = 4;
+    pub const BATTERY: u8 = 100;
+    pub const MOTOR: u8 = 101;
+    pub const RC_SIGNAL: u8 = 104;
+    pub const MAVLINK_SIGNAL: u8 = 105;
+}
+
+/// MAVLink's FAILURE_TYPE values this module names.
+pub mod kind {
+    pub const OK: u8 = 0;
+    pub const OFF: u8 = 1;
+}
+
+/// One MAV_CMD_INJECT_FAILURE: param1 the unit, param2 the type, param3 the instance (0 = all).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FailureRequest {
+    pub unit: u8,
+    pub failure_type: u8,
+    pub instance: u8,
+}
+
+impl FailureRequest {
+    /// The request in a command's parameters; None when one is not a whole number 0-255 (a malformed
+    /// command, refused with DENIED by the caller).
+    #[must_use]
+    pub fn from_params(param1: f32, param2: f32, param3: f32) -> Option<Self> {
+        let byte = |x: f32| (x.is_finite() && x.fract() == 0.0 && (0.0..=255.0).contains(&x)).then_some(x as u8);
+        Some(Self { unit: byte(param1)?, failure_type: byte(param2)?, instance: byte(param3)? })
+    }
+
+    /// How a ground station's operator reads it ("gps off", "motor 1 wrong").
+    #[must_use]
+    pub fn describe(&self) -> String {
+        let unit = match self.unit {
+            unit::GYRO => "gyro",
+            unit::ACCEL => "accel",
+            unit::MAG => "mag",
+            unit::BARO => "baro",
+            unit::GPS => "gps",
+            5 => "optical flow",
+            6 => "vio",
+            7 => "distance sensor",
+            8 => "airspeed",
+            unit::BATTERY => "battery",
+            unit::MOTOR => "motor",
+            102 => "servo",
+            103 => "avoidance",
+            unit::RC_SIGNAL => "rc signal",
+            unit::MAVLINK_SIGNAL => "mavlink signal",
+            106 => "esc",
+            107 => "traffic avoidance",
+            _ => "unit",
+        };
+        let what = match self.failure_type {
+            0 => "ok",
+            1 => "off",
+            2 => "stuck",
+            3 => "garbage",
+            4 => "wrong",
+            5 => "slow",
+            6 => "delayed",
+            7 => "intermittent",
+            8 => "drift",
+            _ => "type",
+        };
+        let known_unit = unit != "unit";
+        let known_type = what != "type";
+        let unit = if known_unit { unit.to_owned() } else { format!("unit {}", self.unit) };
+        let what = if known_type { what.to_owned() } else { format!("type {}", self.failure_type) };
+        if self.instance == 0 { format!("{unit} {what}") } else { format!("{unit} {} {what}", self.instance) }
+    }
+}
+
+/// Who asked (the ACK goes back to them).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Requester {
+    pub system: u8,
+    pub component: u8,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Pending {
+    request: FailureRequest,
+    from: Requester,
+    deadline_us: u64,
+}
+
+/// The failure-injection service's state: what waits for the plant, and the two input filters.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct FailureInjection {
+    pending: Option<Pending>,
+    to_plant: Vec<FailureRequest>,
+    /// MAVLINK_SIGNAL OFF: the vehicle hears nothing from a ground station but this command.
+    gcs_link_off: bool,
+    /// RC_SIGNAL OFF (accepted by the plant): MANUAL_CONTROL and RC_CHANNELS_OVERRIDE are ignored.
+    manual_off: bool,
+}
+
+impl FailureInjection {
+    /// An injection from `from` at `now_us`, `enabled` by SYS_FAILURE_EN: the replies to send at once
+    /// (none while it waits for the plant: the ACK comes from [`FailureInjection::on_plant_ack`] or
+    /// [`FailureInjection::step`]).
+    pub fn inject(&mut self, now_us: u64, from: Requester, request: FailureRequest, enabled: bool) -> Vec<MavMessage> {
+        if !enabled {
+            return reply(from, MavResult::MAV_RESULT_DENIED, Some("Failure injection denied: SYS_FAILURE_EN is 0"));
+        }
+        if request.unit == unit::MAVLINK_SIGNAL {
+            return match (request.failure_type, request.instance) {
+                (kind::OFF | kind::OK, 0 | 1) => {
+                    self.gcs_link_off = request.failure_type == kind::OFF;
+                    accepted(from, &request)
+                }
+                _ => unsupported(from, &request),
+            };
+        }
+        if request.unit == unit::RC_SIGNAL && !matches!(request.failure_type, kind::OFF | kind::OK) {
+            return unsupported(from, &request);
+        }
+        match self.pending {
+            // A ground station's retransmission of the command that waits: it is still on its way.
+            Some(p) if p.request == request && p.from == from => Vec::new(),
+            Some(_) => reply(
+                from,
+                MavResult::MAV_RESULT_TEMPORARILY_REJECTED,
+                Some("Failure injection: the plant has not answered the last one yet"),
+            ),
+            None => {
+                self.pending = Some(Pending { request, from, deadline_us: now_us + PLANT_ANSWER_TIMEOUT_US });
+                self.to_plant.push(request);
+                Vec::new()
+            }
+        }
+    }
+
+    /// The COMMAND_LONGs to write on the plant link before this step's actuator message (drained).
+    pub fn take_plant_messages(&mut self) -> Vec<MavMessage> {
+        self.to_plant
+            .drain(..)
+            .map(|r| MavMessage::COMMAND_LONG(encode_inject_failure(r.unit, r.failure_type, r.instance)))
+            .collect()
+    }
+
+    /// The plant's answer: the ACK (and what it means in words) for the ground station that asked. An
+    /// answer to nothing pending (late, after the timeout) changes nothing.
+    pub fn on_plant_ack(&mut self, ack: PlantCommandAck) -> Vec<MavMessage> {
+        if ack.command_id != MavCmd::MAV_CMD_INJECT_FAILURE as u32 {
+            return Vec::new();
+        }
+        let Some(p) = self.pending.take() else { return Vec::new() };
+        match ack.result {
+            MavResult::MAV_RESULT_ACCEPTED => {
+                if p.request.unit == unit::RC_SIGNAL {
+                    self.manual_off = p.request.failure_type == kind::OFF;
+                }
+                accepted(p.from, &p.request)
+            }
+            MavResult::MAV_RESULT_UNSUPPORTED => unsupported(p.from, &p.request),
+            result => {
+                let text = format!("Failure injection refused by the plant: {}", p.request.describe());
+                reply(p.from, result, Some(&text))
+            }
+        }
+    }
+
+    /// Vehicle time advances: a forwarded injection the plant has not answered in time is UNSUPPORTED.
+    pub fn step(&mut self, now_us: u64) -> Vec<MavMessage> {
+        match self.pending {
+            Some(p) if now_us >= p.deadline_us => {
+                self.pending = None;
+                let text = format!("Failure injection: the plant did not answer ({})", p.request.describe());
+                reply(p.from, MavResult::MAV_RESULT_UNSUPPORTED, Some(&text))
+            }
+            _ => Vec::new(),
+        }
+    }
+
+    /// Whether the vehicle hears `msg` from a ground station: everything, unless MAVLINK_SIGNAL is off
+    /// (then only MAV_CMD_INJECT_FAILURE, so the link can be restored), and no manual control while
+    /// RC_SIGNAL is off.
+    #[must_use]
+    pub fn hears(&self, msg: &MavMessage) -> bool {
+        let injection =
+            matches!(msg, MavMessage::COMMAND_LONG(c) if c.command == MavCmd::MAV_CMD_INJECT_FAILURE);
+        let manual = matches!(msg, MavMessage::MANUAL_CONTROL(_) | MavMessage::RC_CHANNELS_OVERRIDE(_));
+        (!self.gcs_link_off || injection) && !(self.manual_off && manual)
+    }
+
+    /// Whether MAVLINK_SIGNAL OFF is in effect.
+    #[must_use]
+    pub fn gcs_link_off(&self) -> bool {
+        self.gcs_link_off
+    }
+}
+
+fn ack(from: Requester, result: MavResult) -> MavMessage {
+    MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+        command: MavCmd::MAV_CMD_INJECT_FAILURE,
+        result,
+        target_system: from.system,
+        target_component: from.component,
+        ..Default::default()
+    })
+}
+
+fn reply(from: Requester, result: MavResult, text: Option<&str>) -> Vec<MavMessage> {
+    let mut out = vec![ack(from, result)];
+    out.extend(text.map(|t| statustext(MavSeverity::MAV_SEVERITY_WARNING, t)));
+    out
+}
+
+fn accepted(from: Requester, request: &FailureRequest) -> Vec<MavMessage> {
+    let text = format!("Failure injected: {}", request.describe());
+    vec![ack(from, MavResult::MAV_RESULT_ACCEPTED), statustext(MavSeverity::MAV_SEVERITY_INFO, &text)]
+}
+
+fn unsupported(from: Requester, request: &FailureRequest) -> Vec<MavMessage> {
+    let text = format!("Failure injection not supported: {}", request.describe());
+    reply(from, MavResult::MAV_RESULT_UNSUPPORTED, Some(&text))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GCS: Requester = Requester { system: 255, component: 190 };
+
+    fn req(unit: u8, failure_type: u8, instance: u8) -> FailureRequest {
+        FailureRequest { unit, failure_type, instance }
+    }
+
+    fn result_of(messages: &[MavMessage]) -> Option<MavResult> {
+        messages.iter().find_map(|m| match m {
+            MavMessage::COMMAND_ACK(a) => {
+                assert_eq!((a.target_system, a.target_component), (GCS.system, GCS.component));
+                assert_eq!(a.command, MavCmd::MAV_CMD_INJECT_FAILURE);
+                Some(a.result)
+            }
+            _ => None,
+        })
+    }
+
+    fn text_of(messages: &[MavMessage]) -> String {
+        messages
+            .iter()
+            .find_map(|m| match m {
+                MavMessage::STATUSTEXT(s) => Some(String::from_utf8_lossy(&s.text.to_vec()).trim_end_matches('\0').to_owned()),
+                _ => None,
+            })
+            .unwrap_or_default()
+    }
+
+    fn plant_ack(result: MavResult) -> PlantCommandAck {
+        PlantCommandAck { command_id: 420, result }
+    }
+
+    #[test]
+    fn given_sys_failure_en_0_when_any_failure_is_injected_then_it_is_denied_and_nothing_goes_to_the_plant() {
+        let mut f = FailureInjection::default();
+        for r in [req(unit::GPS, kind::OFF, 0), req(unit::MAVLINK_SIGNAL, kind::OFF, 0), req(200, 9, 0)] {
+            let out = f.inject(0, GCS, r, false);
+            assert_eq!(result_of(&out), Some(MavResult::MAV_RESULT_DENIED));
+            assert_eq!(text_of(&out), "Failure injection denied: SYS_FAILURE_EN is 0");
+        }
+        assert!(f.take_plant_messages().is_empty());
+        assert!(f.hears(&MavMessage::HEARTBEAT(Default::default())));
+    }
+
+    #[test]
+    fn given_a_plant_fault_when_injected_then_it_is_forwarded_once_and_the_plants_ack_is_the_answer() {
+        let mut f = FailureInjection::default();
+        assert!(f.inject(1_000, GCS, req(unit::GPS, kind::OFF, 0), true).is_empty());
+        let forwarded = f.take_plant_messages();
+        assert_eq!(forwarded.len(), 1);
+        let MavMessage::COMMAND_LONG(c) = &forwarded[0] else { panic!("{forwarded:?}") };
+        assert_eq!((c.command, c.param1, c.param2, c.param3), (MavCmd::MAV_CMD_INJECT_FAILURE, 4.0, 1.0, 0.0));
+        assert!(f.take_plant_messages().is_empty(), "drained");
+        // A retransmission of the same command while it waits is not forwarded again.
+        assert!(f.inject(2_000, GCS, req(unit::GPS, kind::OFF, 0), true).is_empty());
+        assert!(f.take_plant_messages().is_empty());
+        let out = f.on_plant_ack(plant_ack(MavResult::MAV_RESULT_ACCEPTED));
+        assert_eq!(result_of(&out), Some(MavResult::MAV_RESULT_ACCEPTED));
+        assert_eq!(text_of(&out), "Failure injected: gps off");
+        // A second answer to nothing is ignored.
+        assert!(f.on_plant_ack(plant_ack(MavResult::MAV_RESULT_ACCEPTED)).is_empty());
+    }
+
+    #[test]
+    fn given_the_plant_answers_unsupported_or_refuses_then_the_ground_station_gets_that_result_in_words() {
+        let mut f = FailureInjection::default();
+        f.inject(0, GCS, req(5, kind::OFF, 0), true);
+        let out = f.on_plant_ack(plant_ack(MavResult::MAV_RESULT_UNSUPPORTED));
+        assert_eq!(result_of(&out), Some(MavResult::MAV_RESULT_UNSUPPORTED));
+        assert_eq!(text_of(&out), "Failure injection not supported: optical flow off");
+        f.inject(0, GCS, req(unit::MOTOR, 4, 7), true);
+        let out = f.on_plant_ack(plant_ack(MavResult::MAV_RESULT_DENIED));
+        assert_eq!(result_of(&out), Some(MavResult::MAV_RESULT_DENIED));
+        assert_eq!(text_of(&out), "Failure injection refused by the plant: motor 7 wrong");
+    }
+
+    #[test]
+    fn given_no_plant_answer_when_0_3_s_of_vehicle_time_pass_then_unsupported_and_a_new_injection_is_taken() {
+        let mut f = FailureInjection::default();
+        f.inject(1_000_000, GCS, req(unit::BARO, 2, 0), true);
+        assert!(f.step(1_299_999).is_empty());
+        let out = f.step(1_300_000);
+        assert_eq!(result_of(&out), Some(MavResult::MAV_RESULT_UNSUPPORTED));
+        assert_eq!(text_of(&out), "Failure injection: the plant did not answer (baro stuck)");
+        assert!(f.step(2_000_000).is_empty(), "answered once");
+        f.take_plant_messages();
+        assert!(f.inject(2_000_000, GCS, req(unit::MAG, 1, 0), true).is_empty());
+        assert_eq!(f.take_plant_messages().len(), 1);
+    }
+
+    #[test]
+    fn given_one_injection_waiting_when_a_different_one_comes_then_it_is_temporarily_rejected() {
+        let mut f = FailureInjection::default();
+        f.inject(0, GCS, req(unit::GPS, kind::OFF, 0), true);
+        let out = f.inject(0, GCS, req(unit::BARO, kind::OFF, 0), true);
+        assert_eq!(result_of(&out), Some(MavResult::MAV_RESULT_TEMPORARILY_REJECTED));
+        assert_eq!(f.take_plant_messages().len(), 1, "only the first went to the plant");
+    }
+
+    #[test]
+    fn given_mavlink_signal_off_then_only_the_injection_command_is_heard_until_ok_restores_the_link() {
+        let mut f = FailureInjection::default();
+        let out = f.inject(0, GCS, req(unit::MAVLINK_SIGNAL, kind::OFF, 0), true);
+        assert_eq!(result_of(&out), Some(MavResult::MAV_RESULT_ACCEPTED));
+        assert!(f.take_plant_messages().is_empty(), "the link is the autopilot's own");
+        assert!(!f.hears(&MavMessage::HEARTBEAT(Default::default())));
+        let arm = crate::core::mavlink::command_long(1, 1, MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0; 7]);
+        assert!(!f.hears(&arm));
+        let ok = crate::core::mavlink::command_long(1, 1, MavCmd::MAV_CMD_INJECT_FAILURE, [105.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        assert!(f.hears(&ok));
+        let out = f.inject(0, GCS, req(unit::MAVLINK_SIGNAL, kind::OK, 0), true);
+        assert_eq!(result_of(&out), Some(MavResult::MAV_RESULT_ACCEPTED));
+        assert!(f.hears(&MavMessage::HEARTBEAT(Default::default())));
+        let out = f.inject(0, GCS, req(unit::MAVLINK_SIGNAL, 2, 0), true);
+        assert_eq!(result_of(&out), Some(MavResult::MAV_RESULT_UNSUPPORTED));
+    }
+
+    #[test]
+    fn given_rc_signal_off_accepted_by_the_plant_then_manual_control_is_ignored_until_ok() {
+        let mut f = FailureInjection::default();
+        let sticks = MavMessage::MANUAL_CONTROL(Default::default());
+        f.inject(0, GCS, req(unit::RC_SIGNAL, kind::OFF, 0), true);
+        assert_eq!(f.take_plant_messages().len(), 1, "the board's radio is the plant's");
+        assert!(f.hears(&sticks), "not before the plant accepted it");
+        f.on_plant_ack(plant_ack(MavResult::MAV_RESULT_ACCEPTED));
+        assert!(!f.hears(&sticks));
+        assert!(!f.hears(&MavMessage::RC_CHANNELS_OVERRIDE(Default::default())));
+        assert!(f.hears(&MavMessage::HEARTBEAT(Default::default())));
+        f.inject(0, GCS, req(unit::RC_SIGNAL, kind::OK, 0), true);
+        f.on_plant_ack(plant_ack(MavResult::MAV_RESULT_ACCEPTED));
+        assert!(f.hears(&sticks));
+        let out = f.inject(0, GCS, req(unit::RC_SIGNAL, 2, 0), true);
+        assert_eq!(result_of(&out), Some(MavResult::MAV_RESULT_UNSUPPORTED));
+    }
+
+    #[test]
+    fn given_params_that_are_not_whole_bytes_then_no_request_is_made() {
+        assert_eq!(FailureRequest::from_params(4.0, 1.0, 0.0), Some(req(4, 1, 0)));
+        for bad in [(4.5, 1.0, 0.0), (f32::NAN, 1.0, 0.0), (4.0, -1.0, 0.0), (4.0, 1.0, 256.0)] {
+            assert_eq!(FailureRequest::from_params(bad.0, bad.1, bad.2), None, "{bad:?}");
+        }
+    }
+}
