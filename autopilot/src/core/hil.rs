@@ -58,9 +58,10 @@
 //! shared with the ground-station links; their names are re-exported here.
 
 use mavlink::dialects::common::{
-    BATTERY_STATUS_DATA, COMMAND_LONG_DATA, HIL_ACTUATOR_CONTROLS_DATA, HIL_GPS_DATA, HIL_SENSOR_DATA, HIL_STATE_QUATERNION_DATA,
-    HilActuatorControlsFlags, HilSensorUpdatedFlags, MavBatteryChargeState, MavBatteryFunction, MavBatteryType,
-    MavCmd, MavFrame, MavMessage, MavModeFlag, MavResult, ODOMETRY_DATA, RC_CHANNELS_DATA,
+    BATTERY_STATUS_DATA, COMMAND_LONG_DATA, HIL_ACTUATOR_CONTROLS_DATA, HIL_GPS_DATA, HIL_SENSOR_DATA,
+    HIL_STATE_QUATERNION_DATA, HilActuatorControlsFlags, HilSensorUpdatedFlags, MavBatteryChargeState,
+    MavBatteryFunction, MavBatteryType, MavCmd, MavFrame, MavMessage, MavModeFlag, MavResult, ODOMETRY_DATA,
+    RC_CHANNELS_DATA,
 };
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 

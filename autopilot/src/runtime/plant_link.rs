@@ -217,7 +217,9 @@ pub fn run(
                 for message in &reply.before {
                     frame.extend(plant.frame(message));
                 }
-                frame.extend(plant.frame(&MavMessage::HIL_ACTUATOR_CONTROLS(encode_actuator_controls(&reply.actuators))));
+                frame.extend(
+                    plant.frame(&MavMessage::HIL_ACTUATOR_CONTROLS(encode_actuator_controls(&reply.actuators))),
+                );
                 transport.send(&frame).map_err(io)?;
                 last_sensor = Some(Instant::now());
                 if lost {

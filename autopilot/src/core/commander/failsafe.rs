@@ -146,9 +146,11 @@ impl Trigger {
             Self::Geofence(v) => format!("fence, {v}"),
             Self::ManualControlLost => "manual control lost".into(),
             Self::PositionLost => "position lost".into(),
-            Self::AttitudeFailure { roll_deg, pitch_deg } => {
-                format!("attitude failure (roll {roll_deg} deg, pitch {pitch_deg} deg)")
+            // The axis beyond its threshold (the larger angle), so the text fits a STATUSTEXT.
+            Self::AttitudeFailure { roll_deg, pitch_deg } if roll_deg.unsigned_abs() >= pitch_deg.unsigned_abs() => {
+                format!("attitude roll {roll_deg} deg")
             }
+            Self::AttitudeFailure { pitch_deg, .. } => format!("attitude pitch {pitch_deg} deg"),
         }
     }
 }
@@ -267,11 +269,8 @@ impl super::Commander {
             _ => false,
         };
         let invalid = !self.est.position_valid;
-        self.position_invalid_since_us = if invalid && in_air {
-            Some(self.position_invalid_since_us.unwrap_or(now))
-        } else {
-            None
-        };
+        self.position_invalid_since_us =
+            if invalid && in_air { Some(self.position_invalid_since_us.unwrap_or(now)) } else { None };
         let delay_over = self
             .position_invalid_since_us
             .is_some_and(|t| now.saturating_sub(t) >= seconds_to_us(self.config.position_loss_delay_s));

@@ -54,6 +54,8 @@ impl Sim {
             estimate: Estimate {
                 pos_ned_m: Vector3::new(1.0, -2.0, self.pos_d_m),
                 vel_ned_mps: Vector3::new(0.0, 0.0, self.vel_d_mps),
+                roll_rad: 0.0,
+                pitch_rad: 0.0,
                 yaw_rad: 0.3,
                 position_valid: self.converged,
                 converged: self.converged,

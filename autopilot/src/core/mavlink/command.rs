@@ -348,7 +348,9 @@ fn effect(command: MavCmd, a: &Params, ctx: &CommandContext) -> CommandEffect {
         MavCmd::MAV_CMD_DO_MOTOR_TEST => motor_test(p, a.x),
         MavCmd::MAV_CMD_INJECT_FAILURE => match FailureRequest::from_params(p[0], p[1], p[2]) {
             Some(request) => CommandEffect::Vehicle(VehicleCommand::InjectFailure(request)),
-            None => CommandEffect::Deny("Failure injection: unit, type and instance must be whole numbers 0-255".into()),
+            None => {
+                CommandEffect::Deny("Failure injection: unit, type and instance must be whole numbers 0-255".into())
+            }
         },
         _ => CommandEffect::Unsupported,
     }

@@ -136,7 +136,7 @@ impl FailureInjection {
     /// [`FailureInjection::step`]).
     pub fn inject(&mut self, now_us: u64, from: Requester, request: FailureRequest, enabled: bool) -> Vec<MavMessage> {
         if !enabled {
-            return reply(from, MavResult::MAV_RESULT_DENIED, Some("Failure injection denied: SYS_FAILURE_EN is 0"));
+            return reply(from, MavResult::MAV_RESULT_DENIED, Some("Injection denied: SYS_FAILURE_EN is 0"));
         }
         if request.unit == unit::MAVLINK_SIGNAL {
             return match (request.failure_type, request.instance) {
@@ -156,7 +156,7 @@ impl FailureInjection {
             Some(_) => reply(
                 from,
                 MavResult::MAV_RESULT_TEMPORARILY_REJECTED,
-                Some("Failure injection: the plant has not answered the last one yet"),
+                Some("Injection: the plant has not answered yet"),
             ),
             None => {
                 self.pending = Some(Pending { request, from, deadline_us: now_us + PLANT_ANSWER_TIMEOUT_US });
@@ -190,7 +190,7 @@ impl FailureInjection {
             }
             MavResult::MAV_RESULT_UNSUPPORTED => unsupported(p.from, &p.request),
             result => {
-                let text = format!("Failure injection refused by the plant: {}", p.request.describe());
+                let text = format!("Injection refused by the plant: {}", p.request.describe());
                 reply(p.from, result, Some(&text))
             }
         }
@@ -201,7 +201,7 @@ impl FailureInjection {
         match self.pending {
             Some(p) if now_us >= p.deadline_us => {
                 self.pending = None;
-                let text = format!("Failure injection: the plant did not answer ({})", p.request.describe());
+                let text = format!("Injection: no plant answer ({})", p.request.describe());
                 reply(p.from, MavResult::MAV_RESULT_UNSUPPORTED, Some(&text))
             }
             _ => Vec::new(),
@@ -213,8 +213,7 @@ impl FailureInjection {
     /// RC_SIGNAL is off.
     #[must_use]
     pub fn hears(&self, msg: &MavMessage) -> bool {
-        let injection =
-            matches!(msg, MavMessage::COMMAND_LONG(c) if c.command == MavCmd::MAV_CMD_INJECT_FAILURE);
+        let injection = matches!(msg, MavMessage::COMMAND_LONG(c) if c.command == MavCmd::MAV_CMD_INJECT_FAILURE);
         let manual = matches!(msg, MavMessage::MANUAL_CONTROL(_) | MavMessage::RC_CHANNELS_OVERRIDE(_));
         (!self.gcs_link_off || injection) && !(self.manual_off && manual)
     }
@@ -236,6 +235,7 @@ fn ack(from: Requester, result: MavResult) -> MavMessage {
     })
 }
 
+/// The ACK and, when there is one, a text (at most 50 bytes: one STATUSTEXT).
 fn reply(from: Requester, result: MavResult, text: Option<&str>) -> Vec<MavMessage> {
     let mut out = vec![ack(from, result)];
     out.extend(text.map(|t| statustext(MavSeverity::MAV_SEVERITY_WARNING, t)));
@@ -248,7 +248,7 @@ fn accepted(from: Requester, request: &FailureRequest) -> Vec<MavMessage> {
 }
 
 fn unsupported(from: Requester, request: &FailureRequest) -> Vec<MavMessage> {
-    let text = format!("Failure injection not supported: {}", request.describe());
+    let text = format!("Injection not supported: {}", request.describe());
     reply(from, MavResult::MAV_RESULT_UNSUPPORTED, Some(&text))
 }
 
@@ -277,7 +277,9 @@ mod tests {
         messages
             .iter()
             .find_map(|m| match m {
-                MavMessage::STATUSTEXT(s) => Some(String::from_utf8_lossy(&s.text.to_vec()).trim_end_matches('\0').to_owned()),
+                MavMessage::STATUSTEXT(s) => {
+                    Some(String::from_utf8_lossy(&s.text.to_vec()).trim_end_matches('\0').to_owned())
+                }
                 _ => None,
             })
             .unwrap_or_default()
@@ -293,7 +295,7 @@ mod tests {
         for r in [req(unit::GPS, kind::OFF, 0), req(unit::MAVLINK_SIGNAL, kind::OFF, 0), req(200, 9, 0)] {
             let out = f.inject(0, GCS, r, false);
             assert_eq!(result_of(&out), Some(MavResult::MAV_RESULT_DENIED));
-            assert_eq!(text_of(&out), "Failure injection denied: SYS_FAILURE_EN is 0");
+            assert_eq!(text_of(&out), "Injection denied: SYS_FAILURE_EN is 0");
         }
         assert!(f.take_plant_messages().is_empty());
         assert!(f.hears(&MavMessage::HEARTBEAT(Default::default())));
@@ -324,11 +326,11 @@ mod tests {
         f.inject(0, GCS, req(5, kind::OFF, 0), true);
         let out = f.on_plant_ack(plant_ack(MavResult::MAV_RESULT_UNSUPPORTED));
         assert_eq!(result_of(&out), Some(MavResult::MAV_RESULT_UNSUPPORTED));
-        assert_eq!(text_of(&out), "Failure injection not supported: optical flow off");
+        assert_eq!(text_of(&out), "Injection not supported: optical flow off");
         f.inject(0, GCS, req(unit::MOTOR, 4, 7), true);
         let out = f.on_plant_ack(plant_ack(MavResult::MAV_RESULT_DENIED));
         assert_eq!(result_of(&out), Some(MavResult::MAV_RESULT_DENIED));
-        assert_eq!(text_of(&out), "Failure injection refused by the plant: motor 7 wrong");
+        assert_eq!(text_of(&out), "Injection refused by the plant: motor 7 wrong");
     }
 
     #[test]
@@ -338,7 +340,7 @@ mod tests {
         assert!(f.step(1_299_999).is_empty());
         let out = f.step(1_300_000);
         assert_eq!(result_of(&out), Some(MavResult::MAV_RESULT_UNSUPPORTED));
-        assert_eq!(text_of(&out), "Failure injection: the plant did not answer (baro stuck)");
+        assert_eq!(text_of(&out), "Injection: no plant answer (baro stuck)");
         assert!(f.step(2_000_000).is_empty(), "answered once");
         f.take_plant_messages();
         assert!(f.inject(2_000_000, GCS, req(unit::MAG, 1, 0), true).is_empty());
@@ -363,7 +365,12 @@ mod tests {
         assert!(!f.hears(&MavMessage::HEARTBEAT(Default::default())));
         let arm = crate::core::mavlink::command_long(1, 1, MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0; 7]);
         assert!(!f.hears(&arm));
-        let ok = crate::core::mavlink::command_long(1, 1, MavCmd::MAV_CMD_INJECT_FAILURE, [105.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        let ok = crate::core::mavlink::command_long(
+            1,
+            1,
+            MavCmd::MAV_CMD_INJECT_FAILURE,
+            [105.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        );
         assert!(f.hears(&ok));
         let out = f.inject(0, GCS, req(unit::MAVLINK_SIGNAL, kind::OK, 0), true);
         assert_eq!(result_of(&out), Some(MavResult::MAV_RESULT_ACCEPTED));

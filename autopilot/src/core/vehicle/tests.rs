@@ -562,3 +562,41 @@ fn given_a_lost_plant_then_the_fallback_says_critical_disarmed_emergency_armed_a
     assert!(hb.base_mode.contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED));
     assert_eq!(hb.custom_mode, TAKEOFF);
 }
+
+#[test]
+fn given_sys_failure_en_1_when_a_gps_failure_is_injected_then_it_goes_to_the_plant_with_the_next_step_and_the_plants_ack_is_relayed()
+ {
+    // GIVEN SYS_FAILURE_EN = 0: DENIED at once, nothing for the plant.
+    let mut v = truth_vehicle();
+    let mut t = 0;
+    run(&mut v, &mut t, 0.1);
+    let inject = long(MavCmd::MAV_CMD_INJECT_FAILURE, [4.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0], 1);
+    assert_eq!(
+        ack_of(&v.handle_message(t, &GCS, &inject)),
+        Some((MavCmd::MAV_CMD_INJECT_FAILURE, MavResult::MAV_RESULT_DENIED))
+    );
+    t += DT_US;
+    assert!(v.step(t, &at_rest(t)).plant_messages.is_empty());
+    // WHEN it is enabled and the injection comes again.
+    let set = MavMessage::PARAM_SET(::mavlink::dialects::common::PARAM_SET_DATA {
+        param_value: f32::from_bits(1),
+        target_system: 1,
+        target_component: 1,
+        param_id: ::mavlink::types::CharArray::from("SYS_FAILURE_EN"),
+        param_type: ::mavlink::dialects::common::MavParamType::MAV_PARAM_TYPE_INT32,
+    });
+    v.handle_message(t, &GCS, &set);
+    assert!(v.params().failure_injection_enabled());
+    assert!(ack_of(&v.handle_message(t, &GCS, &inject)).is_none(), "the answer is the plant's");
+    // THEN the next step carries it to the plant, and the plant's ACK comes back as the vehicle's answer.
+    t += DT_US;
+    let out = v.step(t, &at_rest(t));
+    assert!(
+        matches!(out.plant_messages.as_slice(), [MavMessage::COMMAND_LONG(c)] if c.command == MavCmd::MAV_CMD_INJECT_FAILURE && c.param1 == 4.0 && c.param2 == 1.0)
+    );
+    t += DT_US;
+    let ack = crate::core::hil::PlantCommandAck { command_id: 420, result: MavResult::MAV_RESULT_ACCEPTED };
+    let out = v.step(t, &VehicleInputs { plant_ack: Some(ack), ..at_rest(t) });
+    assert_eq!(ack_of(&out.messages), Some((MavCmd::MAV_CMD_INJECT_FAILURE, MavResult::MAV_RESULT_ACCEPTED)));
+    assert!(out.plant_messages.is_empty());
+}

@@ -298,7 +298,15 @@ mod tests {
     #[test]
     fn given_the_table_when_listed_then_every_parameter_keeps_its_param_index() {
         let names: Vec<&str> = PARAMS.iter().map(|d| d.name).collect();
-        let faults = ["SYS_FAILURE_EN", "COM_POS_FS_DELAY", "FD_FAIL_R", "FD_FAIL_P", "FD_FAIL_R_TTRI", "FD_FAIL_P_TTRI", "FD_ACT"];
+        let faults = [
+            "SYS_FAILURE_EN",
+            "COM_POS_FS_DELAY",
+            "FD_FAIL_R",
+            "FD_FAIL_P",
+            "FD_FAIL_R_TTRI",
+            "FD_FAIL_P_TTRI",
+            "FD_ACT",
+        ];
         let expected: Vec<String> = INDEX_ORDER
             .iter()
             .map(|s| (*s).to_owned())
