@@ -573,6 +573,73 @@ mod tests {
     }
 
     #[test]
+    fn an_injected_failure_goes_to_the_plant_ahead_of_the_actuators_and_the_plants_ack_reaches_the_ground_station() {
+        use crate::core::mavlink::common::{COMMAND_ACK_DATA, MavCmd, MavParamType, MavResult, PARAM_SET_DATA};
+        let mut h = start(4);
+        let mut buf = vec![0u8; 2048];
+        let (_, autopilot) = h.plant.recv_from(&mut buf).expect("announce");
+        let mut decoder = FrameDecoder::new();
+        for k in 0..5_u64 {
+            step(&h, autopilot, &mut decoder, k * 2_000);
+        }
+        // GIVEN SYS_FAILURE_EN = 1; WHEN a ground station injects "GPS off".
+        let header = MavHeader { system_id: 255, component_id: 190, sequence: 0 };
+        let peer = "127.0.0.1:14550".parse().expect("addr");
+        let send = |message: MavMessage| {
+            let incoming = Incoming { link: 0, peer, header, message, version: mavlink::MavlinkVersion::V2 };
+            h.in_tx.try_send(incoming).expect("queued");
+        };
+        send(MavMessage::PARAM_SET(PARAM_SET_DATA {
+            param_value: f32::from_bits(1),
+            target_system: 4,
+            target_component: 1,
+            param_id: "SYS_FAILURE_EN".into(),
+            param_type: MavParamType::MAV_PARAM_TYPE_INT32,
+        }));
+        send(crate::core::mavlink::command_long(
+            4,
+            1,
+            MavCmd::MAV_CMD_INJECT_FAILURE,
+            [4.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        ));
+        // THEN a following reply carries the COMMAND_LONG first and the actuators last, in one datagram.
+        let mut forwarded = None;
+        for k in 5..100_u64 {
+            h.plant.send_to(&sensor_frame(k * 2_000), autopilot).expect("send");
+            let len = h.plant.recv(&mut buf).expect("reply");
+            let frames: Vec<MavMessage> = decoder.decode_datagram(&buf[..len]).into_iter().map(|f| f.message).collect();
+            assert!(matches!(frames.last(), Some(MavMessage::HIL_ACTUATOR_CONTROLS(_))), "{frames:?}");
+            if let [MavMessage::COMMAND_LONG(c), MavMessage::HIL_ACTUATOR_CONTROLS(_)] = frames.as_slice() {
+                forwarded = Some((k, c.command, c.param1, c.param2, c.param3));
+                break;
+            }
+        }
+        let (k, command, unit, kind, instance) = forwarded.expect("forwarded within 95 steps");
+        assert_eq!((command, unit, kind, instance), (MavCmd::MAV_CMD_INJECT_FAILURE, 4.0, 1.0, 0.0));
+        // WHEN the plant answers ACCEPTED ahead of its next sensor sample; THEN the ground station gets it.
+        let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+            command: MavCmd::MAV_CMD_INJECT_FAILURE,
+            result: MavResult::MAV_RESULT_ACCEPTED,
+            ..Default::default()
+        });
+        let mut datagram = encode_frame_v2(MavHeader { system_id: 1, component_id: 51, sequence: 0 }, &ack);
+        datagram.extend(sensor_frame((k + 1) * 2_000));
+        h.plant.send_to(&datagram, autopilot).expect("send");
+        h.plant.recv(&mut buf).expect("reply");
+        h.stop.store(true, Ordering::Relaxed);
+        h.thread.join().expect("join").expect("clean stop");
+        let acks: Vec<(MavResult, u8, u8)> = std::iter::from_fn(|| h.out_rx.try_recv().ok())
+            .filter_map(|out| match out.message {
+                MavMessage::COMMAND_ACK(a) if a.command == MavCmd::MAV_CMD_INJECT_FAILURE => {
+                    Some((a.result, a.target_system, a.target_component))
+                }
+                _ => None,
+            })
+            .collect();
+        assert_eq!(acks, [(MavResult::MAV_RESULT_ACCEPTED, 255, 190)]);
+    }
+
+    #[test]
     fn a_plant_killed_and_restarted_gets_the_fallback_meanwhile_and_a_heartbeat_within_1_s_of_its_new_clock() {
         let mut h = start(4);
         let mut buf = vec![0u8; 2048];
