@@ -13,6 +13,8 @@
 //! | battery below `BAT_LOW_THR` while armed | `BAT_LOW_THR` | 15 % | warning (and arming refused below it) |
 //! | battery below `BAT_CRIT_THR` / `BAT_EMERGEN_THR` while armed | `COM_LOW_BAT_ACT`, thresholds | 3, 7 %, 5 % | PX4's COM_LOW_BAT_ACT: 0 warn, 2 land, 3 return at critical and land at emergency |
 //! | geofence breached, or predicted to be before the vehicle can stop, in the air | `GF_ACTION`, `GF_MAX_HOR_DIST`, `GF_MAX_VER_DIST`, the uploaded fence | 2, 0 (off), 0 (off) | PX4's GF_ACTION: 0 none, 1 warning, 2 hold, 3 return, 4 terminate, 5 land |
+//! | no valid position for `COM_POS_FS_DELAY` in the air, in a mode that flies to positions | `COM_POS_FS_DELAY` | 1 s | land, flown level (PX4's Descend; until then the navigator flies level and holds the height) |
+//! | roll beyond `FD_FAIL_R` for `FD_FAIL_R_TTRI`, or pitch beyond `FD_FAIL_P` for `FD_FAIL_P_TTRI`, in the air (`failure_detector`) | those, `FD_ACT` | 60°, 0.3 s, 2 | `FD_ACT`: 0 said only, 1 land, 2 terminate |
 //!
 //! An action is taken only in the air (armed, not landed); the vehicle stays in the failsafe's mode when
 //! the trigger clears (regaining the link is announced), until a pilot changes it, as PX4 does.
