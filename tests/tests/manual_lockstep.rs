@@ -453,3 +453,55 @@ fn given_sticks_that_stop_on_the_ground_armed_in_position_then_the_loss_is_only_
     fly(&mut rig, preflight_s, None, |_| {});
     assert!(!rig.vehicle.commander().armed(), "disarmed COM_DISARM_PRFLT after arming without a flight");
 }
+
+#[test]
+fn given_the_gps_stops_in_position_mode_then_after_com_pos_fs_delay_the_pilot_flies_on_in_altitude_mode_holding_height_within_0_3_m()
+ {
+    // GIVEN a pilot hovering in Position mode (PX4 main 3), sticks centred.
+    let mut rig = hovering_by_hand(3.0);
+    let hold_d_m = rig.plant.truth().pos_ned_m.z;
+    texts(&mut rig);
+    // WHEN the GPS stops.
+    rig.gps_cut = true;
+    let mut worst_m: f64 = 0.0;
+    fly(&mut rig, 10.0, Some(centre()), |r| worst_m = worst_m.max((r.plant.truth().pos_ned_m.z - hold_d_m).abs()));
+    // THEN the vehicle switches to Altitude (still the pilot's), says why, and holds its height on the truth.
+    let said = texts(&mut rig);
+    println!("GPS cut in Position: {said:?}; worst height error {worst_m:.3} m over 10 s");
+    assert_eq!(rig.vehicle.commander_output().mode, FlightMode::Altitude);
+    assert!(rig.armed());
+    assert!(said.iter().any(|(_, t)| t == "Failsafe: position lost, altitude mode"), "{said:?}");
+    assert!(worst_m <= 0.3, "{worst_m}");
+}
+
+#[test]
+fn given_the_gps_stopped_in_hold_then_a_pilot_can_still_take_over_in_altitude_but_not_in_position() {
+    // GIVEN a hover in Hold after a stick-less takeoff, the sticks streaming centred, then the GPS stops.
+    let mut rig = converged();
+    fly(&mut rig, 0.2, Some(centre()), |_| {});
+    assert_eq!(
+        rig.command(MavCmd::MAV_CMD_NAV_TAKEOFF, [0.0, 0.0, 0.0, NAN, NAN, NAN, 3.0]),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    assert_eq!(
+        rig.command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    let mut held = false;
+    let end = rig.now_us + 30_000_000;
+    while !held {
+        assert!(rig.now_us < end, "takeoff did not complete");
+        fly(&mut rig, 0.1, Some(centre()), |_| {});
+        held = rig.vehicle.commander_output().mode == FlightMode::Hold;
+    }
+    rig.gps_cut = true;
+    let cut_us = rig.now_us;
+    while rig.vehicle.estimate().flags.position_valid {
+        assert!(rig.now_us - cut_us < 2_000_000, "the estimator did not flag the loss within 2 s");
+        fly(&mut rig, 0.02, Some(centre()), |_| {});
+    }
+    // WHEN the pilot asks for Position, then Altitude; THEN Position is refused, Altitude taken.
+    assert_ne!(set_mode(&mut rig, 3.0), MavResult::MAV_RESULT_ACCEPTED);
+    assert_eq!(set_mode(&mut rig, 2.0), MavResult::MAV_RESULT_ACCEPTED);
+    assert_eq!(rig.vehicle.commander().mode(), FlightMode::Altitude);
+}

@@ -37,6 +37,8 @@ pub enum FailsafeAction {
     Land,
     /// Stop the motors (flight termination).
     Terminate,
+    /// The pilot keeps flying, in Altitude mode (a position loss in Position mode).
+    Altitude,
 }
 
 impl FailsafeAction {
@@ -64,6 +66,7 @@ impl FailsafeAction {
             Self::Return => "returning",
             Self::Land => "landing",
             Self::Terminate => "terminating",
+            Self::Altitude => "altitude mode",
         }
     }
 }
@@ -285,7 +288,10 @@ impl super::Commander {
         }
         if delay_over && needs_position {
             self.position_lost = true;
-            self.fail(now, Trigger::PositionLost, Some(FailsafeAction::Land));
+            // A pilot flying Position with fresh sticks keeps flying, in Altitude (PX4's COM_POSCTL_NAVL 0).
+            let pilot = self.state == State::Manual && self.facts.manual_fresh;
+            let action = if pilot { FailsafeAction::Altitude } else { FailsafeAction::Land };
+            self.fail(now, Trigger::PositionLost, Some(action));
         }
     }
 
@@ -324,6 +330,11 @@ impl super::Commander {
             FailsafeAction::Return => (Conditions::RTL_REQUESTED, Action::Return),
             FailsafeAction::Land => (Conditions::LAND_REQUESTED, Action::Land),
             FailsafeAction::Terminate => (Conditions::KILL, Action::Disarm),
+            // The pilot stays in control (the Manual state): only the mode changes.
+            FailsafeAction::Altitude => {
+                self.set_mode(super::FlightMode::Altitude);
+                return;
+            }
         };
         // Already in that mode (holding, returning, landing): nothing to change.
         let _ = self.transition(now, request, what);

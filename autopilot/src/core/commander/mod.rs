@@ -375,6 +375,7 @@ impl Commander {
             .with(C::AUTO_LANDING, self.auto_landing)
             .with(C::MANUAL_REQUESTED, self.pending_manual)
             .with(C::MANUAL_OK, self.facts.manual_fresh)
+            .with(C::ATTITUDE_ONLY, self.pending_manual && self.mode.is_manual() && self.mode != FlightMode::Position)
     }
 
     fn apply(&mut self, now: u64, req: Request) -> Result<(), Refusal> {
@@ -538,7 +539,12 @@ impl Commander {
                 Ok(())
             }
             _ => {
-                self.transition(now, Conditions::MANUAL_REQUESTED, action)?;
+                let attitude_only = mode != FlightMode::Position;
+                self.transition(
+                    now,
+                    Conditions::MANUAL_REQUESTED.with(Conditions::ATTITUDE_ONLY, attitude_only),
+                    action,
+                )?;
                 self.set_mode(mode);
                 Ok(())
             }

@@ -162,11 +162,14 @@ impl Conditions {
     pub const MANUAL_REQUESTED: Self = Self(1 << 19);
     /// The pilot's manual control is fresh (younger than COM_RC_LOSS_T).
     pub const MANUAL_OK: Self = Self(1 << 20);
+    /// The manual mode asked for flies on attitude and height alone (MANUAL, STABILIZED, ALTCTL): it
+    /// needs no position, so a pilot can take over after a GPS loss, as in PX4.
+    pub const ATTITUDE_ONLY: Self = Self(1 << 21);
 
     /// Every bit any row reads.
-    pub const ALL: Self = Self((1 << 21) - 1);
+    pub const ALL: Self = Self((1 << 22) - 1);
     /// How many bits there are.
-    pub const COUNT: u32 = 21;
+    pub const COUNT: u32 = 22;
 
     #[must_use]
     pub const fn or(self, other: Self) -> Self {
@@ -276,6 +279,8 @@ pub const TRANSITIONS: &[Transition] = &[
     // A manual mode, from the ground or the air, only with fresh manual control (a pending one starts once
     // armed).
     row(S::ArmedIdle.set().or(TAKEOFF_HOLD_LAND), C::MANUAL_REQUESTED, C::MANUAL_OK.or(C::ESTIMATOR_OK), S::Manual),
+    // An attitude mode needs no position: only fresh manual control.
+    row(S::ArmedIdle.set().or(TAKEOFF_HOLD_LAND), C::MANUAL_REQUESTED.or(C::ATTITUDE_ONLY), C::MANUAL_OK, S::Manual),
     // Hold interrupts a takeoff, a landing, an automatic mode or the pilot where the vehicle is.
     row(S::Takeoff.set().or(S::Land.set()).or(AUTO).or(S::Manual.set()), C::HOLD_REQUESTED, C::NONE, S::Hold),
     row(
