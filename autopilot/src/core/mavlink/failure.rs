@@ -404,4 +404,58 @@ mod tests {
             assert_eq!(FailureRequest::from_params(bad.0, bad.1, bad.2), None, "{bad:?}");
         }
     }
+
+    proptest::proptest! {
+        /// Any sequence of injections (any unit, type, instance, enabled or not), plant answers (any
+        /// result, wanted or not) and time steps: every injection is answered exactly once (at once, or by
+        /// the plant's ACK, or by the timeout), a retransmission of the waiting one only by that one answer,
+        /// and nothing goes to the plant that is not waiting for its answer.
+        #[test]
+        fn every_injection_gets_exactly_one_answer_whatever_the_plant_does(
+            events in proptest::collection::vec((0u8..4, 0usize..8, 0u8..=4, 0u8..=1, proptest::bool::weighted(0.9), 0u8..5), 1..60)
+        ) {
+            let mut f = FailureInjection::default();
+            let mut now_us = 0;
+            let (mut asked, mut answered, mut waiting_forwarded) = (0usize, 0usize, 0usize);
+            let mut last_asked: Option<FailureRequest> = None;
+            for (what, unit, kind, instance, enabled, result) in events {
+                let results = [
+                    MavResult::MAV_RESULT_ACCEPTED,
+                    MavResult::MAV_RESULT_UNSUPPORTED,
+                    MavResult::MAV_RESULT_DENIED,
+                    MavResult::MAV_RESULT_FAILED,
+                    MavResult::MAV_RESULT_TEMPORARILY_REJECTED,
+                ];
+                // A few units, so that retransmissions and collisions with the waiting one are common.
+                let unit = [unit::GYRO, unit::BARO, unit::GPS, 5, unit::MOTOR, unit::RC_SIGNAL, unit::MAVLINK_SIGNAL, 200][unit];
+                let out = match what {
+                    0 => {
+                        let r = req(unit, kind, instance);
+                        let retransmission = enabled && f.pending.is_some_and(|p| p.request == r && p.from == GCS);
+                        if !retransmission {
+                            asked += 1;
+                        }
+                        last_asked = Some(r);
+                        f.inject(now_us, GCS, r, enabled)
+                    }
+                    1 => f.on_plant_ack(plant_ack(results[usize::from(result)])),
+                    2 => {
+                        now_us += u64::from(result) * 100_000;
+                        f.step(now_us)
+                    }
+                    _ => {
+                        waiting_forwarded += f.take_plant_messages().len();
+                        Vec::new()
+                    }
+                };
+                let acks = out.iter().filter(|m| matches!(m, MavMessage::COMMAND_ACK(_))).count();
+                proptest::prop_assert!(acks <= 1);
+                answered += acks;
+                proptest::prop_assert!(waiting_forwarded <= asked);
+            }
+            // Whatever still waits is answered by the timeout.
+            answered += f.step(now_us + PLANT_ANSWER_TIMEOUT_US).iter().filter(|m| matches!(m, MavMessage::COMMAND_ACK(_))).count();
+            proptest::prop_assert_eq!(answered, asked, "last asked {:?}", last_asked);
+        }
+    }
 }
