@@ -348,6 +348,24 @@ mod tests {
     }
 
     #[test]
+    fn given_the_pack_failed_then_its_monitor_reads_0_percent_at_the_empty_voltage_and_clearing_gives_the_truth_back() {
+        let mut b = Battery::new(BatteryConfig::default()).unwrap();
+        let mut reference = b.clone();
+        b.set_failed(true);
+        for _ in 0..500 {
+            b.step(0.01, &[HOVER_N; 4], true, RHO);
+            reference.step(0.01, &[HOVER_N; 4], true, RHO);
+        }
+        let (failed, truth) = (b.reading(), reference.reading());
+        assert_eq!(failed.remaining, 0.0);
+        assert!((failed.voltage_v - 6.0 * 3.27).abs() < 1e-12, "6 cells at 3.27 V: {}", failed.voltage_v);
+        assert_eq!((failed.current_a, failed.consumed_mah), (truth.current_a, truth.consumed_mah), "as measured");
+        assert!(truth.remaining > 0.9 && truth.voltage_v > 23.0, "the pack itself is nearly full: {truth:?}");
+        b.set_failed(false);
+        assert_eq!(b.reading(), truth, "the pack drained on as before");
+    }
+
+    #[test]
     fn given_bad_values_then_validation_names_them() {
         for (config, name) in [
             (BatteryConfig { cells: 0, ..BatteryConfig::default() }, "battery.cells"),

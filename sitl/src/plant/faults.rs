@@ -351,3 +351,253 @@ impl LinkFaults {
         self.loss_pct > 0.0 && self.rng.random::<f64>() * 100.0 < self.loss_pct
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use autopilot::core::hil::{decode_hil_sensor, encode_hil_sensor};
+    use nalgebra::Vector3;
+
+    use super::*;
+    use crate::link::sensor_fields;
+    use crate::plant::sensors::SensorConfig;
+    use crate::plant::{InitialState, Plant, PlantConfig};
+
+    /// A climbing, turning plant (every sensor's truth changes from sample to sample), with modest
+    /// sensor noise, seed 7.
+    fn moving_plant() -> Plant {
+        let config = PlantConfig { sensors: SensorConfig::modest_noise(), ..PlantConfig::default() };
+        let initial = InitialState {
+            pos_ned_m: Vector3::new(0.0, 0.0, -20.0),
+            vel_ned_mps: Vector3::new(2.0, 1.0, -0.5),
+            rate_frd_radps: Vector3::new(0.1, -0.05, 0.2),
+            ..InitialState::default()
+        };
+        Plant::new(config, &initial, 7).expect("plant")
+    }
+
+    /// PWM that keeps the plant climbing and turning.
+    const PWM_US: [f64; 4] = [1700.0, 1650.0, 1700.0, 1600.0];
+
+    /// The samples of `steps` 2 ms steps, calling `at(k, plant)` before sample k.
+    fn run(steps: usize, mut at: impl FnMut(usize, &mut Plant)) -> Vec<SensorSample> {
+        let mut plant = moving_plant();
+        (0..steps)
+            .map(|k| {
+                at(k, &mut plant);
+                let s = plant.sample_sensors();
+                plant.step(PWM_US, 2000);
+                s
+            })
+            .collect()
+    }
+
+    fn home() -> GeoOrigin {
+        crate::plant::sensors::HomeConfig::default().origin()
+    }
+
+    #[test]
+    fn given_no_fault_then_the_samples_are_the_clean_ones() {
+        let clean = run(300, |_, _| {});
+        assert!(clean.iter().all(|s| s.mag_frd_gauss.is_some() && s.baro.is_some()));
+        assert_eq!(clean.iter().filter(|s| s.gps.is_some()).count(), 6, "10 Hz over 0.6 s");
+    }
+
+    #[test]
+    fn given_gps_off_then_no_fix_is_released_until_it_is_cleared_and_then_the_fixes_are_the_clean_ones() {
+        let clean = run(500, |_, _| {});
+        let set = |k: usize, plant: &mut Plant| match k {
+            150 => plant.sensor_faults_mut().set(Sensor::Gps, Fault::Off).expect("GPS off"),
+            350 => plant.sensor_faults_mut().set(Sensor::Gps, Fault::Ok).expect("GPS ok"),
+            _ => {}
+        };
+        let faulty = run(500, set);
+        for (k, (f, c)) in faulty.iter().zip(&clean).enumerate() {
+            if (150..350).contains(&k) {
+                assert_eq!(f.gps, None, "no fix at sample {k}");
+                assert_eq!(SensorSample { gps: None, ..*f }, SensorSample { gps: None, ..*c }, "the rest unchanged");
+            } else {
+                assert_eq!(f, c, "sample {k} as without the fault");
+            }
+        }
+        assert_eq!(faulty.iter().filter(|s| s.gps.is_some()).count(), 6, "fixes at 0, .., 0.2 and 0.7, .., 0.9 s");
+    }
+
+    #[test]
+    fn given_gps_stuck_then_every_fix_repeats_the_last_one_with_its_own_time() {
+        let clean = run(500, |_, _| {});
+        let faulty = run(500, |k, plant| {
+            if k == 160 {
+                plant.sensor_faults_mut().set(Sensor::Gps, Fault::Stuck).expect("stuck");
+            }
+        });
+        let last_before = clean[150].gps.expect("the fix at 0.3 s");
+        let stuck: Vec<GpsSample> = faulty[160..].iter().filter_map(|s| s.gps).collect();
+        let times: Vec<u64> = (4..10).map(|k| k * 100_000).collect();
+        assert_eq!(stuck.iter().map(|f| f.time_us).collect::<Vec<_>>(), times, "10 Hz on: 0.4 .. 0.9 s");
+        for (fix, &t_us) in stuck.iter().zip(&times) {
+            assert_eq!(*fix, GpsSample { time_us: t_us, ..last_before }, "the 0.3 s fix, bit for bit, new time");
+        }
+        // The vehicle moved meanwhile, so a repeated fix is distinguishable from a fresh one.
+        let fresh = clean[400].gps.expect("fix");
+        assert!((fresh.lat_deg - last_before.lat_deg).abs() > 1e-6, "{fresh:?}");
+    }
+
+    #[test]
+    fn given_gps_wrong_then_each_fix_is_moved_by_the_jump_and_nothing_else() {
+        let clean = run(300, |_, _| {});
+        let faulty = run(300, |k, plant| match k {
+            0 => plant.sensor_faults_mut().set(Sensor::Gps, Fault::Wrong).expect("wrong"),
+            100 => plant.sensor_faults_mut().set_gps_jump_ne_m([-20.0, 30.0]),
+            _ => {}
+        });
+        let home = home();
+        let mut checked = 0;
+        for (k, (f, c)) in faulty.iter().zip(&clean).enumerate() {
+            let (Some(f), Some(c)) = (f.gps, c.gps) else {
+                assert_eq!(f.gps.is_some(), c.gps.is_some());
+                continue;
+            };
+            let want = if k < 100 { Vector3::new(50.0, 0.0, 0.0) } else { Vector3::new(-20.0, 30.0, 0.0) };
+            let jump = home.ned_from_geodetic(f.lat_deg, f.lon_deg, f.alt_amsl_m)
+                - home.ned_from_geodetic(c.lat_deg, c.lon_deg, c.alt_amsl_m);
+            assert!((jump - want).norm() < 1e-6, "sample {k}: jumped {jump:?}, want {want:?}");
+            assert_eq!(
+                (f.time_us, f.vel_ned_mps, f.eph_m, f.fix_type),
+                (c.time_us, c.vel_ned_mps, c.eph_m, c.fix_type)
+            );
+            checked += 1;
+        }
+        assert_eq!(checked, 6);
+    }
+
+    #[test]
+    fn given_baro_and_mag_off_then_they_are_absent_and_hil_sensor_carries_only_the_imu() {
+        let faulty = run(20, |k, plant| {
+            if k == 10 {
+                plant.sensor_faults_mut().set(Sensor::Baro, Fault::Off).expect("baro off");
+                plant.sensor_faults_mut().set(Sensor::Mag, Fault::Off).expect("mag off");
+            }
+        });
+        let s = faulty[10];
+        assert_eq!((s.mag_frd_gauss, s.baro), (None, None));
+        let msg = encode_hil_sensor(&sensor_fields(&s));
+        assert_eq!(msg.fields_updated.bits(), 0x3F, "accel and gyro bits only");
+        let decoded = decode_hil_sensor(&msg);
+        assert_eq!((decoded.mag_frd_gauss, decoded.baro), (None, None), "the autopilot reads no mag, no baro");
+        assert!(faulty[9].mag_frd_gauss.is_some() && faulty[9].baro.is_some());
+        let on = encode_hil_sensor(&sensor_fields(&faulty[9]));
+        assert_eq!(on.fields_updated.bits() & 0x1FC0, 0x1FC0 & !0x400, "mag, pressure, altitude, temperature");
+    }
+
+    #[test]
+    fn given_imu_mag_and_baro_stuck_then_each_repeats_its_last_value_bit_for_bit_with_fresh_times() {
+        let faulty = run(200, |k, plant| {
+            if k == 100 {
+                for sensor in [Sensor::Accel, Sensor::Gyro, Sensor::Mag, Sensor::Baro] {
+                    plant.sensor_faults_mut().set(sensor, Fault::Stuck).expect("stuck");
+                }
+            }
+        });
+        let before = faulty[99];
+        for (k, s) in faulty.iter().enumerate().skip(100) {
+            assert_eq!(s.time_us, k as u64 * 2000, "a fresh time stamp");
+            assert_eq!(s.accel_frd_mps2, before.accel_frd_mps2);
+            assert_eq!(s.gyro_frd_radps, before.gyro_frd_radps);
+            assert_eq!(s.mag_frd_gauss, before.mag_frd_gauss);
+            assert_eq!(s.baro, before.baro);
+        }
+        // Without the fault the noisy readings differ from sample to sample.
+        let clean = run(200, |_, _| {});
+        assert_ne!(clean[150].accel_frd_mps2, clean[99].accel_frd_mps2);
+        assert_ne!(clean[150].baro, clean[99].baro);
+    }
+
+    #[test]
+    fn given_accel_and_gyro_garbage_then_each_axis_is_uniform_within_its_range_and_reruns_are_identical() {
+        let n = 20_000;
+        let garbage = |k: usize, plant: &mut Plant| {
+            if k == 0 {
+                plant.sensor_faults_mut().set(Sensor::Accel, Fault::Garbage).expect("accel garbage");
+                plant.sensor_faults_mut().set(Sensor::Gyro, Fault::Garbage).expect("gyro garbage");
+            }
+        };
+        let samples = run(n, garbage);
+        for (name, half, axis) in [
+            ("accel", ACCEL_GARBAGE_MPS2, samples.iter().map(|s| s.accel_frd_mps2.y).collect::<Vec<_>>()),
+            ("gyro", GYRO_GARBAGE_RADPS, samples.iter().map(|s| s.gyro_frd_radps.z).collect::<Vec<_>>()),
+        ] {
+            assert!(axis.iter().all(|x| x.abs() <= half), "{name} within ±{half}");
+            let mean = axis.iter().sum::<f64>() / n as f64;
+            let sd = (axis.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt();
+            // Uniform on [-h, h]: mean 0, standard deviation h/sqrt(3).
+            assert!(mean.abs() < 0.03 * half, "{name} mean {mean}");
+            assert!((sd / (half / 3.0_f64.sqrt()) - 1.0).abs() < 0.03, "{name} sd {sd}");
+            assert!(axis.iter().any(|x| x.abs() > 0.99 * half), "{name} spans its range");
+        }
+        assert_eq!(run(n, garbage), samples, "the same seed draws the same garbage");
+        // The garbage has its own streams: every other sensor reads as without the fault.
+        let clean = run(n, |_, _| {});
+        for (f, c) in samples.iter().zip(&clean) {
+            assert_eq!((f.mag_frd_gauss, f.baro, f.gps), (c.mag_frd_gauss, c.baro, c.gps));
+        }
+    }
+
+    #[test]
+    fn given_a_fault_cleared_then_the_sensors_read_exactly_as_if_it_never_happened() {
+        let clean = run(400, |_, _| {});
+        let faulty = run(400, |k, plant| {
+            let faults = plant.sensor_faults_mut();
+            let (fault_imu, fault_other) = match k {
+                50 => (Fault::Garbage, Fault::Stuck),
+                120 => (Fault::Stuck, Fault::Off),
+                200 => (Fault::Ok, Fault::Ok),
+                _ => return,
+            };
+            for sensor in [Sensor::Accel, Sensor::Gyro] {
+                faults.set(sensor, fault_imu).expect("imu fault");
+            }
+            for sensor in [Sensor::Gps, Sensor::Baro, Sensor::Mag] {
+                faults.set(sensor, fault_other).expect("fault");
+            }
+        });
+        assert_ne!(faulty[50..200], clean[50..200]);
+        assert_eq!(faulty[200..], clean[200..], "from the clear on, the clean samples");
+    }
+
+    #[test]
+    fn given_a_fault_a_sensor_does_not_have_then_it_is_refused_naming_the_ones_it_has_and_nothing_changes() {
+        let mut faults = SensorFaults::new(1);
+        faults.set(Sensor::Accel, Fault::Stuck).expect("stuck");
+        let err = faults.set(Sensor::Accel, Fault::Off).expect_err("IMU off is not simulated");
+        assert_eq!(err.to_string(), "accel has no off failure (it has: 0 ok, 2 stuck, 3 garbage)");
+        assert_eq!(faults.fault(Sensor::Accel), Fault::Stuck);
+        let err = faults.set(Sensor::Gps, Fault::Garbage).expect_err("no GPS garbage");
+        assert_eq!(err.to_string(), "GPS has no garbage failure (it has: 0 ok, 1 off, 2 stuck, 4 wrong)");
+        assert!(faults.set(Sensor::Baro, Fault::Wrong).is_err() && faults.set(Sensor::Gyro, Fault::Off).is_err());
+        assert_eq!(faults.fault(Sensor::Gps), Fault::Ok);
+        for n in 0..=4 {
+            assert_eq!(Fault::from_failure_type(n).map(Fault::failure_type), Some(n as u8));
+        }
+        assert_eq!(Fault::from_failure_type(5), None, "SLOW is not simulated");
+    }
+
+    #[test]
+    fn given_link_loss_then_the_draws_are_the_seeds_and_none_are_drawn_without_loss() {
+        let draws = |seed: u64| {
+            let mut link = LinkFaults::new(seed);
+            let none: Vec<bool> = (0..100).map(|_| link.draw_lost()).collect();
+            link.set_loss_pct(25.0);
+            let some: Vec<bool> = (0..10_000).map(|_| link.draw_lost()).collect();
+            (none, some)
+        };
+        let (none, some) = draws(3);
+        assert!(none.iter().all(|lost| !lost), "no loss, no draw");
+        let lost = some.iter().filter(|l| **l).count();
+        assert!((2300..=2700).contains(&lost), "{lost} of 10000 at 25 %");
+        assert_eq!(draws(3).1, some, "the same seed loses the same datagrams");
+        assert_ne!(draws(4).1, some);
+        let mut link = LinkFaults::new(1);
+        link.set_loss_pct(f64::NAN);
+        assert!(link.is_clear());
+    }
+}

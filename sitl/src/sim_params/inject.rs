@@ -191,3 +191,135 @@ pub fn failure_sets(
         _ => Err(Refusal::unsupported(format!("failure unit {unit} is not simulated by the plant"))),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The plant's SIM_ parameters after the merge with part D (SIM_MOT1_EFF..SIM_MOT4_EFF), with the weak
+    /// motor's thrust at 0.55 so that its value is seen to be read.
+    fn with_motors(name: &str) -> Option<f32> {
+        match name {
+            "SIM_MOT1_EFF" | "SIM_MOT2_EFF" | "SIM_MOT3_EFF" | "SIM_MOT4_EFF" => Some(1.0),
+            "SIM_MOT_WRNG_EFF" => Some(0.55),
+            n if n.starts_with("SIM_") => Some(0.0),
+            _ => None,
+        }
+    }
+
+    /// A plant without motor parameters.
+    fn without_motors(name: &str) -> Option<f32> {
+        with_motors(name).filter(|_| !name.starts_with("SIM_MOT") || name == "SIM_MOT_WRNG_EFF")
+    }
+
+    fn sets(unit: u32, failure_type: u32, instance: u32) -> Result<Vec<(String, f32)>, Refusal> {
+        let request =
+            FailureRequest { unit: unit as f32, failure_type: failure_type as f32, instance: instance as f32 };
+        failure_sets(&request, with_motors)
+    }
+
+    fn one(name: &str, value: f32) -> Result<Vec<(String, f32)>, MavResult> {
+        Ok(vec![(name.to_owned(), value)])
+    }
+
+    /// The design's table, written out: every implemented (unit, type) and its sets for instance 0.
+    fn table() -> Vec<((u32, u32), Vec<(String, f32)>)> {
+        let motors = |v: f32| (1..=4).map(|n| (format!("SIM_MOT{n}_EFF"), v)).collect::<Vec<_>>();
+        let s = |name: &str, v: f32| vec![(name.to_owned(), v)];
+        vec![
+            ((101, 0), motors(1.0)),
+            ((101, 1), motors(0.0)),
+            ((101, 4), motors(0.55)),
+            ((4, 0), s("SIM_GPS_FAIL", 0.0)),
+            ((4, 1), s("SIM_GPS_FAIL", 1.0)),
+            ((4, 2), s("SIM_GPS_FAIL", 2.0)),
+            ((4, 4), s("SIM_GPS_FAIL", 4.0)),
+            ((3, 0), s("SIM_BARO_FAIL", 0.0)),
+            ((3, 1), s("SIM_BARO_FAIL", 1.0)),
+            ((3, 2), s("SIM_BARO_FAIL", 2.0)),
+            ((2, 0), s("SIM_MAG_FAIL", 0.0)),
+            ((2, 1), s("SIM_MAG_FAIL", 1.0)),
+            ((2, 2), s("SIM_MAG_FAIL", 2.0)),
+            ((1, 0), s("SIM_ACC_FAIL", 0.0)),
+            ((1, 2), s("SIM_ACC_FAIL", 2.0)),
+            ((1, 3), s("SIM_ACC_FAIL", 3.0)),
+            ((0, 0), s("SIM_GYRO_FAIL", 0.0)),
+            ((0, 2), s("SIM_GYRO_FAIL", 2.0)),
+            ((0, 3), s("SIM_GYRO_FAIL", 3.0)),
+            ((100, 0), s("SIM_BAT_FAIL", 0.0)),
+            ((100, 1), s("SIM_BAT_FAIL", 1.0)),
+            ((104, 0), s("SIM_RC_FAIL", 0.0)),
+            ((104, 1), s("SIM_RC_FAIL", 1.0)),
+        ]
+    }
+
+    #[test]
+    fn given_each_row_of_the_table_then_the_request_maps_to_its_sets_and_every_other_type_is_unsupported() {
+        let table = table();
+        let units = [0, 1, 2, 3, 4, 5, 6, 7, 100, 101, 102, 103, 104, 105, 999];
+        for unit in units {
+            for failure_type in 0..=8 {
+                let got = sets(unit, failure_type, 0);
+                match table.iter().find(|(key, _)| *key == (unit, failure_type)) {
+                    Some((_, want)) => assert_eq!(got.as_ref(), Ok(want), "unit {unit} type {failure_type}"),
+                    None => {
+                        let refusal = got.expect_err("not in the table");
+                        assert_eq!(
+                            refusal.result,
+                            MavResult::MAV_RESULT_UNSUPPORTED,
+                            "unit {unit} type {failure_type}"
+                        );
+                        assert!(!refusal.reason.is_empty());
+                    }
+                }
+            }
+        }
+        assert_eq!(table.len(), 23, "every cell of the design's table");
+    }
+
+    #[test]
+    fn given_instances_then_0_and_1_address_a_single_unit_each_motor_is_its_own_and_others_are_unsupported() {
+        assert_eq!(sets(4, 1, 1).map_err(|r| r.result), one("SIM_GPS_FAIL", 1.0));
+        assert_eq!(sets(100, 1, 1).map_err(|r| r.result), one("SIM_BAT_FAIL", 1.0));
+        let two = sets(4, 1, 2).expect_err("one GPS");
+        assert_eq!(
+            (two.result, two.reason.as_str()),
+            (MavResult::MAV_RESULT_UNSUPPORTED, "the plant has one GPS, not instance 2")
+        );
+        assert_eq!(sets(104, 1, 3).expect_err("one radio").result, MavResult::MAV_RESULT_UNSUPPORTED);
+        assert_eq!(sets(101, 4, 3).map_err(|r| r.result), one("SIM_MOT3_EFF", 0.55), "motor 3 alone");
+        assert_eq!(sets(101, 1, 1).map_err(|r| r.result), one("SIM_MOT1_EFF", 0.0));
+        let five = sets(101, 1, 5).expect_err("a quadrotor");
+        assert_eq!(
+            (five.result, five.reason.as_str()),
+            (MavResult::MAV_RESULT_UNSUPPORTED, "the quadrotor has motors 1..4, not 5")
+        );
+    }
+
+    #[test]
+    fn given_values_that_are_not_whole_numbers_then_the_request_is_denied() {
+        for (unit, failure_type, instance, what) in [
+            (f32::NAN, 1.0, 0.0, "failure unit NaN"),
+            (4.5, 1.0, 0.0, "failure unit 4.5"),
+            (4.0, -1.0, 0.0, "failure type -1"),
+            (4.0, 1.0, 0.5, "instance 0.5"),
+            (4.0, f32::INFINITY, 0.0, "failure type inf"),
+        ] {
+            let refusal = failure_sets(&FailureRequest { unit, failure_type, instance }, with_motors).expect_err(what);
+            assert_eq!(refusal.result, MavResult::MAV_RESULT_DENIED, "{what}");
+            assert_eq!(refusal.reason, format!("{what} is not a whole number >= 0"));
+        }
+    }
+
+    #[test]
+    fn given_a_plant_without_motor_parameters_then_every_motor_row_is_unsupported_naming_the_parameter() {
+        for failure_type in [0, 1, 4] {
+            let request = FailureRequest { unit: 101.0, failure_type: failure_type as f32, instance: 2.0 };
+            let refusal = failure_sets(&request, without_motors).expect_err("no SIM_MOT2_EFF");
+            assert_eq!(refusal.result, MavResult::MAV_RESULT_UNSUPPORTED);
+            assert_eq!(refusal.reason, "SIM_MOT2_EFF is not a parameter of this plant");
+        }
+        let gps = FailureRequest { unit: 4.0, failure_type: 1.0, instance: 0.0 };
+        assert_eq!(failure_sets(&gps, without_motors).map_err(|r| r.result), one("SIM_GPS_FAIL", 1.0));
+    }
+}
