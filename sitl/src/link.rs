@@ -47,6 +47,9 @@ use mavlink::dialects::common::{COMMAND_ACK_DATA, COMMAND_LONG_DATA, MavBatteryC
 mod fields;
 pub mod rc;
 
+#[cfg(test)]
+mod fault_tests;
+
 pub use fields::{
     BATTERY_PERIOD_US, battery_due, battery_fields, home_origin, noisy_truth_fields, sensor_fields, truth_fields,
 };
