@@ -9,6 +9,21 @@
 //! four controls are the PWM (µs) of the paper's rotors 1..4 held over the step (1000 µs each when
 //! disarmed; stopped motors draw nothing from the pack).
 //!
+//! Failure injection: a `COMMAND_LONG` `MAV_CMD_INJECT_FAILURE` (420) the autopilot forwards (before its
+//! `HIL_ACTUATOR_CONTROLS`, in the same datagram or write) is applied before the step, through the SIM_
+//! parameter service (`crate::sim_params::SimParamService::inject_failure`: the hook's, else the server's
+//! own), and answered by exactly one `COMMAND_ACK` first in the next sensor datagram sent, before its
+//! `HIL_SENSOR` (a resend of that datagram repeats it, as it repeats everything).
+//!
+//! Delay and loss (SIM_LINK_DELAY, SIM_LINK_LOSS, `crate::plant::LinkFaults`): every step's sample goes
+//! into a delay line and a step sends the newest sample at least the delay old; the reply must echo that
+//! sample's time. When there is none (the delay just grew, or the sample was lost: one draw per step from
+//! the plant seed's own stream while the loss is above 0) the step sends nothing and the plant steps on
+//! the last command, as ESCs hold theirs; samples a falling delay overtakes are dropped. So a loss never
+//! waits for a resend and never deadlocks the lockstep, the autopilot's clock never goes back, and until
+//! the autopilot has first answered every sample goes at once. Without delay and loss the datagrams are
+//! byte for byte what they were without the feature.
+//!
 //! Lockstep: the plant steps only when it has the reply for `t`; replies for other times are stale and
 //! counted. No reply within `resend_timeout` (wall clock, default 1 s): the same datagram is resent and
 //! counted. No reply within `link_lost_timeout` (default 5 s): [`LinkError::LinkLost`]; the autopilot

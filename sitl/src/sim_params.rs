@@ -74,6 +74,12 @@
 //! The radio: SIM_RC_FAIL = 1 silences the airframe's radio receiver ([`crate::plant::Radio`]): no
 //! `RC_CHANNELS` goes to the autopilot from the next plant step until it is set back to 0, to rehearse
 //! RC loss; the held frame (RC input port, schedule) is kept and comes back with it.
+//!
+//! The board's faults: SIM_GPS_FAIL, SIM_BARO_FAIL, SIM_MAG_FAIL, SIM_ACC_FAIL, SIM_GYRO_FAIL (a MAVLink
+//! FAILURE_TYPE each), SIM_GPS_JUMP_N/E, SIM_BAT_FAIL, SIM_MOT_WRNG_EFF, SIM_LINK_DELAY and SIM_LINK_LOSS
+//! (`sim_params/sensors.rs`, start values read from the plant). A MAV_CMD_INJECT_FAILURE the autopilot forwards on
+//! the plant link is a set of these ([`failure_sets`], [`SimParamService::inject_failure`]); what it
+//! changed goes to every live peer at the next poll (an INFO text and the PARAM_VALUEs).
 
 mod inject;
 mod sensors;
@@ -598,8 +604,9 @@ impl SimParamLink {
         }
     }
 
-    /// Read and answer everything waiting, send the truth samples taken since the last poll to the peers
-    /// (one datagram each), then the heartbeat to the live peers if it is due.
+    /// Read and answer everything waiting, send what forwarded failure injections changed and the truth
+    /// samples taken since the last poll to the peers (one datagram each), then the heartbeat to the live
+    /// peers if it is due.
     ///
     /// # Errors
     /// A socket error that is not transient (a client gone away is transient).

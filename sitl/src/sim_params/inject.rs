@@ -212,18 +212,21 @@ mod tests {
         with_motors(name).filter(|_| !name.starts_with("SIM_MOT") || name == "SIM_MOT_WRNG_EFF")
     }
 
-    fn sets(unit: u32, failure_type: u32, instance: u32) -> Result<Vec<(String, f32)>, Refusal> {
+    fn sets(unit: u32, failure_type: u32, instance: u32) -> Result<Sets, Refusal> {
         let request =
             FailureRequest { unit: unit as f32, failure_type: failure_type as f32, instance: instance as f32 };
         failure_sets(&request, with_motors)
     }
 
-    fn one(name: &str, value: f32) -> Result<Vec<(String, f32)>, MavResult> {
+    fn one(name: &str, value: f32) -> Result<Sets, MavResult> {
         Ok(vec![(name.to_owned(), value)])
     }
 
+    /// SIM_ parameter sets, in order.
+    type Sets = Vec<(String, f32)>;
+
     /// The design's table, written out: every implemented (unit, type) and its sets for instance 0.
-    fn table() -> Vec<((u32, u32), Vec<(String, f32)>)> {
+    fn table() -> Vec<((u32, u32), Sets)> {
         let motors = |v: f32| (1..=4).map(|n| (format!("SIM_MOT{n}_EFF"), v)).collect::<Vec<_>>();
         let s = |name: &str, v: f32| vec![(name.to_owned(), v)];
         vec![
