@@ -21,8 +21,8 @@
 //! the plant seed's own stream while the loss is above 0) the step sends nothing and the plant steps on
 //! the last command, as ESCs hold theirs; samples a falling delay overtakes are dropped. So a loss never
 //! waits for a resend and never deadlocks the lockstep, the autopilot's clock never goes back, and until
-//! the autopilot has first answered every sample goes at once. Without delay and loss the datagrams are
-//! byte for byte what they were without the feature.
+//! the autopilot has first answered every sample goes at once. Without delay and loss nothing is drawn
+//! and every step's datagram goes out at once, as before.
 //!
 //! Lockstep: the plant steps only when it has the reply for `t`; replies for other times are stale and
 //! counted. No reply within `resend_timeout` (wall clock, default 1 s): the same datagram is resent and
