@@ -256,6 +256,22 @@ pub static SIM_PARAMS: [SimParamDef; 23] = [
     ),
 ];
 
+/// Whether a set of `name` to `value` can be taken by any plant, without one at hand (a scenario file's
+/// set is checked when it loads): the table's range and kind, and a failure type the sensor has. What only
+/// a given plant can refuse (a battery fault without a pack) is not checked here.
+///
+/// # Errors
+/// The refusal as the SIM_ port words it (`unknown parameter X`, `X: 5 not in 0..4`, `SIM_ACC_FAIL: only
+/// 0 ok, 2 stuck, 3 garbage`).
+pub fn check_set(name: &str, value: f32) -> Result<(), String> {
+    let Some(index) = SIM_PARAMS.iter().position(|d| d.name == name) else {
+        return Err(ParamError::Unknown { name: name.to_owned() }.to_string());
+    };
+    let d = &SIM_PARAMS[index];
+    d.check(value).map_err(|e| e.to_string())?;
+    sensors::check(index, value).map_err(|reason| ParamError::Refused { name: d.name, reason }.to_string())
+}
+
 /// The Beaufort force of a wind speed (m/s): the highest force whose range starts at or below it.
 #[must_use]
 pub fn beaufort_force_of(speed_mps: f64) -> u8 {

@@ -40,6 +40,28 @@ fn fault_index(sensor: Sensor) -> usize {
     }
 }
 
+/// The fault a set of `sensor`'s parameter to `value` (inside the table's range) asks for.
+///
+/// # Errors
+/// The sensor does not have it: what it takes (the port's text is one STATUSTEXT, 50 bytes, after the
+/// parameter's name).
+fn sensor_fault(sensor: Sensor, value: f32) -> Result<Fault, String> {
+    let only = || {
+        let known: Vec<String> = sensor.faults().iter().map(|f| format!("{} {}", f.failure_type(), f.word())).collect();
+        format!("only {}", known.join(", "))
+    };
+    Fault::from_failure_type(value as u32).filter(|f| value >= 0.0 && sensor.faults().contains(f)).ok_or_else(only)
+}
+
+/// Whether any plant takes a set of this module's parameter `index` to `value` (inside the table's
+/// range): a sensor's fault parameter only takes the failure types the sensor has.
+///
+/// # Errors
+/// As [`apply`] for a fault the sensor does not have.
+pub(super) fn check(index: usize, value: f32) -> Result<(), String> {
+    fault_sensor(index).map_or(Ok(()), |sensor| sensor_fault(sensor, value).map(|_| ()))
+}
+
 /// Whether parameter `index` is one of this module's.
 pub(super) fn owns(index: usize) -> bool {
     (idx::GPS_FAIL..=idx::LINK_LOSS_PCT).contains(&index)
@@ -66,9 +88,7 @@ pub(super) fn initial_values(plant: &Plant, values: &mut [f32]) {
 /// nothing changed then.
 pub(super) fn apply(index: usize, value: f32, plant: &mut Plant) -> Result<(), String> {
     if let Some(sensor) = fault_sensor(index) {
-        let refused = || format!("{} has no failure type {value}", sensor.name());
-        let fault = Fault::from_failure_type(value as u32).filter(|_| value >= 0.0).ok_or_else(refused)?;
-        // The port's text is one STATUSTEXT (50 bytes) after the name: say what the sensor takes.
+        let fault = sensor_fault(sensor, value)?;
         return plant.sensor_faults_mut().set(sensor, fault).map_err(|e| format!("only {}", e.known));
     }
     match index {
@@ -228,6 +248,22 @@ mod tests {
         }
         let direct = s.set("SIM_ACC_FAIL", 1.0, &mut plant).expect_err("refused");
         assert_eq!(direct, "SIM_ACC_FAIL: only 0 ok, 2 stuck, 3 garbage", "the same text without the port");
+        // And without a plant, as a scenario file's set is checked when it loads.
+        assert_eq!(super::super::check_set("SIM_ACC_FAIL", 1.0), Err(direct));
+        assert_eq!(
+            super::super::check_set("SIM_GPS_FAIL", 3.0).expect_err("no garbage"),
+            "SIM_GPS_FAIL: only 0 ok, 1 off, 2 stuck, 4 wrong"
+        );
+        assert_eq!(
+            super::super::check_set("SIM_LINK_LOSS", 95.0).expect_err("range"),
+            "SIM_LINK_LOSS: 95 not in 0..90"
+        );
+        assert_eq!(super::super::check_set("SIM_NOPE", 1.0).expect_err("unknown"), "unknown parameter SIM_NOPE");
+        for (name, value) in
+            [("SIM_GPS_FAIL", 4.0), ("SIM_ACC_FAIL", 3.0), ("SIM_BAT_FAIL", 1.0), ("SIM_GUST_SPD", 5.0)]
+        {
+            assert_eq!(super::super::check_set(name, value), Ok(()), "{name} = {value}");
+        }
     }
 
     #[test]
