@@ -141,9 +141,9 @@ mod idx {
     pub const GPS_JUMP_N: usize = 17;
     pub const GPS_JUMP_E: usize = 18;
     pub const BAT_FAIL: usize = 19;
-    pub const MOT_WRONG_EFF: usize = 20;
-    pub const LINK_DELAY_MS: usize = 21;
-    pub const LINK_LOSS_PCT: usize = 22;
+    pub const MOT_WRNG_EFF: usize = 20;
+    pub const LINK_DELAY: usize = 21;
+    pub const LINK_LOSS: usize = 22;
 }
 
 /// A SIM_ parameter: the autopilot's parameter definition with no docs group and no config binding (the

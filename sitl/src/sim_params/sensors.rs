@@ -64,7 +64,7 @@ pub(super) fn check(index: usize, value: f32) -> Result<(), String> {
 
 /// Whether parameter `index` is one of this module's.
 pub(super) fn owns(index: usize) -> bool {
-    (idx::GPS_FAIL..=idx::LINK_LOSS_PCT).contains(&index)
+    (idx::GPS_FAIL..=idx::LINK_LOSS).contains(&index)
 }
 
 /// This module's values in `values` (indexed as [`super::SIM_PARAMS`]) as the plant has them now.
@@ -77,8 +77,8 @@ pub(super) fn initial_values(plant: &Plant, values: &mut [f32]) {
     values[idx::GPS_JUMP_N] = north_m as f32;
     values[idx::GPS_JUMP_E] = east_m as f32;
     values[idx::BAT_FAIL] = f32::from(u8::from(plant.battery().is_some_and(crate::plant::Battery::failed)));
-    values[idx::LINK_DELAY_MS] = (plant.link_faults().delay_us() / 1000) as f32;
-    values[idx::LINK_LOSS_PCT] = plant.link_faults().loss_pct() as f32;
+    values[idx::LINK_DELAY] = (plant.link_faults().delay_us() / 1000) as f32;
+    values[idx::LINK_LOSS] = plant.link_faults().loss_pct() as f32;
 }
 
 /// Apply a set of this module's parameter `index` to `value` (inside the table's range) to `plant`.
@@ -106,10 +106,10 @@ pub(super) fn apply(index: usize, value: f32, plant: &mut Plant) -> Result<(), S
                 plant.battery_mut().set_failed(value == 1.0);
             }
         }
-        idx::LINK_DELAY_MS => plant.link_faults_mut().set_delay_us(value as u64 * 1000),
-        idx::LINK_LOSS_PCT => plant.link_faults_mut().set_loss_pct(f64::from(value)),
+        idx::LINK_DELAY => plant.link_faults_mut().set_delay_us(value as u64 * 1000),
+        idx::LINK_LOSS => plant.link_faults_mut().set_loss_pct(f64::from(value)),
         // SIM_MOT_WRNG_EFF: read by the failure injection, nothing to change now.
-        _ => debug_assert_eq!(index, idx::MOT_WRONG_EFF),
+        _ => debug_assert_eq!(index, idx::MOT_WRNG_EFF),
     }
     Ok(())
 }
