@@ -270,6 +270,17 @@ def test_params_talk_to_the_plant_sim_parameters(sitl, tmp_path):
         "SIM_BAT_DRAIN",
         "SIM_BAT_MIN_PCT",
         "SIM_RC_FAIL",
+        "SIM_GPS_FAIL",
+        "SIM_BARO_FAIL",
+        "SIM_MAG_FAIL",
+        "SIM_ACC_FAIL",
+        "SIM_GYRO_FAIL",
+        "SIM_GPS_JUMP_N",
+        "SIM_GPS_JUMP_E",
+        "SIM_BAT_FAIL",
+        "SIM_MOT_WRNG_EFF",
+        "SIM_LINK_DELAY",
+        "SIM_LINK_LOSS",
     ]
     code, out, err = run_script("params", "--instance", n, "--plant", "set", "SIM_BEAUFORT", 6)
     assert code == 0, out + err

@@ -9,6 +9,21 @@
 //! four controls are the PWM (µs) of the paper's rotors 1..4 held over the step (1000 µs each when
 //! disarmed; stopped motors draw nothing from the pack).
 //!
+//! Failure injection: a `COMMAND_LONG` `MAV_CMD_INJECT_FAILURE` (420) the autopilot forwards (before its
+//! `HIL_ACTUATOR_CONTROLS`, in the same datagram or write) is applied before the step, through the SIM_
+//! parameter service (`crate::sim_params::SimParamService::inject_failure`: the hook's, else the server's
+//! own), and answered by exactly one `COMMAND_ACK` first in the next sensor datagram sent, before its
+//! `HIL_SENSOR` (a resend of that datagram repeats it, as it repeats everything).
+//!
+//! Delay and loss (SIM_LINK_DELAY, SIM_LINK_LOSS, `crate::plant::LinkFaults`): every step's sample goes
+//! into a delay line and a step sends the newest sample at least the delay old; the reply must echo that
+//! sample's time. When there is none (the delay just grew, or the sample was lost: one draw per step from
+//! the plant seed's own stream while the loss is above 0) the step sends nothing and the plant steps on
+//! the last command, as ESCs hold theirs; samples a falling delay overtakes are dropped. So a loss never
+//! waits for a resend and never deadlocks the lockstep, the autopilot's clock never goes back, and until
+//! the autopilot has first answered every sample goes at once. Without delay and loss nothing is drawn
+//! and every step's datagram goes out at once, as before.
+//!
 //! Lockstep: the plant steps only when it has the reply for `t`; replies for other times are stale and
 //! counted. No reply within `resend_timeout` (wall clock, default 1 s): the same datagram is resent and
 //! counted. No reply within `link_lost_timeout` (default 5 s): [`LinkError::LinkLost`]; the autopilot
@@ -30,6 +45,7 @@
 //! system call per step. After every step it is told the step happened ([`PlantHook::stepped`], no system
 //! call), so that it can sample the plant on plant time (the SIM_ port's truth stream).
 
+use std::collections::VecDeque;
 use std::io;
 use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -41,10 +57,13 @@ use autopilot::core::hil::{
     encode_hil_gps, encode_hil_sensor, encode_hil_state_quaternion, encode_odometry, encode_rc_channels,
 };
 use mavlink::MavHeader;
-use mavlink::dialects::common::{MavBatteryChargeState, MavMessage};
+use mavlink::dialects::common::{COMMAND_ACK_DATA, COMMAND_LONG_DATA, MavBatteryChargeState, MavCmd, MavMessage};
 
 mod fields;
 pub mod rc;
+
+#[cfg(test)]
+mod fault_tests;
 
 pub use fields::{
     BATTERY_PERIOD_US, battery_due, battery_fields, home_origin, noisy_truth_fields, sensor_fields, truth_fields,
@@ -52,6 +71,7 @@ pub use fields::{
 
 use crate::pacer::Pacer;
 use crate::plant::{Plant, StateNoise};
+use crate::sim_params::{FailureRequest, Injection, SimParamService};
 
 /// MAVLink system id the plant sends with.
 pub const PLANT_SYSTEM_ID: u8 = 1;
@@ -80,6 +100,14 @@ pub trait PlantHook: Send + std::fmt::Debug {
     /// SIM_ port's truth stream). It must be cheap and make no system call: what it takes goes out at
     /// the next [`PlantHook::poll`].
     fn stepped(&mut self, _plant: &Plant) {}
+
+    /// A `MAV_CMD_INJECT_FAILURE` the autopilot forwarded, received between two steps: a hook that holds
+    /// the plant's SIM_ parameter service applies it there (so its clients see the change) and returns
+    /// what it did; the default, for a hook without one, returns `None` and the server applies it through
+    /// its own service.
+    fn inject_failure(&mut self, _plant: &mut Plant, _request: &FailureRequest) -> Option<Injection> {
+        None
+    }
 }
 
 /// UDP: bound to the plant's port, sending to the autopilot that spoke last.
@@ -254,12 +282,28 @@ pub struct LinkStats {
     pub resends: u64,
     /// Actuator replies for another time than the one awaited.
     pub stale_actuators: u64,
-    /// Well-formed messages other than `HIL_ACTUATOR_CONTROLS` (ignored).
+    /// Well-formed messages other than `HIL_ACTUATOR_CONTROLS` and `MAV_CMD_INJECT_FAILURE` (ignored).
     pub other_messages: u64,
     /// Datagrams without a single good frame.
     pub junk_datagrams: u64,
+    /// Sensor datagrams the link lost (SIM_LINK_LOSS) or dropped for a newer one when the delay fell.
+    pub lost: u64,
+    /// Plant steps taken on the last command because no sensor datagram went out (lost or delayed).
+    pub held_steps: u64,
+    /// `MAV_CMD_INJECT_FAILURE` commands received (each answered by one `COMMAND_ACK`).
+    pub injections: u64,
     /// The frame decoder's counts (garbage, bad CRC, truncated, ...).
     pub decoder: DecoderStats,
+}
+
+/// One plant step's sensor datagram, kept until the plant steps.
+#[derive(Debug)]
+struct Pending {
+    /// Plant time of the step (µs).
+    time_us: u64,
+    /// The time of the `HIL_SENSOR` sent (the reply echoes it) and the datagram; `None` when nothing was
+    /// sent this step (lost or delayed: the plant steps on the last command).
+    sent: Option<(u64, Vec<u8>)>,
 }
 
 /// The plant behind a [`Transport`], in lockstep with the autopilot.
@@ -275,7 +319,13 @@ pub struct PlantServer<T: Transport> {
     last_command: Option<ActuatorCommand>,
     /// The sensor datagram of the current plant time, kept until the plant steps (a `step` retried after
     /// an error resends it rather than sampling the sensors twice).
-    pending: Option<(u64, Vec<u8>)>,
+    pending: Option<Pending>,
+    /// Samples delayed by SIM_LINK_DELAY: (plant time, messages), oldest first.
+    delay_line: VecDeque<(u64, Vec<MavMessage>)>,
+    /// `COMMAND_ACK`s owed to the autopilot, sent before the next `HIL_SENSOR`.
+    acks: Vec<MavMessage>,
+    /// The server's own SIM_ parameter service, for injections when no hook holds one.
+    own_params: Option<SimParamService>,
     /// The real-time pacer, from the first paced step.
     pacer: Option<Pacer>,
     /// Polled between steps (see [`PlantHook`]), with the wall time of its last poll.
@@ -308,6 +358,9 @@ impl<T: Transport> PlantServer<T> {
             sequence: 0,
             last_command: None,
             pending: None,
+            delay_line: VecDeque::new(),
+            acks: Vec::new(),
+            own_params: None,
             pacer: None,
             hook: None,
             rc_in: None,
@@ -412,35 +465,35 @@ impl<T: Transport> PlantServer<T> {
     }
 
     /// Sample the plant now (once per step: sampling advances the sensor noise and GPS schedule) and
-    /// build the datagram: `HIL_GPS` if a fix is released, `HIL_STATE_QUATERNION` (truth, with
+    /// build the step's messages: `HIL_GPS` if a fix is released, `HIL_STATE_QUATERNION` (truth, with
     /// [`LinkConfig::truth_noise`] added), `ODOMETRY`, `BATTERY_STATUS`, `RC_CHANNELS` when due, `HIL_SENSOR`.
-    fn sensor_datagram(&mut self) -> Result<Vec<u8>, LinkError> {
+    fn sensor_messages(&mut self) -> Result<Vec<MavMessage>, LinkError> {
         let truth = self.plant.truth();
         let sample = self.plant.sample_sensors();
-        let mut datagram = Vec::with_capacity(256);
+        let mut messages = Vec::with_capacity(6);
         if let Some(gps) = &sample.gps {
-            let msg = MavMessage::HIL_GPS(encode_hil_gps(gps));
-            datagram.extend(self.frame(&msg));
-            self.stats.gps_sent += 1;
+            messages.push(MavMessage::HIL_GPS(encode_hil_gps(gps)));
         }
         let airspeed_mps = (truth.vel_ned_mps - truth.wind_ned_mps).norm();
         let reported = match self.config.truth_noise {
             Some(noise) => noisy_truth_fields(&self.plant.sample_state_of(&truth, &noise)),
             None => truth_fields(&truth),
         };
-        let msg = MavMessage::HIL_STATE_QUATERNION(encode_hil_state_quaternion(&reported, &self.home, airspeed_mps));
-        datagram.extend(self.frame(&msg));
+        messages.push(MavMessage::HIL_STATE_QUATERNION(encode_hil_state_quaternion(
+            &reported,
+            &self.home,
+            airspeed_mps,
+        )));
         if self.config.truth_odometry {
-            datagram.extend(self.frame(&MavMessage::ODOMETRY(encode_odometry(&reported))));
+            messages.push(MavMessage::ODOMETRY(encode_odometry(&reported)));
         }
         if let Some(battery) = self.plant.battery()
             && battery_due(truth.time_us, self.config.dt_us)
         {
-            let msg = MavMessage::BATTERY_STATUS(encode_battery_status(
+            messages.push(MavMessage::BATTERY_STATUS(encode_battery_status(
                 &battery_fields(&battery.reading()),
                 MavBatteryChargeState::MAV_BATTERY_CHARGE_STATE_UNDEFINED,
-            ));
-            datagram.extend(self.frame(&msg));
+            )));
         }
         if rc::rc_due(truth.time_us, self.config.dt_us) {
             if let Some(port) = &mut self.rc_in
@@ -450,17 +503,86 @@ impl<T: Transport> PlantServer<T> {
             }
             if let Some(frame) = self.plant.radio().output(truth.time_us) {
                 let time_boot_ms = u32::try_from(truth.time_us / 1000).unwrap_or(u32::MAX);
-                datagram.extend(self.frame(&MavMessage::RC_CHANNELS(encode_rc_channels(&frame, time_boot_ms))));
-                self.stats.rc_sent += 1;
+                messages.push(MavMessage::RC_CHANNELS(encode_rc_channels(&frame, time_boot_ms)));
             }
         }
-        let msg = MavMessage::HIL_SENSOR(encode_hil_sensor(&sensor_fields(&sample)));
-        datagram.extend(self.frame(&msg));
-        Ok(datagram)
+        messages.push(MavMessage::HIL_SENSOR(encode_hil_sensor(&sensor_fields(&sample))));
+        Ok(messages)
+    }
+
+    /// The datagram that carries `messages` (a step's, `HIL_SENSOR` last), after the `COMMAND_ACK`s owed
+    /// to the autopilot; counts what it sends.
+    fn datagram(&mut self, messages: &[MavMessage]) -> Vec<u8> {
+        let mut datagram = Vec::with_capacity(256);
+        for ack in std::mem::take(&mut self.acks) {
+            datagram.extend(self.frame(&ack));
+        }
+        for msg in messages {
+            match msg {
+                MavMessage::HIL_GPS(_) => self.stats.gps_sent += 1,
+                MavMessage::RC_CHANNELS(_) => self.stats.rc_sent += 1,
+                _ => {}
+            }
+            datagram.extend(self.frame(msg));
+        }
+        datagram
+    }
+
+    /// What the link delivers this step of plant time `t`, whose messages are `messages`: the newest
+    /// sample whose delay has passed (its `HIL_SENSOR` time and messages), or `None` (lost, or still on
+    /// its way) when the plant steps on the last actuators. See the module docs.
+    fn deliver(&mut self, t: u64, messages: Vec<MavMessage>) -> Option<(u64, Vec<MavMessage>)> {
+        let faults = self.plant.link_faults_mut();
+        if self.last_command.is_none() {
+            // Until the autopilot first answers there are no actuators to hold: every sample goes at once.
+            self.delay_line.clear();
+            return Some((t, messages));
+        }
+        if faults.is_clear() && self.delay_line.is_empty() {
+            return Some((t, messages));
+        }
+        if faults.draw_lost() {
+            self.stats.lost += 1;
+        } else {
+            self.delay_line.push_back((t, messages));
+        }
+        let delay_us = faults.delay_us();
+        let mut delivered = None;
+        while self.delay_line.front().is_some_and(|(s, _)| s + delay_us <= t) {
+            if delivered.replace(self.delay_line.pop_front()).flatten().is_some() {
+                // A newer sample is due too (the delay fell): the older one is dropped.
+                self.stats.lost += 1;
+            }
+        }
+        delivered.flatten()
+    }
+
+    /// Apply a `MAV_CMD_INJECT_FAILURE` the autopilot forwarded (through the hook's SIM_ parameter
+    /// service, else the server's own) and owe `sender` its `COMMAND_ACK`.
+    fn inject_failure(&mut self, command: &COMMAND_LONG_DATA, sender: &MavHeader) {
+        let request = FailureRequest { unit: command.param1, failure_type: command.param2, instance: command.param3 };
+        let plant = &mut self.plant;
+        let hooked = self.hook.as_mut().and_then(|(hook, _)| hook.inject_failure(plant, &request));
+        let injection = hooked.unwrap_or_else(|| {
+            self.own_params
+                .get_or_insert_with(|| SimParamService::new(PLANT_SYSTEM_ID, plant))
+                .inject_failure(&request, plant)
+        });
+        tracing::info!(t_us = self.plant.time_us(), "plant: {} ({:?})", injection.text, injection.result);
+        self.stats.injections += 1;
+        self.acks.push(MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+            command: MavCmd::MAV_CMD_INJECT_FAILURE,
+            result: injection.result,
+            target_system: u8::try_from(sender.system_id).unwrap_or(0),
+            target_component: sender.component_id,
+            ..COMMAND_ACK_DATA::default()
+        }));
     }
 
     /// One lockstep cycle: send the sensors for the current plant time `t`, wait for the reply for `t`,
-    /// (pace,) step the plant by `dt_us` with its PWM. Returns the command applied.
+    /// (pace,) step the plant by `dt_us` with its PWM. Returns the command applied. With the link's delay
+    /// or loss (SIM_LINK_DELAY, SIM_LINK_LOSS) the datagram sent may be an older sample (the reply
+    /// must echo its time) or none, when the plant steps on the last command.
     ///
     /// # Errors
     /// [`LinkError::Io`] from the transport, [`LinkError::NoPeer`] / [`LinkError::LinkLost`] on timeouts,
@@ -479,15 +601,22 @@ impl<T: Transport> PlantServer<T> {
     /// [`LinkError::Io`] from the transport.
     pub fn begin_step(&mut self) -> Result<(), LinkError> {
         let t = self.plant.time_us();
-        let datagram = match self.pending.take() {
-            Some((time_us, datagram)) if time_us == t => datagram,
+        let pending = match self.pending.take() {
+            Some(pending) if pending.time_us == t => pending,
             _ => {
-                self.stats.sensor_sent += 1;
-                self.sensor_datagram()?
+                let messages = self.sensor_messages()?;
+                let sent = self.deliver(t, messages).map(|(sensor_us, messages)| {
+                    self.stats.sensor_sent += 1;
+                    (sensor_us, self.datagram(&messages))
+                });
+                Pending { time_us: t, sent }
             }
         };
-        let sent = self.transport.send(&datagram);
-        self.pending = Some((t, datagram));
+        let sent = match &pending.sent {
+            Some((_, datagram)) => self.transport.send(datagram),
+            None => Ok(()),
+        };
+        self.pending = Some(pending);
         Ok(sent?)
     }
 
@@ -498,14 +627,25 @@ impl<T: Transport> PlantServer<T> {
     /// As [`PlantServer::step`].
     pub fn end_step(&mut self, stop: &AtomicBool) -> Result<ActuatorCommand, LinkError> {
         let t = self.plant.time_us();
-        if self.pending.as_ref().is_none_or(|(time_us, _)| *time_us != t) {
+        if self.pending.as_ref().is_none_or(|p| p.time_us != t) {
             self.begin_step()?;
         }
-        let Some((_, datagram)) = self.pending.take() else { return Err(LinkError::Stopped) };
-        let reply = self.wait_for_reply(t, &datagram, stop);
-        self.pending = Some((t, datagram));
-        let command = reply?;
-        self.pending = None;
+        let Some(pending) = self.pending.take() else { return Err(LinkError::Stopped) };
+        let command = match &pending.sent {
+            Some((sensor_us, datagram)) => {
+                let reply = self.wait_for_reply(*sensor_us, datagram, stop);
+                if reply.is_err() {
+                    self.pending = Some(pending);
+                }
+                reply?
+            }
+            None => {
+                // Nothing reached the autopilot this step: the board holds its last command (a step is
+                // only held once the autopilot has answered, see `deliver`).
+                self.stats.held_steps += 1;
+                self.last_command.ok_or(LinkError::Stopped)?
+            }
+        };
         self.pace(t)?;
         self.plant.set_motors_running(command.motors_running());
         self.plant.step(command.effective_pwm_us(), self.config.dt_us);
@@ -578,6 +718,12 @@ impl<T: Transport> PlantServer<T> {
             }
             let mut reply = None;
             for frame in &frames {
+                if let MavMessage::COMMAND_LONG(command) = &frame.message
+                    && command.command == MavCmd::MAV_CMD_INJECT_FAILURE
+                {
+                    self.inject_failure(command, &frame.header);
+                    continue;
+                }
                 match decode_hil_message(&frame.message, &self.home) {
                     Some(HilInput::Actuators(cmd)) if cmd.time_us == t && reply.is_none() => reply = Some(cmd),
                     Some(HilInput::Actuators(_)) => self.stats.stale_actuators += 1,
@@ -887,7 +1033,8 @@ mod tests {
         let fields = sensor_fields(&sample);
         assert_eq!(fields.time_us, 0);
         assert_eq!(fields.accel_frd_mps2, sample.accel_frd_mps2);
-        assert_eq!(fields.baro.map(|b| b.pressure_alt_m), Some(sample.baro.pressure_alt_m));
+        assert_eq!(fields.baro.map(|b| b.pressure_alt_m), sample.baro.map(|b| b.pressure_alt_m));
+        assert!(fields.baro.is_some() && fields.mag_frd_gauss.is_some());
         // The plant's GPS sample is the protocol's (`autopilot::core::estimator::GpsSample`): no mapping.
         let gps = sample.gps.expect("GPS at t = 0");
         assert_eq!(gps.satellites, plant.config().sensors.gps.satellites_visible);

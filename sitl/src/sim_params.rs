@@ -74,9 +74,18 @@
 //! The radio: SIM_RC_FAIL = 1 silences the airframe's radio receiver ([`crate::plant::Radio`]): no
 //! `RC_CHANNELS` goes to the autopilot from the next plant step until it is set back to 0, to rehearse
 //! RC loss; the held frame (RC input port, schedule) is kept and comes back with it.
+//!
+//! The board's faults: SIM_GPS_FAIL, SIM_BARO_FAIL, SIM_MAG_FAIL, SIM_ACC_FAIL, SIM_GYRO_FAIL (a MAVLink
+//! FAILURE_TYPE each), SIM_GPS_JUMP_N/E, SIM_BAT_FAIL, SIM_MOT_WRNG_EFF, SIM_LINK_DELAY and SIM_LINK_LOSS
+//! (`sim_params/sensors.rs`, start values read from the plant). A MAV_CMD_INJECT_FAILURE the autopilot forwards on
+//! the plant link is a set of these ([`failure_sets`], [`SimParamService::inject_failure`]); what it
+//! changed goes to every live peer at the next poll (an INFO text and the PARAM_VALUEs).
 
+mod inject;
+mod sensors;
 mod truth;
 
+pub use inject::{FailureRequest, Injection, Refusal, failure_sets, failure_unit};
 pub use truth::{TRUTH_PERIOD_US, TRUTH_RATE_HZ, TruthStream, sim_state, truth_messages};
 
 use std::io;
@@ -84,9 +93,12 @@ use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
 use std::time::{Duration, Instant};
 
 use autopilot::core::hil::{FrameDecoder, encode_frame_v1, encode_frame_v2};
-use autopilot::core::mavlink::params::{Applied, ParamService};
-use autopilot::core::params::{ParamDef, ParamKind, ParamStore};
-use mavlink::dialects::common::{HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavState, MavType};
+use autopilot::core::mavlink::params::{Applied, ParamService, param_value};
+use autopilot::core::mavlink::{statustext, statustext_chunks};
+use autopilot::core::params::{ParamDef, ParamError, ParamKind, ParamStore};
+use mavlink::dialects::common::{
+    HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavResult, MavSeverity, MavState, MavType,
+};
 use mavlink::{MavHeader, MavlinkVersion};
 use nalgebra::Vector3;
 
@@ -121,6 +133,17 @@ mod idx {
     pub const BAT_DRAIN: usize = 9;
     pub const BAT_MIN_PCT: usize = 10;
     pub const RC_FAIL: usize = 11;
+    pub const GPS_FAIL: usize = 12;
+    pub const BARO_FAIL: usize = 13;
+    pub const MAG_FAIL: usize = 14;
+    pub const ACC_FAIL: usize = 15;
+    pub const GYRO_FAIL: usize = 16;
+    pub const GPS_JUMP_N: usize = 17;
+    pub const GPS_JUMP_E: usize = 18;
+    pub const BAT_FAIL: usize = 19;
+    pub const MOT_WRNG_EFF: usize = 20;
+    pub const LINK_DELAY: usize = 21;
+    pub const LINK_LOSS: usize = 22;
 }
 
 /// A SIM_ parameter: the autopilot's parameter definition with no docs group and no config binding (the
@@ -168,7 +191,7 @@ const fn whole(name: &'static str, default: f32, min: f32, max: f32, description
 
 /// The SIM_ parameters. The defaults are the values with no wind configured (the plant's configured wind
 /// overrides them at start).
-pub static SIM_PARAMS: [SimParamDef; 12] = [
+pub static SIM_PARAMS: [SimParamDef; 23] = [
     real("SIM_WIND_N", 0.0, -30.0, 30.0, "m/s", "Steady wind toward north (NED)"),
     real("SIM_WIND_E", 0.0, -30.0, 30.0, "m/s", "Steady wind toward east (NED)"),
     real("SIM_WIND_D", 0.0, -10.0, 10.0, "m/s", "Steady wind downward (NED)"),
@@ -200,7 +223,54 @@ pub static SIM_PARAMS: [SimParamDef; 12] = [
         1.0,
         "1: the radio receiver has no output (no RC_CHANNELS sent), to rehearse RC loss",
     ),
+    whole("SIM_GPS_FAIL", 0.0, 0.0, 4.0, "GPS fault (MAVLink FAILURE_TYPE): 0 ok, 1 off, 2 stuck, 4 wrong (jumped)"),
+    whole("SIM_BARO_FAIL", 0.0, 0.0, 2.0, "Barometer fault (MAVLink FAILURE_TYPE): 0 ok, 1 off, 2 stuck"),
+    whole("SIM_MAG_FAIL", 0.0, 0.0, 2.0, "Magnetometer fault (MAVLink FAILURE_TYPE): 0 ok, 1 off, 2 stuck"),
+    whole(
+        "SIM_ACC_FAIL",
+        0.0,
+        0.0,
+        3.0,
+        "Accelerometer fault (MAVLink FAILURE_TYPE): 0 ok, 2 stuck, 3 garbage (±16 g)",
+    ),
+    whole("SIM_GYRO_FAIL", 0.0, 0.0, 3.0, "Gyro fault (MAVLink FAILURE_TYPE): 0 ok, 2 stuck, 3 garbage (±35 rad/s)"),
+    real("SIM_GPS_JUMP_N", 50.0, -10_000.0, 10_000.0, "m", "North offset of the fix while SIM_GPS_FAIL = 4 (wrong)"),
+    real("SIM_GPS_JUMP_E", 0.0, -10_000.0, 10_000.0, "m", "East offset of the fix while SIM_GPS_FAIL = 4 (wrong)"),
+    whole("SIM_BAT_FAIL", 0.0, 0.0, 1.0, "1: the battery monitor reports the pack empty (0 %, empty voltage), as PX4"),
+    real(
+        "SIM_MOT_WRNG_EFF",
+        0.7,
+        0.0,
+        1.0,
+        "",
+        "Thrust a motor keeps after an injected motor WRONG failure (fraction of nominal)",
+    ),
+    whole("SIM_LINK_DELAY", 0.0, 0.0, 1000.0, "Added delay of the plant's sensor datagrams to the autopilot (ms)"),
+    real(
+        "SIM_LINK_LOSS",
+        0.0,
+        0.0,
+        90.0,
+        "%",
+        "Chance that a sensor datagram to the autopilot is lost (the plant steps on with the last actuators)",
+    ),
 ];
+
+/// Whether a set of `name` to `value` can be taken by any plant, without one at hand (a scenario file's
+/// set is checked when it loads): the table's range and kind, and a failure type the sensor has. What only
+/// a given plant can refuse (a battery fault without a pack) is not checked here.
+///
+/// # Errors
+/// The refusal as the SIM_ port words it (`unknown parameter X`, `X: 5 not in 0..4`, `SIM_ACC_FAIL: only
+/// 0 ok, 2 stuck, 3 garbage`).
+pub fn check_set(name: &str, value: f32) -> Result<(), String> {
+    let Some(index) = SIM_PARAMS.iter().position(|d| d.name == name) else {
+        return Err(ParamError::Unknown { name: name.to_owned() }.to_string());
+    };
+    let d = &SIM_PARAMS[index];
+    d.check(value).map_err(|e| e.to_string())?;
+    sensors::check(index, value).map_err(|reason| ParamError::Refused { name: d.name, reason }.to_string())
+}
 
 /// The Beaufort force of a wind speed (m/s): the highest force whose range starts at or below it.
 #[must_use]
@@ -250,6 +320,7 @@ impl SimParamService {
         values[idx::BAT_DRAIN] = battery.drain_s as f32;
         values[idx::BAT_MIN_PCT] = (battery.min_remaining * 100.0) as f32;
         values[idx::RC_FAIL] = f32::from(u8::from(plant.radio().failed()));
+        sensors::initial_values(plant, &mut values);
         Self {
             system_id,
             store: ParamStore::from_fn(&SIM_PARAMS, |i, _| values[i]),
@@ -267,6 +338,65 @@ impl SimParamService {
     #[must_use]
     pub fn get(&self, name: &str) -> Option<f32> {
         self.store.get(name)
+    }
+
+    /// Set parameter `name` to `value` as a ground station's PARAM_SET does (the table's check, then the
+    /// plant's), acting from the plant's next step: the messages for the port's clients (a note, then the
+    /// PARAM_VALUE of it and of any parameter that follows it).
+    ///
+    /// # Errors
+    /// The refusal as the port words it (`unknown parameter X`, `X: 5 not in 0..4`, `X: the plant refused
+    /// it: ...`); nothing changed then.
+    pub fn set(&mut self, name: &str, value: f32, plant: &mut Plant) -> Result<Vec<MavMessage>, String> {
+        let index =
+            self.store.index_of(name).ok_or_else(|| ParamError::Unknown { name: name.to_owned() }.to_string())?;
+        let d = &SIM_PARAMS[index];
+        d.check(value).map_err(|e| e.to_string())?;
+        let applied = apply(&mut self.store, index, value, plant)
+            .map_err(|reason| ParamError::Refused { name: d.name, reason }.to_string())?;
+        self.store.set_index(index, value).map_err(|e| e.to_string())?;
+        let mut out: Vec<MavMessage> =
+            applied.note.map(|text| statustext(MavSeverity::MAV_SEVERITY_INFO, &text)).into_iter().collect();
+        out.extend(std::iter::once(index).chain(applied.also_changed).filter_map(|i| param_value(&self.store, i)));
+        Ok(out)
+    }
+
+    /// Answer a MAV_CMD_INJECT_FAILURE forwarded by the autopilot ([`failure_sets`]): apply its sets in
+    /// order through [`SimParamService::set`], all or none (a set the plant refuses undoes the ones before
+    /// it and answers DENIED).
+    pub fn inject_failure(&mut self, request: &FailureRequest, plant: &mut Plant) -> Injection {
+        let refused = |r: Refusal| {
+            let text = format!("failure injection refused: {}", r.reason);
+            let messages = statustext_chunks(MavSeverity::MAV_SEVERITY_WARNING, &text, 1);
+            Injection { result: r.result, text, messages }
+        };
+        let sets = match failure_sets(request, |name| self.get(name)) {
+            Ok(sets) => sets,
+            Err(r) => return refused(r),
+        };
+        let mut done: Vec<(&str, f32)> = Vec::new();
+        let mut messages = Vec::new();
+        for (name, value) in &sets {
+            let old = self.get(name).unwrap_or(*value);
+            match self.set(name, *value, plant) {
+                Ok(echo) => {
+                    messages.extend(echo);
+                    done.push((name, old));
+                }
+                Err(reason) => {
+                    for (name, old) in done.into_iter().rev() {
+                        // Back to a value the plant had: accepted as it was before.
+                        let _ = self.set(name, old, plant);
+                    }
+                    return refused(Refusal { result: MavResult::MAV_RESULT_DENIED, reason });
+                }
+            }
+        }
+        let list: Vec<String> = sets.iter().map(|(name, value)| format!("{name} = {value}")).collect();
+        let text = format!("failure injected: {}", list.join(", "));
+        let mut out = statustext_chunks(MavSeverity::MAV_SEVERITY_INFO, &text, 1);
+        out.extend(messages);
+        Injection { result: MavResult::MAV_RESULT_ACCEPTED, text, messages: out }
     }
 
     /// The replies to one received message (in order); applies a set to `plant`'s wind at once, so it
@@ -333,6 +463,7 @@ fn apply(store: &mut ParamStore<(), ()>, index: usize, value: f32, plant: &mut P
         idx::BAT_DRAIN => plant.battery_mut().set_drain_s(f64::from(value)),
         idx::BAT_MIN_PCT => plant.battery_mut().set_min_remaining(f64::from(value) / 100.0),
         idx::RC_FAIL => plant.radio_mut().set_failed(value == 1.0),
+        i if sensors::owns(i) => sensors::apply(i, value, plant)?,
         idx::TURB if value != value_of(store, idx::TURB) => {
             if value == 1.0 {
                 if plant.wind().gust().is_none() {
@@ -423,6 +554,8 @@ pub struct SimParamLink {
     next_heartbeat: Instant,
     sequence: u8,
     buf: Vec<u8>,
+    /// Messages for every live peer at the next poll (what a forwarded failure injection changed).
+    outbox: Vec<MavMessage>,
 }
 
 impl SimParamLink {
@@ -443,6 +576,7 @@ impl SimParamLink {
             next_heartbeat: Instant::now(),
             sequence: 0,
             buf: vec![0; 65_536],
+            outbox: Vec::new(),
         })
     }
 
@@ -486,8 +620,9 @@ impl SimParamLink {
         }
     }
 
-    /// Read and answer everything waiting, send the truth samples taken since the last poll to the peers
-    /// (one datagram each), then the heartbeat to the live peers if it is due.
+    /// Read and answer everything waiting, send what forwarded failure injections changed and the truth
+    /// samples taken since the last poll to the peers (one datagram each), then the heartbeat to the live
+    /// peers if it is due.
     ///
     /// # Errors
     /// A socket error that is not transient (a client gone away is transient).
@@ -512,6 +647,12 @@ impl SimParamLink {
                 for reply in self.service.on_message(&frame.message, plant) {
                     self.send(&reply, from, frame.version)?;
                 }
+            }
+        }
+        let outbox = std::mem::take(&mut self.outbox);
+        for p in self.peers.clone() {
+            for msg in &outbox {
+                self.send(msg, p.addr, p.version)?;
             }
         }
         let samples = self.truth.take();
@@ -541,6 +682,13 @@ impl PlantHook for SimParamLink {
     fn stepped(&mut self, plant: &Plant) {
         self.truth.stepped(plant, !self.peers.is_empty());
     }
+
+    /// Applied through the port's service; what changed goes to the port's clients at the next poll.
+    fn inject_failure(&mut self, plant: &mut Plant, request: &FailureRequest) -> Option<Injection> {
+        let injection = self.service.inject_failure(request, plant);
+        self.outbox.extend(injection.messages.iter().cloned());
+        Some(injection)
+    }
 }
 
 #[cfg(test)]
@@ -559,6 +707,8 @@ mod tests {
     }
 
     const SYS: u8 = 3;
+    /// `param_count` of every PARAM_VALUE: the table's length.
+    const COUNT: u16 = SIM_PARAMS.len() as u16;
 
     fn plant_with(wind: WindConfig) -> Plant {
         Plant::new(PlantConfig { wind, ..PlantConfig::default() }, &InitialState::default(), 1).expect("plant")
@@ -655,7 +805,18 @@ mod tests {
                 "SIM_BEAUFORT",
                 "SIM_BAT_DRAIN",
                 "SIM_BAT_MIN_PCT",
-                "SIM_RC_FAIL"
+                "SIM_RC_FAIL",
+                "SIM_GPS_FAIL",
+                "SIM_BARO_FAIL",
+                "SIM_MAG_FAIL",
+                "SIM_ACC_FAIL",
+                "SIM_GYRO_FAIL",
+                "SIM_GPS_JUMP_N",
+                "SIM_GPS_JUMP_E",
+                "SIM_BAT_FAIL",
+                "SIM_MOT_WRNG_EFF",
+                "SIM_LINK_DELAY",
+                "SIM_LINK_LOSS"
             ]
         );
         let spd = &SIM_PARAMS[idx::GUST_SPD];
@@ -678,12 +839,12 @@ mod tests {
         assert_eq!(s.get("SIM_RC_FAIL"), Some(0.0));
         assert_eq!(
             values(&s.on_message(&set_msg("SIM_RC_FAIL", 1.0), &mut plant)),
-            [("SIM_RC_FAIL".into(), 1.0, 11, 12)]
+            [("SIM_RC_FAIL".into(), 1.0, 11, COUNT)]
         );
         assert!(plant.radio().failed());
         assert_eq!(plant.radio().output(plant.time_us()), None);
         let refused = s.on_message(&set_msg("SIM_RC_FAIL", 2.0), &mut plant);
-        assert_eq!(values(&refused), [("SIM_RC_FAIL".into(), 1.0, 11, 12)], "refused: the value echoed unchanged");
+        assert_eq!(values(&refused), [("SIM_RC_FAIL".into(), 1.0, 11, COUNT)], "refused: the value echoed unchanged");
         assert!(plant.radio().failed());
         s.on_message(&set_msg("SIM_RC_FAIL", 0.0), &mut plant);
         assert_eq!(plant.radio().output(plant.time_us()), Some(frame), "the held frame comes back");
@@ -703,7 +864,14 @@ mod tests {
         .expect("toml");
         let s = SimParamService::new(SYS, &plant_with(windy));
         let got: Vec<f32> = (0..SIM_PARAMS.len()).map(|i| s.value(i).expect("value")).collect();
-        assert_eq!(got, [1.0, -2.0, 0.5, 3.0, 0.0, 2.0, 0.0, 1.0, 2.0, 0.0, 0.0, 0.0]);
+        assert_eq!(
+            got,
+            [
+                1.0, -2.0, 0.5, 3.0, 0.0, 2.0, 0.0, 1.0, 2.0, 0.0, 0.0, 0.0, // wind, pack, radio
+                0.0, 0.0, 0.0, 0.0, 0.0, 50.0, 0.0, 0.0, 0.7, 0.0,
+                0.0 // no faults, the default jump and weak motor
+            ]
+        );
     }
 
     #[test]
@@ -738,7 +906,19 @@ mod tests {
                 (int, 4),
                 (real, 0.0_f32.to_bits()),
                 (real, 0.0_f32.to_bits()),
-                (int, 0)
+                (int, 0),
+                // The faults: five sensors' FAILURE_TYPE, the jump, the pack, the weak motor, the link.
+                (int, 0),
+                (int, 0),
+                (int, 0),
+                (int, 0),
+                (int, 0),
+                (real, 50.0_f32.to_bits()),
+                (real, 0.0_f32.to_bits()),
+                (int, 0),
+                (real, 0.7_f32.to_bits()),
+                (int, 0),
+                (real, 0.0_f32.to_bits())
             ]
         );
         // Another system's request, or one for the autopilot's component, is not ours.
@@ -765,10 +945,10 @@ mod tests {
         };
         assert_eq!(
             values(&s.on_message(&read(-1, "SIM_GUST_RISE"), &mut plant)),
-            [("SIM_GUST_RISE".into(), 1.0, 5, 12)]
+            [("SIM_GUST_RISE".into(), 1.0, 5, COUNT)]
         );
-        assert_eq!(values(&s.on_message(&read(8, ""), &mut plant)), [("SIM_BEAUFORT".into(), 4.0, 8, 12)]);
-        assert!(s.on_message(&read(12, ""), &mut plant).is_empty());
+        assert_eq!(values(&s.on_message(&read(8, ""), &mut plant)), [("SIM_BEAUFORT".into(), 4.0, 8, COUNT)]);
+        assert!(s.on_message(&read(COUNT as i16, ""), &mut plant).is_empty(), "past the table");
         let unknown = s.on_message(&read(-1, "SIM_NOPE"), &mut plant);
         assert!(values(&unknown).is_empty());
         assert_eq!(texts(&unknown), ["unknown parameter SIM_NOPE"], "the reason, not silence");
@@ -779,7 +959,7 @@ mod tests {
         let mut plant = calm_plant();
         let mut s = SimParamService::new(SYS, &plant);
         let replies = s.on_message(&set_msg("SIM_WIND_N", 2.5), &mut plant);
-        assert_eq!(values(&replies), [("SIM_WIND_N".into(), 2.5, 0, 12)]);
+        assert_eq!(values(&replies), [("SIM_WIND_N".into(), 2.5, 0, COUNT)]);
         assert_eq!(plant.wind().steady_ned_mps(), Vector3::new(2.5, 0.0, 0.0));
 
         // The autopilot's refusal texts, word for word.
@@ -792,7 +972,7 @@ mod tests {
             let before = s.get(name).expect("known");
             let replies = s.on_message(&set_msg(name, bad), &mut plant);
             assert_eq!(texts(&replies), [text], "{name} = {bad}: {replies:?}");
-            assert_eq!(values(&replies), [(name.to_owned(), before, index_of(name).unwrap() as u16, 12)]);
+            assert_eq!(values(&replies), [(name.to_owned(), before, index_of(name).unwrap() as u16, COUNT)]);
             assert_eq!(s.get(name), Some(before));
         }
         assert_eq!(plant.wind().steady_ned_mps(), Vector3::new(2.5, 0.0, 0.0));
@@ -802,10 +982,10 @@ mod tests {
 
         // Beaufort sets the gust speed, and the gust speed moves the Beaufort force.
         let replies = s.on_message(&set_msg("SIM_BEAUFORT", 6.0), &mut plant);
-        assert_eq!(values(&replies), [("SIM_BEAUFORT".into(), 6.0, 8, 12), ("SIM_GUST_SPD".into(), 12.3, 3, 12)]);
+        assert_eq!(values(&replies), [("SIM_BEAUFORT".into(), 6.0, 8, COUNT), ("SIM_GUST_SPD".into(), 12.3, 3, COUNT)]);
         // As a PX4 script sets an integer: INT32, bytewise; echoed so.
         let replies = s.on_message(&set_int32("SIM_BEAUFORT", 5), &mut plant);
-        assert_eq!(values(&replies), [("SIM_BEAUFORT".into(), 5.0, 8, 12), ("SIM_GUST_SPD".into(), 9.35, 3, 12)]);
+        assert_eq!(values(&replies), [("SIM_BEAUFORT".into(), 5.0, 8, COUNT), ("SIM_GUST_SPD".into(), 9.35, 3, COUNT)]);
         let MavMessage::PARAM_VALUE(echo) = &replies[0] else { panic!("{replies:?}") };
         assert_eq!((echo.param_type, echo.param_value.to_bits()), (MavParamType::MAV_PARAM_TYPE_INT32, 5));
         // A float where the int32's bytes belong is out of range, and an int32 for a real is refused.
@@ -815,7 +995,7 @@ mod tests {
         assert_eq!(texts(&replies), ["SIM_GUST_SPD: sent as INT32, it is REAL32"]);
         assert_eq!((s.get("SIM_BEAUFORT"), s.get("SIM_GUST_SPD")), (Some(5.0), Some(9.35)));
         let replies = s.on_message(&set_msg("SIM_GUST_SPD", 6.7), &mut plant);
-        assert_eq!(values(&replies), [("SIM_GUST_SPD".into(), 6.7, 3, 12), ("SIM_BEAUFORT".into(), 4.0, 8, 12)]);
+        assert_eq!(values(&replies), [("SIM_GUST_SPD".into(), 6.7, 3, COUNT), ("SIM_BEAUFORT".into(), 4.0, 8, COUNT)]);
     }
 
     #[test]
@@ -828,7 +1008,7 @@ mod tests {
         }
         assert_eq!(plant.truth().wind_ned_mps, Vector3::zeros());
         let on = s.on_message(&set_msg("SIM_GUST_ON", 1.0), &mut plant);
-        assert_eq!(values(&on), [("SIM_GUST_ON".into(), 1.0, 6, 12)]);
+        assert_eq!(values(&on), [("SIM_GUST_ON".into(), 1.0, 6, COUNT)]);
         assert!(texts(&on)[0].contains("t=2.00"), "{:?}", texts(&on));
         // The wind is evaluated at the start of each step: the step from t = 2.0 holds s(2.0) = 0.
         plant.step([1000.0; 4], 2000);
@@ -871,7 +1051,7 @@ mod tests {
     fn given_turbulence_on_then_it_blows_only_with_the_gust_and_off_removes_it() {
         let mut plant = calm_plant();
         let mut s = SimParamService::new(SYS, &plant);
-        assert_eq!(values(&s.on_message(&set_msg("SIM_TURB", 1.0), &mut plant)), [("SIM_TURB".into(), 1.0, 7, 12)]);
+        assert_eq!(values(&s.on_message(&set_msg("SIM_TURB", 1.0), &mut plant)), [("SIM_TURB".into(), 1.0, 7, COUNT)]);
         assert!(plant.wind().has_turbulence());
         step_to(&mut plant, 1.0);
         assert_eq!(plant.truth().wind_ned_mps, Vector3::zeros(), "no gust, no turbulence");
@@ -1099,7 +1279,10 @@ mod tests {
         );
         assert!(got.iter().any(|f| matches!(f.message, MavMessage::HEARTBEAT(_))), "a heartbeat: {got:?}");
         let echoed: Vec<_> = got.iter().map(|f| f.message.clone()).collect();
-        assert_eq!(values(&echoed)[..2], [("SIM_GUST_SPD".into(), 5.0, 3, 12), ("SIM_BEAUFORT".into(), 3.0, 8, 12)]);
+        assert_eq!(
+            values(&echoed)[..2],
+            [("SIM_GUST_SPD".into(), 5.0, 3, COUNT), ("SIM_BEAUFORT".into(), 3.0, 8, COUNT)]
+        );
         assert_eq!(link.service().get("SIM_GUST_SPD"), Some(5.0));
         // No more heartbeats before a second has passed.
         link.poll(&mut plant).expect("poll");
@@ -1121,6 +1304,6 @@ mod tests {
         let frames = decoder.decode_datagram(&buf[..n]);
         assert_eq!(frames.len(), 1);
         assert_eq!(frames[0].version, MavlinkVersion::V1);
-        assert_eq!(values(&[frames[0].message.clone()]), [("SIM_WIND_N".into(), 0.0, 0, 12)]);
+        assert_eq!(values(&[frames[0].message.clone()]), [("SIM_WIND_N".into(), 0.0, 0, COUNT)]);
     }
 }

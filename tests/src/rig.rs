@@ -76,8 +76,8 @@ impl Rig {
                 accel_frd_mps2: s.accel_frd_mps2,
                 gyro_frd_radps: s.gyro_frd_radps,
             }),
-            mag: Some(MagSample { field_frd_gauss: s.mag_frd_gauss }),
-            baro: Some(BaroSample { pressure_alt_m: s.baro.pressure_alt_m }),
+            mag: s.mag_frd_gauss.map(|field_frd_gauss| MagSample { field_frd_gauss }),
+            baro: s.baro.map(|b| BaroSample { pressure_alt_m: b.pressure_alt_m }),
             gps: s.gps.filter(|_| !self.gps_cut),
             truth: Some(TruthSample {
                 time_us: t.time_us,

@@ -227,6 +227,19 @@ pub(crate) fn radio_summary<T: sitl::link::Transport>(server: &sitl::link::Plant
     })
 }
 
+/// The faults' closing line of a run or a serve (`sitl: faults: N failure injections answered; plant
+/// link: L sensor datagrams lost, H steps on a held command`), when the autopilot forwarded an injection
+/// or the link's delay or loss (SIM_LINK_DELAY, SIM_LINK_LOSS) acted.
+pub(crate) fn faults_summary(stats: &sitl::link::LinkStats) -> Option<String> {
+    (stats.injections > 0 || stats.lost > 0 || stats.held_steps > 0).then(|| {
+        format!(
+            "sitl: faults: {} failure injections answered; plant link: {} sensor datagrams lost, {} steps on a \
+             held command",
+            stats.injections, stats.lost, stats.held_steps
+        )
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -242,6 +255,21 @@ mod tests {
             Command::Serve(serve) => Ok(serve.plant.pacing()),
             _ => panic!("{command} has no pacing"),
         }
+    }
+
+    #[test]
+    fn given_no_injection_and_no_link_fault_then_there_is_no_faults_line_else_it_counts_them() {
+        let mut stats = sitl::link::LinkStats::default();
+        assert_eq!(faults_summary(&stats), None);
+        stats.injections = 2;
+        stats.lost = 5;
+        stats.held_steps = 7;
+        assert_eq!(
+            faults_summary(&stats).as_deref(),
+            Some(
+                "sitl: faults: 2 failure injections answered; plant link: 5 sensor datagrams lost, 7 steps on a held command"
+            )
+        );
     }
 
     #[test]

@@ -18,7 +18,7 @@ use sitl::scenario::Scenario;
 use sitl::scenario::two_process::{self, TwoProcessOptions};
 
 use super::common::{
-    PlantArgs, bind_rc_in, bind_sim_params, describe_pacing, describe_rc_in, duration_us, fmt_seconds,
+    PlantArgs, bind_rc_in, bind_sim_params, describe_pacing, describe_rc_in, duration_us, faults_summary, fmt_seconds,
     gust_track_lines, instance_ports, radio_summary, realistic_plant_config,
 };
 use super::swarm::run_swarm;
@@ -189,6 +189,9 @@ pub(crate) fn run(args: &RunArgs) -> Result<()> {
         l.decoder.malformed(),
     );
     if let Some(line) = radio_summary(&server) {
+        eprintln!("{line}");
+    }
+    if let Some(line) = faults_summary(l) {
         eprintln!("{line}");
     }
     Ok(())

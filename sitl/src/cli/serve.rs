@@ -7,8 +7,8 @@ use sitl::launch;
 use sitl::link::{LinkConfig, PlantServer};
 
 use super::common::{
-    PlantArgs, bind_rc_in, bind_sim_params, describe_pacing, describe_rc_in, instance_ports, radio_summary,
-    realistic_plant_config,
+    PlantArgs, bind_rc_in, bind_sim_params, describe_pacing, describe_rc_in, faults_summary, instance_ports,
+    radio_summary, realistic_plant_config,
 };
 
 #[derive(Args)]
@@ -42,7 +42,7 @@ pub(crate) fn serve(args: &ServeArgs) -> Result<()> {
     let (sim_params, sim_port) = bind_sim_params(args.instance, &plant)?;
     let rc_port = args.plant.rc_in_port(args.instance);
     let rc_in = bind_rc_in(rc_port)?;
-    let (steps, radio) = if let Some(spec) = &args.serial {
+    let (steps, radio, faults) = if let Some(spec) = &args.serial {
         let (device, baud) = parse_serial_spec(spec).map_err(anyhow::Error::msg).context("--serial")?;
         let transport =
             SerialTransport::open(&device, baud, POLL_INTERVAL).with_context(|| format!("opening {device}"))?;
@@ -58,7 +58,7 @@ pub(crate) fn serve(args: &ServeArgs) -> Result<()> {
             server.set_rc_in(port);
         }
         let steps = server.run(None, &stop)?;
-        (steps, radio_summary(&server))
+        (steps, radio_summary(&server), faults_summary(&server.stats()))
     } else {
         let port = instance_ports(args.instance)?.0;
         let listen = args.listen.clone().unwrap_or_else(|| format!("127.0.0.1:{port}"));
@@ -75,10 +75,10 @@ pub(crate) fn serve(args: &ServeArgs) -> Result<()> {
             describe_rc_in(rc_port)
         );
         let steps = server.run(None, &stop)?;
-        (steps, radio_summary(&server))
+        (steps, radio_summary(&server), faults_summary(&server.stats()))
     };
     eprintln!("sitl: {steps} steps served");
-    if let Some(line) = radio {
+    for line in [radio, faults].into_iter().flatten() {
         eprintln!("{line}");
     }
     Ok(())

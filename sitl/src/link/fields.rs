@@ -37,15 +37,16 @@ pub fn battery_fields(r: &BatteryReading) -> BatterySample {
     }
 }
 
-/// A plant sensor sample as `HIL_SENSOR` fields (the plant updates every field at every sample).
+/// A plant sensor sample as `HIL_SENSOR` fields: the IMU always, the magnetometer and barometer when the
+/// sample has them (a sensor that is off has no `fields_updated` bits).
 #[must_use]
 pub fn sensor_fields(sample: &SensorSample) -> HilSensorFields {
     HilSensorFields {
         time_us: sample.time_us,
         accel_frd_mps2: sample.accel_frd_mps2,
         gyro_frd_radps: sample.gyro_frd_radps,
-        mag_frd_gauss: Some(sample.mag_frd_gauss),
-        baro: Some(sample.baro),
+        mag_frd_gauss: sample.mag_frd_gauss,
+        baro: sample.baro,
     }
 }
 

@@ -14,6 +14,10 @@
 //!   linearly from full to empty in `drain_s` seconds while the motors run, so a test can empty the pack in
 //!   seconds; either way it never falls below `min_remaining` (PX4's `SIM_BAT_MIN_PCT`).
 //!
+//! A failed pack (SIM_BAT_FAIL = 1, MAV_CMD_INJECT_FAILURE battery off, as PX4's battery failure) reports
+//! empty: 0 % at the empty pack's open-circuit voltage (`cells` × [`CELL_OCV_V`]`[0]`), the current and
+//! the charge drawn as measured; the pack itself drains on as before and reads true again when cleared.
+//!
 //! The lift does not depend on the voltage: the paper's lift curve is per PWM, and the ESCs are taken to
 //! regulate rotor speed whatever the pack's sag.
 
@@ -151,6 +155,8 @@ pub struct Battery {
     consumed_j: f64,
     current_a: f64,
     voltage_v: f64,
+    /// The monitor reports the pack empty (SIM_BAT_FAIL).
+    failed: bool,
 }
 
 impl Battery {
@@ -160,8 +166,14 @@ impl Battery {
     /// [`PlantError::InvalidValue`] for an invalid configuration.
     pub fn new(config: BatteryConfig) -> Result<Self, PlantError> {
         config.validate()?;
-        let mut b =
-            Self { config, remaining: config.initial_remaining, consumed_j: 0.0, current_a: 0.0, voltage_v: 0.0 };
+        let mut b = Self {
+            config,
+            remaining: config.initial_remaining,
+            consumed_j: 0.0,
+            current_a: 0.0,
+            voltage_v: 0.0,
+            failed: false,
+        };
         b.settle(b.config.avionics_current_a * b.open_circuit_v());
         Ok(b)
     }
@@ -179,6 +191,17 @@ impl Battery {
     /// Changes the floor (fraction; SIM_BAT_MIN_PCT / 100) from now.
     pub fn set_min_remaining(&mut self, min_remaining: f64) {
         self.config.min_remaining = min_remaining.clamp(0.0, 1.0);
+    }
+
+    /// Whether the monitor reports the pack empty from now (SIM_BAT_FAIL; see the module docs).
+    pub fn set_failed(&mut self, failed: bool) {
+        self.failed = failed;
+    }
+
+    /// Whether the monitor reports the pack empty.
+    #[must_use]
+    pub fn failed(&self) -> bool {
+        self.failed
     }
 
     fn open_circuit_v(&self) -> f64 {
@@ -231,13 +254,18 @@ impl Battery {
         }
     }
 
-    /// What the pack's monitor reads now.
+    /// What the pack's monitor reads now (empty while failed).
     #[must_use]
     pub fn reading(&self) -> BatteryReading {
+        let (voltage_v, remaining) = if self.failed {
+            (f64::from(self.config.cells) * CELL_OCV_V[0], 0.0)
+        } else {
+            (self.voltage_v, self.remaining)
+        };
         BatteryReading {
-            voltage_v: self.voltage_v,
+            voltage_v,
             current_a: self.current_a,
-            remaining: self.remaining,
+            remaining,
             consumed_mah: (self.config.initial_remaining - self.remaining) * self.config.capacity_mah,
             consumed_j: self.consumed_j,
             cells: self.config.cells,
@@ -317,6 +345,24 @@ mod tests {
         }
         assert!((b.reading().consumed_mah - mah).abs() < 1e-6 * mah, "{} vs {mah}", b.reading().consumed_mah);
         assert!(b.reading().consumed_j > 0.0);
+    }
+
+    #[test]
+    fn given_the_pack_failed_then_its_monitor_reads_0_percent_at_the_empty_voltage_and_clearing_gives_the_truth_back() {
+        let mut b = Battery::new(BatteryConfig::default()).unwrap();
+        let mut reference = b.clone();
+        b.set_failed(true);
+        for _ in 0..500 {
+            b.step(0.01, &[HOVER_N; 4], true, RHO);
+            reference.step(0.01, &[HOVER_N; 4], true, RHO);
+        }
+        let (failed, truth) = (b.reading(), reference.reading());
+        assert_eq!(failed.remaining, 0.0);
+        assert!((failed.voltage_v - 6.0 * 3.27).abs() < 1e-12, "6 cells at 3.27 V: {}", failed.voltage_v);
+        assert_eq!((failed.current_a, failed.consumed_mah), (truth.current_a, truth.consumed_mah), "as measured");
+        assert!(truth.remaining > 0.9 && truth.voltage_v > 23.0, "the pack itself is nearly full: {truth:?}");
+        b.set_failed(false);
+        assert_eq!(b.reading(), truth, "the pack drained on as before");
     }
 
     #[test]

@@ -15,6 +15,7 @@
 
 pub mod airframe;
 pub mod battery;
+pub mod faults;
 pub mod ground;
 pub mod radio;
 pub mod rigid_body;
@@ -29,6 +30,7 @@ use serde::Deserialize;
 
 pub use airframe::{Airframe, AirframeConfig};
 pub use battery::{Battery, BatteryConfig, BatteryReading};
+pub use faults::{Fault, FaultError, LinkFaults, Sensor, SensorFaults};
 pub use ground::GroundConfig;
 pub use radio::{Radio, RcSchedule};
 pub use rigid_body::RigidBodyState;
@@ -65,6 +67,12 @@ pub mod stream {
     pub const GPS_VEL_WHITE: u64 = 12;
     pub const GPS_VEL_WALK: u64 = 13;
     pub const STATE_NOISE: u64 = 14;
+    /// The accelerometer's readings while it reads garbage (`plant::faults`).
+    pub const ACCEL_GARBAGE: u64 = 15;
+    /// The gyro's readings while it reads garbage.
+    pub const GYRO_GARBAGE: u64 = 16;
+    /// Which sensor datagrams the plant link loses (SIM_LINK_LOSS, `crate::link`).
+    pub const LINK_LOSS: u64 = 17;
 }
 
 /// The generator of stream `stream` of plant seed `seed`.
@@ -200,6 +208,8 @@ pub struct Plant {
     motors_running: bool,
     /// The airframe's radio receiver (no output unless a schedule or the RC input port gives it one).
     radio: Radio,
+    /// Delay and loss of the plant link's sensor datagrams (applied by the plant link, `crate::link`).
+    link_faults: LinkFaults,
 }
 
 impl Plant {
@@ -249,6 +259,7 @@ impl Plant {
             battery,
             motors_running: true,
             radio: Radio::default(),
+            link_faults: LinkFaults::new(seed),
             state,
             time_us: 0,
             last_pwm_us,
@@ -306,6 +317,28 @@ impl Plant {
     /// The pack, for run-time changes (SIM_BAT_DRAIN, SIM_BAT_MIN_PCT).
     pub fn battery_mut(&mut self) -> &mut Battery {
         &mut self.battery
+    }
+
+    /// The sensor faults (SIM_GPS_FAIL and the others, see [`faults`]).
+    #[must_use]
+    pub fn sensor_faults(&self) -> &SensorFaults {
+        self.sensors.faults()
+    }
+
+    /// The sensor faults, to fail or clear a sensor from the next sample on.
+    pub fn sensor_faults_mut(&mut self) -> &mut SensorFaults {
+        self.sensors.faults_mut()
+    }
+
+    /// Delay and loss of the plant link's sensor datagrams (SIM_LINK_DELAY, SIM_LINK_LOSS).
+    #[must_use]
+    pub fn link_faults(&self) -> &LinkFaults {
+        &self.link_faults
+    }
+
+    /// Delay and loss of the plant link, to change them and to draw the losses.
+    pub fn link_faults_mut(&mut self) -> &mut LinkFaults {
+        &mut self.link_faults
     }
 
     /// The radio receiver (what the plant link sends as `RC_CHANNELS`).
@@ -378,7 +411,8 @@ impl Plant {
         }
     }
 
-    /// IMU, magnetometer and barometer now, and a GPS sample when one is released now.
+    /// IMU, magnetometer and barometer now, and a GPS sample when one is released now, with the sensor
+    /// faults applied (see [`faults`]: a sensor that is off is `None`).
     pub fn sample_sensors(&mut self) -> SensorSample {
         let truth = self.truth();
         self.sensors.sample(&truth)

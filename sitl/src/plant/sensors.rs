@@ -30,6 +30,7 @@ use rand_distr::StandardNormal;
 use serde::Deserialize;
 
 use super::airframe::{finite, non_negative, positive};
+use super::faults::SensorFaults;
 use super::{PlantError, Truth, stream, stream_rng};
 
 /// ISA sea-level pressure (hPa).
@@ -296,9 +297,10 @@ pub struct SensorSample {
     pub accel_frd_mps2: Vector3<f64>,
     /// Body rates (rad/s, FRD).
     pub gyro_frd_radps: Vector3<f64>,
-    /// Magnetic field (gauss, FRD).
-    pub mag_frd_gauss: Vector3<f64>,
-    pub baro: BaroSample,
+    /// Magnetic field (gauss, FRD); `None` while the magnetometer is off ([`super::faults`]).
+    pub mag_frd_gauss: Option<Vector3<f64>>,
+    /// `None` while the barometer is off ([`super::faults`]).
+    pub baro: Option<BaroSample>,
     /// A GPS sample when one is released at this time.
     pub gps: Option<GpsSample>,
 }
@@ -383,6 +385,8 @@ pub struct Sensors {
     gps_last_capture_us: Option<u64>,
     gps_delay_line: VecDeque<GpsSample>,
     last_sample_us: Option<u64>,
+    /// The faults applied to every sample.
+    faults: SensorFaults,
 }
 
 impl Sensors {
@@ -413,6 +417,7 @@ impl Sensors {
             gps_last_capture_us: None,
             gps_delay_line: VecDeque::new(),
             last_sample_us: None,
+            faults: SensorFaults::new(seed),
         })
     }
 
@@ -422,10 +427,28 @@ impl Sensors {
         &self.config
     }
 
-    /// Sample every sensor from `truth` at `truth.time_us`. A GPS measurement is captured at the first
-    /// call at or after each point of the GPS grid (k·period from t = 0) and released `latency_s` after
-    /// its capture; if several are released by one call (sparse sampling), the newest is returned.
+    /// The sensor faults ([`super::faults`]).
+    #[must_use]
+    pub fn faults(&self) -> &SensorFaults {
+        &self.faults
+    }
+
+    /// The sensor faults, to fail or clear a sensor from the next sample on.
+    pub fn faults_mut(&mut self) -> &mut SensorFaults {
+        &mut self.faults
+    }
+
+    /// Sample every sensor from `truth` at `truth.time_us`, with the sensor faults applied. A GPS
+    /// measurement is captured at the first call at or after each point of the GPS grid (k·period from
+    /// t = 0) and released `latency_s` after its capture; if several are released by one call (sparse
+    /// sampling), the newest is returned.
     pub fn sample(&mut self, truth: &Truth) -> SensorSample {
+        let clean = self.sample_clean(truth);
+        self.faults.apply(&clean, &self.config.home.origin())
+    }
+
+    /// [`Sensors::sample`] without the faults (the noise streams and the GPS schedule advance the same).
+    fn sample_clean(&mut self, truth: &Truth) -> SensorSample {
         let now_us = truth.time_us;
         let dt_s = self.last_sample_us.map_or(0.0, |last| now_us.saturating_sub(last) as f64 * 1e-6);
         self.last_sample_us = Some(now_us);
@@ -458,7 +481,14 @@ impl Sensors {
             }
         }
 
-        SensorSample { time_us: now_us, accel_frd_mps2, gyro_frd_radps, mag_frd_gauss, baro, gps }
+        SensorSample {
+            time_us: now_us,
+            accel_frd_mps2,
+            gyro_frd_radps,
+            mag_frd_gauss: Some(mag_frd_gauss),
+            baro: Some(baro),
+            gps,
+        }
     }
 
     fn capture_gps(&mut self, truth: &Truth) -> GpsSample {
@@ -615,8 +645,9 @@ mod tests {
             plant.step([1900.0; 4], 2000);
             let s = plant.sample_sensors();
             let d = plant.truth().pos_ned_m.z;
-            assert!((s.baro.pressure_alt_m - home_alt + d).abs() < 1e-9);
-            assert!((isa_altitude_m(s.baro.pressure_hpa) - s.baro.pressure_alt_m).abs() < 1e-6);
+            let baro = s.baro.expect("baro");
+            assert!((baro.pressure_alt_m - home_alt + d).abs() < 1e-9);
+            assert!((isa_altitude_m(baro.pressure_hpa) - baro.pressure_alt_m).abs() < 1e-6);
             if k % 100 == 0 {
                 checked += 1;
             }
@@ -716,7 +747,7 @@ mod tests {
             assert_eq!(s.accel_frd_mps2, truth.specific_force_frd_mps2);
             assert_eq!(s.gyro_frd_radps, truth.rate_frd_radps);
             let field = EarthFieldConfig::default().field_ned_gauss();
-            assert!((s.mag_frd_gauss - truth.q_ned_frd.inverse_transform_vector(&field)).norm() < 1e-15);
+            assert!((s.mag_frd_gauss.expect("mag") - truth.q_ned_frd.inverse_transform_vector(&field)).norm() < 1e-15);
             let noisy = plant.sample_state(&StateNoise::none());
             assert_eq!(noisy.pos_ned_m, truth.pos_ned_m);
             assert_eq!(noisy.euler_rad, truth.euler_rad);
@@ -727,7 +758,7 @@ mod tests {
     fn given_a_level_vehicle_heading_north_when_sampling_the_magnetometer_then_it_reads_the_earth_field() {
         let mut plant = hover_plant(PlantConfig::default(), -5.0);
         let field = EarthFieldConfig::default().field_ned_gauss();
-        assert!((plant.sample_sensors().mag_frd_gauss - field).norm() < 1e-15);
+        assert!((plant.sample_sensors().mag_frd_gauss.expect("mag") - field).norm() < 1e-15);
         assert!((field.norm() - 0.48).abs() < 1e-12 && field.z > 0.0);
         // Yawed 90° right (facing east), magnetic north is to the vehicle's left: -y body.
         let initial = InitialState {
@@ -736,7 +767,7 @@ mod tests {
             ..InitialState::default()
         };
         let mut yawed = Plant::new(PlantConfig::default(), &initial, 1).unwrap();
-        let m = yawed.sample_sensors().mag_frd_gauss;
+        let m = yawed.sample_sensors().mag_frd_gauss.expect("mag");
         assert!((m - Vector3::new(field.y, -field.x, field.z)).norm() < 1e-12, "{m:?}");
     }
 
@@ -760,8 +791,8 @@ mod tests {
             let s = plant.sample_sensors();
             acc.push(s.accel_frd_mps2.x);
             gyro.push(s.gyro_frd_radps.y);
-            mag.push(s.mag_frd_gauss.z);
-            baro.push(s.baro.pressure_alt_m);
+            mag.push(s.mag_frd_gauss.expect("mag").z);
+            baro.push(s.baro.expect("baro").pressure_alt_m);
             let st = plant.sample_state(&StateNoise::paper());
             state_acc.push(st.specific_force_frd_mps2.z - truth.specific_force_frd_mps2.z);
             state_att.push(st.euler_rad.x);
