@@ -74,19 +74,34 @@
 //! The radio: SIM_RC_FAIL = 1 silences the airframe's radio receiver ([`crate::plant::Radio`]): no
 //! `RC_CHANNELS` goes to the autopilot from the next plant step until it is set back to 0, to rehearse
 //! RC loss; the held frame (RC input port, schedule) is kept and comes back with it.
+//!
+//! The airframe (`sim_params/airframe.rs`): SIM_MOT1_EFF..SIM_MOT4_EFF multiply rotor 1..4's lift (its
+//! health, 1 healthy, 0 failed; ArduPilot's SIM_ENGINE_MUL), SIM_PAYLOAD_KG adds a point mass at
+//! (SIM_CG_OFS_X, SIM_CG_OFS_Y) m FRD from the body origin ([`crate::plant::Payload`]: its weight's torque and
+//! its inertia), SIM_MOT_WRONG_EFF is the multiplier an injected partial motor failure sets. All act from
+//! the next plant step and start at the plant's airframe values. A scenario's `[[event]]` sets any of these
+//! parameters at a plant time, through this same service ([`events`]).
 
+mod airframe;
+pub mod events;
 mod truth;
+
+pub use events::{EventSpec, SimEvent, SimEvents};
 
 pub use truth::{TRUTH_PERIOD_US, TRUTH_RATE_HZ, TruthStream, sim_state, truth_messages};
 
 use std::io;
 use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
 use autopilot::core::hil::{FrameDecoder, encode_frame_v1, encode_frame_v2};
-use autopilot::core::mavlink::params::{Applied, ParamService};
+use autopilot::core::mavlink::params::{Applied, ParamService, encode_value};
 use autopilot::core::params::{ParamDef, ParamKind, ParamStore};
-use mavlink::dialects::common::{HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavState, MavType};
+use mavlink::dialects::common::{
+    HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavSeverity, MavState, MavType, PARAM_SET_DATA,
+};
+use mavlink::types::CharArray;
 use mavlink::{MavHeader, MavlinkVersion};
 use nalgebra::Vector3;
 
@@ -121,6 +136,12 @@ mod idx {
     pub const BAT_DRAIN: usize = 9;
     pub const BAT_MIN_PCT: usize = 10;
     pub const RC_FAIL: usize = 11;
+    pub const MOT1_EFF: usize = 12;
+    pub const MOT4_EFF: usize = 15;
+    pub const MOT_WRONG_EFF: usize = 16;
+    pub const PAYLOAD_KG: usize = 17;
+    pub const CG_OFS_X: usize = 18;
+    pub const CG_OFS_Y: usize = 19;
 }
 
 /// A SIM_ parameter: the autopilot's parameter definition with no docs group and no config binding (the
@@ -168,7 +189,7 @@ const fn whole(name: &'static str, default: f32, min: f32, max: f32, description
 
 /// The SIM_ parameters. The defaults are the values with no wind configured (the plant's configured wind
 /// overrides them at start).
-pub static SIM_PARAMS: [SimParamDef; 12] = [
+pub static SIM_PARAMS: [SimParamDef; 20] = [
     real("SIM_WIND_N", 0.0, -30.0, 30.0, "m/s", "Steady wind toward north (NED)"),
     real("SIM_WIND_E", 0.0, -30.0, 30.0, "m/s", "Steady wind toward east (NED)"),
     real("SIM_WIND_D", 0.0, -10.0, 10.0, "m/s", "Steady wind downward (NED)"),
@@ -200,6 +221,14 @@ pub static SIM_PARAMS: [SimParamDef; 12] = [
         1.0,
         "1: the radio receiver has no output (no RC_CHANNELS sent), to rehearse RC loss",
     ),
+    real("SIM_MOT1_EFF", 1.0, 0.0, 1.0, "", "Rotor 1 (right) thrust multiplier: 1 healthy, 0 failed (SIM_ENGINE_MUL)"),
+    real("SIM_MOT2_EFF", 1.0, 0.0, 1.0, "", "Rotor 2 (rear) thrust multiplier: 1 healthy, 0 failed"),
+    real("SIM_MOT3_EFF", 1.0, 0.0, 1.0, "", "Rotor 3 (front) thrust multiplier: 1 healthy, 0 failed"),
+    real("SIM_MOT4_EFF", 1.0, 0.0, 1.0, "", "Rotor 4 (left) thrust multiplier: 1 healthy, 0 failed"),
+    real("SIM_MOT_WRONG_EFF", 0.7, 0.0, 1.0, "", "The thrust multiplier an injected motor failure of type WRONG sets"),
+    real("SIM_PAYLOAD_KG", 0.0, 0.0, 10.0, "kg", "Payload: a point mass added to the airframe at SIM_CG_OFS_X/Y"),
+    real("SIM_CG_OFS_X", 0.0, -0.5, 0.5, "m", "Where the payload sits, forward of the body origin (FRD x)"),
+    real("SIM_CG_OFS_Y", 0.0, -0.5, 0.5, "m", "Where the payload sits, right of the body origin (FRD y)"),
 ];
 
 /// The Beaufort force of a wind speed (m/s): the highest force whose range starts at or below it.
@@ -223,6 +252,9 @@ pub struct SimParamService {
     system_id: u8,
     store: ParamStore<(), ()>,
     protocol: ParamService,
+    /// What sets made through [`SimParamService::set_now`] have to tell every peer (their PARAM_VALUE echoes
+    /// and notes), sent by the SIM_ port at its next poll.
+    outbox: Vec<MavMessage>,
 }
 
 impl SimParamService {
@@ -250,11 +282,50 @@ impl SimParamService {
         values[idx::BAT_DRAIN] = battery.drain_s as f32;
         values[idx::BAT_MIN_PCT] = (battery.min_remaining * 100.0) as f32;
         values[idx::RC_FAIL] = f32::from(u8::from(plant.radio().failed()));
+        airframe::initial_values(plant, &mut values);
         Self {
             system_id,
             store: ParamStore::from_fn(&SIM_PARAMS, |i, _| values[i]),
             protocol: ParamService::for_component(PLANT_COMPONENT_ID),
+            outbox: Vec::new(),
         }
+    }
+
+    /// Set parameter `index` to `value` now, as a PARAM_SET received on the port would (the same check,
+    /// apply and store; a scenario's `[[event]]`); its replies wait in the outbox for the port's peers.
+    ///
+    /// # Errors
+    /// The refusal a ground station would read (nothing changed), or an index past the table.
+    pub fn set_now(&mut self, index: usize, value: f32, plant: &mut Plant) -> Result<(), String> {
+        let d = SIM_PARAMS.get(index).ok_or_else(|| format!("no SIM_ parameter at index {index}"))?;
+        let msg = MavMessage::PARAM_SET(PARAM_SET_DATA {
+            param_value: encode_value(d.kind, value),
+            target_system: 0,
+            target_component: 0,
+            param_id: CharArray::from(d.name),
+            param_type: d.kind.mav_param_type(),
+        });
+        let replies = self.on_message(&msg, plant);
+        if let Some(MavMessage::STATUSTEXT(t)) = replies.first()
+            && t.severity == MavSeverity::MAV_SEVERITY_WARNING
+        {
+            let text: &[u8; 50] = &t.text;
+            let len = text.iter().position(|&b| b == 0).unwrap_or(text.len());
+            return Err(String::from_utf8_lossy(&text[..len]).into_owned());
+        }
+        self.outbox.extend(replies);
+        Ok(())
+    }
+
+    /// The replies of [`SimParamService::set_now`] not yet sent, oldest first.
+    pub fn take_outbox(&mut self) -> Vec<MavMessage> {
+        std::mem::take(&mut self.outbox)
+    }
+
+    /// The system id the service answers for.
+    #[must_use]
+    pub fn system_id(&self) -> u8 {
+        self.system_id
     }
 
     /// The current value of parameter `index`.
@@ -333,6 +404,7 @@ fn apply(store: &mut ParamStore<(), ()>, index: usize, value: f32, plant: &mut P
         idx::BAT_DRAIN => plant.battery_mut().set_drain_s(f64::from(value)),
         idx::BAT_MIN_PCT => plant.battery_mut().set_min_remaining(f64::from(value) / 100.0),
         idx::RC_FAIL => plant.radio_mut().set_failed(value == 1.0),
+        idx::MOT1_EFF..=idx::CG_OFS_Y => applied = airframe::apply(index, value, plant),
         idx::TURB if value != value_of(store, idx::TURB) => {
             if value == 1.0 {
                 if plant.wind().gust().is_none() {
@@ -416,7 +488,9 @@ struct Peer {
 #[derive(Debug)]
 pub struct SimParamLink {
     socket: UdpSocket,
-    service: SimParamService,
+    /// Shared with the plant's scheduled events ([`events::SimEvents`]), if it has any.
+    service: Arc<Mutex<SimParamService>>,
+    system_id: u8,
     decoder: FrameDecoder,
     peers: Vec<Peer>,
     truth: TruthStream,
@@ -427,16 +501,19 @@ pub struct SimParamLink {
 
 impl SimParamLink {
     /// Bind `addr` (e.g. `127.0.0.1:19550`, or port 0 in tests) for system `system_id`, the values read
-    /// from `plant` (see [`SimParamService::new`]).
+    /// from `plant` (see [`SimParamService::new`]). A plant with scheduled events: see
+    /// [`SimParamLink::carry_events_of`].
     ///
     /// # Errors
     /// The bind or socket-option error.
     pub fn bind(addr: impl ToSocketAddrs, system_id: u8, plant: &Plant) -> io::Result<Self> {
         let socket = UdpSocket::bind(addr)?;
         socket.set_nonblocking(true)?;
+        let service = Arc::new(Mutex::new(SimParamService::new(system_id, plant)));
         Ok(Self {
             socket,
-            service: SimParamService::new(system_id, plant),
+            service,
+            system_id,
             decoder: FrameDecoder::new(),
             peers: Vec::new(),
             truth: TruthStream::new(plant.time_us()),
@@ -454,10 +531,17 @@ impl SimParamLink {
         self.socket.local_addr()
     }
 
+    /// Send the sets of `plant`'s scheduled events (a scenario's `[[event]]`) through this port's service
+    /// from now on, so the port shows what they set and tells its peers (nothing without events).
+    pub fn carry_events_of(&self, plant: &mut Plant) {
+        if let Some(events) = plant.sim_events_mut() {
+            events.share_service(Arc::clone(&self.service));
+        }
+    }
+
     /// The service (its values).
-    #[must_use]
-    pub fn service(&self) -> &SimParamService {
-        &self.service
+    pub fn service(&self) -> MutexGuard<'_, SimParamService> {
+        self.service.lock().unwrap_or_else(PoisonError::into_inner)
     }
 
     fn send(&mut self, msg: &MavMessage, to: SocketAddr, version: MavlinkVersion) -> io::Result<()> {
@@ -469,7 +553,7 @@ impl SimParamLink {
         let mut bytes = Vec::with_capacity(128 * msgs.len());
         for msg in msgs {
             let header = MavHeader {
-                system_id: self.service.system_id.into(),
+                system_id: self.system_id.into(),
                 component_id: PLANT_COMPONENT_ID,
                 sequence: self.sequence,
             };
@@ -509,9 +593,16 @@ impl SimParamLink {
                     }
                     None => self.peers.push(Peer { addr: from, heard: now, version: frame.version }),
                 }
-                for reply in self.service.on_message(&frame.message, plant) {
+                let replies = self.service().on_message(&frame.message, plant);
+                for reply in replies {
                     self.send(&reply, from, frame.version)?;
                 }
+            }
+        }
+        let set_by_events = self.service().take_outbox();
+        if !set_by_events.is_empty() {
+            for p in self.peers.clone() {
+                self.send_all(&set_by_events, p.addr, p.version)?;
             }
         }
         let samples = self.truth.take();

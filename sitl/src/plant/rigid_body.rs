@@ -4,9 +4,10 @@
 //! derivative and the state one RK4 substep later (default 1 ms), with q renormalised.
 //!
 //! - ṗ = v
-//! - v̇ = g e3 - (T/m) R e3 - (ρ CdA / 2m) |v - w| (v - w)
+//! - v̇ = g e3 - (T/m) R e3 - (ρ CdA / 2m) |v - w| (v - w), m the airframe's mass plus any payload
 //! - q̇ = ½ q ⊗ (0, ω)
-//! - I ω̇ = M + τ_dist - ω × Iω (Eq 7), M from the Eq 27 mixer
+//! - I ω̇ = M + τ_dist - ω × Iω (Eq 7), M from the Eq 27 mixer; with a payload ([`super::payload`]) I is
+//!   the full inertia with it and its weight adds r × Rᵀ(m_p g e3) to the torque
 //! - Ḟ_i = (k_F h_i F10(PWM_i) - F_i)/τ_m
 
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
@@ -115,12 +116,24 @@ pub fn derivative(state: &RigidBodyState, inputs: &HeldInputs, airframe: &Airfra
     let wrench = rotor::mix(&state.rotor_lift_n, airframe.arm_m, airframe.yaw_moment_m);
     let acc_ned_mps2 = acceleration_ned_mps2(state, wrench.thrust_n, &inputs.wind_ned_mps, airframe);
 
-    // Rotation, Eq 7 with a diagonal inertia.
+    // Rotation, Eq 7 with a diagonal inertia (with a payload, its full inertia and its weight's torque).
     let omega = state.rate_frd_radps;
-    let inertia = airframe.inertia_kgm2;
-    let h_frd = inertia.component_mul(&omega);
-    let torque_frd_nm = wrench.moment_frd_nm + airframe.disturbance_torque_frd_nm - omega.cross(&h_frd);
-    let ang_acc_frd_radps2 = torque_frd_nm.component_div(&inertia);
+    let ang_acc_frd_radps2 = if airframe.payload.is_carried() {
+        let payload = &airframe.payload;
+        let inertia = payload.inertia_with_kgm2(&airframe.inertia_kgm2);
+        let h_frd = inertia * omega;
+        let torque_frd_nm = wrench.moment_frd_nm
+            + airframe.disturbance_torque_frd_nm
+            + payload.gravity_torque_frd_nm(&state.attitude(), airframe.gravity_mps2)
+            - omega.cross(&h_frd);
+        // A rigid body's inertia is positive definite (validated principal inertias plus a point mass).
+        inertia.cholesky().map_or_else(Vector3::zeros, |c| c.solve(&torque_frd_nm))
+    } else {
+        let inertia = airframe.inertia_kgm2;
+        let h_frd = inertia.component_mul(&omega);
+        let torque_frd_nm = wrench.moment_frd_nm + airframe.disturbance_torque_frd_nm - omega.cross(&h_frd);
+        torque_frd_nm.component_div(&inertia)
+    };
 
     let q_dot = state.q_ned_frd * Quaternion::from_imag(omega) * 0.5;
 
@@ -145,10 +158,10 @@ pub fn acceleration_ned_mps2(
     // Gravity, thrust along -z_FRD, quadratic drag on the air-relative velocity.
     let thrust_dir_ned = state.attitude().transform_vector(&Vector3::z());
     let air_rel_ned_mps = state.vel_ned_mps - wind_ned_mps;
-    let drag_per_speed =
-        airframe.air_density_kgpm3 * airframe.drag_cda_m2 / (2.0 * airframe.mass_kg) * air_rel_ned_mps.norm();
+    let mass_kg = airframe.total_mass_kg();
+    let drag_per_speed = airframe.air_density_kgpm3 * airframe.drag_cda_m2 / (2.0 * mass_kg) * air_rel_ned_mps.norm();
     Vector3::new(0.0, 0.0, airframe.gravity_mps2)
-        - thrust_dir_ned * (thrust_n / airframe.mass_kg)
+        - thrust_dir_ned * (thrust_n / mass_kg)
         - air_rel_ned_mps * drag_per_speed
 }
 

@@ -14,11 +14,13 @@ use autopilot::core::control::{ControlInput, ControllerKind, LoopRates, new_cont
 use nalgebra::{Vector2, Vector3};
 use serde::Serialize;
 
-use super::metrics::{self, EffortAccumulator, EffortMetrics, GustMetrics, SegmentMetrics, StepSegment, TrackMetrics};
+use super::metrics::{
+    self, EffortAccumulator, EffortMetrics, FaultMetrics, GustMetrics, SegmentMetrics, StepSegment, TrackMetrics,
+};
 use super::reference::{ReferenceGen, ReferenceMode, ReferenceSpec, TrackGen};
 use super::{MetricKind, OverrideValue, Scenario, ScenarioError};
 use crate::plant::sensors::NoisyState;
-use crate::plant::{AirframeConfig, GroundConfig, InitialState, Plant, PlantConfig};
+use crate::plant::{AirframeConfig, GroundConfig, InitialState, Plant, PlantConfig, envelope};
 
 /// What varies between runs of one scenario.
 #[derive(Debug, Clone, PartialEq)]
@@ -70,6 +72,9 @@ pub struct RunMetrics {
     pub gust: Option<GustMetrics>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub track: Option<TrackMetrics>,
+    /// What the scenario's fault did (the `fault` metric).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fault: Option<FaultMetrics>,
     pub weights_at_bounds: bool,
     pub non_finite: bool,
     /// Mean |PWM change| per tick over the run and rotors (us): actuator activity.
@@ -233,7 +238,12 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
         rotor_lift_n: None,
     };
     let mut effort = EffortAccumulator::new(config.airframe.hover_pwm_us(), [PWM_MIN_US, PWM_MAX_US]);
+    let airframe_before = config.airframe.clone();
     let mut plant = Plant::new(config, &initial, opts.seed)?;
+    let schedule = scenario.sim_events()?;
+    if !schedule.is_empty() {
+        crate::sim_params::events::install(&mut plant, 1, schedule);
+    }
     let noise = scenario.state_noise()?;
     let mut reference = ReferenceGen::new(&scenario.reference, opts.mode);
 
@@ -296,6 +306,14 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
         plant.step(pwm_us, dt_us);
     }
 
+    if let Some(r) = plant.sim_events().and_then(|e| e.refusals().first()) {
+        return Err(ScenarioError::Invalid(format!(
+            "[[event]] at {} s: the plant refused {}: {}",
+            r.at_us as f64 * 1e-6,
+            r.name,
+            r.reason
+        )));
+    }
     let sim_s = ticks as f64 * dt_us as f64 * 1e-6;
     let mut m = RunMetrics {
         scenario: scenario.name.clone(),
@@ -309,6 +327,7 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
         rms: None,
         gust: None,
         track: None,
+        fault: None,
         weights_at_bounds: controller.weights_at_bounds(),
         non_finite,
         pwm_activity_us: effort.pwm_activity_us(),
@@ -332,6 +351,21 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
             gust.onset_s,
             gust.release_s,
             windows,
+        ));
+    }
+    if scenario.metrics.contains(&MetricKind::Fault) {
+        m.fault = Some(metrics::fault_metrics(
+            &series.t,
+            &series.pos,
+            &series.ref_pos,
+            &series.euler,
+            &series.ref_euler,
+            scenario.fault_onset_s(),
+            metrics::FaultPhysics {
+                envelope: envelope::hover_envelope(&airframe_before),
+                max_payload_within_limiter_kg: envelope::max_payload_within_limiter_kg(&airframe_before),
+                feasibility: envelope::feasibility(&plant.config().airframe),
+            },
         ));
     }
     if let (true, ReferenceSpec::Track(spec)) = (scenario.metrics.contains(&MetricKind::Track), &scenario.reference) {
