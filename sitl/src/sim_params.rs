@@ -78,7 +78,7 @@
 //! The airframe (`sim_params/airframe.rs`): SIM_MOT1_EFF..SIM_MOT4_EFF multiply rotor 1..4's lift (its
 //! health, 1 healthy, 0 failed; ArduPilot's SIM_ENGINE_MUL), SIM_PAYLOAD_KG adds a point mass at
 //! (SIM_CG_OFS_X, SIM_CG_OFS_Y) m FRD from the body origin ([`crate::plant::Payload`]: its weight's torque and
-//! its inertia), SIM_MOT_WRONG_EFF is the multiplier an injected partial motor failure sets. All act from
+//! its inertia), SIM_MOT_WRONG is the multiplier an injected partial motor failure sets. All act from
 //! the next plant step and start at the plant's airframe values. A scenario's `[[event]]` sets any of these
 //! parameters at a plant time, through this same service ([`events`]).
 
@@ -225,7 +225,7 @@ pub static SIM_PARAMS: [SimParamDef; 20] = [
     real("SIM_MOT2_EFF", 1.0, 0.0, 1.0, "", "Rotor 2 (rear) thrust multiplier: 1 healthy, 0 failed"),
     real("SIM_MOT3_EFF", 1.0, 0.0, 1.0, "", "Rotor 3 (front) thrust multiplier: 1 healthy, 0 failed"),
     real("SIM_MOT4_EFF", 1.0, 0.0, 1.0, "", "Rotor 4 (left) thrust multiplier: 1 healthy, 0 failed"),
-    real("SIM_MOT_WRONG_EFF", 0.7, 0.0, 1.0, "", "The thrust multiplier an injected motor failure of type WRONG sets"),
+    real("SIM_MOT_WRONG", 0.7, 0.0, 1.0, "", "The thrust multiplier an injected motor failure of type WRONG sets"),
     real("SIM_PAYLOAD_KG", 0.0, 0.0, 10.0, "kg", "Payload: a point mass added to the airframe at SIM_CG_OFS_X/Y"),
     real("SIM_CG_OFS_X", 0.0, -0.5, 0.5, "m", "Where the payload sits, forward of the body origin (FRD x)"),
     real("SIM_CG_OFS_Y", 0.0, -0.5, 0.5, "m", "Where the payload sits, right of the body origin (FRD y)"),
@@ -645,6 +645,9 @@ mod tests {
     use mavlink::dialects::common::{MavParamType, PARAM_REQUEST_LIST_DATA, PARAM_REQUEST_READ_DATA, PARAM_SET_DATA};
     use mavlink::types::CharArray;
 
+    /// Every PARAM_VALUE's `param_count`.
+    const COUNT: u16 = SIM_PARAMS.len() as u16;
+
     fn index_of(name: &str) -> Option<usize> {
         SIM_PARAMS.iter().position(|d| d.name == name)
     }
@@ -746,7 +749,15 @@ mod tests {
                 "SIM_BEAUFORT",
                 "SIM_BAT_DRAIN",
                 "SIM_BAT_MIN_PCT",
-                "SIM_RC_FAIL"
+                "SIM_RC_FAIL",
+                "SIM_MOT1_EFF",
+                "SIM_MOT2_EFF",
+                "SIM_MOT3_EFF",
+                "SIM_MOT4_EFF",
+                "SIM_MOT_WRONG",
+                "SIM_PAYLOAD_KG",
+                "SIM_CG_OFS_X",
+                "SIM_CG_OFS_Y",
             ]
         );
         let spd = &SIM_PARAMS[idx::GUST_SPD];
@@ -769,12 +780,12 @@ mod tests {
         assert_eq!(s.get("SIM_RC_FAIL"), Some(0.0));
         assert_eq!(
             values(&s.on_message(&set_msg("SIM_RC_FAIL", 1.0), &mut plant)),
-            [("SIM_RC_FAIL".into(), 1.0, 11, 12)]
+            [("SIM_RC_FAIL".into(), 1.0, 11, COUNT)]
         );
         assert!(plant.radio().failed());
         assert_eq!(plant.radio().output(plant.time_us()), None);
         let refused = s.on_message(&set_msg("SIM_RC_FAIL", 2.0), &mut plant);
-        assert_eq!(values(&refused), [("SIM_RC_FAIL".into(), 1.0, 11, 12)], "refused: the value echoed unchanged");
+        assert_eq!(values(&refused), [("SIM_RC_FAIL".into(), 1.0, 11, COUNT)], "refused: the value echoed unchanged");
         assert!(plant.radio().failed());
         s.on_message(&set_msg("SIM_RC_FAIL", 0.0), &mut plant);
         assert_eq!(plant.radio().output(plant.time_us()), Some(frame), "the held frame comes back");
@@ -794,7 +805,7 @@ mod tests {
         .expect("toml");
         let s = SimParamService::new(SYS, &plant_with(windy));
         let got: Vec<f32> = (0..SIM_PARAMS.len()).map(|i| s.value(i).expect("value")).collect();
-        assert_eq!(got, [1.0, -2.0, 0.5, 3.0, 0.0, 2.0, 0.0, 1.0, 2.0, 0.0, 0.0, 0.0]);
+        assert_eq!(got, [1.0, -2.0, 0.5, 3.0, 0.0, 2.0, 0.0, 1.0, 2.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0, 0.7, 0.0, 0.0, 0.0]);
     }
 
     #[test]
@@ -819,7 +830,7 @@ mod tests {
         let (real, int) = (MavParamType::MAV_PARAM_TYPE_REAL32, MavParamType::MAV_PARAM_TYPE_INT32);
         let gust_spd = 6.7_f32.to_bits();
         assert_eq!(
-            types[idx::GUST_SPD..],
+            types[idx::GUST_SPD..=idx::RC_FAIL],
             [
                 (real, gust_spd),
                 (real, 90.0_f32.to_bits()),
@@ -832,6 +843,10 @@ mod tests {
                 (int, 0)
             ]
         );
+        // The airframe's are REAL32: four healthy rotors, the WRONG multiplier 0.7, no payload.
+        let one = (real, 1.0_f32.to_bits());
+        let zero = (real, 0.0_f32.to_bits());
+        assert_eq!(types[idx::MOT1_EFF..], [one, one, one, one, (real, 0.7_f32.to_bits()), zero, zero, zero]);
         // Another system's request, or one for the autopilot's component, is not ours.
         let theirs = MavMessage::PARAM_REQUEST_LIST(PARAM_REQUEST_LIST_DATA { target_system: 1, target_component: 0 });
         assert!(s.on_message(&theirs, &mut plant).is_empty());
@@ -856,10 +871,10 @@ mod tests {
         };
         assert_eq!(
             values(&s.on_message(&read(-1, "SIM_GUST_RISE"), &mut plant)),
-            [("SIM_GUST_RISE".into(), 1.0, 5, 12)]
+            [("SIM_GUST_RISE".into(), 1.0, 5, COUNT)]
         );
-        assert_eq!(values(&s.on_message(&read(8, ""), &mut plant)), [("SIM_BEAUFORT".into(), 4.0, 8, 12)]);
-        assert!(s.on_message(&read(12, ""), &mut plant).is_empty());
+        assert_eq!(values(&s.on_message(&read(8, ""), &mut plant)), [("SIM_BEAUFORT".into(), 4.0, 8, COUNT)]);
+        assert!(s.on_message(&read(SIM_PARAMS.len() as i16, ""), &mut plant).is_empty());
         let unknown = s.on_message(&read(-1, "SIM_NOPE"), &mut plant);
         assert!(values(&unknown).is_empty());
         assert_eq!(texts(&unknown), ["unknown parameter SIM_NOPE"], "the reason, not silence");
@@ -870,7 +885,7 @@ mod tests {
         let mut plant = calm_plant();
         let mut s = SimParamService::new(SYS, &plant);
         let replies = s.on_message(&set_msg("SIM_WIND_N", 2.5), &mut plant);
-        assert_eq!(values(&replies), [("SIM_WIND_N".into(), 2.5, 0, 12)]);
+        assert_eq!(values(&replies), [("SIM_WIND_N".into(), 2.5, 0, COUNT)]);
         assert_eq!(plant.wind().steady_ned_mps(), Vector3::new(2.5, 0.0, 0.0));
 
         // The autopilot's refusal texts, word for word.
@@ -883,7 +898,7 @@ mod tests {
             let before = s.get(name).expect("known");
             let replies = s.on_message(&set_msg(name, bad), &mut plant);
             assert_eq!(texts(&replies), [text], "{name} = {bad}: {replies:?}");
-            assert_eq!(values(&replies), [(name.to_owned(), before, index_of(name).unwrap() as u16, 12)]);
+            assert_eq!(values(&replies), [(name.to_owned(), before, index_of(name).unwrap() as u16, COUNT)]);
             assert_eq!(s.get(name), Some(before));
         }
         assert_eq!(plant.wind().steady_ned_mps(), Vector3::new(2.5, 0.0, 0.0));
@@ -893,10 +908,10 @@ mod tests {
 
         // Beaufort sets the gust speed, and the gust speed moves the Beaufort force.
         let replies = s.on_message(&set_msg("SIM_BEAUFORT", 6.0), &mut plant);
-        assert_eq!(values(&replies), [("SIM_BEAUFORT".into(), 6.0, 8, 12), ("SIM_GUST_SPD".into(), 12.3, 3, 12)]);
+        assert_eq!(values(&replies), [("SIM_BEAUFORT".into(), 6.0, 8, COUNT), ("SIM_GUST_SPD".into(), 12.3, 3, COUNT)]);
         // As a PX4 script sets an integer: INT32, bytewise; echoed so.
         let replies = s.on_message(&set_int32("SIM_BEAUFORT", 5), &mut plant);
-        assert_eq!(values(&replies), [("SIM_BEAUFORT".into(), 5.0, 8, 12), ("SIM_GUST_SPD".into(), 9.35, 3, 12)]);
+        assert_eq!(values(&replies), [("SIM_BEAUFORT".into(), 5.0, 8, COUNT), ("SIM_GUST_SPD".into(), 9.35, 3, COUNT)]);
         let MavMessage::PARAM_VALUE(echo) = &replies[0] else { panic!("{replies:?}") };
         assert_eq!((echo.param_type, echo.param_value.to_bits()), (MavParamType::MAV_PARAM_TYPE_INT32, 5));
         // A float where the int32's bytes belong is out of range, and an int32 for a real is refused.
@@ -906,7 +921,7 @@ mod tests {
         assert_eq!(texts(&replies), ["SIM_GUST_SPD: sent as INT32, it is REAL32"]);
         assert_eq!((s.get("SIM_BEAUFORT"), s.get("SIM_GUST_SPD")), (Some(5.0), Some(9.35)));
         let replies = s.on_message(&set_msg("SIM_GUST_SPD", 6.7), &mut plant);
-        assert_eq!(values(&replies), [("SIM_GUST_SPD".into(), 6.7, 3, 12), ("SIM_BEAUFORT".into(), 4.0, 8, 12)]);
+        assert_eq!(values(&replies), [("SIM_GUST_SPD".into(), 6.7, 3, COUNT), ("SIM_BEAUFORT".into(), 4.0, 8, COUNT)]);
     }
 
     #[test]
@@ -919,7 +934,7 @@ mod tests {
         }
         assert_eq!(plant.truth().wind_ned_mps, Vector3::zeros());
         let on = s.on_message(&set_msg("SIM_GUST_ON", 1.0), &mut plant);
-        assert_eq!(values(&on), [("SIM_GUST_ON".into(), 1.0, 6, 12)]);
+        assert_eq!(values(&on), [("SIM_GUST_ON".into(), 1.0, 6, COUNT)]);
         assert!(texts(&on)[0].contains("t=2.00"), "{:?}", texts(&on));
         // The wind is evaluated at the start of each step: the step from t = 2.0 holds s(2.0) = 0.
         plant.step([1000.0; 4], 2000);
@@ -962,7 +977,7 @@ mod tests {
     fn given_turbulence_on_then_it_blows_only_with_the_gust_and_off_removes_it() {
         let mut plant = calm_plant();
         let mut s = SimParamService::new(SYS, &plant);
-        assert_eq!(values(&s.on_message(&set_msg("SIM_TURB", 1.0), &mut plant)), [("SIM_TURB".into(), 1.0, 7, 12)]);
+        assert_eq!(values(&s.on_message(&set_msg("SIM_TURB", 1.0), &mut plant)), [("SIM_TURB".into(), 1.0, 7, COUNT)]);
         assert!(plant.wind().has_turbulence());
         step_to(&mut plant, 1.0);
         assert_eq!(plant.truth().wind_ned_mps, Vector3::zeros(), "no gust, no turbulence");
@@ -1190,7 +1205,7 @@ mod tests {
         );
         assert!(got.iter().any(|f| matches!(f.message, MavMessage::HEARTBEAT(_))), "a heartbeat: {got:?}");
         let echoed: Vec<_> = got.iter().map(|f| f.message.clone()).collect();
-        assert_eq!(values(&echoed)[..2], [("SIM_GUST_SPD".into(), 5.0, 3, 12), ("SIM_BEAUFORT".into(), 3.0, 8, 12)]);
+        assert_eq!(values(&echoed)[..2], [("SIM_GUST_SPD".into(), 5.0, 3, COUNT), ("SIM_BEAUFORT".into(), 3.0, 8, COUNT)]);
         assert_eq!(link.service().get("SIM_GUST_SPD"), Some(5.0));
         // No more heartbeats before a second has passed.
         link.poll(&mut plant).expect("poll");
@@ -1212,6 +1227,6 @@ mod tests {
         let frames = decoder.decode_datagram(&buf[..n]);
         assert_eq!(frames.len(), 1);
         assert_eq!(frames[0].version, MavlinkVersion::V1);
-        assert_eq!(values(&[frames[0].message.clone()]), [("SIM_WIND_N".into(), 0.0, 0, 12)]);
+        assert_eq!(values(&[frames[0].message.clone()]), [("SIM_WIND_N".into(), 0.0, 0, COUNT)]);
     }
 }

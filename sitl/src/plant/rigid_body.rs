@@ -254,4 +254,35 @@ mod tests {
             assert!((state.q_ned_frd.norm() - 1.0).abs() < 1e-14);
         }
     }
+
+    #[test]
+    fn given_a_payload_then_the_hover_lift_carries_it_and_its_offset_pitches_by_the_full_inertia() {
+        use crate::plant::payload::Payload;
+        // 0.5 kg at the origin: m g/4 of the 5.7 kg hovers, nothing turns.
+        let centred = Airframe { payload: Payload { mass_kg: 0.5, ..Payload::default() }, ..Airframe::nominal() };
+        assert!((centred.hover_lift_n() - 5.7 * 9.81 / 4.0).abs() < 1e-12);
+        let state = hover_state(&centred);
+        let inputs = HeldInputs { lift_cmd_n: [centred.hover_lift_n(); 4], wind_ned_mps: Vector3::zeros() };
+        let d = derivative(&state, &inputs, &centred);
+        assert!(d.acc_ned_mps2.norm() < 1e-12 && d.ang_acc_frd_radps2.norm() < 1e-15, "{d:?}");
+        // The same lifts with the airframe's own 5.2 kg only: it climbs at (5.7/5.2 - 1) g.
+        let light = derivative(&state, &inputs, &Airframe::nominal());
+        assert!((light.acc_ned_mps2.z + (5.7 / 5.2 - 1.0) * 9.81).abs() < 1e-12, "{light:?}");
+        // 0.5 kg 0.1 m forward, 0.04 m right: τ = (0.1962, -0.4905, 0) N·m on the full inertia
+        // [[0.0808, -0.002, 0], [-0.002, 0.085, 0], [0, 0, 0.1258]]; solved by hand (Cramer's rule):
+        // det = 0.0808·0.085 - 0.002² = 0.006864; ω̇x = (0.1962·0.085 - 0.002·0.4905)/det,
+        // ω̇y = (-0.4905·0.0808 + 0.002·0.1962)/det.
+        let offset = Airframe {
+            payload: Payload { mass_kg: 0.5, offset_frd_m: Vector3::new(0.1, 0.04, 0.0) },
+            ..Airframe::nominal()
+        };
+        let d = derivative(&state, &inputs, &offset);
+        let det = 0.0808 * 0.085 - 0.002 * 0.002;
+        let expected = Vector3::new((0.1962 * 0.085 - 0.002 * 0.4905) / det, (-0.4905 * 0.0808 + 0.002 * 0.1962) / det, 0.0);
+        assert!((d.ang_acc_frd_radps2 - expected).norm() < 1e-12, "{} vs {expected}", d.ang_acc_frd_radps2);
+        assert!(d.ang_acc_frd_radps2.y < 0.0, "weight ahead pitches the nose down");
+        // Without a payload the path is the diagonal one, bit for bit: m + 0 is m.
+        let none = Airframe::nominal();
+        assert_eq!(none.total_mass_kg().to_bits(), none.mass_kg.to_bits());
+    }
 }

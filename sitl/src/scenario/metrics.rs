@@ -675,4 +675,71 @@ mod tests {
         assert!((m.pwm_rate_mean_us_per_s - 600.0 / 4.0 / 0.002).abs() < 1e-6, "{m:?}");
         assert!((m.saturation_s - 50.0 * 0.002).abs() < 1e-12, "{m:?}");
     }
+
+    /// The physics of the nominal airframe, for fault metrics that do not depend on it.
+    fn nominal_physics(feasibility: Feasibility) -> FaultPhysics {
+        let a = crate::plant::Airframe::nominal();
+        FaultPhysics {
+            envelope: crate::plant::envelope::hover_envelope(&a),
+            max_payload_within_limiter_kg: crate::plant::envelope::max_payload_within_limiter_kg(&a),
+            feasibility,
+        }
+    }
+
+    #[test]
+    fn given_a_synthetic_fault_trace_then_every_fault_metric_is_the_hand_computed_one() {
+        // 100 Hz for 10 s, hover reference (0, 0, -1.5) heading 0. Fault at 4 s. Before it the vehicle sits
+        // 0.5 m off (must not count). From 4 s: it sinks 0.2 m and drifts 0.1 m east (error sqrt(0.05) =
+        // 0.2236 m) until 6 s, then 0.05 m below until the end; tilt 0.1 rad roll, 0.2 rad pitch at 5 s only;
+        // yaw 3.0 rad at 5.5 s against a reference of -3.0 (wrapped error 0.2832 rad).
+        let t = times(1000, 0.01);
+        let n = t.len();
+        let mut pos: [Vec<f64>; 3] = [vec![0.0; n], vec![0.0; n], vec![-1.5; n]];
+        let refs: [Vec<f64>; 3] = [vec![0.0; n], vec![0.0; n], vec![-1.5; n]];
+        let mut euler: [Vec<f64>; 3] = [vec![0.0; n], vec![0.0; n], vec![-3.0; n]];
+        let ref_euler: [Vec<f64>; 3] = [vec![0.0; n], vec![0.0; n], vec![-3.0; n]];
+        for k in 0..n {
+            if t[k] < 4.0 - 1e-9 {
+                pos[0][k] = 0.5;
+            } else if t[k] < 6.0 - 1e-9 {
+                pos[1][k] = 0.1;
+                pos[2][k] = -1.3;
+            } else {
+                pos[2][k] = -1.45;
+            }
+        }
+        let k5 = 500;
+        (euler[0][k5], euler[1][k5]) = (0.1, 0.2);
+        euler[2][550] = 3.0;
+        let m = fault_metrics(&t, &pos, &refs, &euler, &ref_euler, 4.0, nominal_physics(Feasibility::Full));
+        let e1 = 0.05_f64.sqrt();
+        assert_eq!(m.onset_s, 4.0);
+        assert!((m.peak_position_error_m - e1).abs() < 1e-12, "{m:?}");
+        assert!((m.peak_tilt_rad - (0.1_f64.cos() * 0.2_f64.cos()).acos()).abs() < 1e-12, "{m:?}");
+        assert!((m.peak_yaw_error_rad - (2.0 * std::f64::consts::PI - 6.0)).abs() < 1e-12, "{m:?}");
+        // IAE: 2 s at 0.2236 m, then 4 s at 0.05 m (left sums over 10 ms samples).
+        assert!((m.iae_m_s - (2.0 * e1 + 4.0 * 0.05)).abs() < 1e-9, "{m:?}");
+        assert!((m.altitude_drop_m - 0.2).abs() < 1e-12, "{m:?}");
+        // Below 0.10 m from 6 s on: recovered 2 s after the onset.
+        assert!((m.recovery_s.unwrap() - 2.0).abs() < 1e-9, "{m:?}");
+        assert!(m.within_0_3_m && !m.lost_control, "{m:?}");
+        assert!((m.final_error_m - 0.05).abs() < 1e-12, "{m:?}");
+        assert_eq!(m.feasibility, Feasibility::Full);
+
+        // 0.31 m off at one sample: no longer within 0.3 m; 1.2 m: control lost; never back: no recovery.
+        pos[0][700] = 0.31;
+        let off = fault_metrics(&t, &pos, &refs, &euler, &ref_euler, 4.0, nominal_physics(Feasibility::Full));
+        assert!(!off.within_0_3_m && !off.lost_control && off.recovery_s.is_some(), "{off:?}");
+        pos[0][n - 1] = 1.2;
+        let lost = fault_metrics(&t, &pos, &refs, &euler, &ref_euler, 4.0, nominal_physics(Feasibility::Full));
+        assert!(lost.lost_control && lost.recovery_s.is_none() && (lost.final_error_m - 1.2f64.hypot(0.05)).abs() < 1e-12);
+        // Tilted past 60° with the position held: control lost too; a NaN sample: lost, never within.
+        pos[0][n - 1] = 0.0;
+        euler[0][800] = 1.1;
+        assert!(fault_metrics(&t, &pos, &refs, &euler, &ref_euler, 4.0, nominal_physics(Feasibility::Full)).lost_control);
+        euler[0][800] = 0.0;
+        pos[2][900] = f64::NAN;
+        let nan = fault_metrics(&t, &pos, &refs, &euler, &ref_euler, 4.0, nominal_physics(Feasibility::Full));
+        assert!(nan.lost_control && !nan.within_0_3_m && nan.peak_position_error_m.is_nan(), "{nan:?}");
+    }
 }

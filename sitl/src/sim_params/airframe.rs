@@ -1,6 +1,6 @@
 //! The airframe's SIM_ parameters: per-rotor thrust multipliers (SIM_MOT1_EFF..SIM_MOT4_EFF, the rotors'
 //! health), the payload (SIM_PAYLOAD_KG at SIM_CG_OFS_X/Y) and the multiplier of an injected partial
-//! motor failure (SIM_MOT_WRONG_EFF, stored only). In, a set the table's range check passed; out, the
+//! motor failure (SIM_MOT_WRONG, stored only). In, a set the table's range check passed; out, the
 //! plant's airframe changed from its next step.
 
 use nalgebra::Vector3;
@@ -35,4 +35,55 @@ pub(super) fn apply(index: usize, value: f32, plant: &mut Plant) -> Applied {
         _ => {}
     }
     Applied::default()
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::plant::rotor::lift_from_pwm_n;
+    use crate::plant::{InitialState, Plant, PlantConfig};
+    use crate::sim_params::SimParamService;
+    use crate::sim_params::events::param_index;
+
+    fn set(s: &mut SimParamService, plant: &mut Plant, name: &str, value: f32) -> Result<(), String> {
+        s.set_now(param_index(name).expect("a SIM_ parameter"), value, plant)
+    }
+
+    #[test]
+    fn given_sim_mot3_eff_0_6_then_rotor_3_settles_at_0_6_of_its_lift_and_the_others_keep_theirs() {
+        let initial = InitialState { pos_ned_m: nalgebra::Vector3::new(0.0, 0.0, -50.0), ..InitialState::default() };
+        let mut plant = Plant::new(PlantConfig { ground: crate::plant::GroundConfig { enabled: false, ground_d_m: 0.0 }, ..PlantConfig::default() }, &initial, 1).unwrap();
+        let mut s = SimParamService::new(1, &plant);
+        assert_eq!(s.get("SIM_MOT3_EFF"), Some(1.0));
+        set(&mut s, &mut plant, "SIM_MOT3_EFF", 0.6).unwrap();
+        assert_eq!(plant.config().airframe.rotor_health, [1.0, 1.0, f64::from(0.6_f32), 1.0]);
+        // 0.5 s at 1500 µs (12.5 lag constants): each lift is its health times F10(1500).
+        for _ in 0..250 {
+            plant.step([1500.0; 4], 2000);
+        }
+        let f = lift_from_pwm_n(1500.0);
+        let lift = plant.truth().rotor_lift_n;
+        assert!((lift[2] - f64::from(0.6_f32) * f).abs() < 1e-4 * f, "{lift:?}");
+        assert!((lift[0] - f).abs() < 1e-4 * f && (lift[3] - f).abs() < 1e-4 * f, "{lift:?}");
+        // Out of range: refused with the table's reason, nothing changed.
+        let e = set(&mut s, &mut plant, "SIM_MOT3_EFF", 1.2).unwrap_err();
+        assert!(e.contains("SIM_MOT3_EFF") && e.contains("1.2"), "{e}");
+        assert_eq!((plant.config().airframe.rotor_health[2], s.get("SIM_MOT3_EFF")), (f64::from(0.6_f32), Some(0.6)));
+    }
+
+    #[test]
+    fn given_payload_sets_then_the_airframe_carries_them_and_a_new_service_reads_them_back() {
+        let mut plant = Plant::new(PlantConfig::default(), &InitialState::default(), 1).unwrap();
+        let mut s = SimParamService::new(1, &plant);
+        set(&mut s, &mut plant, "SIM_PAYLOAD_KG", 0.5).unwrap();
+        set(&mut s, &mut plant, "SIM_CG_OFS_Y", -0.04).unwrap();
+        set(&mut s, &mut plant, "SIM_CG_OFS_X", 0.1).unwrap();
+        let p = plant.config().airframe.payload;
+        assert_eq!((p.mass_kg, p.offset_frd_m.x, p.offset_frd_m.y, p.offset_frd_m.z), (0.5, f64::from(0.1_f32), f64::from(-0.04_f32), 0.0));
+        assert!((plant.config().airframe.weight_n() - 5.7 * 9.81).abs() < 1e-12);
+        let fresh = SimParamService::new(1, &plant);
+        assert_eq!((fresh.get("SIM_PAYLOAD_KG"), fresh.get("SIM_CG_OFS_X"), fresh.get("SIM_CG_OFS_Y")), (Some(0.5), Some(0.1), Some(-0.04)));
+        assert!(set(&mut s, &mut plant, "SIM_CG_OFS_X", 0.6).is_err());
+        assert!(set(&mut s, &mut plant, "SIM_PAYLOAD_KG", -1.0).is_err());
+        assert_eq!(plant.config().airframe.payload, p);
+    }
 }
