@@ -80,25 +80,37 @@
 //! (`sim_params/sensors.rs`, start values read from the plant). A MAV_CMD_INJECT_FAILURE the autopilot forwards on
 //! the plant link is a set of these ([`failure_sets`], [`SimParamService::inject_failure`]); what it
 //! changed goes to every live peer at the next poll (an INFO text and the PARAM_VALUEs).
+//!
+//! The airframe (`sim_params/airframe.rs`): SIM_MOT1_EFF..SIM_MOT4_EFF multiply rotor 1..4's lift (its
+//! health, 1 healthy, 0 failed; ArduPilot's SIM_ENGINE_MUL), SIM_PAYLOAD_KG adds a point mass at
+//! (SIM_CG_OFS_X, SIM_CG_OFS_Y) m FRD from the body origin ([`crate::plant::Payload`]: its weight's torque and
+//! its inertia). All act from
+//! the next plant step and start at the plant's airframe values. A scenario's `[[event]]` sets any of these
+//! parameters at a plant time, through this same service ([`events`]).
 
+mod airframe;
+pub mod events;
 mod inject;
 mod sensors;
 mod truth;
 
+pub use events::{EventSpec, SimEvent, SimEvents};
 pub use inject::{FailureRequest, Injection, Refusal, failure_sets, failure_unit};
 pub use truth::{TRUTH_PERIOD_US, TRUTH_RATE_HZ, TruthStream, sim_state, truth_messages};
 
 use std::io;
 use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
 use autopilot::core::hil::{FrameDecoder, encode_frame_v1, encode_frame_v2};
-use autopilot::core::mavlink::params::{Applied, ParamService, param_value};
+use autopilot::core::mavlink::params::{Applied, ParamService, encode_value, param_value};
 use autopilot::core::mavlink::{statustext, statustext_chunks};
 use autopilot::core::params::{ParamDef, ParamError, ParamKind, ParamStore};
 use mavlink::dialects::common::{
-    HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavResult, MavSeverity, MavState, MavType,
+    HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavResult, MavSeverity, MavState, MavType, PARAM_SET_DATA,
 };
+use mavlink::types::CharArray;
 use mavlink::{MavHeader, MavlinkVersion};
 use nalgebra::Vector3;
 
@@ -144,6 +156,11 @@ mod idx {
     pub const MOT_WRNG_EFF: usize = 20;
     pub const LINK_DELAY: usize = 21;
     pub const LINK_LOSS: usize = 22;
+    pub const MOT1_EFF: usize = 23;
+    pub const MOT4_EFF: usize = 26;
+    pub const PAYLOAD_KG: usize = 27;
+    pub const CG_OFS_X: usize = 28;
+    pub const CG_OFS_Y: usize = 29;
 }
 
 /// A SIM_ parameter: the autopilot's parameter definition with no docs group and no config binding (the
@@ -191,7 +208,7 @@ const fn whole(name: &'static str, default: f32, min: f32, max: f32, description
 
 /// The SIM_ parameters. The defaults are the values with no wind configured (the plant's configured wind
 /// overrides them at start).
-pub static SIM_PARAMS: [SimParamDef; 23] = [
+pub static SIM_PARAMS: [SimParamDef; 30] = [
     real("SIM_WIND_N", 0.0, -30.0, 30.0, "m/s", "Steady wind toward north (NED)"),
     real("SIM_WIND_E", 0.0, -30.0, 30.0, "m/s", "Steady wind toward east (NED)"),
     real("SIM_WIND_D", 0.0, -10.0, 10.0, "m/s", "Steady wind downward (NED)"),
@@ -254,6 +271,13 @@ pub static SIM_PARAMS: [SimParamDef; 23] = [
         "%",
         "Chance that a sensor datagram to the autopilot is lost (the plant steps on with the last actuators)",
     ),
+    real("SIM_MOT1_EFF", 1.0, 0.0, 1.0, "", "Rotor 1 (right) thrust multiplier: 1 healthy, 0 failed (SIM_ENGINE_MUL)"),
+    real("SIM_MOT2_EFF", 1.0, 0.0, 1.0, "", "Rotor 2 (rear) thrust multiplier: 1 healthy, 0 failed"),
+    real("SIM_MOT3_EFF", 1.0, 0.0, 1.0, "", "Rotor 3 (front) thrust multiplier: 1 healthy, 0 failed"),
+    real("SIM_MOT4_EFF", 1.0, 0.0, 1.0, "", "Rotor 4 (left) thrust multiplier: 1 healthy, 0 failed"),
+    real("SIM_PAYLOAD_KG", 0.0, 0.0, 10.0, "kg", "Payload: a point mass added to the airframe at SIM_CG_OFS_X/Y"),
+    real("SIM_CG_OFS_X", 0.0, -0.5, 0.5, "m", "Where the payload sits, forward of the body origin (FRD x)"),
+    real("SIM_CG_OFS_Y", 0.0, -0.5, 0.5, "m", "Where the payload sits, right of the body origin (FRD y)"),
 ];
 
 /// Whether a set of `name` to `value` can be taken by any plant, without one at hand (a scenario file's
@@ -293,6 +317,9 @@ pub struct SimParamService {
     system_id: u8,
     store: ParamStore<(), ()>,
     protocol: ParamService,
+    /// What sets made through [`SimParamService::set_now`] have to tell every peer (their PARAM_VALUE echoes
+    /// and notes), sent by the SIM_ port at its next poll.
+    outbox: Vec<MavMessage>,
 }
 
 impl SimParamService {
@@ -321,11 +348,50 @@ impl SimParamService {
         values[idx::BAT_MIN_PCT] = (battery.min_remaining * 100.0) as f32;
         values[idx::RC_FAIL] = f32::from(u8::from(plant.radio().failed()));
         sensors::initial_values(plant, &mut values);
+        airframe::initial_values(plant, &mut values);
         Self {
             system_id,
             store: ParamStore::from_fn(&SIM_PARAMS, |i, _| values[i]),
             protocol: ParamService::for_component(PLANT_COMPONENT_ID),
+            outbox: Vec::new(),
         }
+    }
+
+    /// Set parameter `index` to `value` now, as a PARAM_SET received on the port would (the same check,
+    /// apply and store; a scenario's `[[event]]`); its replies wait in the outbox for the port's peers.
+    ///
+    /// # Errors
+    /// The refusal a ground station would read (nothing changed), or an index past the table.
+    pub fn set_now(&mut self, index: usize, value: f32, plant: &mut Plant) -> Result<(), String> {
+        let d = SIM_PARAMS.get(index).ok_or_else(|| format!("no SIM_ parameter at index {index}"))?;
+        let msg = MavMessage::PARAM_SET(PARAM_SET_DATA {
+            param_value: encode_value(d.kind, value),
+            target_system: 0,
+            target_component: 0,
+            param_id: CharArray::from(d.name),
+            param_type: d.kind.mav_param_type(),
+        });
+        let replies = self.on_message(&msg, plant);
+        if let Some(MavMessage::STATUSTEXT(t)) = replies.first()
+            && t.severity == MavSeverity::MAV_SEVERITY_WARNING
+        {
+            let text: &[u8; 50] = &t.text;
+            let len = text.iter().position(|&b| b == 0).unwrap_or(text.len());
+            return Err(String::from_utf8_lossy(&text[..len]).into_owned());
+        }
+        self.outbox.extend(replies);
+        Ok(())
+    }
+
+    /// The replies of [`SimParamService::set_now`] not yet sent, oldest first.
+    pub fn take_outbox(&mut self) -> Vec<MavMessage> {
+        std::mem::take(&mut self.outbox)
+    }
+
+    /// The system id the service answers for.
+    #[must_use]
+    pub fn system_id(&self) -> u8 {
+        self.system_id
     }
 
     /// The current value of parameter `index`.
@@ -464,6 +530,7 @@ fn apply(store: &mut ParamStore<(), ()>, index: usize, value: f32, plant: &mut P
         idx::BAT_MIN_PCT => plant.battery_mut().set_min_remaining(f64::from(value) / 100.0),
         idx::RC_FAIL => plant.radio_mut().set_failed(value == 1.0),
         i if sensors::owns(i) => sensors::apply(i, value, plant)?,
+        idx::MOT1_EFF..=idx::CG_OFS_Y => applied = airframe::apply(index, value, plant),
         idx::TURB if value != value_of(store, idx::TURB) => {
             if value == 1.0 {
                 if plant.wind().gust().is_none() {
@@ -547,7 +614,9 @@ struct Peer {
 #[derive(Debug)]
 pub struct SimParamLink {
     socket: UdpSocket,
-    service: SimParamService,
+    /// Shared with the plant's scheduled events ([`events::SimEvents`]), if it has any.
+    service: Arc<Mutex<SimParamService>>,
+    system_id: u8,
     decoder: FrameDecoder,
     peers: Vec<Peer>,
     truth: TruthStream,
@@ -560,16 +629,19 @@ pub struct SimParamLink {
 
 impl SimParamLink {
     /// Bind `addr` (e.g. `127.0.0.1:19550`, or port 0 in tests) for system `system_id`, the values read
-    /// from `plant` (see [`SimParamService::new`]).
+    /// from `plant` (see [`SimParamService::new`]). A plant with scheduled events: see
+    /// [`SimParamLink::carry_events_of`].
     ///
     /// # Errors
     /// The bind or socket-option error.
     pub fn bind(addr: impl ToSocketAddrs, system_id: u8, plant: &Plant) -> io::Result<Self> {
         let socket = UdpSocket::bind(addr)?;
         socket.set_nonblocking(true)?;
+        let service = Arc::new(Mutex::new(SimParamService::new(system_id, plant)));
         Ok(Self {
             socket,
-            service: SimParamService::new(system_id, plant),
+            service,
+            system_id,
             decoder: FrameDecoder::new(),
             peers: Vec::new(),
             truth: TruthStream::new(plant.time_us()),
@@ -588,10 +660,17 @@ impl SimParamLink {
         self.socket.local_addr()
     }
 
+    /// Send the sets of `plant`'s scheduled events (a scenario's `[[event]]`) through this port's service
+    /// from now on, so the port shows what they set and tells its peers (nothing without events).
+    pub fn carry_events_of(&self, plant: &mut Plant) {
+        if let Some(events) = plant.sim_events_mut() {
+            events.share_service(Arc::clone(&self.service));
+        }
+    }
+
     /// The service (its values).
-    #[must_use]
-    pub fn service(&self) -> &SimParamService {
-        &self.service
+    pub fn service(&self) -> MutexGuard<'_, SimParamService> {
+        self.service.lock().unwrap_or_else(PoisonError::into_inner)
     }
 
     fn send(&mut self, msg: &MavMessage, to: SocketAddr, version: MavlinkVersion) -> io::Result<()> {
@@ -603,7 +682,7 @@ impl SimParamLink {
         let mut bytes = Vec::with_capacity(128 * msgs.len());
         for msg in msgs {
             let header = MavHeader {
-                system_id: self.service.system_id.into(),
+                system_id: self.system_id.into(),
                 component_id: PLANT_COMPONENT_ID,
                 sequence: self.sequence,
             };
@@ -644,15 +723,18 @@ impl SimParamLink {
                     }
                     None => self.peers.push(Peer { addr: from, heard: now, version: frame.version }),
                 }
-                for reply in self.service.on_message(&frame.message, plant) {
+                let replies = self.service().on_message(&frame.message, plant);
+                for reply in replies {
                     self.send(&reply, from, frame.version)?;
                 }
             }
         }
-        let outbox = std::mem::take(&mut self.outbox);
+        // The injections' texts and values, and what a scenario's events set, to every peer.
+        let mut outbox = std::mem::take(&mut self.outbox);
+        outbox.extend(self.service().take_outbox());
         for p in self.peers.clone() {
-            for msg in &outbox {
-                self.send(msg, p.addr, p.version)?;
+            if !outbox.is_empty() {
+                self.send_all(&outbox, p.addr, p.version)?;
             }
         }
         let samples = self.truth.take();
@@ -685,7 +767,7 @@ impl PlantHook for SimParamLink {
 
     /// Applied through the port's service; what changed goes to the port's clients at the next poll.
     fn inject_failure(&mut self, plant: &mut Plant, request: &FailureRequest) -> Option<Injection> {
-        let injection = self.service.inject_failure(request, plant);
+        let injection = self.service().inject_failure(request, plant);
         self.outbox.extend(injection.messages.iter().cloned());
         Some(injection)
     }
@@ -816,7 +898,14 @@ mod tests {
                 "SIM_BAT_FAIL",
                 "SIM_MOT_WRNG_EFF",
                 "SIM_LINK_DELAY",
-                "SIM_LINK_LOSS"
+                "SIM_LINK_LOSS",
+                "SIM_MOT1_EFF",
+                "SIM_MOT2_EFF",
+                "SIM_MOT3_EFF",
+                "SIM_MOT4_EFF",
+                "SIM_PAYLOAD_KG",
+                "SIM_CG_OFS_X",
+                "SIM_CG_OFS_Y",
             ]
         );
         let spd = &SIM_PARAMS[idx::GUST_SPD];
@@ -869,7 +958,8 @@ mod tests {
             [
                 1.0, -2.0, 0.5, 3.0, 0.0, 2.0, 0.0, 1.0, 2.0, 0.0, 0.0, 0.0, // wind, pack, radio
                 0.0, 0.0, 0.0, 0.0, 0.0, 50.0, 0.0, 0.0, 0.7, 0.0,
-                0.0 // no faults, the default jump and weak motor
+                0.0, // no faults, the default jump and weak motor
+                1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0 // four healthy rotors, no payload
             ]
         );
     }
@@ -896,7 +986,7 @@ mod tests {
         let (real, int) = (MavParamType::MAV_PARAM_TYPE_REAL32, MavParamType::MAV_PARAM_TYPE_INT32);
         let gust_spd = 6.7_f32.to_bits();
         assert_eq!(
-            types[idx::GUST_SPD..],
+            types[idx::GUST_SPD..=idx::LINK_LOSS],
             [
                 (real, gust_spd),
                 (real, 90.0_f32.to_bits()),
@@ -921,6 +1011,10 @@ mod tests {
                 (real, 0.0_f32.to_bits())
             ]
         );
+        // The airframe's are REAL32: four healthy rotors, no payload.
+        let one = (real, 1.0_f32.to_bits());
+        let zero = (real, 0.0_f32.to_bits());
+        assert_eq!(types[idx::MOT1_EFF..], [one, one, one, one, zero, zero, zero]);
         // Another system's request, or one for the autopilot's component, is not ours.
         let theirs = MavMessage::PARAM_REQUEST_LIST(PARAM_REQUEST_LIST_DATA { target_system: 1, target_component: 0 });
         assert!(s.on_message(&theirs, &mut plant).is_empty());

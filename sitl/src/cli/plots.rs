@@ -130,7 +130,66 @@ pub(crate) fn sweep_plots(spec: &Sweep, rows: &[sitl::sweep::Row], out: &Path) -
         plot::distribution(&path, &title, &metric_axis_label(metric), &samples)?;
         written.push(path);
     }
+    written.extend(robustness_plot(spec, rows, out)?);
     Ok(written)
+}
+
+/// A sweep over one rotor's efficiency (`motN_eff`) of a scenario with the fault metric: the median peak
+/// position error per thrust loss and controller, against the airframe's physical bounds
+/// (`sitl::plant::envelope`); nothing for any other sweep.
+pub(crate) fn robustness_plot(spec: &Sweep, rows: &[sitl::sweep::Row], out: &Path) -> Result<Vec<PathBuf>> {
+    let names = spec.param_names();
+    let Some(p) = names.iter().position(|n| n.starts_with("mot") && n.ends_with("_eff")) else { return Ok(Vec::new()) };
+    let metric = "fault_peak_position_error_m";
+    let Some(m) = spec.metric_columns().iter().position(|c| c == metric) else { return Ok(Vec::new()) };
+    let airframe = runner::plant_config(&spec.scenario, spec.plant.as_deref())?.airframe;
+    let e = sitl::plant::hover_envelope(&airframe);
+    let loss_pct = |eff: f64| 100.0 * (1.0 - eff);
+    let curves: Vec<(String, Vec<(f64, f64)>)> = spec
+        .controllers
+        .iter()
+        .map(|c| {
+            let mut by_loss: std::collections::BTreeMap<u64, Vec<f64>> = std::collections::BTreeMap::new();
+            for r in rows.iter().filter(|r| r.controller == *c) {
+                by_loss.entry(loss_pct(r.params[p]).to_bits()).or_default().push(r.metrics[m].unwrap_or(f64::INFINITY));
+            }
+            let mut points: Vec<(f64, f64)> = by_loss
+                .into_iter()
+                .map(|(x, mut v)| {
+                    v.sort_by(f64::total_cmp);
+                    (f64::from_bits(x), v[v.len() / 2])
+                })
+                .collect();
+            points.sort_by(|a, b| a.0.total_cmp(&b.0));
+            (c.to_string().to_uppercase(), points)
+        })
+        .collect();
+    let bounds = [
+        plot::Bound {
+            x: loss_pct(e.min_health_full_control),
+            label: format!("all moments: {:.1} %", loss_pct(e.min_health_full_control)),
+        },
+        plot::Bound {
+            x: loss_pct(e.min_health_without_yaw),
+            label: format!("roll/pitch: {:.1} %", loss_pct(e.min_health_without_yaw)),
+        },
+    ];
+    let path = out.join("robustness.png");
+    let title = format!(
+        "{}: median peak position error after the fault ({} plant)",
+        spec.name,
+        spec.scenario.plant_label(spec.plant.as_deref())
+    );
+    let layout = plot::Layout {
+        title: &title,
+        x_label: &format!("rotor {} thrust lost (%)", &names[p][3..4]),
+        y_label: "peak position error (m)",
+        bounds: &bounds,
+        threshold: Some((sitl::scenario::metrics::FAULT_HOLD_BAND_M, "0.3 m")),
+        y_max: 2.0,
+    };
+    plot::robustness(&path, &layout, &curves)?;
+    Ok(vec![path.clone(), path.with_extension("svg")])
 }
 
 /// `gust_peak_m` -> `gust peak (m)`.

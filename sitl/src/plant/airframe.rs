@@ -7,6 +7,7 @@ use nalgebra::Vector3;
 use serde::Deserialize;
 
 use super::PlantError;
+use super::payload::Payload;
 
 /// The preset names [`Airframe::preset`] accepts.
 pub const PRESET_NAMES: &str = "nominal, mismatch";
@@ -41,6 +42,9 @@ pub struct Airframe {
     pub air_density_kgpm3: f64,
     /// Gravitational acceleration g (m/s²), along +D.
     pub gravity_mps2: f64,
+    /// An added point mass and its offset (SIM_PAYLOAD_KG, SIM_CG_OFS_X/Y; [`Payload`]); none by default
+    /// and in every preset. Not a TOML key: it is set in flight (or by a scenario's `[[event]]`).
+    pub payload: Payload,
 }
 
 impl Airframe {
@@ -59,6 +63,7 @@ impl Airframe {
             drag_cda_m2: 0.10,
             air_density_kgpm3: 1.225,
             gravity_mps2: 9.81,
+            payload: Payload::default(),
         }
     }
 
@@ -90,13 +95,19 @@ impl Airframe {
         }
     }
 
-    /// Weight m·g (N).
+    /// The mass the rotors carry (kg): the airframe's m plus any payload (exactly m without one).
     #[must_use]
-    pub fn weight_n(&self) -> f64 {
-        self.mass_kg * self.gravity_mps2
+    pub fn total_mass_kg(&self) -> f64 {
+        self.mass_kg + self.payload.mass_kg
     }
 
-    /// The per-rotor lift that holds hover, m·g/4 (N).
+    /// Weight (m + m_p)·g (N).
+    #[must_use]
+    pub fn weight_n(&self) -> f64 {
+        self.total_mass_kg() * self.gravity_mps2
+    }
+
+    /// The per-rotor lift that holds hover, (m + m_p)·g/4 (N).
     #[must_use]
     pub fn hover_lift_n(&self) -> f64 {
         self.weight_n() / 4.0
@@ -162,6 +173,14 @@ impl Airframe {
         non_negative("airframe.drag_cda_m2", self.drag_cda_m2)?;
         positive("airframe.air_density_kgpm3", self.air_density_kgpm3)?;
         non_negative("airframe.gravity_mps2", self.gravity_mps2)?;
+        non_negative("airframe.payload.mass_kg", self.payload.mass_kg)?;
+        for (i, name) in
+            ["airframe.payload.offset_frd_m[0]", "airframe.payload.offset_frd_m[1]", "airframe.payload.offset_frd_m[2]"]
+                .into_iter()
+                .enumerate()
+        {
+            finite(name, self.payload.offset_frd_m[i])?;
+        }
         Ok(())
     }
 }

@@ -4,6 +4,7 @@
 //! lengths; randomness comes from one seed split into a ChaCha8 stream per subsystem.
 //!
 //! A step runs in named phases, as ArduPilot's `SIM_Multicopter` and PX4's SIH do:
+//! 0. `fire_due_events`: a scenario's timed SIM_ parameter sets whose time has come (none by default);
 //! 1. `update_wind`: steady + gust + turbulence, evaluated once at the start of the step and held;
 //! 2. `rotor_forces`: the commanded lift k_F·h_i·F10(PWM_i) of each rotor (Eq 10 inverse), held;
 //! 3. `equations_of_motion`: RK4 substeps of `integrator_step_s` (1 ms) of the Newton-Euler model with
@@ -15,8 +16,10 @@
 
 pub mod airframe;
 pub mod battery;
+pub mod envelope;
 pub mod faults;
 pub mod ground;
+pub mod payload;
 pub mod radio;
 pub mod rigid_body;
 pub mod rotor;
@@ -30,13 +33,16 @@ use serde::Deserialize;
 
 pub use airframe::{Airframe, AirframeConfig};
 pub use battery::{Battery, BatteryConfig, BatteryReading};
+pub use envelope::{Feasibility, HoverEnvelope, hover_envelope};
 pub use faults::{Fault, FaultError, LinkFaults, Sensor, SensorFaults};
 pub use ground::GroundConfig;
+pub use payload::Payload;
 pub use radio::{Radio, RcSchedule};
 pub use rigid_body::RigidBodyState;
 pub use sensors::{BaroSample, GpsSample, NoisyState, SensorConfig, SensorSample, Sensors, StateNoise};
 pub use wind::{GustConfig, TurbulenceConfig, Wind, WindConfig};
 
+use crate::sim_params::SimEvents;
 use rigid_body::HeldInputs;
 
 /// Configuration and validation errors of the plant.
@@ -210,6 +216,9 @@ pub struct Plant {
     radio: Radio,
     /// Delay and loss of the plant link's sensor datagrams (applied by the plant link, `crate::link`).
     link_faults: LinkFaults,
+    /// A scenario's timed SIM_ parameter sets, fired at the start of the first step at or after their
+    /// time (`crate::sim_params::events`).
+    events: Option<SimEvents>,
 }
 
 impl Plant {
@@ -260,6 +269,7 @@ impl Plant {
             motors_running: true,
             radio: Radio::default(),
             link_faults: LinkFaults::new(seed),
+            events: None,
             state,
             time_us: 0,
             last_pwm_us,
@@ -285,11 +295,38 @@ impl Plant {
         if dt_us == 0 {
             return;
         }
+        self.fire_due_events();
         let wind_ned_mps = self.update_wind();
         let inputs = self.rotor_forces(&pwm_us, wind_ned_mps);
         self.equations_of_motion(&inputs, dt_us as f64 * 1e-6);
         self.drain_battery(dt_us as f64 * 1e-6);
         self.time_us += dt_us;
+    }
+
+    /// Phase 0: the scheduled events whose time has come act from this step on.
+    fn fire_due_events(&mut self) {
+        if self.events.as_ref().is_some_and(|e| e.due(self.time_us))
+            && let Some(mut events) = self.events.take()
+        {
+            events.fire_due(self);
+            self.events = Some(events);
+        }
+    }
+
+    /// The scheduled events (a scenario's `[[event]]`), if any.
+    #[must_use]
+    pub fn sim_events(&self) -> Option<&SimEvents> {
+        self.events.as_ref()
+    }
+
+    /// The scheduled events, to share their SIM_ parameter service with the plant's SIM_ port.
+    pub fn sim_events_mut(&mut self) -> Option<&mut SimEvents> {
+        self.events.as_mut()
+    }
+
+    /// Schedule `events` (replacing any), or none; see `crate::sim_params::events::install`.
+    pub fn set_sim_events(&mut self, events: Option<SimEvents>) {
+        self.events = events;
     }
 
     /// Phase 5: the pack delivers the rotors' power at the lifts the step ended with. A plant without a

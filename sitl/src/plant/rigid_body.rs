@@ -4,9 +4,10 @@
 //! derivative and the state one RK4 substep later (default 1 ms), with q renormalised.
 //!
 //! - ṗ = v
-//! - v̇ = g e3 - (T/m) R e3 - (ρ CdA / 2m) |v - w| (v - w)
+//! - v̇ = g e3 - (T/m) R e3 - (ρ CdA / 2m) |v - w| (v - w), m the airframe's mass plus any payload
 //! - q̇ = ½ q ⊗ (0, ω)
-//! - I ω̇ = M + τ_dist - ω × Iω (Eq 7), M from the Eq 27 mixer
+//! - I ω̇ = M + τ_dist - ω × Iω (Eq 7), M from the Eq 27 mixer; with a payload ([`super::payload`]) I is
+//!   the full inertia with it and its weight adds r × Rᵀ(m_p g e3) to the torque
 //! - Ḟ_i = (k_F h_i F10(PWM_i) - F_i)/τ_m
 
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
@@ -115,12 +116,24 @@ pub fn derivative(state: &RigidBodyState, inputs: &HeldInputs, airframe: &Airfra
     let wrench = rotor::mix(&state.rotor_lift_n, airframe.arm_m, airframe.yaw_moment_m);
     let acc_ned_mps2 = acceleration_ned_mps2(state, wrench.thrust_n, &inputs.wind_ned_mps, airframe);
 
-    // Rotation, Eq 7 with a diagonal inertia.
+    // Rotation, Eq 7 with a diagonal inertia (with a payload, its full inertia and its weight's torque).
     let omega = state.rate_frd_radps;
-    let inertia = airframe.inertia_kgm2;
-    let h_frd = inertia.component_mul(&omega);
-    let torque_frd_nm = wrench.moment_frd_nm + airframe.disturbance_torque_frd_nm - omega.cross(&h_frd);
-    let ang_acc_frd_radps2 = torque_frd_nm.component_div(&inertia);
+    let ang_acc_frd_radps2 = if airframe.payload.is_carried() {
+        let payload = &airframe.payload;
+        let inertia = payload.inertia_with_kgm2(&airframe.inertia_kgm2);
+        let h_frd = inertia * omega;
+        let torque_frd_nm = wrench.moment_frd_nm
+            + airframe.disturbance_torque_frd_nm
+            + payload.gravity_torque_frd_nm(&state.attitude(), airframe.gravity_mps2)
+            - omega.cross(&h_frd);
+        // A rigid body's inertia is positive definite (validated principal inertias plus a point mass).
+        inertia.cholesky().map_or_else(Vector3::zeros, |c| c.solve(&torque_frd_nm))
+    } else {
+        let inertia = airframe.inertia_kgm2;
+        let h_frd = inertia.component_mul(&omega);
+        let torque_frd_nm = wrench.moment_frd_nm + airframe.disturbance_torque_frd_nm - omega.cross(&h_frd);
+        torque_frd_nm.component_div(&inertia)
+    };
 
     let q_dot = state.q_ned_frd * Quaternion::from_imag(omega) * 0.5;
 
@@ -145,10 +158,10 @@ pub fn acceleration_ned_mps2(
     // Gravity, thrust along -z_FRD, quadratic drag on the air-relative velocity.
     let thrust_dir_ned = state.attitude().transform_vector(&Vector3::z());
     let air_rel_ned_mps = state.vel_ned_mps - wind_ned_mps;
-    let drag_per_speed =
-        airframe.air_density_kgpm3 * airframe.drag_cda_m2 / (2.0 * airframe.mass_kg) * air_rel_ned_mps.norm();
+    let mass_kg = airframe.total_mass_kg();
+    let drag_per_speed = airframe.air_density_kgpm3 * airframe.drag_cda_m2 / (2.0 * mass_kg) * air_rel_ned_mps.norm();
     Vector3::new(0.0, 0.0, airframe.gravity_mps2)
-        - thrust_dir_ned * (thrust_n / airframe.mass_kg)
+        - thrust_dir_ned * (thrust_n / mass_kg)
         - air_rel_ned_mps * drag_per_speed
 }
 
@@ -240,5 +253,37 @@ mod tests {
             state = rk4_step(&state, &inputs, &airframe, 0.001);
             assert!((state.q_ned_frd.norm() - 1.0).abs() < 1e-14);
         }
+    }
+
+    #[test]
+    fn given_a_payload_then_the_hover_lift_carries_it_and_its_offset_pitches_by_the_full_inertia() {
+        use crate::plant::payload::Payload;
+        // 0.5 kg at the origin: m g/4 of the 5.7 kg hovers, nothing turns.
+        let centred = Airframe { payload: Payload { mass_kg: 0.5, ..Payload::default() }, ..Airframe::nominal() };
+        assert!((centred.hover_lift_n() - 5.7 * 9.81 / 4.0).abs() < 1e-12);
+        let state = hover_state(&centred);
+        let inputs = HeldInputs { lift_cmd_n: [centred.hover_lift_n(); 4], wind_ned_mps: Vector3::zeros() };
+        let d = derivative(&state, &inputs, &centred);
+        assert!(d.acc_ned_mps2.norm() < 1e-12 && d.ang_acc_frd_radps2.norm() < 1e-15, "{d:?}");
+        // The same lifts with the airframe's own 5.2 kg only: it climbs at (5.7/5.2 - 1) g.
+        let light = derivative(&state, &inputs, &Airframe::nominal());
+        assert!((light.acc_ned_mps2.z + (5.7 / 5.2 - 1.0) * 9.81).abs() < 1e-12, "{light:?}");
+        // 0.5 kg 0.1 m forward, 0.04 m right: τ = (0.1962, -0.4905, 0) N·m on the full inertia
+        // [[0.0808, -0.002, 0], [-0.002, 0.085, 0], [0, 0, 0.1258]]; solved by hand (Cramer's rule):
+        // det = 0.0808·0.085 - 0.002² = 0.006864; ω̇x = (0.1962·0.085 - 0.002·0.4905)/det,
+        // ω̇y = (-0.4905·0.0808 + 0.002·0.1962)/det.
+        let offset = Airframe {
+            payload: Payload { mass_kg: 0.5, offset_frd_m: Vector3::new(0.1, 0.04, 0.0) },
+            ..Airframe::nominal()
+        };
+        let d = derivative(&state, &inputs, &offset);
+        let det = 0.0808 * 0.085 - 0.002 * 0.002;
+        let expected =
+            Vector3::new((0.1962 * 0.085 - 0.002 * 0.4905) / det, (-0.4905 * 0.0808 + 0.002 * 0.1962) / det, 0.0);
+        assert!((d.ang_acc_frd_radps2 - expected).norm() < 1e-12, "{} vs {expected}", d.ang_acc_frd_radps2);
+        assert!(d.ang_acc_frd_radps2.y < 0.0, "weight ahead pitches the nose down");
+        // Without a payload the path is the diagonal one, bit for bit: m + 0 is m.
+        let none = Airframe::nominal();
+        assert_eq!(none.total_mass_kg().to_bits(), none.mass_kg.to_bits());
     }
 }

@@ -8,7 +8,11 @@
 //! - settling: time from the step until the error stays within 2 % of the step (`None`: never settles);
 //! - sse: largest |error| over the last 0.5 s of the segment;
 //! - rms: root mean square of the error against the active setpoint;
-//! - gust recovery: time from onset (or release) until the horizontal error stays below 0.10 m.
+//! - gust recovery: time from onset (or release) until the horizontal error stays below 0.10 m;
+//! - fault ([`FaultMetrics`], from the fault's onset to the end): peak 3-D position error, peak tilt and
+//!   yaw error, IAE of the position error, the altitude drop (how far below its reference it sank), the
+//!   recovery (time until the position error stays below 0.10 m), whether it stayed within 0.3 m, and
+//!   whether control was lost (tilt past 60°, PX4's FD_FAIL_R, or 1 m away, or a non-finite state).
 //!
 //! Banded times (settling, recovery) jump when an error grazes the band: a run that peaks at 0.099 m
 //! recovers in 0 s, one at 0.101 m in a second or more. So every run also has continuous metrics:
@@ -25,6 +29,8 @@
 //! and RMS) are a scenario's defaults; its `[metric_windows]` table ([`MetricWindows`]) may set others.
 
 use serde::{Deserialize, Serialize};
+
+use crate::plant::envelope::{Feasibility, HoverEnvelope};
 
 /// Settling band as a fraction of the step.
 pub const SETTLING_BAND: f64 = 0.02;
@@ -282,6 +288,100 @@ pub fn hover_gust_metrics(
         (0..t.len()).map(|k| (pos_ned_m[0][k] - ref_ned_m[0][k]).hypot(pos_ned_m[1][k] - ref_ned_m[1][k])).collect();
     let err_z: Vec<f64> = (0..t.len()).map(|k| pos_ned_m[2][k] - ref_ned_m[2][k]).collect();
     gust_metrics_in(t, &err_xy, &err_z, onset_s, release_s, windows)
+}
+
+/// The position error a fault run must stay within to hold (m): the 0.3 m.
+pub const FAULT_HOLD_BAND_M: f64 = 0.3;
+/// Tilt beyond which a fault run has lost control (rad): PX4's FD_FAIL_R / FD_FAIL_P default, 60°.
+pub const LOST_CONTROL_TILT_RAD: f64 = std::f64::consts::FRAC_PI_3;
+/// Position error beyond which a fault run has lost control (m).
+pub const LOST_CONTROL_ERROR_M: f64 = 1.0;
+
+/// What a fault (a rotor's thrust lost, a payload added) did to a hover or a track, from its onset to
+/// the end of the run, judged on the plant's truth against the reference.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FaultMetrics {
+    /// When the fault struck (s): the scenario's first `[[event]]`, 0 for a fault from the start.
+    pub onset_s: f64,
+    /// Largest 3-D distance to the reference position (m).
+    pub peak_position_error_m: f64,
+    /// Largest tilt from level, acos(cos φ cos θ) (rad).
+    pub peak_tilt_rad: f64,
+    /// Largest |yaw - reference yaw|, wrapped to ±π (rad).
+    pub peak_yaw_error_rad: f64,
+    /// ∫ 3-D position error dt (m·s).
+    pub iae_m_s: f64,
+    /// Largest depth below the reference altitude, 0 if it never sank (m).
+    pub altitude_drop_m: f64,
+    /// Time from the onset until the position error stays below [`RECOVERY_BAND_M`] (s; `None`: never).
+    pub recovery_s: Option<f64>,
+    /// The position error stayed within [`FAULT_HOLD_BAND_M`] throughout.
+    pub within_0_3_m: bool,
+    /// Tilt beyond [`LOST_CONTROL_TILT_RAD`], error beyond [`LOST_CONTROL_ERROR_M`], or a non-finite state.
+    pub lost_control: bool,
+    /// The position error at the last sample (m).
+    pub final_error_m: f64,
+    /// What physics allows the airframe as the run ended (its rotors' health and payload), whatever the
+    /// controller: `full`, `without-yaw` (roll and pitch only: it must spin) or `infeasible`.
+    pub feasibility: Feasibility,
+    /// The airframe's bounds before the fault ([`crate::plant::envelope`]).
+    pub envelope: HoverEnvelope,
+    /// The greatest payload the autopilot's thrust limiter lets a controller carry (kg).
+    pub max_payload_within_limiter_kg: f64,
+}
+
+/// The airframe a fault run judges physics by: before the fault and as the run ended.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FaultPhysics {
+    pub envelope: HoverEnvelope,
+    pub max_payload_within_limiter_kg: f64,
+    pub feasibility: Feasibility,
+}
+
+/// [`FaultMetrics`] of the samples at times `t` (truth `pos_ned_m` and `euler_rad` against `ref_ned_m` and
+/// `ref_euler_rad`, per-axis series) from `onset_s` on, with the airframe's `physics`.
+#[must_use]
+pub fn fault_metrics(
+    t: &[f64],
+    pos_ned_m: &[Vec<f64>; 3],
+    ref_ned_m: &[Vec<f64>; 3],
+    euler_rad: &[Vec<f64>; 3],
+    ref_euler_rad: &[Vec<f64>; 3],
+    onset_s: f64,
+    physics: FaultPhysics,
+) -> FaultMetrics {
+    let r = in_window(t, onset_s, f64::INFINITY);
+    let err = |k: usize| {
+        let d = |i: usize| pos_ned_m[i][k] - ref_ned_m[i][k];
+        (d(0) * d(0) + d(1) * d(1) + d(2) * d(2)).sqrt()
+    };
+    let abs_err: Vec<f64> = r.clone().map(err).collect();
+    let tilt: Vec<f64> =
+        r.clone().map(|k| (euler_rad[0][k].cos() * euler_rad[1][k].cos()).clamp(-1.0, 1.0).acos()).collect();
+    let yaw_err: Vec<f64> = r.clone().map(|k| wrap_pi(euler_rad[2][k] - ref_euler_rad[2][k]).abs()).collect();
+    let drop: Vec<f64> = r.clone().map(|k| pos_ned_m[2][k] - ref_ned_m[2][k]).collect();
+    let tt = &t[r];
+    // NaN-propagating maxima: a non-finite sample makes the peak non-finite, not silently skipped.
+    let peak =
+        |v: &[f64]| v.iter().copied().fold(0.0, |a: f64, b| if b.is_nan() || a.is_nan() { f64::NAN } else { a.max(b) });
+    let peak_position_error_m = peak(&abs_err);
+    let peak_tilt_rad = peak(&tilt);
+    let finite = peak_position_error_m.is_finite() && peak_tilt_rad.is_finite();
+    FaultMetrics {
+        onset_s,
+        peak_position_error_m,
+        peak_tilt_rad,
+        peak_yaw_error_rad: peak(&yaw_err),
+        iae_m_s: iae_itae(tt, &abs_err, onset_s).0,
+        altitude_drop_m: peak(&drop),
+        recovery_s: time_to_stay_within(tt, &abs_err, onset_s, RECOVERY_BAND_M),
+        within_0_3_m: finite && peak_position_error_m <= FAULT_HOLD_BAND_M,
+        lost_control: !finite || peak_tilt_rad > LOST_CONTROL_TILT_RAD || peak_position_error_m > LOST_CONTROL_ERROR_M,
+        final_error_m: abs_err.last().copied().unwrap_or(0.0),
+        feasibility: physics.feasibility,
+        envelope: physics.envelope,
+        max_payload_within_limiter_kg: physics.max_payload_within_limiter_kg,
+    }
 }
 
 /// Track-following metrics over the track's active window.
@@ -574,5 +674,76 @@ mod tests {
         // Every change is 600 us on one rotor in 2 ms: 75,000 us/s averaged over four rotors.
         assert!((m.pwm_rate_mean_us_per_s - 600.0 / 4.0 / 0.002).abs() < 1e-6, "{m:?}");
         assert!((m.saturation_s - 50.0 * 0.002).abs() < 1e-12, "{m:?}");
+    }
+
+    /// The physics of the nominal airframe, for fault metrics that do not depend on it.
+    fn nominal_physics(feasibility: Feasibility) -> FaultPhysics {
+        let a = crate::plant::Airframe::nominal();
+        FaultPhysics {
+            envelope: crate::plant::envelope::hover_envelope(&a),
+            max_payload_within_limiter_kg: crate::plant::envelope::max_payload_within_limiter_kg(&a),
+            feasibility,
+        }
+    }
+
+    #[test]
+    fn given_a_synthetic_fault_trace_then_every_fault_metric_is_the_hand_computed_one() {
+        // 100 Hz for 10 s, hover reference (0, 0, -1.5) heading 0. Fault at 4 s. Before it the vehicle sits
+        // 0.5 m off (must not count). From 4 s: it sinks 0.2 m and drifts 0.1 m east (error sqrt(0.05) =
+        // 0.2236 m) until 6 s, then 0.05 m below until the end; tilt 0.1 rad roll, 0.2 rad pitch at 5 s only;
+        // yaw 3.0 rad at 5.5 s against a reference of -3.0 (wrapped error 0.2832 rad).
+        let t = times(1000, 0.01);
+        let n = t.len();
+        let mut pos: [Vec<f64>; 3] = [vec![0.0; n], vec![0.0; n], vec![-1.5; n]];
+        let refs: [Vec<f64>; 3] = [vec![0.0; n], vec![0.0; n], vec![-1.5; n]];
+        let mut euler: [Vec<f64>; 3] = [vec![0.0; n], vec![0.0; n], vec![-3.0; n]];
+        let ref_euler: [Vec<f64>; 3] = [vec![0.0; n], vec![0.0; n], vec![-3.0; n]];
+        for k in 0..n {
+            if t[k] < 4.0 - 1e-9 {
+                pos[0][k] = 0.5;
+            } else if t[k] < 6.0 - 1e-9 {
+                pos[1][k] = 0.1;
+                pos[2][k] = -1.3;
+            } else {
+                pos[2][k] = -1.45;
+            }
+        }
+        let k5 = 500;
+        (euler[0][k5], euler[1][k5]) = (0.1, 0.2);
+        euler[2][550] = 3.0;
+        let m = fault_metrics(&t, &pos, &refs, &euler, &ref_euler, 4.0, nominal_physics(Feasibility::Full));
+        let e1 = 0.05_f64.sqrt();
+        assert_eq!(m.onset_s, 4.0);
+        assert!((m.peak_position_error_m - e1).abs() < 1e-12, "{m:?}");
+        assert!((m.peak_tilt_rad - (0.1_f64.cos() * 0.2_f64.cos()).acos()).abs() < 1e-12, "{m:?}");
+        assert!((m.peak_yaw_error_rad - (2.0 * std::f64::consts::PI - 6.0)).abs() < 1e-12, "{m:?}");
+        // IAE: 2 s at 0.2236 m, then 4 s at 0.05 m (left sums over 10 ms samples).
+        assert!((m.iae_m_s - (2.0 * e1 + 4.0 * 0.05)).abs() < 1e-9, "{m:?}");
+        assert!((m.altitude_drop_m - 0.2).abs() < 1e-12, "{m:?}");
+        // Below 0.10 m from 6 s on: recovered 2 s after the onset.
+        assert!((m.recovery_s.unwrap() - 2.0).abs() < 1e-9, "{m:?}");
+        assert!(m.within_0_3_m && !m.lost_control, "{m:?}");
+        assert!((m.final_error_m - 0.05).abs() < 1e-12, "{m:?}");
+        assert_eq!(m.feasibility, Feasibility::Full);
+
+        // 0.31 m off at one sample: no longer within 0.3 m; 1.2 m: control lost; never back: no recovery.
+        pos[0][700] = 0.31;
+        let off = fault_metrics(&t, &pos, &refs, &euler, &ref_euler, 4.0, nominal_physics(Feasibility::Full));
+        assert!(!off.within_0_3_m && !off.lost_control && off.recovery_s.is_some(), "{off:?}");
+        pos[0][n - 1] = 1.2;
+        let lost = fault_metrics(&t, &pos, &refs, &euler, &ref_euler, 4.0, nominal_physics(Feasibility::Full));
+        assert!(
+            lost.lost_control && lost.recovery_s.is_none() && (lost.final_error_m - 1.2f64.hypot(0.05)).abs() < 1e-12
+        );
+        // Tilted past 60° with the position held: control lost too; a NaN sample: lost, never within.
+        pos[0][n - 1] = 0.0;
+        euler[0][800] = 1.1;
+        assert!(
+            fault_metrics(&t, &pos, &refs, &euler, &ref_euler, 4.0, nominal_physics(Feasibility::Full)).lost_control
+        );
+        euler[0][800] = 0.0;
+        pos[2][900] = f64::NAN;
+        let nan = fault_metrics(&t, &pos, &refs, &euler, &ref_euler, 4.0, nominal_physics(Feasibility::Full));
+        assert!(nan.lost_control && !nan.within_0_3_m && nan.peak_position_error_m.is_nan(), "{nan:?}");
     }
 }

@@ -11,7 +11,7 @@
 //! state_noise = "none"            # "none" | "paper": white noise on the state the controller sees
 //! state_noise_scale = 1.0         # multiplies the noise's sigmas (>= 0)
 //! ground = true                   # the plant's ground contact at D = 0
-//! metrics = ["steps"]             # any of "steps", "gust", "track"
+//! metrics = ["steps"]             # any of "steps", "gust", "track", "fault"
 //! controllers = ["aco", "ca", "pid"]  # the default set when `--controller` is not given
 //! [initial]                       # optional; at rest at the origin with hover lift by default
 //! pos_ned_m = [0.0, 0.0, -3.0]
@@ -26,6 +26,9 @@
 //! [wind]                          # optional: gust, turbulence, steady wind (the plant's WindConfig)
 //! [controller]                    # optional overrides of the controllers' configuration
 //! [metric_windows]                # optional: step_sse_s, gust_steady_s, gust_peak_s, gust_rms_s
+//! [[event]]                       # optional, any number: SIM_ parameters set at a plant time
+//! at_s = 5.0
+//! set = { SIM_MOT1_EFF = 0.9 }
 //! ```
 
 #[cfg(test)]
@@ -47,6 +50,7 @@ use autopilot::core::manual::ManualConfig;
 use serde::{Deserialize, Serialize};
 
 use crate::plant::{AirframeConfig, StateNoise, WindConfig};
+use crate::sim_params::events::{self, EventSpec, SimEvent};
 pub use metrics::MetricWindows;
 pub use path::PathKind;
 pub use reference::{ReferenceMode, ReferenceSpec};
@@ -86,6 +90,8 @@ pub enum MetricKind {
     Steps,
     Gust,
     Track,
+    /// What a fault did, from its onset (the first `[[event]]`, or 0) to the end ([`metrics::FaultMetrics`]).
+    Fault,
 }
 
 /// An `[airframe]` override's value in the metrics JSON: a number, or an array for vector keys.
@@ -149,6 +155,11 @@ pub struct Scenario {
     /// map RC_MAP_*, calibration RCn_*, COM_FLTMODE1..6, MAN_ARM_GESTURE, ...); two-process runs only.
     #[serde(default)]
     pub manual: Option<ManualConfig>,
+    /// Timed SIM_ parameter sets (`[[event]]`: `at_s`, `set = { SIM_MOT1_EFF = 0.9 }`), fired at the first
+    /// plant step at or after `at_s` through the SIM_ parameter service, in-process and two-process alike
+    /// (see [`crate::sim_params::events`]).
+    #[serde(default, rename = "event")]
+    pub events: Vec<EventSpec>,
 }
 
 fn unit_scale() -> f64 {
@@ -167,7 +178,9 @@ fn default_controllers() -> Vec<ControllerKind> {
     vec![ControllerKind::Aco, ControllerKind::Ca, ControllerKind::Pid]
 }
 
-/// The built-in scenarios, one per experiment of the paper (plus the turbulence and fast figure-8 variants).
+/// The built-in scenarios, one per experiment of the paper (plus the turbulence and fast figure-8 variants),
+/// and the fault experiments: a rotor's thrust lost, a payload added (the issue's magnitudes and ones inside
+/// the airframe's envelope), the figure-8 on a weak rotor.
 pub const BUILT_INS: &[(&str, &str)] = &[
     ("paper-attitude", include_str!("../../scenarios/paper-attitude.toml")),
     ("paper-translation", include_str!("../../scenarios/paper-translation.toml")),
@@ -175,6 +188,16 @@ pub const BUILT_INS: &[(&str, &str)] = &[
     ("turbulence-hover", include_str!("../../scenarios/turbulence-hover.toml")),
     ("figure8", include_str!("../../scenarios/figure8.toml")),
     ("figure8-fast", include_str!("../../scenarios/figure8-fast.toml")),
+    ("rotor-degradation", include_str!("../../scenarios/rotor-degradation.toml")),
+    ("rotor-degradation-50", include_str!("../../scenarios/rotor-degradation-50.toml")),
+    ("rotor-degradation-85", include_str!("../../scenarios/rotor-degradation-85.toml")),
+    ("rotor-degradation-90", include_str!("../../scenarios/rotor-degradation-90.toml")),
+    ("payload-step", include_str!("../../scenarios/payload-step.toml")),
+    ("payload-step-40", include_str!("../../scenarios/payload-step-40.toml")),
+    ("payload-step-5", include_str!("../../scenarios/payload-step-5.toml")),
+    ("payload-step-10", include_str!("../../scenarios/payload-step-10.toml")),
+    ("figure8-rotor80", include_str!("../../scenarios/figure8-rotor80.toml")),
+    ("figure8-rotor90", include_str!("../../scenarios/figure8-rotor90.toml")),
 ];
 
 impl Scenario {
@@ -212,10 +235,11 @@ impl Scenario {
             return Err(ScenarioError::Invalid(format!("duration_s must be in (0, 3600], got {}", self.duration_s)));
         }
         if self.metrics.is_empty() {
-            return Err(ScenarioError::Invalid("metrics must name at least one of steps, gust, track".into()));
+            return Err(ScenarioError::Invalid("metrics must name at least one of steps, gust, track, fault".into()));
         }
         self.reference.validate()?;
         self.rc_schedule()?;
+        self.sim_events()?;
         if let Some(manual) = &self.manual {
             manual.validate().map_err(|e| ScenarioError::Invalid(format!("[manual]: {e}")))?;
         }
@@ -231,6 +255,11 @@ impl Scenario {
         let is_track = matches!(self.reference, ReferenceSpec::Track(_));
         if self.metrics.contains(&MetricKind::Track) != is_track {
             return Err(ScenarioError::Invalid("the track metric goes with (and only with) a track reference".into()));
+        }
+        if self.metrics.contains(&MetricKind::Fault) && matches!(self.reference, ReferenceSpec::Attitude { .. }) {
+            return Err(ScenarioError::Invalid(
+                "the fault metric judges a position or a track against its reference: not an attitude reference".into(),
+            ));
         }
         if self.metrics.contains(&MetricKind::Gust) && self.wind.gust.is_none() {
             return Err(ScenarioError::Invalid("the gust metric needs a [wind.gust]".into()));
@@ -286,6 +315,25 @@ impl Scenario {
     /// [`ScenarioError::Invalid`] naming the first bad entry.
     pub fn rc_schedule(&self) -> Result<crate::plant::RcSchedule, ScenarioError> {
         rc::schedule(&self.rc, self.duration_s).map_err(ScenarioError::Invalid)
+    }
+
+    /// The `[[event]]` schedule, ordered by time (empty without one).
+    ///
+    /// # Errors
+    /// [`ScenarioError::Invalid`] naming the first bad event and key (see [`events::resolve`]).
+    pub fn sim_events(&self) -> Result<Vec<SimEvent>, ScenarioError> {
+        events::resolve(&self.events, self.duration_s).map_err(ScenarioError::Invalid)
+    }
+
+    /// The time of the scenario's fault (s): its first `[[event]]`, or 0 without one (a fault from the
+    /// start, set in `[airframe]`).
+    #[must_use]
+    pub fn fault_onset_s(&self) -> f64 {
+        self.events
+            .iter()
+            .map(|e| e.at_s)
+            .fold(None, |a: Option<f64>, t| Some(a.map_or(t, |a| a.min(t))))
+            .unwrap_or(0.0)
     }
 
     /// The noise on the state the controller sees: `state_noise`'s σ times `state_noise_scale`.

@@ -14,11 +14,13 @@ use autopilot::core::control::{ControlInput, ControllerKind, LoopRates, new_cont
 use nalgebra::{Vector2, Vector3};
 use serde::Serialize;
 
-use super::metrics::{self, EffortAccumulator, EffortMetrics, GustMetrics, SegmentMetrics, StepSegment, TrackMetrics};
+use super::metrics::{
+    self, EffortAccumulator, EffortMetrics, FaultMetrics, GustMetrics, SegmentMetrics, StepSegment, TrackMetrics,
+};
 use super::reference::{ReferenceGen, ReferenceMode, ReferenceSpec, TrackGen};
 use super::{MetricKind, OverrideValue, Scenario, ScenarioError};
 use crate::plant::sensors::NoisyState;
-use crate::plant::{AirframeConfig, GroundConfig, InitialState, Plant, PlantConfig};
+use crate::plant::{AirframeConfig, GroundConfig, InitialState, Plant, PlantConfig, envelope};
 
 /// What varies between runs of one scenario.
 #[derive(Debug, Clone, PartialEq)]
@@ -70,6 +72,9 @@ pub struct RunMetrics {
     pub gust: Option<GustMetrics>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub track: Option<TrackMetrics>,
+    /// What the scenario's fault did (the `fault` metric).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fault: Option<FaultMetrics>,
     pub weights_at_bounds: bool,
     pub non_finite: bool,
     /// Mean |PWM change| per tick over the run and rotors (us): actuator activity.
@@ -233,7 +238,12 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
         rotor_lift_n: None,
     };
     let mut effort = EffortAccumulator::new(config.airframe.hover_pwm_us(), [PWM_MIN_US, PWM_MAX_US]);
+    let airframe_before = config.airframe.clone();
     let mut plant = Plant::new(config, &initial, opts.seed)?;
+    let schedule = scenario.sim_events()?;
+    if !schedule.is_empty() {
+        crate::sim_params::events::install(&mut plant, 1, schedule);
+    }
     let noise = scenario.state_noise()?;
     let mut reference = ReferenceGen::new(&scenario.reference, opts.mode);
 
@@ -296,6 +306,14 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
         plant.step(pwm_us, dt_us);
     }
 
+    if let Some(r) = plant.sim_events().and_then(|e| e.refusals().first()) {
+        return Err(ScenarioError::Invalid(format!(
+            "[[event]] at {} s: the plant refused {}: {}",
+            r.at_us as f64 * 1e-6,
+            r.name,
+            r.reason
+        )));
+    }
     let sim_s = ticks as f64 * dt_us as f64 * 1e-6;
     let mut m = RunMetrics {
         scenario: scenario.name.clone(),
@@ -309,6 +327,7 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
         rms: None,
         gust: None,
         track: None,
+        fault: None,
         weights_at_bounds: controller.weights_at_bounds(),
         non_finite,
         pwm_activity_us: effort.pwm_activity_us(),
@@ -332,6 +351,21 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
             gust.onset_s,
             gust.release_s,
             windows,
+        ));
+    }
+    if scenario.metrics.contains(&MetricKind::Fault) {
+        m.fault = Some(metrics::fault_metrics(
+            &series.t,
+            &series.pos,
+            &series.ref_pos,
+            &series.euler,
+            &series.ref_euler,
+            scenario.fault_onset_s(),
+            metrics::FaultPhysics {
+                envelope: envelope::hover_envelope(&airframe_before),
+                max_payload_within_limiter_kg: envelope::max_payload_within_limiter_kg(&airframe_before),
+                feasibility: envelope::feasibility(&plant.config().airframe),
+            },
         ));
     }
     if let (true, ReferenceSpec::Track(spec)) = (scenario.metrics.contains(&MetricKind::Track), &scenario.reference) {
@@ -675,5 +709,59 @@ reference_modes = ["feed-forward"]
         let s = scenario(&INTO_THE_GROUND.replace("GROUND", "ground = false"));
         assert!(!plant_config(&s, None).unwrap().ground.enabled);
         assert!(plant_config(&Scenario { ground: true, ..s }, None).unwrap().ground.enabled);
+    }
+
+    /// rotor-degradation-90 shortened to `duration_s`, its event at `at_s`.
+    fn degradation(duration_s: f64, at_s: &str) -> Scenario {
+        let text = crate::scenario::BUILT_INS.iter().find(|b| b.0 == "rotor-degradation-90").unwrap().1;
+        scenario(
+            &text
+                .replace("duration_s = 20.0", &format!("duration_s = {duration_s}"))
+                .replace("at_s = 5.0", &format!("at_s = {at_s}")),
+        )
+    }
+
+    #[test]
+    fn given_an_event_between_ticks_then_it_acts_from_the_next_tick_exactly_as_one_set_there() {
+        // At 500 Hz the ticks are 2 ms apart: an event at 1.0035 s acts from the tick at 1.004 s.
+        let bits = |t: &Trace| t.rows.iter().flatten().map(|v| v.to_bits()).collect::<Vec<u64>>();
+        let between = run_every_tick(&degradation(1.5, "1.0035"));
+        let on_next = run_every_tick(&degradation(1.5, "1.004"));
+        let on_previous = run_every_tick(&degradation(1.5, "1.002"));
+        assert_eq!(bits(&between.trace), bits(&on_next.trace));
+        assert_ne!(bits(&between.trace), bits(&on_previous.trace), "a tick earlier is another run");
+        // Up to the tick at 1.004 s the PWM the controller sent is the healthy hover's; from the next on it
+        // reacts to the lost thrust.
+        let (t, pwm1) = (column(&between, "t"), column(&between, "pwm1"));
+        let healthy = run_every_tick(&degradation(1.5, "1.5"));
+        let k = t.iter().position(|&x| x > 1.004 - 1e-9).unwrap();
+        assert_eq!(pwm1[..=k], column(&healthy, "pwm1")[..=k]);
+        assert_ne!(pwm1[k + 1..], column(&healthy, "pwm1")[k + 1..]);
+    }
+
+    #[test]
+    fn given_a_fault_scenario_run_twice_then_the_trace_and_metrics_are_bit_identical() {
+        let s = degradation(7.0, "5.0");
+        let (a, b) = (run_every_tick(&s), run_every_tick(&s));
+        let bits = |t: &Trace| t.rows.iter().flatten().map(|v| v.to_bits()).collect::<Vec<u64>>();
+        assert_eq!(bits(&a.trace), bits(&b.trace));
+        assert_eq!(metrics_json(&a.metrics), metrics_json(&b.metrics));
+        // The fault metric is there, judged from 5 s, and says what physics allows: 90 % holds every moment.
+        let f = a.metrics.fault.unwrap();
+        assert_eq!((f.onset_s, f.feasibility), (5.0, crate::plant::Feasibility::Full));
+        assert!((f.envelope.min_health_full_control - 0.8809).abs() < 1e-4);
+    }
+
+    #[test]
+    fn given_a_payload_step_then_the_vehicle_sinks_after_the_event_and_not_before() {
+        let text = crate::scenario::BUILT_INS.iter().find(|b| b.0 == "payload-step-5").unwrap().1;
+        let out = run_every_tick(&scenario(&text.replace("duration_s = 20.0", "duration_s = 6.0")));
+        let (t, d) = (column(&out, "t"), column(&out, "pD"));
+        let before = (0..t.len()).filter(|&k| t[k] < 5.0).map(|k| d[k] + 1.5).fold(0.0, f64::max);
+        let after = (0..t.len()).filter(|&k| t[k] >= 5.0).map(|k| d[k] + 1.5).fold(0.0, f64::max);
+        // 0.26 kg is 5 % of the weight: it pulls the vehicle down by centimetres until the controller lifts.
+        assert!(before < 0.01 && after > 0.01, "before {before} m, after {after} m");
+        let f = out.metrics.fault.unwrap();
+        assert!((f.altitude_drop_m - after).abs() < 1e-12, "{f:?}");
     }
 }

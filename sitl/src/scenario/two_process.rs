@@ -270,6 +270,10 @@ fn launch(
 ) -> Result<Launched, TwoProcessError> {
     let config_text = autopilot_config(scenario, opts, &plant)?;
     plant.radio_mut().set_schedule(scenario.rc_schedule()?);
+    let schedule = scenario.sim_events()?;
+    if !schedule.is_empty() {
+        crate::sim_params::events::install(&mut plant, (opts.instance + 1) as u8, schedule);
+    }
     let rc_in = opts
         .rc_in_port
         .map(|port| {

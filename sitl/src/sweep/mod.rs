@@ -76,11 +76,15 @@ pub enum Param {
     TurbulenceScale,
     StateNoiseScale,
     Seed,
+    Mot1Eff,
+    Mot2Eff,
+    Mot3Eff,
+    Mot4Eff,
 }
 
 impl Param {
     /// Every parameter with its name in a spec's `[vary]` table and in the rows' header.
-    pub const ALL: [(Self, &'static str); 16] = [
+    pub const ALL: [(Self, &'static str); 20] = [
         (Self::MassKg, "mass_kg"),
         (Self::InertiaKgm2, "inertia_kgm2"),
         (Self::ThrustScale, "thrust_scale"),
@@ -97,7 +101,22 @@ impl Param {
         (Self::TurbulenceScale, "turbulence_scale"),
         (Self::StateNoiseScale, "state_noise_scale"),
         (Self::Seed, "seed"),
+        (Self::Mot1Eff, "mot1_eff"),
+        (Self::Mot2Eff, "mot2_eff"),
+        (Self::Mot3Eff, "mot3_eff"),
+        (Self::Mot4Eff, "mot4_eff"),
     ];
+
+    /// The rotor (array index) a `motN_eff` sets.
+    fn rotor(self) -> Option<usize> {
+        match self {
+            Self::Mot1Eff => Some(0),
+            Self::Mot2Eff => Some(1),
+            Self::Mot3Eff => Some(2),
+            Self::Mot4Eff => Some(3),
+            _ => None,
+        }
+    }
 
     pub(crate) fn parse(name: &str) -> Result<Self, SweepError> {
         Self::ALL.iter().find(|(_, n)| *n == name).map(|(p, _)| *p).ok_or_else(|| {
@@ -135,6 +154,17 @@ impl Param {
             Self::GustAmplitudeMps => wind.gust.as_ref().and_then(|g| g.amplitude_mps),
             Self::TurbulenceScale => Some(1.0),
             Self::StateNoiseScale => Some(scenario.state_noise_scale),
+            Self::Mot1Eff | Self::Mot2Eff | Self::Mot3Eff | Self::Mot4Eff => {
+                let rotor = self.rotor().unwrap_or(0);
+                let key = MOT_EFF_PARAMS[rotor];
+                Some(
+                    scenario
+                        .events
+                        .iter()
+                        .find_map(|e| e.set.get(key).copied())
+                        .unwrap_or(airframe.rotor_health[rotor]),
+                )
+            }
             Self::WindAzimuthDeg | Self::Beaufort | Self::GustAzimuthDeg | Self::Seed => None,
         })
     }
@@ -182,6 +212,9 @@ struct SpecFile {
 fn one() -> u64 {
     1
 }
+
+/// The SIM_ parameter of each rotor's efficiency (`motN_eff` sets it in a scenario's `[[event]]`s).
+const MOT_EFF_PARAMS: [&str; 4] = ["SIM_MOT1_EFF", "SIM_MOT2_EFF", "SIM_MOT3_EFF", "SIM_MOT4_EFF"];
 
 /// The most runs one sweep may have.
 pub const MAX_RUNS: u64 = 10_000_000;
@@ -474,6 +507,26 @@ pub(crate) fn apply(scenario: &mut Scenario, param: Param, v: f64, plant: Option
         scenario.state_noise_scale = v;
         return Ok(());
     }
+    if let Some(rotor) = param.rotor() {
+        // The rotor's efficiency after the fault: in every [[event]] that sets it, or else from the start.
+        let key = MOT_EFF_PARAMS[rotor];
+        let mut in_events = false;
+        for event in &mut scenario.events {
+            if let Some(value) = event.set.get_mut(key) {
+                *value = v;
+                in_events = true;
+            }
+        }
+        if !in_events {
+            let mut health = runner::plant_config(scenario, plant)?.airframe.rotor_health;
+            health[rotor] = v;
+            scenario.airframe.rotor_health = Some(health);
+        }
+        // The value reaches the plant through the event's validation or the airframe's.
+        scenario.sim_events()?;
+        runner::plant_config(scenario, plant)?;
+        return Ok(());
+    }
     let resolved = runner::plant_config(scenario, plant)?.airframe;
     let a = &mut scenario.airframe;
     let wind = &mut scenario.wind;
@@ -530,7 +583,7 @@ pub(crate) fn apply(scenario: &mut Scenario, param: Param, v: f64, plant: Option
             let sigma_mps = base.sigma_mps.map(|s| s * v);
             wind.turbulence = Some(TurbulenceConfig::GaussMarkov(GaussMarkovConfig { sigma_mps, ..base }));
         }
-        Param::StateNoiseScale | Param::Seed => {}
+        Param::StateNoiseScale | Param::Seed | Param::Mot1Eff | Param::Mot2Eff | Param::Mot3Eff | Param::Mot4Eff => {}
     }
     Ok(())
 }

@@ -40,6 +40,17 @@ const GUST_COLUMNS: [&str; 13] = [
     "gust_within_20cm_s",
 ];
 const TRACK_COLUMNS: [&str; 4] = ["cross_track_rms_m", "cross_track_max_m", "alt_rms_m", "cross_track_iae_m_s"];
+const FAULT_COLUMNS: [&str; 9] = [
+    "fault_peak_position_error_m",
+    "fault_peak_tilt_rad",
+    "fault_peak_yaw_error_rad",
+    "fault_iae_m_s",
+    "fault_altitude_drop_m",
+    "fault_recovery_s",
+    "fault_within_0_3_m",
+    "fault_lost_control",
+    "fault_final_error_m",
+];
 const COMMON_COLUMNS: [&str; 6] = [
     "weights_at_bounds",
     "non_finite",
@@ -85,6 +96,9 @@ pub fn metric_columns(scenario: &Scenario) -> Vec<String> {
     if scenario.metrics.contains(&MetricKind::Track) {
         columns.extend(TRACK_COLUMNS);
     }
+    if scenario.metrics.contains(&MetricKind::Fault) {
+        columns.extend(FAULT_COLUMNS);
+    }
     columns.extend(COMMON_COLUMNS);
     columns.into_iter().map(str::to_owned).collect()
 }
@@ -119,6 +133,13 @@ pub fn metric_values(scenario: &Scenario, thrust_to_weight: [f64; 2], m: &RunMet
         let t = m.track.as_ref();
         v.extend([t.map(|t| t.cross_track_rms_m), t.map(|t| t.cross_track_max_m), t.map(|t| t.alt_rms_m)]);
         v.push(t.map(|t| t.cross_track_iae_m_s));
+    }
+    if scenario.metrics.contains(&MetricKind::Fault) {
+        let f = m.fault.as_ref();
+        let flag = |b: bool| f64::from(u8::from(b));
+        v.extend([f.map(|f| f.peak_position_error_m), f.map(|f| f.peak_tilt_rad), f.map(|f| f.peak_yaw_error_rad)]);
+        v.extend([f.map(|f| f.iae_m_s), f.map(|f| f.altitude_drop_m), f.and_then(|f| f.recovery_s)]);
+        v.extend([f.map(|f| flag(f.within_0_3_m)), f.map(|f| flag(f.lost_control)), f.map(|f| f.final_error_m)]);
     }
     v.push(Some(f64::from(u8::from(m.weights_at_bounds))));
     v.push(Some(f64::from(u8::from(m.non_finite))));

@@ -213,3 +213,50 @@ fn each_row_says_whether_its_airframe_can_hover_at_all() {
     assert!(tw(&rows[2], max) < 1.0, "6.2 kg cannot hover: {:?}", rows[2].metrics);
     assert!((tw(&rows[1], max) - 4.0 * 14.477 * 0.99 / (5.4 * 9.81)).abs() < 2e-3, "{:?}", rows[1].metrics);
 }
+
+/// rotor-degradation cut to 6 s with its fault at 5 s.
+fn short_degradation() -> Scenario {
+    let mut s = Scenario::load("rotor-degradation").unwrap();
+    s.duration_s = 6.0;
+    s
+}
+
+const ROTOR_SPEC: &str = r#"
+name = "rotor"
+scenario = "unused"
+samples = 1
+seed = 3
+[vary]
+mot1_eff = { values = [0.95, 0.6] }
+[bounds]
+fault_peak_position_error_m = 0.3
+"#;
+
+#[test]
+fn given_mot1_eff_values_then_each_case_sets_the_events_fault_and_a_rerun_is_bit_identical() {
+    let s = Sweep::from_toml(ROTOR_SPEC, short_degradation()).unwrap();
+    assert_eq!((s.cases(), s.runs(), s.param_names()), (2, 6, vec!["mot1_eff"]));
+    let case = s.case(1).unwrap();
+    assert_eq!(case.scenario.events[0].set["SIM_MOT1_EFF"], 0.6);
+    assert_eq!(case.scenario.airframe.rotor_health, None, "the fault stays an event, not a start value");
+    let columns = s.metric_columns();
+    let peak = columns.iter().position(|c| c == "fault_peak_position_error_m").unwrap();
+    let lost = columns.iter().position(|c| c == "fault_lost_control").unwrap();
+    let rows: Vec<Row> = (0..s.runs()).map(|r| s.run(r).unwrap()).collect();
+    // 5 % lost is held by every controller; 40 % lost is beyond the airframe: no controller holds it.
+    for row in &rows {
+        let held = row.params[0] == 0.95;
+        assert_eq!(row.metrics[lost], Some(if held { 0.0 } else { 1.0 }), "{row:?}");
+        assert_eq!(row.metrics[peak].unwrap() < 0.3, held, "{row:?}");
+    }
+    let again: Vec<Row> = (0..s.runs()).map(|r| s.run(r).unwrap()).collect();
+    assert_eq!(table::to_csv(&s, &rows), table::to_csv(&s, &again));
+    // Without an event that sets it, mot1_eff is the rotor's health from the start.
+    let mut from_start = short_degradation();
+    from_start.events.clear();
+    let s = Sweep::from_toml(ROTOR_SPEC, from_start).unwrap();
+    assert_eq!(s.case(0).unwrap().scenario.airframe.rotor_health, Some([0.95, 1.0, 1.0, 1.0]));
+    // Out of a rotor's range: refused when the sweep loads.
+    let e = Sweep::from_toml(&ROTOR_SPEC.replace("0.6]", "1.2]"), short_degradation()).unwrap_err().to_string();
+    assert!(e.contains("SIM_MOT1_EFF = 1.2"), "{e}");
+}

@@ -20,6 +20,20 @@ pub(super) struct LineFigure {
     lines: Vec<Line>,
 }
 
+impl LineFigure {
+    pub(super) fn new(
+        title: &str,
+        x_label: &str,
+        y_label: &str,
+        legend: Vec<(String, LineStyle)>,
+        x: Range<f64>,
+        y: Range<f64>,
+        lines: Vec<Line>,
+    ) -> Self {
+        Self { title: title.to_owned(), x_label: x_label.to_owned(), y_label: y_label.to_owned(), legend, x, y, lines }
+    }
+}
+
 impl Figure for LineFigure {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>, s: f64) -> Result<(), String> {
         root.fill(&WHITE).map_err(e2s)?;

@@ -21,11 +21,13 @@
 mod convergence;
 mod distribution;
 mod draw;
+mod robustness;
 mod time_panels;
 mod track;
 
 pub use convergence::convergence;
 pub use distribution::{Sample, distribution};
+pub use robustness::{Bound, Layout, robustness};
 pub use time_panels::{Panel, Run, time_panels};
 pub use track::track;
 
