@@ -449,7 +449,9 @@ impl Fusion {
             h[idx::BARO] = 1.0;
             let residual = baro.pressure_alt_m - (f.x.baro_offset_m - f.x.pos_ned_m.z);
             self.innovations.baro_alt_m = residual;
-            match f.fuse(&[ScalarObs { h, residual, variance: r }], self.config.innovation_gate_sigma) {
+            let outcome = f.fuse(&[ScalarObs { h, residual, variance: r }], self.config.innovation_gate_sigma);
+            self.innovations.baro_rejected = matches!(outcome, Outcome::Rejected { .. });
+            match outcome {
                 Outcome::Fused { correction, .. } => {
                     Self::note_correction(&mut self.history, &correction);
                     self.last_baro_fused_us = Some(now);
@@ -562,7 +564,9 @@ impl Fusion {
             .sum::<f64>()
             / 2.0;
         self.innovations.gps_vel_ned_mps = vel_obs.map(|o| o.residual);
-        match f.fuse(&vel_obs, gate) {
+        let outcome = f.fuse(&vel_obs, gate);
+        self.innovations.gps_vel_rejected = matches!(outcome, Outcome::Rejected { .. });
+        match outcome {
             Outcome::Fused { correction, .. } => Self::note_correction(&mut self.history, &correction),
             Outcome::Rejected { .. } => self.gated += 1,
         }
@@ -577,7 +581,9 @@ impl Fusion {
         let hor_nis = (0..2)
             .map(|i| pos_obs[i].residual.powi(2) / (f.p[(idx::POS + i, idx::POS + i)] + pos_var_m2[i]))
             .fold(0.0, f64::max);
-        match f.fuse(&pos_obs, gate) {
+        let outcome = f.fuse(&pos_obs, gate);
+        self.innovations.gps_pos_rejected = matches!(outcome, Outcome::Rejected { .. });
+        match outcome {
             Outcome::Fused { correction, .. } => {
                 Self::note_correction(&mut self.history, &correction);
                 self.last_gps_fused_us = Some(now);

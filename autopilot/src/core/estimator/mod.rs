@@ -405,13 +405,22 @@ pub struct Innovations {
     pub baro_alt_m: f64,
     /// Magnetic heading (rad).
     pub heading_rad: f64,
+    /// Whether the gate refused the latest of each (PX4's `reject_*` flags): GPS velocity, GPS position,
+    /// barometric height, magnetic heading.
+    pub gps_vel_rejected: bool,
+    pub gps_pos_rejected: bool,
+    pub baro_rejected: bool,
+    pub heading_rejected: bool,
 }
 
 impl Innovations {
-    fn bits(&self) -> [u64; 8] {
+    fn bits(&self) -> [u64; 9] {
         let [vn, ve, vd] = self.gps_vel_ned_mps.map(f64::to_bits);
         let [pn, pe, pd] = self.gps_pos_ned_m.map(f64::to_bits);
-        [vn, ve, vd, pn, pe, pd, self.baro_alt_m.to_bits(), self.heading_rad.to_bits()]
+        let rejected = [self.gps_vel_rejected, self.gps_pos_rejected, self.baro_rejected, self.heading_rejected]
+            .iter()
+            .fold(0_u64, |acc, &r| (acc << 1) | u64::from(r));
+        [vn, ve, vd, pn, pe, pd, self.baro_alt_m.to_bits(), self.heading_rad.to_bits(), rejected]
     }
 }
 
@@ -428,6 +437,10 @@ impl Default for Innovations {
             gps_pos_ned_m: [f64::NAN; 3],
             baro_alt_m: f64::NAN,
             heading_rad: f64::NAN,
+            gps_vel_rejected: false,
+            gps_pos_rejected: false,
+            baro_rejected: false,
+            heading_rejected: false,
         }
     }
 }

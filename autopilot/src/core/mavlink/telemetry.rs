@@ -690,6 +690,61 @@ mod tests {
     }
 
     #[test]
+    fn given_each_source_faulted_when_sys_status_is_built_then_only_its_health_bits_are_cleared() {
+        use crate::core::estimator::{SourceFault, SourceHealth};
+        use MavSysStatusSensor as S;
+        let healthy = EstimatorFlags {
+            attitude_valid: true,
+            velocity_valid: true,
+            position_valid: true,
+            converged: true,
+            gps_ok: true,
+            baro_ok: true,
+            mag_ok: true,
+            ..EstimatorFlags::default()
+        };
+        let health_of = |flags: &EstimatorFlags| {
+            let m = sys_status(flags, &BatteryStatus::default(), LinkErrors::default(), &ManualStatus::default());
+            let MavMessage::SYS_STATUS(s) = m else { panic!("{m:?}") };
+            s.onboard_control_sensors_health
+        };
+        let sensors = S::MAV_SYS_STATUS_SENSOR_3D_GYRO
+            | S::MAV_SYS_STATUS_SENSOR_3D_ACCEL
+            | S::MAV_SYS_STATUS_SENSOR_3D_MAG
+            | S::MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+            | S::MAV_SYS_STATUS_SENSOR_GPS;
+        assert!(health_of(&healthy).contains(sensors));
+        // The estimator clears gps_ok, baro_ok and mag_ok with their source's fault; the IMU's fault is read
+        // here, as the attitude stays valid on a stuck or garbage IMU until it drifts.
+        let cases = [
+            (
+                EstimatorFlags { gps_ok: false, ..healthy },
+                SourceHealth { gps: Some(SourceFault::Lost), ..SourceHealth::default() },
+                S::MAV_SYS_STATUS_SENSOR_GPS,
+            ),
+            (
+                EstimatorFlags { baro_ok: false, ..healthy },
+                SourceHealth { baro: Some(SourceFault::Stuck), ..SourceHealth::default() },
+                S::MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE,
+            ),
+            (
+                EstimatorFlags { mag_ok: false, ..healthy },
+                SourceHealth { mag: Some(SourceFault::Rejected), ..SourceHealth::default() },
+                S::MAV_SYS_STATUS_SENSOR_3D_MAG,
+            ),
+            (
+                healthy,
+                SourceHealth { imu: Some(SourceFault::Stuck), ..SourceHealth::default() },
+                S::MAV_SYS_STATUS_SENSOR_3D_GYRO | S::MAV_SYS_STATUS_SENSOR_3D_ACCEL,
+            ),
+        ];
+        for (flags, health, cleared) in cases {
+            let got = health_of(&EstimatorFlags { health, ..flags });
+            assert_eq!(got & sensors, sensors - cleared, "{health:?}");
+        }
+    }
+
+    #[test]
     fn given_the_table_then_every_name_fits_debug_vect() {
         for (name, _) in WEIGHT_VECTORS {
             assert!(name.len() <= 10, "{name}");

@@ -82,7 +82,9 @@ impl Fusion {
         let obs = ScalarObs { h, residual: residual_rad, variance: self.config.mag_heading_noise_rad.powi(2) };
         self.innovations.heading_rad = residual_rad;
         let Stage::Running(f) = &mut self.stage else { return };
-        match f.fuse(&[obs], self.config.innovation_gate_sigma) {
+        let outcome = f.fuse(&[obs], self.config.innovation_gate_sigma);
+        self.innovations.heading_rejected = matches!(outcome, Outcome::Rejected { .. });
+        match outcome {
             Outcome::Fused { correction, .. } => {
                 Self::note_correction(&mut self.history, &correction);
                 self.last_mag_fused_us = Some(now);
