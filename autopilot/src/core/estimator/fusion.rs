@@ -3,11 +3,17 @@
 //! convergence flags. In: sanitised samples (see `Estimator`); time is the IMU/GPS `time_us` (µs), samples
 //! without a time stamp (mag, baro) are taken at the latest time seen. Out: an [`EstimatorState`] after
 //! every sample. Rate: the IMU rate; the other sensors at their own rates. The magnetometer's heading
-//! fusion is in `mag`.
+//! fusion is in `mag`. Each source's health (lost, stuck, rejected; see `health`) is judged here at every
+//! sample, and a faulted source is not fused: a stuck GPS, barometer or magnetometer's samples are
+//! skipped, a rejected GPS does not reset the state to itself.
 
 use nalgebra::{UnitQuaternion, Vector3};
 
 use super::eskf::{ErrVec, Eskf, Nominal, Outcome, ProcessNoise, ScalarObs, idx};
+use super::health::{
+    AIDING_MOTION, EstimatorEvent, HeightSource, IMU_MOTION, IMU_REFUSED_CLEAR, IMU_REFUSED_FLAG, IMU_REFUSED_WINDOW,
+    IMU_STUCK_MIN_REPEATS, MAX_PENDING_EVENTS, STUCK_MIN_REPEATS, Source, SourceFault, SourceHealth, StuckDetector,
+};
 use super::history::History;
 use super::{
     BaroSample, EstimatorConfig, EstimatorFlags, EstimatorState, GeoOrigin, GpsSample, ImuSample, Innovations,
@@ -78,6 +84,27 @@ pub struct Fusion {
     /// The latest innovation of each measurement, fused or gated.
     innovations: Innovations,
     state: EstimatorState,
+    /// When each source last delivered a usable sample (µs), for the lost check.
+    last_gps_rx_us: Option<u64>,
+    last_baro_rx_us: Option<u64>,
+    last_mag_rx_us: Option<u64>,
+    /// First of the GPS positions refused by the gate since the last fused one.
+    gps_rejected_since_us: Option<u64>,
+    /// Stuck detectors: GPS (position, velocity), barometer and magnetometer witnessed by the IMU; the
+    /// IMU (specific force, rates) witnessed by the magnetometer and barometer.
+    gps_stuck: StuckDetector<6, 6>,
+    baro_stuck: StuckDetector<1, 6>,
+    mag_stuck: StuckDetector<3, 6>,
+    imu_stuck: StuckDetector<6, 4>,
+    /// Latest magnetometer field (gauss) and barometric altitude (m).
+    last_mag_gauss: Option<[f64; 3]>,
+    last_baro_m: Option<f64>,
+    /// Share of recent IMU samples the sanitiser refused (moving average), and whether it flagged.
+    imu_refused_ratio: f64,
+    imu_refused: bool,
+    /// The health last announced, and the announcements not yet drained.
+    health: SourceHealth,
+    events: Vec<EstimatorEvent>,
 }
 
 /// Why a sample was refused after sanitising (the caller counts these as rejected).
@@ -122,6 +149,55 @@ impl Fusion {
             gated: 0,
             innovations: Innovations::default(),
             state: EstimatorState::default(),
+            last_gps_rx_us: None,
+            last_baro_rx_us: None,
+            last_mag_rx_us: None,
+            gps_rejected_since_us: None,
+            gps_stuck: StuckDetector::default(),
+            baro_stuck: StuckDetector::default(),
+            mag_stuck: StuckDetector::default(),
+            imu_stuck: StuckDetector::default(),
+            last_mag_gauss: None,
+            last_baro_m: None,
+            imu_refused_ratio: 0.0,
+            imu_refused: false,
+            health: SourceHealth::default(),
+            events: Vec::new(),
+        }
+    }
+
+    /// The health changes not yet drained, oldest first.
+    pub fn take_events(&mut self) -> Vec<EstimatorEvent> {
+        std::mem::take(&mut self.events)
+    }
+
+    /// The IMU's latest reading, as the witness of the other sources' stuck detectors.
+    fn imu_witness(&self) -> [f64; 6] {
+        self.last_imu.map_or([f64::NAN; 6], |imu| {
+            let (a, w) = (imu.accel_frd_mps2, imu.gyro_frd_radps);
+            [a.x, a.y, a.z, w.x, w.y, w.z]
+        })
+    }
+
+    /// The magnetometer's and barometer's latest readings, as the IMU stuck detector's witness.
+    fn aiding_witness(&self) -> [f64; 4] {
+        let [x, y, z] = self.last_mag_gauss.unwrap_or([f64::NAN; 3]);
+        [x, y, z, self.last_baro_m.unwrap_or(f64::NAN)]
+    }
+
+    /// An IMU sample was refused by the sanitiser (or for its time): counts towards "rejected".
+    pub fn note_imu_refused(&mut self) {
+        self.note_imu_outcome(true);
+        self.refresh();
+    }
+
+    fn note_imu_outcome(&mut self, refused: bool) {
+        let target = if refused { 1.0 } else { 0.0 };
+        self.imu_refused_ratio += (target - self.imu_refused_ratio) / IMU_REFUSED_WINDOW;
+        if self.imu_refused_ratio > IMU_REFUSED_FLAG {
+            self.imu_refused = true;
+        } else if self.imu_refused_ratio < IMU_REFUSED_CLEAR {
+            self.imu_refused = false;
         }
     }
 
@@ -157,16 +233,22 @@ impl Fusion {
         self.fresh(self.last_imu_us, self.config.imu_timeout_s)
     }
 
-    fn gps_ok(&self) -> bool {
+    /// A GPS position was fused within the timeout.
+    fn gps_fresh(&self) -> bool {
         self.fresh(self.last_gps_fused_us, self.config.gps_timeout_s)
     }
 
-    fn baro_ok(&self) -> bool {
+    fn baro_fresh(&self) -> bool {
         self.fresh(self.last_baro_fused_us, self.config.baro_timeout_s)
     }
 
-    fn mag_ok(&self) -> bool {
+    pub(super) fn mag_fresh(&self) -> bool {
         self.fresh(self.last_mag_fused_us, self.config.mag_timeout_s)
+    }
+
+    /// A source that delivered a sample once and has been silent beyond `timeout_s`.
+    fn lost(&self, last_rx_us: Option<u64>, timeout_s: f64) -> bool {
+        last_rx_us.is_some() && !self.fresh(last_rx_us, timeout_s)
     }
 
     /// Advances the clock without a sample (timeouts only).
@@ -187,6 +269,15 @@ impl Fusion {
         self.advance(imu.time_us);
         self.last_imu_us = Some(imu.time_us);
         self.last_imu = Some(*imu);
+        self.note_imu_outcome(false);
+        let (a, w) = (imu.accel_frd_mps2, imu.gyro_frd_radps);
+        let imu_values = [a.x, a.y, a.z, w.x, w.y, w.z];
+        let witness = self.aiding_witness();
+        let imu_stuck_us = us(self.config.imu_stuck_time_s);
+        self.imu_stuck.observe(imu_values, imu.time_us, witness, IMU_STUCK_MIN_REPEATS, imu_stuck_us);
+        self.gps_stuck.witness(imu_values, &IMU_MOTION);
+        self.baro_stuck.witness(imu_values, &IMU_MOTION);
+        self.mag_stuck.witness(imu_values, &IMU_MOTION);
         let imu_timeout_us = us(self.config.imu_timeout_s);
 
         match &mut self.stage {
@@ -291,7 +382,7 @@ impl Fusion {
     /// (loosely: it bounds the covariance and keeps the attitude observable without claiming a position).
     fn fuse_fake_position(&mut self) {
         let now = self.now_us.unwrap_or(0);
-        let std_m = if self.gps_ok() {
+        let std_m = if self.gps_fresh() {
             None
         } else if self.origin.is_none() {
             Some(self.config.align_pos_noise_m)
@@ -330,7 +421,17 @@ impl Fusion {
 
     pub fn update_baro(&mut self, baro: &BaroSample) {
         let now = self.now_us.unwrap_or(0);
-        let baro_was_ok = self.baro_ok();
+        self.last_baro_rx_us = Some(now);
+        self.last_baro_m = Some(baro.pressure_alt_m);
+        let (witness, stuck_us) = (self.imu_witness(), us(self.config.stuck_time_s));
+        let stuck = self.baro_stuck.observe([baro.pressure_alt_m], now, witness, STUCK_MIN_REPEATS, stuck_us);
+        self.imu_stuck.witness(self.aiding_witness(), &AIDING_MOTION);
+        if stuck {
+            // Not fused: the height is held on GPS altitude (fused with every fix) and the IMU.
+            self.refresh();
+            return;
+        }
+        let baro_was_ok = self.baro_fresh();
         let Stage::Running(f) = &mut self.stage else { return };
         let r = self.config.baro_noise_m.powi(2);
         if !baro_was_ok {
@@ -348,7 +449,9 @@ impl Fusion {
             h[idx::BARO] = 1.0;
             let residual = baro.pressure_alt_m - (f.x.baro_offset_m - f.x.pos_ned_m.z);
             self.innovations.baro_alt_m = residual;
-            match f.fuse(&[ScalarObs { h, residual, variance: r }], self.config.innovation_gate_sigma) {
+            let outcome = f.fuse(&[ScalarObs { h, residual, variance: r }], self.config.innovation_gate_sigma);
+            self.innovations.baro_rejected = matches!(outcome, Outcome::Rejected { .. });
+            match outcome {
                 Outcome::Fused { correction, .. } => {
                     Self::note_correction(&mut self.history, &correction);
                     self.last_baro_fused_us = Some(now);
@@ -369,10 +472,29 @@ impl Fusion {
             && gps.epv_m <= self.config.gps_max_epv_m
     }
 
+    /// A usable fix arrived at `now_us`: notes it for the lost and stuck checks; whether it is stuck.
+    fn observe_gps(&mut self, gps: &GpsSample, now_us: u64) -> bool {
+        self.last_gps_rx_us = Some(now_us);
+        let v = gps.vel_ned_mps;
+        let values = [gps.lat_deg, gps.lon_deg, gps.alt_amsl_m, v.x, v.y, v.z];
+        let (witness, stuck_us) = (self.imu_witness(), us(self.config.stuck_time_s));
+        let stuck = self.gps_stuck.observe(values, now_us, witness, STUCK_MIN_REPEATS, stuck_us);
+        if stuck {
+            // Skipped, not refused by the gate: when it moves again it is a return after an outage.
+            self.gps_rejected_since_us = None;
+        }
+        stuck
+    }
+
     pub fn update_gps(&mut self, gps: &GpsSample) -> Result<(), Refused> {
         self.advance(gps.time_us);
         let now = self.now_us.unwrap_or(gps.time_us);
-        if !matches!(self.stage, Stage::Running(_)) || !self.imu_ok() || !self.gps_quality_ok(gps) {
+        if !self.gps_quality_ok(gps) {
+            self.refresh();
+            return Ok(());
+        }
+        if !matches!(self.stage, Stage::Running(_)) || !self.imu_ok() {
+            self.observe_gps(gps, now);
             self.refresh();
             return Ok(());
         }
@@ -383,6 +505,10 @@ impl Fusion {
             self.refresh();
             return Err(Refused::TooOld);
         };
+        if self.observe_gps(gps, now) {
+            self.refresh();
+            return Ok(());
+        }
         let first_fix = self.origin.is_none();
         let origin = *self.origin.get_or_insert(GeoOrigin {
             lat_deg: gps.lat_deg,
@@ -398,10 +524,12 @@ impl Fusion {
         ];
         let vel_var_m2ps2 = c.gps_vel_noise_mps.powi(2);
         let gate = c.innovation_gate_sigma;
-        let gps_was_ok = self.gps_ok();
+        // A GPS whose positions the gate has been refusing does not get the state reset to it: it has to
+        // come back within the gate (a jump is not followed).
+        let restart = !self.gps_fresh() && self.gps_rejected_since_us.is_none();
         let Stage::Running(f) = &mut self.stage else { return Ok(()) };
 
-        if !gps_was_ok {
+        if restart {
             // Aiding (re)starts: take the GPS position and velocity, moved to now by what the state did
             // since the fix was valid. The height is taken only at the first fix; afterwards the baro kept it.
             let mut dx = ErrVec::zeros();
@@ -436,7 +564,9 @@ impl Fusion {
             .sum::<f64>()
             / 2.0;
         self.innovations.gps_vel_ned_mps = vel_obs.map(|o| o.residual);
-        match f.fuse(&vel_obs, gate) {
+        let outcome = f.fuse(&vel_obs, gate);
+        self.innovations.gps_vel_rejected = matches!(outcome, Outcome::Rejected { .. });
+        match outcome {
             Outcome::Fused { correction, .. } => Self::note_correction(&mut self.history, &correction),
             Outcome::Rejected { .. } => self.gated += 1,
         }
@@ -446,12 +576,27 @@ impl Fusion {
             ScalarObs::direct(idx::POS + i, gps_pos_ned_m[i] - pos_then_ned_m[i], pos_var_m2[i])
         });
         self.innovations.gps_pos_ned_m = pos_obs.map(|o| o.residual);
-        match f.fuse(&pos_obs, gate) {
+        // Whether the horizontal position on its own fails the gate: what "rejected" judges (a vertical
+        // disagreement alone, as at a touchdown the filter has not yet followed, is not a GPS fault).
+        let hor_nis = (0..2)
+            .map(|i| pos_obs[i].residual.powi(2) / (f.p[(idx::POS + i, idx::POS + i)] + pos_var_m2[i]))
+            .fold(0.0, f64::max);
+        let outcome = f.fuse(&pos_obs, gate);
+        self.innovations.gps_pos_rejected = matches!(outcome, Outcome::Rejected { .. });
+        match outcome {
             Outcome::Fused { correction, .. } => {
                 Self::note_correction(&mut self.history, &correction);
                 self.last_gps_fused_us = Some(now);
+                self.gps_rejected_since_us = None;
             }
-            Outcome::Rejected { .. } => self.gated += 1,
+            Outcome::Rejected { .. } => {
+                self.gated += 1;
+                if hor_nis > gate * gate {
+                    self.gps_rejected_since_us.get_or_insert(now);
+                } else {
+                    self.gps_rejected_since_us = None;
+                }
+            }
         }
         let dt_us = self.last_vel_nis_us.map_or(0, |t| now.saturating_sub(t)) as f64;
         self.vel_nis_lp += dt_us / (VEL_NIS_TAU_US + dt_us) * (vel_nis - self.vel_nis_lp);
@@ -464,11 +609,96 @@ impl Fusion {
     // Flags and output
     // ---------------------------------------------------------------------------------------------
 
+    /// Each source's fault now: lost before stuck before rejected. A lost source's stuck and rejection
+    /// records are forgotten (its return is a fresh start).
+    fn judge_health(&mut self) -> SourceHealth {
+        let c = &self.config;
+        let now = self.now_us.unwrap_or(0);
+        let held = |since: Option<u64>| since.is_some_and(|t| now.saturating_sub(t) >= us(c.reject_time_s));
+        let gps = if self.lost(self.last_gps_rx_us, c.gps_timeout_s) {
+            Some(SourceFault::Lost)
+        } else if self.gps_stuck.stuck() {
+            Some(SourceFault::Stuck)
+        } else if held(self.gps_rejected_since_us) {
+            Some(SourceFault::Rejected)
+        } else {
+            None
+        };
+        let baro = if self.lost(self.last_baro_rx_us, c.baro_timeout_s) {
+            Some(SourceFault::Lost)
+        } else if self.baro_stuck.stuck() {
+            Some(SourceFault::Stuck)
+        } else {
+            None
+        };
+        let mag = if self.lost(self.last_mag_rx_us, c.mag_timeout_s) {
+            Some(SourceFault::Lost)
+        } else if self.mag_stuck.stuck() {
+            Some(SourceFault::Stuck)
+        } else if held(self.mag_rejected_since_us) {
+            Some(SourceFault::Rejected)
+        } else {
+            None
+        };
+        let imu = if self.last_imu_us.is_some() && !self.imu_ok() {
+            Some(SourceFault::Lost)
+        } else if self.imu_stuck.stuck() {
+            Some(SourceFault::Stuck)
+        } else if self.imu_refused {
+            Some(SourceFault::Rejected)
+        } else {
+            None
+        };
+        if gps == Some(SourceFault::Lost) {
+            self.gps_stuck.clear();
+            self.gps_rejected_since_us = None;
+        }
+        if baro == Some(SourceFault::Lost) {
+            self.baro_stuck.clear();
+        }
+        if mag == Some(SourceFault::Lost) {
+            self.mag_stuck.clear();
+        }
+        SourceHealth { gps, baro, mag, imu }
+    }
+
+    /// Queues an event for every source whose fault changed since the last announcement.
+    fn announce(&mut self, health: SourceHealth, height_source: HeightSource) {
+        for source in Source::ALL {
+            let (before, now) = (self.health.of(source), health.of(source));
+            if before == now {
+                continue;
+            }
+            if self.events.len() >= MAX_PENDING_EVENTS {
+                self.events.remove(0);
+            }
+            self.events.push(match now {
+                Some(fault) => EstimatorEvent::Fault { source, fault, height_source },
+                None => EstimatorEvent::Regained { source },
+            });
+        }
+        self.health = health;
+    }
+
     /// Recomputes the health timers, the flags and the published state.
     fn refresh(&mut self) {
         let now = self.now_us.unwrap_or(0);
-        let (imu_ok, gps_ok, baro_ok, mag_ok) = (self.imu_ok(), self.gps_ok(), self.baro_ok(), self.mag_ok());
-        if !gps_ok {
+        let health = self.judge_health();
+        let imu_ok = self.imu_ok();
+        let gps_ok = self.gps_fresh() && health.gps.is_none();
+        let baro_ok = self.baro_fresh() && health.baro.is_none();
+        let mag_ok = self.mag_fresh() && health.mag.is_none();
+        let running = matches!(self.stage, Stage::Running(_));
+        let height_source = match (running, baro_ok, gps_ok) {
+            (true, true, _) => HeightSource::Baro,
+            (true, false, true) => HeightSource::Gps,
+            _ => HeightSource::None,
+        };
+        self.announce(health, height_source);
+        if gps_ok {
+            // Aiding (re)started: at a reset to the fix, or when a rejected GPS came back within the gate.
+            self.gps_aiding_since_us.get_or_insert(now);
+        } else {
             self.gps_aiding_since_us = None;
         }
         let Stage::Running(f) = &self.stage else {
@@ -476,7 +706,7 @@ impl Fusion {
             self.state = EstimatorState {
                 time_us: now,
                 origin: self.origin,
-                flags: EstimatorFlags { gps_ok, baro_ok, mag_ok, ..EstimatorFlags::default() },
+                flags: EstimatorFlags { gps_ok, baro_ok, mag_ok, health, height_source, ..EstimatorFlags::default() },
                 ..EstimatorState::default()
             };
             return;
@@ -501,6 +731,7 @@ impl Fusion {
             if settled { Some(self.attitude_settled_since_us.unwrap_or(now)) } else { None };
         let held = |since: Option<u64>, seconds: f64| since.is_some_and(|t| now.saturating_sub(t) >= us(seconds));
         let converged = position_valid
+            && health.all_healthy()
             && held(self.attitude_settled_since_us, c.converge_settle_s)
             && held(self.gps_aiding_since_us, c.converge_gps_s)
             && pos_std_m <= c.converge_pos_std_m
@@ -531,6 +762,8 @@ impl Fusion {
                 gps_ok,
                 baro_ok,
                 mag_ok,
+                health,
+                height_source,
             },
         };
     }

@@ -62,15 +62,22 @@ use serde::{Deserialize, Serialize};
 pub mod eskf;
 mod fusion;
 pub mod geo;
+mod health;
 mod history;
 mod samples;
 
+#[cfg(test)]
+mod fault_tests;
 #[cfg(test)]
 mod sim;
 #[cfg(test)]
 mod tests;
 
 pub use geo::GeoOrigin;
+pub use health::{
+    EstimatorEvent, EventSeverity, HeightSource, MAX_PENDING_EVENTS, STUCK_MIN_REPEATS, Source, SourceFault,
+    SourceHealth,
+};
 pub use samples::{
     BARO_ALT_RANGE_M, BaroSample, GpsSample, ImuSample, MAX_ACCEL_MPS2, MAX_FIELD_GAUSS, MAX_GPS_SPEED_MPS,
     MAX_GYRO_RADPS, MagSample, TruthSample,
@@ -90,12 +97,16 @@ pub struct EstimatorFlags {
     pub position_valid: bool,
     /// Position valid, GPS aiding and attitude settled for their hold times, tighter bounds met.
     pub converged: bool,
-    /// A GPS fix was fused within `gps_timeout_s`.
+    /// A GPS fix was fused within `gps_timeout_s` and the GPS is not faulted.
     pub gps_ok: bool,
-    /// A barometer sample was fused within `baro_timeout_s`.
+    /// A barometer sample was fused within `baro_timeout_s` and the barometer is not faulted.
     pub baro_ok: bool,
-    /// A magnetometer heading was fused within `mag_timeout_s`.
+    /// A magnetometer heading was fused within `mag_timeout_s` and the magnetometer is not faulted.
     pub mag_ok: bool,
+    /// Why each source is not fused, if it is not (see the module's "Sensor faults").
+    pub health: SourceHealth,
+    /// What aids the height.
+    pub height_source: HeightSource,
 }
 
 /// The estimate.
@@ -213,11 +224,23 @@ pub struct EstimatorConfig {
     /// Loose horizontal position hold without GPS (m).
     pub no_aid_pos_noise_m: f64,
 
-    /// Sensor timeouts (s).
+    /// Sensor timeouts (s): a source silent this long is lost.
     pub imu_timeout_s: f64,
     pub baro_timeout_s: f64,
     pub gps_timeout_s: f64,
     pub mag_timeout_s: f64,
+    /// A GPS or barometer repeating bit-identical samples this long (and at least [`STUCK_MIN_REPEATS`]
+    /// times) while the IMU shows motion is stuck (s).
+    pub stuck_time_s: f64,
+    /// The same for the magnetometer (s): shorter, because every stuck heading fused while the vehicle
+    /// turns teaches the filter a wrong gyro bias that outlives the detection.
+    pub mag_stuck_time_s: f64,
+    /// An IMU repeating bit-identical samples this long while the magnetometer or barometer shows motion
+    /// is stuck (s).
+    pub imu_stuck_time_s: f64,
+    /// A GPS position or magnetometer heading refused by the innovation gate this long without a fused
+    /// one is rejected (s).
+    pub reject_time_s: f64,
 
     /// Validity bounds (one standard deviation).
     pub valid_tilt_std_rad: f64,
@@ -270,8 +293,12 @@ impl Default for EstimatorConfig {
             no_aid_pos_noise_m: 10.0,
             imu_timeout_s: 0.1,
             baro_timeout_s: 0.5,
-            gps_timeout_s: 1.0,
+            gps_timeout_s: 0.5,
             mag_timeout_s: 0.5,
+            stuck_time_s: 1.0,
+            mag_stuck_time_s: 0.2,
+            imu_stuck_time_s: 0.2,
+            reject_time_s: 0.5,
             valid_tilt_std_rad: 0.1,
             valid_yaw_std_rad: 0.5,
             valid_vel_std_mps: 1.0,
@@ -338,6 +365,10 @@ impl EstimatorConfig {
             ("baro_timeout_s", self.baro_timeout_s),
             ("gps_timeout_s", self.gps_timeout_s),
             ("mag_timeout_s", self.mag_timeout_s),
+            ("stuck_time_s", self.stuck_time_s),
+            ("mag_stuck_time_s", self.mag_stuck_time_s),
+            ("imu_stuck_time_s", self.imu_stuck_time_s),
+            ("reject_time_s", self.reject_time_s),
             ("valid_tilt_std_rad", self.valid_tilt_std_rad),
             ("valid_yaw_std_rad", self.valid_yaw_std_rad),
             ("valid_vel_std_mps", self.valid_vel_std_mps),
@@ -374,13 +405,22 @@ pub struct Innovations {
     pub baro_alt_m: f64,
     /// Magnetic heading (rad).
     pub heading_rad: f64,
+    /// Whether the gate refused the latest of each (PX4's `reject_*` flags): GPS velocity, GPS position,
+    /// barometric height, magnetic heading.
+    pub gps_vel_rejected: bool,
+    pub gps_pos_rejected: bool,
+    pub baro_rejected: bool,
+    pub heading_rejected: bool,
 }
 
 impl Innovations {
-    fn bits(&self) -> [u64; 8] {
+    fn bits(&self) -> [u64; 9] {
         let [vn, ve, vd] = self.gps_vel_ned_mps.map(f64::to_bits);
         let [pn, pe, pd] = self.gps_pos_ned_m.map(f64::to_bits);
-        [vn, ve, vd, pn, pe, pd, self.baro_alt_m.to_bits(), self.heading_rad.to_bits()]
+        let rejected = [self.gps_vel_rejected, self.gps_pos_rejected, self.baro_rejected, self.heading_rejected]
+            .iter()
+            .fold(0_u64, |acc, &r| (acc << 1) | u64::from(r));
+        [vn, ve, vd, pn, pe, pd, self.baro_alt_m.to_bits(), self.heading_rad.to_bits(), rejected]
     }
 }
 
@@ -397,6 +437,10 @@ impl Default for Innovations {
             gps_pos_ned_m: [f64::NAN; 3],
             baro_alt_m: f64::NAN,
             heading_rad: f64::NAN,
+            gps_vel_rejected: false,
+            gps_pos_rejected: false,
+            baro_rejected: false,
+            heading_rejected: false,
         }
     }
 }
@@ -435,6 +479,7 @@ impl Estimator {
         }
         if !imu_plausible(imu) || self.fusion.update_imu(imu).is_err() {
             self.rejected += 1;
+            self.fusion.note_imu_refused();
         }
     }
 
@@ -501,6 +546,9 @@ impl Estimator {
                 gps_ok: true,
                 baro_ok: true,
                 mag_ok: true,
+                health: SourceHealth::default(),
+                // Every flag says "as healthy as can be" with the truth: so does the height's source.
+                height_source: HeightSource::Baro,
             },
         };
     }
@@ -529,6 +577,12 @@ impl Estimator {
             EstimatorSource::Fused => *self.fusion.innovations(),
             EstimatorSource::Truth => Innovations::default(),
         }
+    }
+
+    /// The changes of source health since the last call (none with the `Truth` source), oldest first; at
+    /// most [`MAX_PENDING_EVENTS`] are kept (the oldest are dropped).
+    pub fn take_events(&mut self) -> Vec<EstimatorEvent> {
+        self.fusion.take_events()
     }
 
     /// Samples refused by the sanitiser since creation or the last reset.

@@ -199,7 +199,7 @@ fn given_100_ms_gps_latency_when_translating_then_compensation_keeps_the_error_b
 }
 
 #[test]
-fn given_gps_lost_when_1_s_of_vehicle_time_passes_then_gps_ok_and_position_valid_drop_and_recover_when_it_returns() {
+fn given_gps_lost_when_0_5_s_of_vehicle_time_passes_then_gps_ok_and_position_valid_drop_and_recover_when_it_returns() {
     let mut sim = Sim::new(Profile::Manoeuvre, 15);
     // In the middle of the 1 m/s translation: the last fix before the outage is valid (and arrives) at
     // 9.9 s, the next at 15.0 s.
@@ -216,9 +216,9 @@ fn given_gps_lost_when_1_s_of_vehicle_time_passes_then_gps_ok_and_position_valid
     let flags = |time_us: u64| flags_at.iter().find(|(t, _)| *t == time_us).unwrap().1;
     let before = flags(9_900_000);
     assert!(before.gps_ok && before.position_valid && before.velocity_valid && before.converged, "{before:?}");
-    let last_ok = flags(10_900_000);
-    assert!(last_ok.gps_ok && last_ok.position_valid, "still within 1 s: {last_ok:?}");
-    let lost = flags(10_902_000);
+    let last_ok = flags(10_400_000);
+    assert!(last_ok.gps_ok && last_ok.position_valid, "still within 0.5 s: {last_ok:?}");
+    let lost = flags(10_402_000);
     assert!(!lost.gps_ok && !lost.position_valid && !lost.velocity_valid && !lost.converged, "{lost:?}");
     assert!(lost.attitude_valid && lost.baro_ok && lost.mag_ok, "other sensors unaffected: {lost:?}");
     let back = flags(15_000_000);

@@ -30,7 +30,7 @@ use super::{identity, next_due_us};
 use crate::core::battery::{BatteryStatus, BatteryWarning};
 use crate::core::commander::{CommanderOutput, Event, LandedState};
 use crate::core::control::Controller;
-use crate::core::estimator::{EstimatorFlags, EstimatorState, GpsSample};
+use crate::core::estimator::{EstimatorEvent, EstimatorFlags, EstimatorState, EventSeverity, GpsSample};
 use crate::core::hil::{encode_battery_status, encode_rc_channels};
 use crate::core::navigator::NavEvent;
 
@@ -215,6 +215,18 @@ pub fn nav_event_message(event: &NavEvent) -> MavMessage {
     }
 }
 
+/// What the ground station hears of an estimator event (a source lost, stuck, rejected or regained): a
+/// STATUSTEXT, WARNING for a lost aiding source, CRITICAL for the IMU, INFO when a source is back.
+#[must_use]
+pub fn estimator_event_message(event: &EstimatorEvent) -> MavMessage {
+    let severity = match event.severity() {
+        EventSeverity::Info => MavSeverity::MAV_SEVERITY_INFO,
+        EventSeverity::Warning => MavSeverity::MAV_SEVERITY_WARNING,
+        EventSeverity::Critical => MavSeverity::MAV_SEVERITY_CRITICAL,
+    };
+    statustext(severity, &event.text())
+}
+
 /// MISSION_CURRENT for the item `seq` the mission flies towards: the one builder (the stream, a
 /// MISSION_SET_CURRENT's answer and the navigator's moves all send this).
 #[must_use]
@@ -361,7 +373,8 @@ pub fn rc_channels(now_us: u64, manual: &ManualStatus) -> Option<MavMessage> {
 }
 
 /// SYS_STATUS: gyro, accel, mag, baro, GPS and PREARM_CHECK present and enabled; healthy from the estimator
-/// flags (IMU: attitude valid; PREARM_CHECK: converged, i.e. armable). The battery present while it
+/// flags (IMU: attitude valid and the IMU not faulted; mag, baro, GPS: fused within their timeouts and not
+/// faulted, so a lost, stuck or rejected source clears its bit; PREARM_CHECK: converged, i.e. armable). The battery present while it
 /// reports, healthy above its critical level; its voltage, current and remaining. The RC receiver present
 /// and enabled once a radio frame has arrived, healthy while the radio is fresh (`manual.rc_fresh`).
 /// `errors_comm` and `errors_count1`: see [`LinkErrors`].
@@ -385,8 +398,8 @@ pub fn sys_status(
         // No geofence exists, so none is breached: healthy, neither present nor enabled (MAVProxy reads
         // a clear health bit as a breach).
         (true, S::MAV_SYS_STATUS_GEOFENCE),
-        (flags.attitude_valid, S::MAV_SYS_STATUS_SENSOR_3D_GYRO),
-        (flags.attitude_valid, S::MAV_SYS_STATUS_SENSOR_3D_ACCEL),
+        (flags.attitude_valid && flags.health.imu.is_none(), S::MAV_SYS_STATUS_SENSOR_3D_GYRO),
+        (flags.attitude_valid && flags.health.imu.is_none(), S::MAV_SYS_STATUS_SENSOR_3D_ACCEL),
         (flags.mag_ok, S::MAV_SYS_STATUS_SENSOR_3D_MAG),
         (flags.baro_ok, S::MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE),
         (flags.gps_ok, S::MAV_SYS_STATUS_SENSOR_GPS),
@@ -674,6 +687,61 @@ mod tests {
             .expect("aco.m_est");
         let nominal = ControllerConfig::default().aco.airframe.mass_kg as f32;
         assert_eq!([m_est.x, m_est.y, m_est.z], [nominal; 3]);
+    }
+
+    #[test]
+    fn given_each_source_faulted_when_sys_status_is_built_then_only_its_health_bits_are_cleared() {
+        use crate::core::estimator::{SourceFault, SourceHealth};
+        use MavSysStatusSensor as S;
+        let healthy = EstimatorFlags {
+            attitude_valid: true,
+            velocity_valid: true,
+            position_valid: true,
+            converged: true,
+            gps_ok: true,
+            baro_ok: true,
+            mag_ok: true,
+            ..EstimatorFlags::default()
+        };
+        let health_of = |flags: &EstimatorFlags| {
+            let m = sys_status(flags, &BatteryStatus::default(), LinkErrors::default(), &ManualStatus::default());
+            let MavMessage::SYS_STATUS(s) = m else { panic!("{m:?}") };
+            s.onboard_control_sensors_health
+        };
+        let sensors = S::MAV_SYS_STATUS_SENSOR_3D_GYRO
+            | S::MAV_SYS_STATUS_SENSOR_3D_ACCEL
+            | S::MAV_SYS_STATUS_SENSOR_3D_MAG
+            | S::MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+            | S::MAV_SYS_STATUS_SENSOR_GPS;
+        assert!(health_of(&healthy).contains(sensors));
+        // The estimator clears gps_ok, baro_ok and mag_ok with their source's fault; the IMU's fault is read
+        // here, as the attitude stays valid on a stuck or garbage IMU until it drifts.
+        let cases = [
+            (
+                EstimatorFlags { gps_ok: false, ..healthy },
+                SourceHealth { gps: Some(SourceFault::Lost), ..SourceHealth::default() },
+                S::MAV_SYS_STATUS_SENSOR_GPS,
+            ),
+            (
+                EstimatorFlags { baro_ok: false, ..healthy },
+                SourceHealth { baro: Some(SourceFault::Stuck), ..SourceHealth::default() },
+                S::MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE,
+            ),
+            (
+                EstimatorFlags { mag_ok: false, ..healthy },
+                SourceHealth { mag: Some(SourceFault::Rejected), ..SourceHealth::default() },
+                S::MAV_SYS_STATUS_SENSOR_3D_MAG,
+            ),
+            (
+                healthy,
+                SourceHealth { imu: Some(SourceFault::Stuck), ..SourceHealth::default() },
+                S::MAV_SYS_STATUS_SENSOR_3D_GYRO | S::MAV_SYS_STATUS_SENSOR_3D_ACCEL,
+            ),
+        ];
+        for (flags, health, cleared) in cases {
+            let got = health_of(&EstimatorFlags { health, ..flags });
+            assert_eq!(got & sensors, sensors - cleared, "{health:?}");
+        }
     }
 
     #[test]

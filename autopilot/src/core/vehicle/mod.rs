@@ -33,8 +33,8 @@ use crate::core::mavlink::mission::MissionService;
 use crate::core::mavlink::params::ParamService;
 use crate::core::mavlink::router::OffboardReceiver;
 use crate::core::mavlink::{
-    Home, LinkErrors, MavlinkService, Stream, TelemetrySnapshot, nav_event_message, plant_lost_heartbeat, statustext,
-    sys_status_plant_lost,
+    Home, LinkErrors, MavlinkService, Stream, TelemetrySnapshot, estimator_event_message, nav_event_message,
+    plant_lost_heartbeat, statustext, sys_status_plant_lost,
 };
 use crate::core::navigator::{NavEvent, NavInput, Navigator};
 use crate::core::params::ParamStore;
@@ -318,6 +318,9 @@ impl Vehicle {
     /// control stage (PWM) -> telemetry. See the module docs.
     pub fn step(&mut self, now_us: u64, inputs: &VehicleInputs) -> VehicleOutputs {
         let tick = inputs.feed(now_us, &mut self.estimator, self.config.estimator.source);
+        // A source lost, stuck, rejected or regained: said this step.
+        let estimator_texts: Vec<MavMessage> =
+            self.estimator.take_events().iter().map(estimator_event_message).collect();
         if inputs.gps.is_some() {
             self.last_gps = inputs.gps;
         }
@@ -379,6 +382,7 @@ impl Vehicle {
         let events = std::mem::take(&mut self.output.events);
         let due = self.mavlink.due_with_home(now_us, &events, home.map(|h| h.pos_ned_m));
         let mut messages = due.messages(&self.snapshot(now_us, home.as_ref()), &events);
+        messages.extend(estimator_texts);
         messages.extend(pilot_refusals);
         messages.extend(self.missions.poll(now_us).messages);
         messages.extend(self.param_service.due(&self.params));

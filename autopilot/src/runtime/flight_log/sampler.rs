@@ -427,7 +427,9 @@ pub(crate) mod tests {
         for (name, hz) in [("vehicle_attitude", 50), ("actuator_outputs", 50), ("controller_status", 50)] {
             assert!((2 * hz..=2 * hz + 2).contains(&count(name)), "{name}: {}", count(name));
         }
-        for (name, hz) in [("aco_weights", 10), ("estimator_innovations", 10), ("battery_status", 5)] {
+        for (name, hz) in
+            [("aco_weights", 10), ("estimator_innovations", 10), ("estimator_status_flags", 10), ("battery_status", 5)]
+        {
             assert!((2 * hz..=2 * hz + 2).contains(&count(name)), "{name}: {}", count(name));
         }
         // vehicle_status: at arming, once a second, and at the disarm: armed then disarmed (1).

@@ -9,6 +9,7 @@ use crate::runtime::utc::UtcTime;
 use crate::core::battery::BatteryWarning;
 use crate::core::commander::FlightMode;
 use crate::core::estimator::eskf::GRAVITY_MPS2 as G_MPS2;
+use crate::core::estimator::{HeightSource, SourceFault};
 use crate::core::manual::{ManualSource, RC_CHANNELS_MAX};
 use crate::core::params::{ParamKind, ParamStore};
 use crate::core::vehicle::{LogSnapshot, Vehicle};
@@ -21,8 +22,9 @@ use crate::core::vehicle::{LogSnapshot, Vehicle};
 /// control-side topics are taken at 50 Hz here because the controller is what this autopilot studies.
 /// The pilot's input at PX4's default intervals: `input_rc` (the radio's last frame) every 500 ms once a
 /// frame has arrived, `manual_control_setpoint` (the sticks in use) every 200 ms once sticks have been in
-/// use (see [`logged`]).
-pub const TOPICS: [(&str, u64); 12] = [
+/// use (see [`logged`]). `estimator_status_flags` is PX4's topic reduced to the fields this estimator has,
+/// plus its own per-source fault codes (see [`px4_fault`]).
+pub const TOPICS: [(&str, u64); 13] = [
     ("vehicle_status", 1_000_000),
     ("vehicle_attitude", 20_000),
     ("vehicle_local_position", 20_000),
@@ -31,6 +33,7 @@ pub const TOPICS: [(&str, u64); 12] = [
     ("actuator_outputs", 20_000),
     ("controller_status", 20_000),
     ("estimator_innovations", 100_000),
+    ("estimator_status_flags", 100_000),
     ("battery_status", 200_000),
     ("aco_weights", 100_000),
     ("input_rc", 500_000),
@@ -98,6 +101,17 @@ const fn px4_battery_warning(level: BatteryWarning) -> u8 {
     }
 }
 
+/// A source's fault in `estimator_status_flags`' `*_fault` fields: 0 healthy, 1 lost, 2 stuck, 3 rejected.
+#[must_use]
+pub const fn px4_fault(fault: Option<SourceFault>) -> u8 {
+    match fault {
+        None => 0,
+        Some(SourceFault::Lost) => 1,
+        Some(SourceFault::Stuck) => 2,
+        Some(SourceFault::Rejected) => 3,
+    }
+}
+
 /// A telemetry name as a ULog field name: without the controller's prefix, dots as underscores
 /// (`ca.roll.k1` -> `roll_k1`).
 fn field_name(telemetry: &str) -> String {
@@ -153,6 +167,12 @@ pub(super) fn fields(name: &str, telemetry: &[&'static str]) -> Vec<Field> {
             f("baro_vpos"),
             f("heading"),
         ],
+        "estimator_status_flags" => {
+            let mut v = vec![Field::scalar(U64, "timestamp_sample")];
+            v.extend(ESTIMATOR_STATUS_BOOLS.map(|n| Field::scalar(Bool, n)));
+            v.extend(["gps_fault", "baro_fault", "mag_fault", "imu_fault"].map(|n| Field::scalar(U8, n)));
+            v
+        }
         "battery_status" => {
             let mut v: Vec<Field> = ["voltage_v", "current_a", "discharged_mah", "remaining"].map(f).into();
             v.extend([Field::scalar(U8, "warning"), Field::scalar(U8, "cell_count"), Field::scalar(Bool, "connected")]);
@@ -175,6 +195,26 @@ pub(super) fn fields(name: &str, telemetry: &[&'static str]) -> Vec<Field> {
         _ => Vec::new(),
     }
 }
+
+/// `estimator_status_flags`' boolean fields, PX4's names: the filter's control status (`cs_*`: tilt and
+/// yaw aligned, GPS fused, magnetic heading fused, baro the height source, GPS altitude fused, the
+/// magnetometer declared faulty) and the innovation checks of the latest measurements (`reject_*`: the
+/// GPS velocity and position are gated as 3-vectors, so horizontal and vertical share a flag; `reject_ver_pos`
+/// is the GPS position's or the barometer's).
+const ESTIMATOR_STATUS_BOOLS: [&str; 12] = [
+    "cs_tilt_align",
+    "cs_yaw_align",
+    "cs_gps",
+    "cs_mag_hdg",
+    "cs_baro_hgt",
+    "cs_gps_hgt",
+    "cs_mag_fault",
+    "reject_hor_vel",
+    "reject_ver_vel",
+    "reject_hor_pos",
+    "reject_ver_pos",
+    "reject_yaw",
+];
 
 /// What a record needs besides the vehicle's snapshot.
 pub(super) struct RecordContext<'a> {
@@ -248,6 +288,31 @@ pub(super) fn record(name: &str, now_us: u64, snap: &LogSnapshot, ctx: &RecordCo
         "estimator_innovations" => {
             let i = &snap.innovations;
             r.u64(est.time_us).f32s(&i.gps_vel_ned_mps).f32s(&i.gps_pos_ned_m).f32(i.baro_alt_m).f32(i.heading_rad)
+        }
+        "estimator_status_flags" => {
+            let (flags, i) = (&est.flags, &snap.innovations);
+            let health = flags.health;
+            let bools = [
+                flags.attitude_valid,                      // cs_tilt_align
+                flags.attitude_valid,                      // cs_yaw_align
+                flags.gps_ok,                              // cs_gps
+                flags.mag_ok,                              // cs_mag_hdg
+                flags.height_source == HeightSource::Baro, // cs_baro_hgt
+                flags.gps_ok,                              // cs_gps_hgt: GPS altitude fused with every fix
+                health.mag.is_some(),                      // cs_mag_fault
+                i.gps_vel_rejected,                        // reject_hor_vel
+                i.gps_vel_rejected,                        // reject_ver_vel
+                i.gps_pos_rejected,                        // reject_hor_pos
+                i.gps_pos_rejected || i.baro_rejected,     // reject_ver_pos
+                i.heading_rejected,                        // reject_yaw
+            ];
+            bools
+                .iter()
+                .fold(r.u64(est.time_us), |r, &b| r.bool(b))
+                .u8(px4_fault(health.gps))
+                .u8(px4_fault(health.baro))
+                .u8(px4_fault(health.mag))
+                .u8(px4_fault(health.imu))
         }
         "battery_status" => {
             let s = snap.battery.sample;
@@ -365,5 +430,40 @@ mod tests {
             let topic = Topic::new(name, i as u16, fields(name, &names));
             assert!(topic.data(&record(name, 0, &snap, &ctx)).is_ok(), "{name}");
         }
+    }
+
+    #[test]
+    fn given_a_baro_stuck_and_the_gps_rejected_when_logged_then_estimator_status_flags_says_so_in_px4_names() {
+        use crate::core::estimator::SourceHealth;
+        let v = vehicle();
+        let mut snap = v.log_snapshot();
+        let flags = &mut snap.estimate.flags;
+        flags.health = SourceHealth {
+            gps: Some(SourceFault::Rejected),
+            baro: Some(SourceFault::Stuck),
+            ..SourceHealth::default()
+        };
+        flags.height_source = HeightSource::Gps;
+        (flags.attitude_valid, flags.gps_ok, flags.mag_ok) = (true, false, true);
+        snap.innovations.gps_pos_rejected = true;
+        let ctx = RecordContext { sysid: 1, armed_at_us: 0, telemetry: &[], telemetry_names: &[] };
+        let name = "estimator_status_flags";
+        let topic = Topic::new(name, 0, fields(name, &[]));
+        let bytes = topic.data(&record(name, 0, &snap, &ctx)).expect("matches its format");
+        let names: Vec<String> = topic_field_names(name);
+        let at = |field: &str| {
+            // Header (3) + msg_id (2) + timestamp (8) + timestamp_sample (8), then one byte per field.
+            bytes[21 + names.iter().position(|n| n == field).expect(field)]
+        };
+        let on = |field: &str| at(field) == 1;
+        assert!(on("cs_tilt_align") && on("cs_mag_hdg") && !on("cs_gps") && !on("cs_baro_hgt") && !on("cs_gps_hgt"));
+        assert!(on("reject_hor_pos") && on("reject_ver_pos") && !on("reject_hor_vel") && !on("reject_yaw"));
+        assert_eq!([at("gps_fault"), at("baro_fault"), at("mag_fault"), at("imu_fault")], [3, 2, 0, 0]);
+        assert_eq!(bytes.len(), 21 + names.len());
+    }
+
+    /// The field names of `topic` after its timestamps.
+    fn topic_field_names(topic: &str) -> Vec<String> {
+        fields(topic, &[]).iter().skip(1).map(|f| f.name.clone()).collect()
     }
 }

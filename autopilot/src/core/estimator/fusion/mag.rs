@@ -8,7 +8,8 @@ use crate::core::control::frames::wrap_pi;
 
 use super::super::MagSample;
 use super::super::eskf::{ErrVec, Outcome, ScalarObs, idx};
-use super::{Fusion, Stage};
+use super::super::health::{AIDING_MOTION, STUCK_MIN_REPEATS};
+use super::{Fusion, Stage, us};
 
 /// A magnetometer whose heading innovations fail the gate this long gets its yaw reset to it (µs).
 const MAG_RESET_AFTER_US: u64 = 5_000_000;
@@ -37,7 +38,20 @@ impl Fusion {
 
     pub fn update_mag(&mut self, mag: &MagSample) {
         let now = self.now_us.unwrap_or(0);
-        let mag_was_ok = self.mag_ok();
+        self.last_mag_rx_us = Some(now);
+        let field = mag.field_frd_gauss;
+        let values = [field.x, field.y, field.z];
+        self.last_mag_gauss = Some(values);
+        let (witness, stuck_us) = (self.imu_witness(), us(self.config.mag_stuck_time_s));
+        let stuck = self.mag_stuck.observe(values, now, witness, STUCK_MIN_REPEATS, stuck_us);
+        self.imu_stuck.witness(self.aiding_witness(), &AIDING_MOTION);
+        if stuck && matches!(self.stage, Stage::Running(_)) {
+            // Not fused: the heading is held on the gyro (and GPS velocity through the covariance).
+            self.mag_rejected_since_us = None;
+            self.refresh();
+            return;
+        }
+        let mag_was_ok = self.mag_fresh();
         let q_ned_frd = match &mut self.stage {
             Stage::Aligning(alignment) => {
                 if let Some(a) = alignment {
@@ -68,7 +82,9 @@ impl Fusion {
         let obs = ScalarObs { h, residual: residual_rad, variance: self.config.mag_heading_noise_rad.powi(2) };
         self.innovations.heading_rad = residual_rad;
         let Stage::Running(f) = &mut self.stage else { return };
-        match f.fuse(&[obs], self.config.innovation_gate_sigma) {
+        let outcome = f.fuse(&[obs], self.config.innovation_gate_sigma);
+        self.innovations.heading_rejected = matches!(outcome, Outcome::Rejected { .. });
+        match outcome {
             Outcome::Fused { correction, .. } => {
                 Self::note_correction(&mut self.history, &correction);
                 self.last_mag_fused_us = Some(now);
