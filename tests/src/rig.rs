@@ -4,6 +4,7 @@
 //! round trip). Pure simulated time: no sleeps.
 
 use autopilot::core::estimator::{BaroSample, EstimatorSource, GeoOrigin, ImuSample, MagSample, TruthSample};
+use autopilot::core::hil::PlantCommandAck;
 use autopilot::core::mavlink::MavHeader;
 use autopilot::core::mavlink::command_long;
 use autopilot::core::mavlink::common::{MavCmd, MavLandedState, MavMessage, MavModeFlag, MavResult, PARAM_SET_DATA};
@@ -11,6 +12,7 @@ use autopilot::core::mavlink::params::{decode_value, encode_value};
 use autopilot::core::params::PARAMS;
 use autopilot::core::vehicle::{Vehicle, VehicleConfig, VehicleInputs};
 use sitl::plant::{InitialState, Plant, PlantConfig, SensorConfig};
+use sitl::sim_params::{FailureRequest, SimParamService};
 
 /// The plant step and control period (µs).
 pub const DT_US: u64 = 2_000;
@@ -29,8 +31,12 @@ pub struct Rig {
     pub messages: Vec<(u64, MavMessage)>,
     /// The radio as the board reads it: this frame goes to the vehicle with every tick (None: no radio).
     pub rc: Option<autopilot::core::manual::RcFrame>,
-    /// Drops every GPS fix on its way to the vehicle (a receiver that stopped, as the board would see it).
-    pub gps_cut: bool,
+    /// The plant's SIM_ parameters (faults, rotor multipliers, payload), as the plant's SIM_ port and the
+    /// plant link serve them: `sim_set` and a forwarded MAV_CMD_INJECT_FAILURE go through it.
+    pub sim: SimParamService,
+    /// The plant's answer to a forwarded injection, for the vehicle's next tick (as the plant link sends
+    /// its COMMAND_ACK first in the next sensor datagram).
+    plant_ack: Option<PlantCommandAck>,
 }
 
 impl Rig {
@@ -51,6 +57,7 @@ impl Rig {
             Some(GeoOrigin { lat_deg: home.lat_deg, lon_deg: home.lon_deg, alt_amsl_m: home.alt_amsl_m });
         adjust(&mut vc);
         let vehicle = Vehicle::new(vc).expect("vehicle");
+        let sim = SimParamService::new(1, &plant);
         Self {
             plant,
             vehicle,
@@ -59,7 +66,8 @@ impl Rig {
             landed_state: None,
             messages: Vec::new(),
             rc: None,
-            gps_cut: false,
+            sim,
+            plant_ack: None,
         }
     }
 
@@ -78,7 +86,7 @@ impl Rig {
             }),
             mag: s.mag_frd_gauss.map(|field_frd_gauss| MagSample { field_frd_gauss }),
             baro: s.baro.map(|b| BaroSample { pressure_alt_m: b.pressure_alt_m }),
-            gps: s.gps.filter(|_| !self.gps_cut),
+            gps: s.gps,
             truth: Some(TruthSample {
                 time_us: t.time_us,
                 pos_ned_m: t.pos_ned_m,
@@ -93,7 +101,7 @@ impl Rig {
                 .filter(|_| sitl::link::battery_due(s.time_us, DT_US))
                 .map(|b| sitl::link::battery_fields(&b.reading())),
             rc: self.rc,
-            plant_ack: None,
+            plant_ack: self.plant_ack.take(),
         };
         self.now_us = s.time_us;
         let out = self.vehicle.step(self.now_us, &inputs);
@@ -106,8 +114,31 @@ impl Rig {
             }
             self.messages.push((self.now_us, m));
         }
+        for m in &out.plant_messages {
+            if let MavMessage::COMMAND_LONG(c) = m
+                && c.command == MavCmd::MAV_CMD_INJECT_FAILURE
+            {
+                let request = FailureRequest { unit: c.param1, failure_type: c.param2, instance: c.param3 };
+                let injection = self.sim.inject_failure(&request, &mut self.plant);
+                self.plant_ack = Some(PlantCommandAck {
+                    command_id: MavCmd::MAV_CMD_INJECT_FAILURE as u32,
+                    result: injection.result,
+                });
+            }
+        }
         self.plant.set_motors_running(out.armed || out.motor_test);
         self.plant.step(out.pwm_us, DT_US);
+    }
+
+    /// Sets the plant's SIM_ parameter `name` (a fault, a rotor multiplier, the payload) from the next
+    /// plant step, as a ground station's PARAM_SET on the plant's SIM_ port would.
+    ///
+    /// # Panics
+    /// When the plant refuses the set.
+    pub fn sim_set(&mut self, name: &str, value: f32) {
+        if let Err(e) = self.sim.set(name, value, &mut self.plant) {
+            panic!("{name} = {value}: {e}");
+        }
     }
 
     /// Ticks for `seconds` of vehicle time, calling `each` after every tick.

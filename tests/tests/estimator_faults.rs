@@ -1,35 +1,12 @@
 //! The estimator's reaction to sensor faults at the vehicle level: the whole core in lockstep with the real
-//! plant (modest sensor noise), a sensor's samples withheld or frozen between the plant and the vehicle as
-//! a dead or stuck sensor delivers them; judged on what the vehicle says (STATUSTEXT, SYS_STATUS health
+//! plant (modest sensor noise), a sensor of the plant failed through its SIM_ parameters (as an injected
+//! failure sets them); judged on what the vehicle says (STATUSTEXT, SYS_STATUS health
 //! bits), its estimate's flags and the plant's truth. Pure simulated time: no sleeps.
 
-use autopilot::core::estimator::{
-    BaroSample, EstimatorEvent, EstimatorSource, HeightSource, ImuSample, MagSample, Source, SourceFault,
-};
+use autopilot::core::estimator::{EstimatorEvent, EstimatorSource, HeightSource, Source, SourceFault};
 use autopilot::core::mavlink::common::{MavCmd, MavMessage, MavResult, MavSeverity, MavSysStatusSensor};
-use autopilot::core::vehicle::VehicleInputs;
 use sitl::plant::PlantConfig;
-use tests::rig::{DT_US, Rig};
-
-/// One lockstep tick as the rig's, with `alter` changing the sensor inputs before the vehicle sees them.
-fn tick_with(rig: &mut Rig, alter: &mut impl FnMut(&mut VehicleInputs)) {
-    let s = rig.plant.sample_sensors();
-    let mut inputs = VehicleInputs {
-        imu: Some(ImuSample { time_us: s.time_us, accel_frd_mps2: s.accel_frd_mps2, gyro_frd_radps: s.gyro_frd_radps }),
-        mag: Some(MagSample { field_frd_gauss: s.mag_frd_gauss }),
-        baro: Some(BaroSample { pressure_alt_m: s.baro.pressure_alt_m }),
-        gps: s.gps,
-        ..VehicleInputs::default()
-    };
-    alter(&mut inputs);
-    rig.now_us = s.time_us;
-    let out = rig.vehicle.step(rig.now_us, &inputs);
-    for m in out.messages {
-        rig.messages.push((rig.now_us, m));
-    }
-    rig.plant.set_motors_running(out.armed);
-    rig.plant.step(out.pwm_us, DT_US);
-}
+use tests::rig::Rig;
 
 /// Takes off to `alt_m` and waits 3 s in Hold; returns the truth's hold height (m, down).
 fn take_off(rig: &mut Rig, alt_m: f32) -> f64 {
@@ -93,25 +70,15 @@ fn given_gps_lost_in_hold_then_gps_lost_is_said_within_1_s_position_invalid_the_
     let mut rig = Rig::new(EstimatorSource::Fused);
     take_off(&mut rig, 3.0);
     rig.take_messages();
-    // WHEN the GPS stops delivering fixes for 3 s.
-    let start_s = rig.now_us as f64 * 1e-6;
-    let mut last_fix_s = start_s;
+    // WHEN the plant's GPS stops delivering fixes (SIM_GPS_FAIL = 1, as an injected GPS OFF) for 3 s.
+    rig.sim_set("SIM_GPS_FAIL", 1.0);
+    let last_fix_s = rig.now_us as f64 * 1e-6;
     let mut invalid_at_s = None;
-    while (rig.now_us as f64 * 1e-6) < start_s + 3.0 {
-        let now_s = rig.now_us as f64 * 1e-6;
-        tick_with(&mut rig, &mut |i| {
-            if now_s < start_s + 0.2 {
-                if i.gps.is_some() {
-                    last_fix_s = now_s;
-                }
-            } else {
-                i.gps = None;
-            }
-        });
-        if invalid_at_s.is_none() && !rig.vehicle.estimate().flags.position_valid {
-            invalid_at_s = Some(rig.now_us as f64 * 1e-6);
+    rig.run_s(3.0, |r| {
+        if invalid_at_s.is_none() && !r.vehicle.estimate().flags.position_valid {
+            invalid_at_s = Some(r.now_us as f64 * 1e-6);
         }
-    }
+    });
     let outage = rig.take_messages();
     // THEN "GPS lost" is said, as a warning, within 1 s of the last fix, the position is invalid from that
     // very step, and SYS_STATUS no longer reports the GPS healthy.
@@ -128,7 +95,8 @@ fn given_gps_lost_in_hold_then_gps_lost_is_said_within_1_s_position_invalid_the_
     assert_eq!(f.health.gps, Some(SourceFault::Lost));
     assert!(!f.gps_ok && !f.velocity_valid && f.baro_ok && f.mag_ok && f.attitude_valid);
 
-    // WHEN the fixes come back, THEN "GPS regained" (info), valid again, and SYS_STATUS healthy again.
+    // WHEN the fixes come back (SIM_GPS_FAIL = 0), THEN "GPS regained" (info), valid again, and SYS_STATUS healthy again.
+    rig.sim_set("SIM_GPS_FAIL", 0.0);
     rig.run_s(2.5, |_| {});
     let back = rig.take_messages();
     let said = texts(&back);
@@ -142,17 +110,11 @@ fn given_the_baro_stuck_in_hold_then_it_is_said_within_1_5_s_height_comes_from_g
     let mut rig = Rig::new(EstimatorSource::Fused);
     let hold_d_m = take_off(&mut rig, 3.0);
     rig.take_messages();
-    // WHEN the barometer repeats its last value for 20 s (as a stuck sensor delivers it).
+    // WHEN the plant's barometer repeats its last value for 20 s (SIM_BARO_FAIL = 2, as an injected BARO STUCK).
+    rig.sim_set("SIM_BARO_FAIL", 2.0);
     let start_s = rig.now_us as f64 * 1e-6;
-    let mut frozen: Option<BaroSample> = None;
     let mut worst_alt_err_m: f64 = 0.0;
-    while (rig.now_us as f64 * 1e-6) < start_s + 20.0 {
-        tick_with(&mut rig, &mut |i| {
-            let held = *frozen.get_or_insert(i.baro.expect("a baro sample every step"));
-            i.baro = Some(held);
-        });
-        worst_alt_err_m = worst_alt_err_m.max((rig.plant.truth().pos_ned_m.z - hold_d_m).abs());
-    }
+    rig.run_s(20.0, |r| worst_alt_err_m = worst_alt_err_m.max((r.plant.truth().pos_ned_m.z - hold_d_m).abs()));
     let messages = rig.take_messages();
     let said = texts(&messages);
     let (stuck_s, severity, _) =

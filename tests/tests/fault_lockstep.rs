@@ -111,12 +111,13 @@ fn given_a_healthy_hover_and_a_4_m_reposition_then_the_detector_never_fires() {
 }
 
 #[test]
-fn given_the_gps_stops_in_hold_then_the_vehicle_holds_its_height_within_0_3_m_and_lands_after_com_pos_fs_delay() {
+fn given_the_gps_stops_in_hold_then_its_loss_is_said_within_1_s_the_height_holds_within_0_3_m_and_it_lands_within_2_s()
+{
     // GIVEN a hover in Hold with COM_POS_FS_DELAY = 1 s.
     let mut rig = hovering();
     let hold_d_m = rig.plant.truth().pos_ned_m.z;
     // WHEN the GPS stops.
-    rig.gps_cut = true;
+    rig.sim_set("SIM_GPS_FAIL", 1.0);
     let cut_us = rig.now_us;
     let mut land_at_us = None;
     let mut worst_height_error_m: f64 = 0.0;
@@ -140,7 +141,10 @@ fn given_the_gps_stops_in_hold_then_the_vehicle_holds_its_height_within_0_3_m_an
         truth.pos_ned_m.z
     );
     assert!(worst_height_error_m <= 0.3, "{worst_height_error_m}");
-    assert!(land_after_s <= 2.0, "{land_after_s}");
+    // The estimator's GPS timeout (0.5 s) and then COM_POS_FS_DELAY (1 s).
+    assert!((1.0..=2.0).contains(&land_after_s), "{land_after_s}");
     assert!(truth.on_ground);
+    let lost_us = said.iter().find(|(_, t)| t.starts_with("GPS lost")).map(|(t, _)| *t).expect("GPS lost said");
+    assert!(lost_us - cut_us <= 1_000_000, "said {} µs after the cut", lost_us - cut_us);
     assert!(said.iter().any(|(_, t)| t == "Failsafe: position lost, landing"), "{said:?}");
 }

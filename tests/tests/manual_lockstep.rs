@@ -462,7 +462,7 @@ fn given_the_gps_stops_in_position_mode_then_after_com_pos_fs_delay_the_pilot_fl
     let hold_d_m = rig.plant.truth().pos_ned_m.z;
     texts(&mut rig);
     // WHEN the GPS stops.
-    rig.gps_cut = true;
+    rig.sim_set("SIM_GPS_FAIL", 1.0);
     let mut worst_m: f64 = 0.0;
     fly(&mut rig, 10.0, Some(centre()), |r| worst_m = worst_m.max((r.plant.truth().pos_ned_m.z - hold_d_m).abs()));
     // THEN the vehicle switches to Altitude (still the pilot's), says why, and holds its height on the truth.
@@ -494,7 +494,7 @@ fn given_the_gps_stopped_in_hold_then_a_pilot_can_still_take_over_in_altitude_bu
         fly(&mut rig, 0.1, Some(centre()), |_| {});
         held = rig.vehicle.commander_output().mode == FlightMode::Hold;
     }
-    rig.gps_cut = true;
+    rig.sim_set("SIM_GPS_FAIL", 1.0);
     let cut_us = rig.now_us;
     while rig.vehicle.estimate().flags.position_valid {
         assert!(rig.now_us - cut_us < 2_000_000, "the estimator did not flag the loss within 2 s");

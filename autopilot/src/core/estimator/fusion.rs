@@ -12,7 +12,8 @@ use nalgebra::{UnitQuaternion, Vector3};
 use super::eskf::{ErrVec, Eskf, Nominal, Outcome, ProcessNoise, ScalarObs, idx};
 use super::health::{
     AIDING_MOTION, EstimatorEvent, HeightSource, IMU_MOTION, IMU_REFUSED_CLEAR, IMU_REFUSED_FLAG, IMU_REFUSED_WINDOW,
-    IMU_STUCK_MIN_REPEATS, MAX_PENDING_EVENTS, STUCK_MIN_REPEATS, Source, SourceFault, SourceHealth, StuckDetector,
+    IMU_ROTATION, IMU_STUCK_MIN_REPEATS, MAX_PENDING_EVENTS, STUCK_MIN_REPEATS, Source, SourceFault, SourceHealth,
+    StuckDetector,
 };
 use super::history::History;
 use super::{
@@ -277,7 +278,7 @@ impl Fusion {
         self.imu_stuck.observe(imu_values, imu.time_us, witness, IMU_STUCK_MIN_REPEATS, imu_stuck_us);
         self.gps_stuck.witness(imu_values, &IMU_MOTION);
         self.baro_stuck.witness(imu_values, &IMU_MOTION);
-        self.mag_stuck.witness(imu_values, &IMU_MOTION);
+        self.mag_stuck.witness(imu_values, &IMU_ROTATION);
         let imu_timeout_us = us(self.config.imu_timeout_s);
 
         match &mut self.stage {

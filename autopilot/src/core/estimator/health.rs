@@ -16,6 +16,10 @@ pub const IMU_STUCK_MIN_REPEATS: u32 = 50;
 /// noise's sigma (0.05 m/s², 0.005 rad/s), so a noisy IMU moves them within a few samples, and far
 /// above what a noise-free vehicle holding still jitters.
 pub const IMU_MOTION: [f64; 6] = [0.1, 0.1, 0.1, 0.01, 0.01, 0.01];
+/// Motion the IMU must show for the magnetometer: a rotation only (rad/s, FRD). The field in the body frame
+/// changes only when the body turns; a specific force that changes (a spool-up, a touchdown, a climb) with
+/// the attitude held is no witness, and a noise-free hover at rest reads the same field bit for bit.
+pub const IMU_ROTATION: [f64; 6] = [f64::INFINITY, f64::INFINITY, f64::INFINITY, 0.01, 0.01, 0.01];
 /// Motion the IMU must see, from the magnetometer (gauss per axis: 0.005 G is 0.6 deg of the 0.48 G
 /// field) or the barometer (m).
 pub const AIDING_MOTION: [f64; 4] = [0.005, 0.005, 0.005, 0.2];
