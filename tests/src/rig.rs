@@ -163,6 +163,34 @@ impl Rig {
         (self.now_us - start) as f64 * 1e-6
     }
 
+    /// MAV_CMD_INJECT_FAILURE as a ground station sends it (`unit`, `failure_type`, `instance`: MAVLink's
+    /// FAILURE_UNIT and FAILURE_TYPE numbers): the vehicle forwards it to the plant, which answers on the
+    /// next tick; ticks until the vehicle's ACK and returns its result (the messages stay in `messages`).
+    ///
+    /// # Panics
+    /// When no ACK comes within 1 s.
+    pub fn inject(&mut self, unit: u8, failure_type: u8, instance: u8) -> MavResult {
+        let params = [f32::from(unit), f32::from(failure_type), f32::from(instance), 0.0, 0.0, 0.0, 0.0];
+        let msg = command_long(1, 1, MavCmd::MAV_CMD_INJECT_FAILURE, params);
+        let replies = self.vehicle.handle_message(self.now_us, &GCS, &msg);
+        let ack = |m: &MavMessage| match m {
+            MavMessage::COMMAND_ACK(a) if a.command == MavCmd::MAV_CMD_INJECT_FAILURE => Some(a.result),
+            _ => None,
+        };
+        if let Some(result) = replies.iter().find_map(ack) {
+            return result;
+        }
+        let from = self.messages.len();
+        let start = self.now_us;
+        loop {
+            assert!(self.now_us - start < 1_000_000, "no ACK for the injection within 1 s");
+            self.tick();
+            if let Some(result) = self.messages[from..].iter().find_map(|(_, m)| ack(m)) {
+                return result;
+            }
+        }
+    }
+
     /// A COMMAND_LONG to the vehicle; its ACK result.
     ///
     /// # Panics

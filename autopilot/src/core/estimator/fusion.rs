@@ -96,7 +96,9 @@ pub struct Fusion {
     gps_stuck: StuckDetector<6, 6>,
     baro_stuck: StuckDetector<1, 6>,
     mag_stuck: StuckDetector<3, 6>,
-    imu_stuck: StuckDetector<6, 4>,
+    /// The accelerometer and the gyro are judged apart: one can freeze while the other lives.
+    accel_stuck: StuckDetector<3, 4>,
+    gyro_stuck: StuckDetector<3, 4>,
     /// Latest magnetometer field (gauss) and barometric altitude (m).
     last_mag_gauss: Option<[f64; 3]>,
     last_baro_m: Option<f64>,
@@ -157,7 +159,8 @@ impl Fusion {
             gps_stuck: StuckDetector::default(),
             baro_stuck: StuckDetector::default(),
             mag_stuck: StuckDetector::default(),
-            imu_stuck: StuckDetector::default(),
+            accel_stuck: StuckDetector::default(),
+            gyro_stuck: StuckDetector::default(),
             last_mag_gauss: None,
             last_baro_m: None,
             imu_refused_ratio: 0.0,
@@ -275,7 +278,8 @@ impl Fusion {
         let imu_values = [a.x, a.y, a.z, w.x, w.y, w.z];
         let witness = self.aiding_witness();
         let imu_stuck_us = us(self.config.imu_stuck_time_s);
-        self.imu_stuck.observe(imu_values, imu.time_us, witness, IMU_STUCK_MIN_REPEATS, imu_stuck_us);
+        self.accel_stuck.observe([a.x, a.y, a.z], imu.time_us, witness, IMU_STUCK_MIN_REPEATS, imu_stuck_us);
+        self.gyro_stuck.observe([w.x, w.y, w.z], imu.time_us, witness, IMU_STUCK_MIN_REPEATS, imu_stuck_us);
         self.gps_stuck.witness(imu_values, &IMU_MOTION);
         self.baro_stuck.witness(imu_values, &IMU_MOTION);
         self.mag_stuck.witness(imu_values, &IMU_ROTATION);
@@ -426,7 +430,9 @@ impl Fusion {
         self.last_baro_m = Some(baro.pressure_alt_m);
         let (witness, stuck_us) = (self.imu_witness(), us(self.config.stuck_time_s));
         let stuck = self.baro_stuck.observe([baro.pressure_alt_m], now, witness, STUCK_MIN_REPEATS, stuck_us);
-        self.imu_stuck.witness(self.aiding_witness(), &AIDING_MOTION);
+        let aiding = self.aiding_witness();
+        self.accel_stuck.witness(aiding, &AIDING_MOTION);
+        self.gyro_stuck.witness(aiding, &AIDING_MOTION);
         if stuck {
             // Not fused: the height is held on GPS altitude (fused with every fix) and the IMU.
             self.refresh();
@@ -643,7 +649,7 @@ impl Fusion {
         };
         let imu = if self.last_imu_us.is_some() && !self.imu_ok() {
             Some(SourceFault::Lost)
-        } else if self.imu_stuck.stuck() {
+        } else if self.accel_stuck.stuck() || self.gyro_stuck.stuck() {
             Some(SourceFault::Stuck)
         } else if self.imu_refused {
             Some(SourceFault::Rejected)
@@ -720,7 +726,9 @@ impl Fusion {
 
         let attitude_valid =
             imu_ok && self.yaw_aligned && tilt_std_rad <= c.valid_tilt_std_rad && yaw_std_rad <= c.valid_yaw_std_rad;
-        let velocity_valid = attitude_valid && gps_ok && vel_std_mps <= c.valid_vel_std_mps;
+        // A faulted IMU (stuck, garbage) integrates a wrong velocity and position however small their
+        // covariance: both invalid at once, so the position failsafe lands on what attitude there is.
+        let velocity_valid = attitude_valid && gps_ok && health.imu.is_none() && vel_std_mps <= c.valid_vel_std_mps;
         let position_valid = velocity_valid && self.origin.is_some() && pos_std_m <= c.valid_pos_std_m;
 
         let settled = attitude_valid

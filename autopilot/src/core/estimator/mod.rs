@@ -79,12 +79,12 @@ pub use health::{
     SourceHealth,
 };
 pub use samples::{
-    BARO_ALT_RANGE_M, BaroSample, GpsSample, ImuSample, MAX_ACCEL_MPS2, MAX_FIELD_GAUSS, MAX_GPS_SPEED_MPS,
-    MAX_GYRO_RADPS, MagSample, TruthSample,
+    BARO_ALT_RANGE_M, BaroSample, GpsSample, ImuSample, MAX_ACCEL_MPS2, MAX_ACCEL_STEP_MPS2, MAX_FIELD_GAUSS,
+    MAX_GPS_SPEED_MPS, MAX_GYRO_RADPS, MAX_GYRO_STEP_RADPS, MagSample, TruthSample,
 };
 
 use fusion::Fusion;
-use samples::{baro_plausible, gps_plausible, imu_plausible, mag_plausible, truth_plausible};
+use samples::{baro_plausible, gps_plausible, imu_plausible, imu_step_plausible, mag_plausible, truth_plausible};
 
 /// Health and validity, for the arming checks and failsafes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -452,6 +452,8 @@ pub struct Estimator {
     fusion: Fusion,
     truth_state: EstimatorState,
     rejected: u64,
+    /// The last IMU sample the sanitiser let through, for the step check ([`imu_step_plausible`]).
+    last_imu: Option<ImuSample>,
 }
 
 impl Estimator {
@@ -459,7 +461,7 @@ impl Estimator {
     #[must_use]
     pub fn new(config: EstimatorConfig) -> Self {
         let fusion = Fusion::new(&config);
-        Self { config, fusion, truth_state: EstimatorState::default(), rejected: 0 }
+        Self { config, fusion, truth_state: EstimatorState::default(), rejected: 0, last_imu: None }
     }
 
     /// The settings.
@@ -477,7 +479,14 @@ impl Estimator {
         if !self.fused() {
             return;
         }
-        if !imu_plausible(imu) || self.fusion.update_imu(imu).is_err() {
+        // A reading within range can still be garbage: one that jumps from the last by more than a body
+        // can move in one sample is refused too (and the next one, compared with it, as well).
+        let stepped = self.last_imu.is_none_or(|last| imu_step_plausible(&last, imu));
+        let plausible = imu_plausible(imu);
+        if plausible {
+            self.last_imu = Some(*imu);
+        }
+        if !plausible || !stepped || self.fusion.update_imu(imu).is_err() {
             self.rejected += 1;
             self.fusion.note_imu_refused();
         }

@@ -93,6 +93,19 @@ pub(super) fn imu_plausible(imu: &ImuSample) -> bool {
         && imu.gyro_frd_radps.norm() <= MAX_GYRO_RADPS
 }
 
+/// The largest change of the specific force between two IMU samples a flying body shows (m/s², norm):
+/// 8 g, beyond a crash's. Garbage uniform over ±16 g per axis jumps further most of the time.
+pub const MAX_ACCEL_STEP_MPS2: f64 = 8.0 * eskf::GRAVITY_MPS2;
+/// The largest change of the body rates between two IMU samples (rad/s, norm): half the gyro's range.
+pub const MAX_GYRO_STEP_RADPS: f64 = 0.5 * MAX_GYRO_RADPS;
+
+/// Whether `imu` follows `last` as a body's readings can: neither the specific force nor the rates jumped
+/// further than [`MAX_ACCEL_STEP_MPS2`] and [`MAX_GYRO_STEP_RADPS`].
+pub(super) fn imu_step_plausible(last: &ImuSample, imu: &ImuSample) -> bool {
+    (imu.accel_frd_mps2 - last.accel_frd_mps2).norm() <= MAX_ACCEL_STEP_MPS2
+        && (imu.gyro_frd_radps - last.gyro_frd_radps).norm() <= MAX_GYRO_STEP_RADPS
+}
+
 pub(super) fn mag_plausible(mag: &MagSample) -> bool {
     let norm = mag.field_frd_gauss.norm();
     finite3(&mag.field_frd_gauss) && norm > 1e-3 && norm <= MAX_FIELD_GAUSS

@@ -44,7 +44,9 @@ impl Fusion {
         self.last_mag_gauss = Some(values);
         let (witness, stuck_us) = (self.imu_witness(), us(self.config.mag_stuck_time_s));
         let stuck = self.mag_stuck.observe(values, now, witness, STUCK_MIN_REPEATS, stuck_us);
-        self.imu_stuck.witness(self.aiding_witness(), &AIDING_MOTION);
+        let aiding = self.aiding_witness();
+        self.accel_stuck.witness(aiding, &AIDING_MOTION);
+        self.gyro_stuck.witness(aiding, &AIDING_MOTION);
         if stuck && matches!(self.stage, Stage::Running(_)) {
             // Not fused: the heading is held on the gyro (and GPS velocity through the covariance).
             self.mag_rejected_since_us = None;

@@ -1,0 +1,209 @@
+//! Every injectable fault flown in-process, in lockstep with the real plant (nominal airframe, modest
+//! sensor noise, the fused estimator, ACO): MAV_CMD_INJECT_FAILURE as a ground station sends it, forwarded
+//! by the vehicle to the plant's SIM_ service, which fails what it simulates. The vehicle reacts from its
+//! data only; each test is judged on the plant's truth against the hold point, on what the vehicle said
+//! and when. Pure simulated time: no sleeps.
+
+use autopilot::core::commander::{FlightMode, State};
+use autopilot::core::estimator::EstimatorSource;
+use autopilot::core::mavlink::common::{MavCmd, MavMessage, MavResult, MavSeverity};
+use autopilot::core::mavlink::failure::unit;
+use nalgebra::Vector3;
+use tests::rig::Rig;
+
+const NAN: f32 = f32::NAN;
+/// MAVLink FAILURE_TYPE values.
+const OK: u8 = 0;
+const OFF: u8 = 1;
+const STUCK: u8 = 2;
+const GARBAGE: u8 = 3;
+const WRONG: u8 = 4;
+const SLOW: u8 = 5;
+
+/// Converged, armed, taken off to 2.5 m and holding 5 s, SYS_FAILURE_EN = 1.
+fn hovering() -> Rig {
+    let mut rig = Rig::new(EstimatorSource::Fused);
+    rig.set_param("SYS_FAILURE_EN", 1.0);
+    rig.wait_until(30.0, "estimator convergence", |r| r.vehicle.estimate().flags.converged);
+    assert_eq!(rig.command(MavCmd::MAV_CMD_NAV_TAKEOFF, [0.0, 0.0, 0.0, NAN, NAN, NAN, 2.5]), accepted());
+    assert_eq!(rig.command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]), accepted());
+    rig.wait_until(20.0, "takeoff complete", |r| r.vehicle.commander_output().mode == FlightMode::Hold);
+    rig.run_s(5.0, |_| {});
+    rig.take_messages();
+    rig
+}
+
+fn accepted() -> MavResult {
+    MavResult::MAV_RESULT_ACCEPTED
+}
+
+/// What a flight after an injection showed, from the injection on.
+#[derive(Debug)]
+struct Flight {
+    /// STATUSTEXTs with their time after the injection (s) and severity.
+    said: Vec<(f64, MavSeverity, String)>,
+    /// The worst horizontal and vertical distance of the truth from the hold point (m) while airborne
+    /// and not landing.
+    worst_horizontal_m: f64,
+    worst_vertical_m: f64,
+    /// When the vehicle switched to Land (s after the injection), if it did.
+    land_after_s: Option<f64>,
+    /// Whether the motors were stopped by the failure detector.
+    killed: bool,
+    /// Truth at the end.
+    on_ground: bool,
+}
+
+impl Flight {
+    /// When a text starting with `prefix` was said (s after the injection).
+    fn said_at(&self, prefix: &str) -> Option<f64> {
+        self.said.iter().find(|(_, _, t)| t.starts_with(prefix)).map(|(t, _, _)| *t)
+    }
+}
+
+/// Injects `(unit, failure_type, instance)` into a hover and flies `seconds` (or until disarmed).
+fn fly_with(rig: &mut Rig, unit: u8, failure_type: u8, instance: u8, seconds: f64) -> Flight {
+    let hold: Vector3<f64> = rig.plant.truth().pos_ned_m;
+    let start_us = rig.now_us;
+    assert_eq!(rig.inject(unit, failure_type, instance), accepted(), "{unit}/{failure_type}/{instance}");
+    let mut flight = Flight {
+        said: Vec::new(),
+        worst_horizontal_m: 0.0,
+        worst_vertical_m: 0.0,
+        land_after_s: None,
+        killed: false,
+        on_ground: false,
+    };
+    let end_us = start_us + (seconds * 1e6) as u64;
+    loop {
+        let since_s = (rig.now_us - start_us) as f64 * 1e-6;
+        let mode = rig.vehicle.commander_output().mode;
+        if flight.land_after_s.is_none() && mode == FlightMode::Land {
+            flight.land_after_s = Some(since_s);
+        }
+        if flight.land_after_s.is_none() && rig.vehicle.commander().state() != State::Killed {
+            let e = rig.plant.truth().pos_ned_m - hold;
+            flight.worst_horizontal_m = flight.worst_horizontal_m.max(e.x.hypot(e.y));
+            flight.worst_vertical_m = flight.worst_vertical_m.max(e.z.abs());
+        }
+        if rig.now_us >= end_us || !rig.armed() {
+            break;
+        }
+        rig.tick();
+    }
+    flight.killed = rig.vehicle.commander().state() == State::Killed;
+    flight.on_ground = rig.plant.truth().on_ground;
+    for (t, m) in rig.take_messages() {
+        if let MavMessage::STATUSTEXT(s) = m {
+            let text = s.text.to_str().unwrap_or_default().to_owned();
+            flight.said.push(((t - start_us) as f64 * 1e-6, s.severity, text));
+        }
+    }
+    println!("{unit}/{failure_type}/{instance}: {flight:?}");
+    flight
+}
+
+#[test]
+fn given_sys_failure_en_0_then_denied_an_unimplemented_type_unsupported_and_neither_changes_the_plant() {
+    let mut rig = Rig::new(EstimatorSource::Fused);
+    rig.run_s(1.0, |_| {});
+    assert_eq!(rig.inject(unit::GPS, OFF, 0), MavResult::MAV_RESULT_DENIED);
+    rig.set_param("SYS_FAILURE_EN", 1.0);
+    assert_eq!(rig.inject(unit::GPS, SLOW, 0), MavResult::MAV_RESULT_UNSUPPORTED);
+    assert_eq!(rig.inject(unit::ACCEL, OFF, 0), MavResult::MAV_RESULT_UNSUPPORTED);
+    assert_eq!(rig.inject(unit::MOTOR, OFF, 5), MavResult::MAV_RESULT_UNSUPPORTED, "a quadrotor has no motor 5");
+    assert_eq!(rig.sim.get("SIM_GPS_FAIL"), Some(0.0));
+    assert_eq!(rig.sim.get("SIM_ACC_FAIL"), Some(0.0));
+    rig.run_s(1.0, |_| {});
+    assert!(rig.vehicle.estimate().flags.gps_ok, "the GPS still delivers");
+}
+
+#[test]
+fn given_motor_1_wrong_at_90_percent_in_hold_then_aco_holds_within_0_3_m_of_the_hold_point() {
+    // 90 %: inside the envelope with every moment balanced (h >= 0.881); the 70 % is beyond any
+    // controller on this airframe (docs/scenarios.md, "What the airframe can hold at all").
+    let mut rig = hovering();
+    rig.sim_set("SIM_MOT_WRNG_EFF", 0.9);
+    let flight = fly_with(&mut rig, unit::MOTOR, WRONG, 1, 20.0);
+    assert_eq!(rig.sim.get("SIM_MOT1_EFF"), Some(0.9));
+    assert!(rig.armed() && flight.land_after_s.is_none() && !flight.killed, "{flight:?}");
+    assert!(flight.worst_horizontal_m.hypot(flight.worst_vertical_m) <= 0.3, "{flight:?}");
+    // And back to healthy with OK.
+    assert_eq!(rig.inject(unit::MOTOR, OK, 1), accepted());
+    assert_eq!(rig.sim.get("SIM_MOT1_EFF"), Some(1.0));
+}
+
+#[test]
+fn given_motor_1_off_in_hold_then_the_failure_detector_terminates_and_says_so() {
+    let mut rig = hovering();
+    let flight = fly_with(&mut rig, unit::MOTOR, OFF, 1, 10.0);
+    assert!(flight.killed, "{flight:?}");
+    let said = flight.said_at("Failsafe: attitude").expect("the failure said");
+    // Tilted past 60 deg within a few tenths of a second, then FD_FAIL_R_TTRI = 0.3 s.
+    assert!(said <= 1.5, "{flight:?}");
+}
+
+#[test]
+fn given_gps_stuck_in_hold_then_it_is_said_within_1_5_s_the_height_holds_within_0_3_m_and_it_lands() {
+    let mut rig = hovering();
+    let flight = fly_with(&mut rig, unit::GPS, STUCK, 0, 60.0);
+    let said = flight.said_at("GPS stuck").expect("GPS stuck said");
+    assert!(said <= 1.5, "{flight:?}");
+    assert!(flight.worst_vertical_m <= 0.3, "{flight:?}");
+    assert!(flight.land_after_s.is_some() && flight.on_ground && !rig.armed(), "{flight:?}");
+}
+
+#[test]
+fn given_gps_wrong_by_50_m_in_hold_then_the_jump_is_rejected_and_said_and_the_vehicle_does_not_follow_it() {
+    let mut rig = hovering();
+    let flight = fly_with(&mut rig, unit::GPS, WRONG, 0, 60.0);
+    let said = flight.said_at("GPS rejected").expect("GPS rejected said");
+    assert!(said <= 1.5, "{flight:?}");
+    assert!(flight.worst_horizontal_m <= 0.5 && flight.worst_vertical_m <= 0.3, "{flight:?}");
+}
+
+#[test]
+fn given_baro_off_in_hold_then_it_is_said_within_1_s_and_the_height_holds_on_gps_within_0_5_m() {
+    let mut rig = hovering();
+    let flight = fly_with(&mut rig, unit::BARO, OFF, 0, 20.0);
+    assert!(flight.said_at("Baro lost: height from GPS").is_some_and(|t| t <= 1.0), "{flight:?}");
+    assert!(rig.armed() && flight.land_after_s.is_none(), "{flight:?}");
+    assert!(flight.worst_vertical_m <= 0.5 && flight.worst_horizontal_m <= 0.3, "{flight:?}");
+}
+
+#[test]
+fn given_mag_off_or_stuck_in_hold_then_it_is_said_and_the_position_holds_within_0_3_m_on_the_gyro() {
+    for (failure_type, text) in [(OFF, "Mag lost: heading on gyro"), (STUCK, "Mag stuck: heading on gyro")] {
+        let mut rig = hovering();
+        let flight = fly_with(&mut rig, unit::MAG, failure_type, 0, 20.0);
+        assert!(flight.said_at(text).is_some_and(|t| t <= 1.0), "{flight:?}");
+        assert!(rig.armed() && flight.land_after_s.is_none(), "{flight:?}");
+        assert!(flight.worst_horizontal_m.hypot(flight.worst_vertical_m) <= 0.3, "{flight:?}");
+    }
+}
+
+#[test]
+fn given_the_imu_stuck_or_garbage_in_hold_then_it_is_said_as_critical_within_0_5_s_and_the_vehicle_lands_or_is_terminated()
+ {
+    for (unit, failure_type) in
+        [(unit::ACCEL, STUCK), (unit::ACCEL, GARBAGE), (unit::GYRO, STUCK), (unit::GYRO, GARBAGE)]
+    {
+        let mut rig = hovering();
+        let flight = fly_with(&mut rig, unit, failure_type, 0, 20.0);
+        let (t, severity, _) =
+            flight.said.iter().find(|(_, _, t)| t.starts_with("IMU")).expect("the IMU fault said").clone();
+        assert!(t <= 0.5 && severity == MavSeverity::MAV_SEVERITY_CRITICAL, "{flight:?}");
+        // Position and velocity are invalid from the fault on: the position failsafe lands after
+        // COM_POS_FS_DELAY (1 s), unless the attitude failure detector stops the motors first.
+        assert!(flight.killed || flight.land_after_s.is_some_and(|l| l <= t + 1.1), "{flight:?}");
+    }
+}
+
+#[test]
+fn given_the_battery_reported_empty_in_hold_then_the_battery_failsafe_lands() {
+    let mut rig = hovering();
+    let flight = fly_with(&mut rig, unit::BATTERY, OFF, 0, 60.0);
+    assert!(flight.land_after_s.is_some_and(|t| t <= 2.0), "{flight:?}");
+    assert!(flight.worst_horizontal_m.hypot(flight.worst_vertical_m) <= 0.3, "{flight:?}");
+    assert!(flight.on_ground && !rig.armed(), "{flight:?}");
+}
