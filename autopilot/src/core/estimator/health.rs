@@ -21,8 +21,9 @@ pub const IMU_MOTION: [f64; 6] = [0.1, 0.1, 0.1, 0.01, 0.01, 0.01];
 /// the attitude held is no witness, and a noise-free hover at rest reads the same field bit for bit.
 pub const IMU_ROTATION: [f64; 6] = [f64::INFINITY, f64::INFINITY, f64::INFINITY, 0.01, 0.01, 0.01];
 /// Motion the IMU must see, from the magnetometer (gauss per axis: 0.005 G is 0.6 deg of the 0.48 G
-/// field) or the barometer (m).
-pub const AIDING_MOTION: [f64; 4] = [0.005, 0.005, 0.005, 0.2];
+/// field): a rotation, which turns both the rates and gravity in the body frame. The barometer (the last
+/// value) is no witness: a noise-free vertical climb changes the height while the gyro reads 0 bit for bit.
+pub const AIDING_MOTION: [f64; 4] = [0.005, 0.005, 0.005, f64::INFINITY];
 /// The IMU is rejected when more than this share of its recent samples (an average over about
 /// [`IMU_REFUSED_WINDOW`] samples) was refused by the sanitiser (garbage: values beyond 16 g or 35 rad/s,
 /// non-finite, or time not increasing), and healthy again below [`IMU_REFUSED_CLEAR`].
