@@ -5,6 +5,7 @@ SIM_STATE) against the point where the fault came, and on what the vehicle said.
 the announcement bounds are wall seconds, with the vehicle's own bounds at half of them."""
 
 import asyncio
+import math
 import random
 import threading
 import time
@@ -12,7 +13,8 @@ import time
 from sitl_harness import connect, first, start_sitl
 
 from aco_gcs import link
-from aco_gcs.link import Params, mavlink
+from aco_gcs.flight import land, takeoff, wait_ready
+from aco_gcs.link import Params, Plant, mavlink
 
 OPTICAL_FLOW = 5  # FAILURE_UNIT_SENSOR_OPTICAL_FLOW: a sensor this vehicle does not have
 
@@ -75,9 +77,7 @@ async def rehearse(instance):
             await asyncio.sleep(0.02)
         raise AssertionError(f"{prefix!r} not said within {seconds} s: {said[-10:]}")
 
-    await first(
-        drone.telemetry.health(), lambda h: h.is_global_position_ok and h.is_armable, "health", timeout_s=120
-    )
+    await first(drone.telemetry.health(), lambda h: h.is_global_position_ok and h.is_armable, "health", timeout_s=120)
     pump = TruthPump(instance)
     try:
         await drone.action.set_takeoff_altitude(2.0)
@@ -101,7 +101,6 @@ async def rehearse(instance):
         await drone.failure.inject(FailureUnit.SENSOR_GPS, FailureType.OFF, 0)
         gps_said_s = await wait_said("GPS lost", t0, 2.0)
         land_s = await wait_said("Failsafe: position lost", t0, 5.0)
-        t_land_truth = t0_truth + land_s
         gps_worst_m = max(abs(d - d0) for d in pump.downs_between(t0_truth, t0_truth + land_s))
         await first(drone.telemetry.armed(), lambda a: not a, "disarmed after the landing", timeout_s=60)
     finally:
@@ -132,3 +131,55 @@ def test_failure_injection_denied_then_unsupported_then_mavsdk_baro_stuck_and_gp
     finally:
         sitl.stop()
         print(sitl.log_tail())
+
+
+def test_motor_1_wrong_at_90_percent_in_hold_holds_within_0_3_m_on_truth_and_the_ulog_shows_rotor_1_pushed_harder(
+    tmp_path,
+):
+    # 90 %: the issue's 70 % is beyond this airframe for any controller (docs/faults.md); paced at 4x.
+    sitl = start_sitl(tmp_path, speed="4")
+    try:
+        vehicle = connect(sitl)
+        truth = link.PlantTruth(f"udpout:127.0.0.1:{link.PLANT_PARAM_PORT + sitl.instance}", sitl.instance + 1)
+        vehicle.listeners.append(lambda _m: truth.drain())
+        Params(vehicle, 1).require_set("SYS_FAILURE_EN", 1)
+        plant = Plant(sitl.instance, 60.0)
+        plant.hello()
+        Params(plant, plant.component).require_set("SIM_MOT_WRNG_EFF", 0.9)
+        ground, _ = wait_ready(vehicle)
+        takeoff(vehicle, 2.0, ground)
+        settled = vehicle.now_s() + 5.0
+        vehicle.wait_until(6.0, "a 5 s hold", lambda: vehicle.now_s() >= settled)
+        fault_s = vehicle.now_s()
+        hold = truth.wait_at(vehicle, fault_s)
+        motor, wrong = mavlink.FAILURE_UNIT_SYSTEM_MOTOR, mavlink.FAILURE_TYPE_WRONG
+        assert vehicle.command(mavlink.MAV_CMD_INJECT_FAILURE, motor, wrong, 1) == mavlink.MAV_RESULT_ACCEPTED
+        end_s = fault_s + 20.0
+        vehicle.wait_until(21.0, "20 s on a weak rotor", lambda: vehicle.now_s() >= end_s)
+        truth.wait_at(vehicle, end_s)
+        worst_m = max(math.dist(p, hold) for p in truth.window(fault_s, end_s))
+        assert vehicle.armed, "still flying"
+        land(vehicle)
+    finally:
+        sitl.stop()
+    from pyulog import ULog
+
+    (path,) = sorted((tmp_path / "state" / "log").glob("*/*.ulg"))
+    out = ULog(str(path), message_name_filter_list=["actuator_outputs"]).data_list[0].data
+    t_s = out["timestamp"] * 1e-6
+
+    def rotor_1_over_the_others_us(t0_s, t1_s):
+        rows = [k for k in range(len(t_s)) if t0_s <= t_s[k] <= t1_s]
+        others = [sum(out[f"output[{i}]"][k] for i in (1, 2, 3)) / 3.0 for k in rows]
+        return sum(out["output[0]"][k] - o for k, o in zip(rows, others, strict=True)) / len(rows)
+
+    before_us = rotor_1_over_the_others_us(fault_s - 4.0, fault_s)
+    after_us = rotor_1_over_the_others_us(fault_s + 5.0, end_s)
+    print(
+        f"motor 1 at 90 % through sitl run: worst truth distance from the hold point {worst_m:.3f} m over 20 s; "
+        f"ULog rotor 1 minus the others' mean {before_us:.1f} us before, {after_us:.1f} us after"
+    )
+    assert worst_m <= 0.3
+    # Rotor 1 makes up its lost tenth: commanded well above the others (the lift curve gives about 3.2 N per
+    # 1000 us; a tenth of the 12.75 N hover lift is about 400 us).
+    assert after_us - before_us >= 100.0
