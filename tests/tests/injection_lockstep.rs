@@ -207,3 +207,56 @@ fn given_the_battery_reported_empty_in_hold_then_the_battery_failsafe_lands() {
     assert!(flight.worst_horizontal_m.hypot(flight.worst_vertical_m) <= 0.3, "{flight:?}");
     assert!(flight.on_ground && !rig.armed(), "{flight:?}");
 }
+
+#[test]
+fn given_the_gcs_link_injected_off_in_hold_then_its_heartbeats_are_not_heard_and_nav_dll_act_returns_after_com_dl_loss_t()
+ {
+    let mut rig = hovering();
+    rig.set_param("NAV_DLL_ACT", 2.0);
+    rig.set_param("COM_DL_LOSS_T", 5.0);
+    let beat = autopilot::core::mavlink::gcs_heartbeat();
+    // The ground station heartbeats at 1 Hz throughout.
+    let fly_beating = |rig: &mut Rig, seconds: f64, each: &mut dyn FnMut(&Rig)| {
+        let end = rig.now_us + (seconds * 1e6) as u64;
+        while rig.now_us < end {
+            if rig.now_us % 1_000_000 < 2_000 {
+                rig.send(&beat);
+            }
+            rig.tick();
+            each(rig);
+        }
+    };
+    fly_beating(&mut rig, 3.0, &mut |_| {});
+    rig.take_messages();
+    // WHEN MAVLINK_SIGNAL is injected OFF: the vehicle hears nothing but MAV_CMD_INJECT_FAILURE.
+    assert_eq!(rig.inject(unit::MAVLINK_SIGNAL, OFF, 0), accepted());
+    let off_us = rig.now_us;
+    let mut returned_us = None;
+    fly_beating(&mut rig, 7.0, &mut |r| {
+        if returned_us.is_none() && r.vehicle.commander_output().mode == FlightMode::ReturnToLaunch {
+            returned_us = Some(r.now_us);
+        }
+    });
+    let after_s = (returned_us.expect("the vehicle returns") - off_us) as f64 * 1e-6;
+    let said = statustexts(&mut rig);
+    println!("MAVLINK_SIGNAL off: Return {after_s:.3} s after; {said:?}");
+    // The last heartbeat heard came up to 1 s before the injection.
+    assert!((4.0..=5.1).contains(&after_s), "{after_s}");
+    assert!(said.iter().any(|t| t == "Failsafe: GCS link lost, returning"), "{said:?}");
+    // MAVLINK_SIGNAL OK (heard even while deaf): the heartbeats are heard again.
+    assert_eq!(rig.inject(unit::MAVLINK_SIGNAL, OK, 0), accepted());
+    fly_beating(&mut rig, 2.0, &mut |_| {});
+    let said = statustexts(&mut rig);
+    assert!(said.iter().any(|t| t == "GCS link regained"), "{said:?}");
+}
+
+/// The texts the vehicle said since the last call.
+fn statustexts(rig: &mut Rig) -> Vec<String> {
+    rig.take_messages()
+        .into_iter()
+        .filter_map(|(_, m)| match m {
+            MavMessage::STATUSTEXT(s) => s.text.to_str().ok().map(str::to_owned),
+            _ => None,
+        })
+        .collect()
+}

@@ -505,3 +505,37 @@ fn given_the_gps_stopped_in_hold_then_a_pilot_can_still_take_over_in_altitude_bu
     assert_eq!(set_mode(&mut rig, 2.0), MavResult::MAV_RESULT_ACCEPTED);
     assert_eq!(rig.vehicle.commander().mode(), FlightMode::Altitude);
 }
+
+#[test]
+fn given_rc_signal_injected_off_in_position_mode_then_the_sticks_still_sent_are_ignored_and_the_return_starts_within_com_rc_loss_t_plus_0_1_s()
+ {
+    let mut rig = hovering_by_hand(3.0);
+    rig.set_param("SYS_FAILURE_EN", 1.0);
+    fly(&mut rig, 1.0, Some(centre()), |_| {});
+    texts(&mut rig);
+    let loss_s = rig.vehicle.config().manual.loss_s;
+    let hold = rig.plant.truth().pos_ned_m;
+    // WHEN RC_SIGNAL is injected OFF (MAV_CMD_INJECT_FAILURE 104/1): the ground station's sticks keep
+    // coming, the vehicle no longer takes them.
+    assert_eq!(rig.inject(104, 1, 0), MavResult::MAV_RESULT_ACCEPTED);
+    let off_us = rig.now_us;
+    let mut returned_us = None;
+    let mut worst_m: f64 = 0.0;
+    fly(&mut rig, 2.0, Some(centre()), |r| {
+        if returned_us.is_none() {
+            worst_m = worst_m.max((r.plant.truth().pos_ned_m - hold).norm());
+            if r.vehicle.commander().mode() == FlightMode::ReturnToLaunch {
+                returned_us = Some(r.now_us);
+            }
+        }
+    });
+    let after_s = (returned_us.expect("the vehicle returns") - off_us) as f64 * 1e-6;
+    println!("RC_SIGNAL off: Return {after_s:.3} s after (COM_RC_LOSS_T {loss_s}); truth within {worst_m:.3} m");
+    assert!(after_s <= loss_s + 0.1, "returned {after_s:.3} s after the injection");
+    assert!(worst_m <= 0.1, "held {worst_m} m before the return");
+    assert_eq!(said(&mut rig, "Failsafe: manual control lost, returning").len(), 1, "announced once");
+    // RC_SIGNAL OK: the sticks are heard again.
+    assert_eq!(rig.inject(104, 0, 0), MavResult::MAV_RESULT_ACCEPTED);
+    fly(&mut rig, 1.0, Some(centre()), |_| {});
+    assert_eq!(said(&mut rig, "Manual control regained").len(), 1);
+}
