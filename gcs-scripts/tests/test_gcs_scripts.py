@@ -281,6 +281,13 @@ def test_params_talk_to_the_plant_sim_parameters(sitl, tmp_path):
         "SIM_MOT_WRNG_EFF",
         "SIM_LINK_DELAY",
         "SIM_LINK_LOSS",
+        "SIM_MOT1_EFF",
+        "SIM_MOT2_EFF",
+        "SIM_MOT3_EFF",
+        "SIM_MOT4_EFF",
+        "SIM_PAYLOAD_KG",
+        "SIM_CG_OFS_X",
+        "SIM_CG_OFS_Y",
     ]
     code, out, err = run_script("params", "--instance", n, "--plant", "set", "SIM_BEAUFORT", 6)
     assert code == 0, out + err
