@@ -93,12 +93,7 @@ fn fly_with(rig: &mut Rig, unit: u8, failure_type: u8, instance: u8, seconds: f6
     }
     flight.killed = rig.vehicle.commander().state() == State::Killed;
     flight.on_ground = rig.plant.truth().on_ground;
-    for (t, m) in rig.take_messages() {
-        if let MavMessage::STATUSTEXT(s) = m {
-            let text = s.text.to_str().unwrap_or_default().to_owned();
-            flight.said.push(((t - start_us) as f64 * 1e-6, s.severity, text));
-        }
-    }
+    flight.said = said_since(rig, start_us);
     println!("{unit}/{failure_type}/{instance}: {flight:?}");
     flight
 }
@@ -250,13 +245,22 @@ fn given_the_gcs_link_injected_off_in_hold_then_its_heartbeats_are_not_heard_and
     assert!(said.iter().any(|t| t == "GCS link regained"), "{said:?}");
 }
 
-/// The texts the vehicle said since the last call.
-fn statustexts(rig: &mut Rig) -> Vec<String> {
+/// The STATUSTEXTs the vehicle sent since the last call: their time after `start_us` (s), severity, text.
+fn said_since(rig: &mut Rig, start_us: u64) -> Vec<(f64, MavSeverity, String)> {
     rig.take_messages()
         .into_iter()
-        .filter_map(|(_, m)| match m {
-            MavMessage::STATUSTEXT(s) => s.text.to_str().ok().map(str::to_owned),
+        .filter_map(|(t, m)| match m {
+            MavMessage::STATUSTEXT(s) => Some((
+                t.saturating_sub(start_us) as f64 * 1e-6,
+                s.severity,
+                s.text.to_str().unwrap_or_default().to_owned(),
+            )),
             _ => None,
         })
         .collect()
+}
+
+/// The texts alone.
+fn statustexts(rig: &mut Rig) -> Vec<String> {
+    said_since(rig, 0).into_iter().map(|(_, _, text)| text).collect()
 }
