@@ -3,6 +3,7 @@
 //! pack's readings (10 Hz, as the plant link sends them) are converted directly (no HIL encode/decode
 //! round trip). Pure simulated time: no sleeps.
 
+use autopilot::core::commander::FlightMode;
 use autopilot::core::estimator::{BaroSample, EstimatorSource, GeoOrigin, ImuSample, MagSample, TruthSample};
 use autopilot::core::hil::PlantCommandAck;
 use autopilot::core::mavlink::MavHeader;
@@ -69,6 +70,25 @@ impl Rig {
             sim,
             plant_ack: None,
         }
+    }
+
+    /// The fused estimator converged, armed, taken off to 2.5 m and holding in Hold for 5 s, its messages
+    /// taken: the start of the fault flights.
+    ///
+    /// # Panics
+    /// When a command is refused or a stage times out.
+    #[must_use]
+    pub fn hovering() -> Self {
+        let mut rig = Self::new(EstimatorSource::Fused);
+        rig.wait_until(30.0, "estimator convergence", |r| r.vehicle.estimate().flags.converged);
+        let nan = f32::NAN;
+        let accepted = MavResult::MAV_RESULT_ACCEPTED;
+        assert_eq!(rig.command(MavCmd::MAV_CMD_NAV_TAKEOFF, [0.0, 0.0, 0.0, nan, nan, nan, 2.5]), accepted);
+        assert_eq!(rig.command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]), accepted);
+        rig.wait_until(20.0, "takeoff complete", |r| r.vehicle.commander_output().mode == FlightMode::Hold);
+        rig.run_s(5.0, |_| {});
+        rig.take_messages();
+        rig
     }
 
     /// One lockstep tick: sensors -> vehicle -> plant.

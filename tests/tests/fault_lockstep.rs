@@ -3,7 +3,6 @@
 //! the fault itself, only its data; judged on the plant's truth, what the vehicle said and when.
 
 use autopilot::core::commander::{FlightMode, State};
-use autopilot::core::estimator::EstimatorSource;
 use autopilot::core::mavlink::common::{MavCmd, MavMessage};
 use tests::rig::Rig;
 
@@ -20,21 +19,6 @@ fn texts(rig: &mut Rig) -> Vec<(u64, String)> {
         .collect()
 }
 
-/// Converged, armed, taken off to 2.5 m and holding: the truth's hold point.
-fn hovering() -> Rig {
-    let mut rig = Rig::new(EstimatorSource::Fused);
-    rig.wait_until(30.0, "estimator convergence", |r| r.vehicle.estimate().flags.converged);
-    assert_eq!(rig.command(MavCmd::MAV_CMD_NAV_TAKEOFF, [0.0, 0.0, 0.0, NAN, NAN, NAN, 2.5]), common_accepted());
-    assert_eq!(
-        rig.command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
-        common_accepted()
-    );
-    rig.wait_until(20.0, "takeoff complete", |r| r.vehicle.commander_output().mode == FlightMode::Hold);
-    rig.run_s(5.0, |_| {});
-    rig.take_messages();
-    rig
-}
-
 fn common_accepted() -> autopilot::core::mavlink::common::MavResult {
     autopilot::core::mavlink::common::MavResult::MAV_RESULT_ACCEPTED
 }
@@ -43,7 +27,7 @@ fn common_accepted() -> autopilot::core::mavlink::common::MavResult {
 fn given_rotor_1_stops_in_hold_when_the_vehicle_rolls_past_60_deg_then_it_terminates_within_fd_fail_r_ttri_and_says_so()
 {
     // GIVEN a hover in Hold with the default detector (FD_FAIL_R 60 deg for 0.3 s, FD_ACT 2 terminate).
-    let mut rig = hovering();
+    let mut rig = Rig::hovering();
     // WHEN rotor 1 (right) loses all thrust.
     rig.plant.airframe_mut().rotor_health[0] = 0.0;
     let mut beyond_since_us = None;
@@ -77,7 +61,7 @@ fn given_rotor_1_stops_in_hold_when_the_vehicle_rolls_past_60_deg_then_it_termin
 #[test]
 fn given_fd_act_1_when_the_attitude_fails_then_the_vehicle_switches_to_land_and_says_so() {
     // GIVEN FD_ACT = 1 (land) and a hover.
-    let mut rig = hovering();
+    let mut rig = Rig::hovering();
     rig.set_param("FD_ACT", 1.0);
     rig.take_messages();
     // WHEN rotor 1 stops.
@@ -95,7 +79,7 @@ fn given_fd_act_1_when_the_attitude_fails_then_the_vehicle_switches_to_land_and_
 #[test]
 fn given_a_healthy_hover_and_a_4_m_reposition_then_the_detector_never_fires() {
     // GIVEN a hover; WHEN it flies a 1 m reposition and back (tilts of a few degrees).
-    let mut rig = hovering();
+    let mut rig = Rig::hovering();
     let here = rig.plant.truth().pos_ned_m;
     let origin = rig.vehicle.estimate().origin.expect("origin");
     let (lat, lon, _) =
@@ -114,7 +98,7 @@ fn given_a_healthy_hover_and_a_4_m_reposition_then_the_detector_never_fires() {
 fn given_the_gps_stops_in_hold_then_its_loss_is_said_within_1_s_the_height_holds_within_0_3_m_and_it_lands_within_2_s()
 {
     // GIVEN a hover in Hold with COM_POS_FS_DELAY = 1 s.
-    let mut rig = hovering();
+    let mut rig = Rig::hovering();
     let hold_d_m = rig.plant.truth().pos_ned_m.z;
     // WHEN the GPS stops.
     rig.sim_set("SIM_GPS_FAIL", 1.0);

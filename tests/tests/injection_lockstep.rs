@@ -6,12 +6,11 @@
 
 use autopilot::core::commander::{FlightMode, State};
 use autopilot::core::estimator::EstimatorSource;
-use autopilot::core::mavlink::common::{MavCmd, MavMessage, MavResult, MavSeverity};
+use autopilot::core::mavlink::common::{MavMessage, MavResult, MavSeverity};
 use autopilot::core::mavlink::failure::unit;
 use nalgebra::Vector3;
 use tests::rig::Rig;
 
-const NAN: f32 = f32::NAN;
 /// MAVLink FAILURE_TYPE values.
 const OK: u8 = 0;
 const OFF: u8 = 1;
@@ -20,16 +19,10 @@ const GARBAGE: u8 = 3;
 const WRONG: u8 = 4;
 const SLOW: u8 = 5;
 
-/// Converged, armed, taken off to 2.5 m and holding 5 s, SYS_FAILURE_EN = 1.
+/// The rig's hover (2.5 m, Hold, 5 s), SYS_FAILURE_EN = 1.
 fn hovering() -> Rig {
-    let mut rig = Rig::new(EstimatorSource::Fused);
+    let mut rig = Rig::hovering();
     rig.set_param("SYS_FAILURE_EN", 1.0);
-    rig.wait_until(30.0, "estimator convergence", |r| r.vehicle.estimate().flags.converged);
-    assert_eq!(rig.command(MavCmd::MAV_CMD_NAV_TAKEOFF, [0.0, 0.0, 0.0, NAN, NAN, NAN, 2.5]), accepted());
-    assert_eq!(rig.command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]), accepted());
-    rig.wait_until(20.0, "takeoff complete", |r| r.vehicle.commander_output().mode == FlightMode::Hold);
-    rig.run_s(5.0, |_| {});
-    rig.take_messages();
     rig
 }
 
