@@ -8,6 +8,7 @@ pub mod estimator;
 pub mod geofence;
 pub mod hil;
 pub mod intent;
+pub mod link_budget;
 pub mod manual;
 pub mod mavlink;
 pub mod mission;

@@ -644,7 +644,7 @@ mod tests {
             ("NAV_DLL_ACT", 2.0, T::MAV_PARAM_TYPE_REAL64, "NAV_DLL_ACT: sent as REAL64, it is INT32"),
             ("NAV_DLL_ACT", int32_field(2), T::MAV_PARAM_TYPE_INT64, "NAV_DLL_ACT: sent as INT64, it is INT32"),
             ("ACO_ADAPT_EN", int32_field(2), INT32, "ACO_ADAPT_EN: 2 must be 0 or 1"),
-            ("LOOP_INNER_HZ", int32_field(99), INT32, "LOOP_INNER_HZ: 99 not in 100..2000"),
+            ("LOOP_INNER_HZ", int32_field(49), INT32, "LOOP_INNER_HZ: 49 not in 50..2000"),
         ];
         for (name, field, param_type, text) in cases {
             let (mut svc, mut store) = (ParamService::new(), ParamStore::defaults());

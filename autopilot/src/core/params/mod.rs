@@ -840,7 +840,7 @@ mod tests {
         for d in PARAMS {
             assert_eq!(md.matches(&format!("| `{}` |", d.name)).count(), 1, "{}", d.name);
         }
-        assert!(md.contains("| `LOOP_INNER_HZ` | INT32 | 500 | 100 | 2000 | Hz | yes |"));
+        assert!(md.contains("| `LOOP_INNER_HZ` | INT32 | 500 | 50 | 2000 | Hz | yes |"));
         assert!(md.contains("| `NAV_DLL_ACT` | INT32 | 0 | 0 | 5 |"));
         assert!(md.contains("| `ACO_ADAPT_EN` | INT32 | 1 | 0 | 1 | 0/1 |"));
         assert!(md.contains("| `COM_DL_LOSS_T` | REAL32 | 10 | 5 | 300 | s |"));

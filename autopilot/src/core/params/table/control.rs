@@ -8,10 +8,10 @@ pub(super) const LOOP_RATES: &[ParamDef] = &[
         Loop,
         "LOOP_INNER_HZ",
         500.0,
-        [100.0, 2000.0],
+        [50.0, 2000.0],
         "Hz",
         restart = true,
-        "Rate of the inner loops (rate, attitude, LMS); one tick per plant sample.",
+        "Rate of the inner loops (rate, attitude, LMS); one tick per plant sample, so it is the plant's sample rate (autopilot --rate sets both loop rates).",
         control.rates.inner_hz
     ),
     whole!(
