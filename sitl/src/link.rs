@@ -231,6 +231,9 @@ pub struct LinkConfig {
     /// White noise added to the truth in `HIL_STATE_QUATERNION` (the paper's truth-fed "hardware" runs);
     /// `None` (default): exact truth.
     pub truth_noise: Option<StateNoise>,
+    /// Send the simulator's ground truth (`HIL_STATE_QUATERNION` with every sample); default on. A real
+    /// board never sends it, so `sitl serve --serial` leaves it off unless asked (`--truth`).
+    pub send_truth: bool,
     /// Also send the truth as `ODOMETRY` at float precision (see `autopilot::core::hil::LocalTruth`), for
     /// truth-fed runs; default off (HIL_STATE_QUATERNION's degE7 position is quantised to ±5.6 mm).
     pub truth_odometry: bool,
@@ -245,6 +248,7 @@ impl Default for LinkConfig {
             link_lost_timeout: Duration::from_secs(5),
             connect_timeout: None,
             truth_noise: None,
+            send_truth: true,
             truth_odometry: false,
         }
     }
@@ -479,12 +483,14 @@ impl<T: Transport> PlantServer<T> {
             Some(noise) => noisy_truth_fields(&self.plant.sample_state_of(&truth, &noise)),
             None => truth_fields(&truth),
         };
-        messages.push(MavMessage::HIL_STATE_QUATERNION(encode_hil_state_quaternion(
-            &reported,
-            &self.home,
-            airspeed_mps,
-        )));
-        if self.config.truth_odometry {
+        if self.config.send_truth {
+            messages.push(MavMessage::HIL_STATE_QUATERNION(encode_hil_state_quaternion(
+                &reported,
+                &self.home,
+                airspeed_mps,
+            )));
+        }
+        if self.config.send_truth && self.config.truth_odometry {
             messages.push(MavMessage::ODOMETRY(encode_odometry(&reported)));
         }
         if let Some(battery) = self.plant.battery()

@@ -213,6 +213,9 @@ pub struct RuntimeConfig {
     pub state_dir: Option<PathBuf>,
     /// The MAVLink signing key file, if signing is to start on (see `runtime::signing`).
     pub signing_key_file: Option<PathBuf>,
+    /// `--rate HZ`: the plant's sample rate, set as LOOP_INNER_HZ (and LOOP_POS_HZ) over the kept
+    /// parameters; `None`: the parameters' own.
+    pub plant_rate_hz: Option<u32>,
 }
 
 /// What the command line adds to (and overrides in) the file.
@@ -311,6 +314,7 @@ impl RuntimeConfig {
             stop_on_stdin_eof: overrides.stop_on_stdin_eof,
             state_dir,
             signing_key_file: overrides.signing_key_file.or(file.gcs.signing_key_file),
+            plant_rate_hz: None,
         })
     }
 }

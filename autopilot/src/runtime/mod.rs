@@ -50,6 +50,7 @@ use tlog::{TlogError, TlogWriter};
 use transport::{SerialTransport, Transport, UdpPeerTransport};
 use udp::UdpLink;
 
+use crate::core::link_budget;
 use crate::core::vehicle::Vehicle;
 
 /// Frames the tlog task may lag behind before frames are dropped (and counted).
@@ -80,6 +81,9 @@ pub enum RuntimeError {
     Join(#[from] tokio::task::JoinError),
     #[error("MAVLink signing key file {0}")]
     Signing(String),
+    /// The plant stream does not fit the serial line (the one line of `LinkBudget::refusal`).
+    #[error("the plant link does not fit its line: {0}")]
+    LinkBudget(String),
 }
 
 fn wall_us() -> u64 {
@@ -108,6 +112,42 @@ fn open_plant(endpoint: &PlantEndpoint) -> Result<Box<dyn Transport + Send>, Pla
             Box::new(SerialTransport::open(path, *baud, transport::POLL_INTERVAL).map_err(open)?)
         }
     })
+}
+
+/// `--rate`: the plant's sample rate over the kept parameters too, as a PARAM_SET of LOOP_INNER_HZ and
+/// LOOP_POS_HZ would set them (the vehicle config already carries them).
+fn set_plant_rate(persisted: &mut Persisted, rate_hz: u32) {
+    if let Some(store) = &mut persisted.params {
+        let position_hz = link_budget::position_rate_hz(rate_hz);
+        for (name, value) in [("LOOP_INNER_HZ", rate_hz), ("LOOP_POS_HZ", position_hz)] {
+            if let Err(e) = store.set(name, value as f32) {
+                tracing::warn!("--rate {rate_hz}: {name} = {value}: {e}");
+            }
+        }
+    }
+}
+
+/// On a serial plant link, print the link budget at the vehicle's sample rate (LOOP_INNER_HZ, after the
+/// kept parameters) and refuse a stream that does not fit, naming the rate that does.
+fn check_link_budget(config: &RuntimeConfig, persisted: &Persisted) -> Result<(), RuntimeError> {
+    let PlantEndpoint::Serial { baud, .. } = &config.plant else { return Ok(()) };
+    let mut vehicle = config.vehicle.clone();
+    if let Some(store) = &persisted.params {
+        store.apply(&mut vehicle);
+    }
+    let truth = vehicle.estimator.source == crate::core::estimator::EstimatorSource::Truth;
+    let streams = link_budget::PlantStreams {
+        truth,
+        ..link_budget::PlantStreams::board(f64::from(vehicle.control.rates.inner_hz))
+    };
+    let budget = link_budget::LinkBudget::of(&streams, *baud);
+    for line in budget.lines() {
+        tracing::info!("{line}");
+    }
+    match budget.refusal("--rate") {
+        Some(line) => Err(RuntimeError::LinkBudget(line)),
+        None => Ok(()),
+    }
 }
 
 /// The signing state at start: on with the key of `--signing-key-file` (an unreadable or malformed file
@@ -203,10 +243,14 @@ pub async fn run(config: RuntimeConfig) -> Result<PlantLinkStats, RuntimeError> 
         None => (None, None),
     };
 
-    let persisted = match &config.state_dir {
+    let mut persisted = match &config.state_dir {
         Some(dir) => load_state(dir, &config.vehicle)?,
         None => Persisted::default(),
     };
+    if let Some(rate_hz) = config.plant_rate_hz {
+        set_plant_rate(&mut persisted, rate_hz);
+    }
+    check_link_budget(&config, &persisted)?;
     let mut plant = open_plant(&config.plant)?;
     tracing::info!(plant = %config.plant, "plant link open");
     let stop = Arc::new(AtomicBool::new(false));

@@ -52,6 +52,10 @@ pub(crate) struct RunArgs {
     /// ~/.local/state/aco-autopilot/iN; scenarios always run without).
     #[arg(long, conflicts_with = "scenario")]
     pub(crate) state_dir: Option<String>,
+    /// Sensor samples per second, for the plant and the autopilot alike (`autopilot --rate`): one of
+    /// 1000, 500, 400, 250, 200, 125, 100, 80, 50. Default 500.
+    #[arg(long, value_name = "HZ", value_parser = super::serve::parse_rate, conflicts_with = "scenario")]
+    pub(crate) rate: Option<u32>,
     /// Stop after this many simulated seconds (default: run until Ctrl-C).
     #[arg(long)]
     pub(crate) duration: Option<f64>,
@@ -241,6 +245,7 @@ pub(crate) fn check_autopilot_config(args: &RunArgs, n: u16) -> Result<()> {
 /// ODOMETRY too.
 pub(crate) fn run_link_config(args: &RunArgs, pacing: Pacing) -> LinkConfig {
     LinkConfig {
+        dt_us: args.rate.map_or(LinkConfig::default().dt_us, |hz| 1_000_000 / u64::from(hz)),
         pacing,
         connect_timeout: Some(Duration::from_secs(30)),
         truth_odometry: args.estimator.as_deref() == Some("truth"),
@@ -258,6 +263,9 @@ pub(crate) fn autopilot_args(args: &RunArgs, n: u16, listen: &str, state_dir: Op
     }
     if let Some(controller) = args.controller {
         ap_args.extend(["--controller".into(), controller.to_string().into()]);
+    }
+    if let Some(rate_hz) = args.rate {
+        ap_args.extend(["--rate".into(), rate_hz.to_string().into()]);
     }
     if let Some(path) = &args.autopilot_config {
         ap_args.extend(["--config".into(), path.into()]);

@@ -1,6 +1,7 @@
 //! `sitl serve`: the plant served to an autopilot over the HIL plant protocol, on UDP or a serial port.
 
 use anyhow::{Context, Result, bail};
+use autopilot::core::link_budget::{LinkBudget, PLANT_RATES_HZ, PlantStreams};
 use autopilot::runtime::transport::{POLL_INTERVAL, SerialTransport, parse_serial_spec};
 use clap::Args;
 use sitl::launch;
@@ -25,8 +26,26 @@ pub(crate) struct ServeArgs {
     #[arg(long)]
     pub(crate) serial: Option<String>,
     /// Plant step per sensor sample, µs (2000 = 500 Hz).
-    #[arg(long, default_value_t = 2000)]
+    #[arg(long, default_value_t = 2000, conflicts_with = "rate")]
     pub(crate) dt_us: u64,
+    /// Sensor samples per second (the board's rate), one of 1000, 500, 400, 250, 200, 125, 100, 80, 50;
+    /// the autopilot must run at the same rate (`autopilot --rate`). Default 500.
+    #[arg(long, value_name = "HZ", value_parser = parse_rate)]
+    pub(crate) rate: Option<u32>,
+    /// Over `--serial`, send the simulator's ground truth (HIL_STATE_QUATERNION) too, as over UDP; a real
+    /// board never sends it, so by default the serial link carries none.
+    #[arg(long, requires = "serial")]
+    pub(crate) truth: bool,
+}
+
+/// `--rate`: one of the plant rates the link budget knows (a whole number of µs per sample).
+pub(crate) fn parse_rate(text: &str) -> Result<u32, String> {
+    let rate_hz: u32 = text.parse().map_err(|_| format!("`{text}` is not a whole number of Hz"))?;
+    if PLANT_RATES_HZ.contains(&rate_hz) {
+        Ok(rate_hz)
+    } else {
+        Err(format!("{rate_hz} Hz is not one of {PLANT_RATES_HZ:?}"))
+    }
 }
 
 pub(crate) fn serve(args: &ServeArgs) -> Result<()> {
@@ -37,10 +56,31 @@ pub(crate) fn serve(args: &ServeArgs) -> Result<()> {
     if args.dt_us == 0 || args.dt_us > 20_000 {
         bail!("--dt-us must be in 1..=20000, got {}", args.dt_us);
     }
-    let link = LinkConfig { dt_us: args.dt_us, pacing, ..LinkConfig::default() };
+    let dt_us = args.rate.map_or(args.dt_us, |hz| 1_000_000 / u64::from(hz));
+    let send_truth = args.serial.is_none() || args.truth;
+    let link = LinkConfig { dt_us, pacing, send_truth, ..LinkConfig::default() };
+    let rc_port = args.plant.rc_in_port(args.instance);
+    if let Some(spec) = &args.serial {
+        // The link budget, checked before anything is opened: a stream that cannot fit the line is refused.
+        let (_, baud) = parse_serial_spec(spec).map_err(anyhow::Error::msg).context("--serial")?;
+        let streams = PlantStreams {
+            sample_rate_hz: 1e6 / dt_us as f64,
+            gps_rate_hz: plant.config().sensors.gps.rate_hz,
+            rc: rc_port.is_some(),
+            battery: plant.battery().is_some(),
+            truth: send_truth,
+            odometry: false,
+        };
+        let budget = LinkBudget::of(&streams, baud);
+        for line in budget.lines() {
+            eprintln!("sitl: {line}");
+        }
+        if let Some(line) = budget.refusal("--rate") {
+            bail!("the plant stream does not fit the serial line: {line}");
+        }
+    }
     let stop = launch::ctrl_c_flag();
     let (sim_params, sim_port) = bind_sim_params(args.instance, &plant)?;
-    let rc_port = args.plant.rc_in_port(args.instance);
     let rc_in = bind_rc_in(rc_port)?;
     let (steps, radio, faults) = if let Some(spec) = &args.serial {
         let (device, baud) = parse_serial_spec(spec).map_err(anyhow::Error::msg).context("--serial")?;
