@@ -136,7 +136,18 @@ def start_serial(instance, tmp_path):
         assert time.monotonic() < deadline and pty.poll() is None, "socat made no pty pair"
         time.sleep(0.05)
     plant = subprocess.Popen(
-        [str(binary("sitl")), "serve", "--serial", f"{plant_tty}:921600", "-i", str(instance), "--speed", "20"],
+        # --truth: the autopilot flies on the plant's truth here, which a serial link carries only when asked.
+        [
+            str(binary("sitl")),
+            "serve",
+            "--serial",
+            f"{plant_tty}:921600",
+            "--truth",
+            "-i",
+            str(instance),
+            "--speed",
+            "20",
+        ],
         stdout=subprocess.DEVNULL,
         stderr=log_file(tmp_path, "sitl-serve"),
         start_new_session=True,

@@ -60,6 +60,7 @@ use mavlink::MavHeader;
 use mavlink::dialects::common::{COMMAND_ACK_DATA, COMMAND_LONG_DATA, MavBatteryChargeState, MavCmd, MavMessage};
 
 mod fields;
+pub mod free_run;
 pub mod rc;
 
 #[cfg(test)]
@@ -140,6 +141,16 @@ impl UdpTransport {
             receiver: SpinReceiver::default(),
             buf: vec![0; 65_536],
         })
+    }
+
+    /// Wait at most `poll` in a `recv` instead of [`POLL_INTERVAL`] (a free-running plant steps on its own
+    /// clock and must not sleep past a step).
+    ///
+    /// # Errors
+    /// The socket-option error.
+    pub fn with_poll(self, poll: Duration) -> io::Result<Self> {
+        self.socket.set_read_timeout(Some(poll.max(Duration::from_micros(100))))?;
+        Ok(self)
     }
 
     /// Send to `peer` from the start instead of waiting for it to speak.
@@ -284,8 +295,16 @@ pub struct LinkStats {
     pub rc_sent: u64,
     /// Sensor datagrams resent after `resend_timeout`.
     pub resends: u64,
-    /// Actuator replies for another time than the one awaited.
+    /// Actuator replies for another time than the one awaited (free-running: for a sample older than the
+    /// command held, or not yet sent).
     pub stale_actuators: u64,
+    /// Free-running: actuator replies taken a step or more after their sample's own step (the line or the
+    /// autopilot took longer than a period).
+    pub late_actuators: u64,
+    /// Free-running: sensor datagrams the line would not take within the poll interval (dropped).
+    pub send_timeouts: u64,
+    /// Free-running: times the board's watchdog put the motors at minimum (no command for 100 ms).
+    pub watchdog_trips: u64,
     /// Well-formed messages other than `HIL_ACTUATOR_CONTROLS` and `MAV_CMD_INJECT_FAILURE` (ignored).
     pub other_messages: u64,
     /// Datagrams without a single good frame.
@@ -336,6 +355,8 @@ pub struct PlantServer<T: Transport> {
     hook: Option<(Box<dyn PlantHook>, Instant)>,
     /// The RC input port, read whenever `RC_CHANNELS` is due.
     rc_in: Option<rc::RcInPort>,
+    /// The board's watchdog when running free (see [`free_run`]).
+    watchdog: free_run::Watchdog,
 }
 
 impl PlantServer<UdpTransport> {
@@ -368,6 +389,7 @@ impl<T: Transport> PlantServer<T> {
             pacer: None,
             hook: None,
             rc_in: None,
+            watchdog: free_run::Watchdog::default(),
         }
     }
 

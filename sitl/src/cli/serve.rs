@@ -5,7 +5,8 @@ use autopilot::core::link_budget::{LinkBudget, PLANT_RATES_HZ, PlantStreams};
 use autopilot::runtime::transport::{POLL_INTERVAL, SerialTransport, parse_serial_spec};
 use clap::Args;
 use sitl::launch;
-use sitl::link::{LinkConfig, PlantServer};
+use sitl::link::{LinkConfig, Pacing, PlantServer, Transport, UdpTransport};
+use std::time::Duration;
 
 use super::common::{
     PlantArgs, bind_rc_in, bind_sim_params, describe_pacing, describe_rc_in, faults_summary, instance_ports,
@@ -36,6 +37,11 @@ pub(crate) struct ServeArgs {
     /// board never sends it, so by default the serial link carries none.
     #[arg(long, requires = "serial")]
     pub(crate) truth: bool,
+    /// Time the link as the airframe's board does: a sample every period of wall time whether or not the
+    /// autopilot has answered, each step on the newest command, motors to minimum after 100 ms without
+    /// one (docs/board.md). Real time (or `--speed X`); not reproducible, unlike lockstep.
+    #[arg(long, conflicts_with = "lockstep")]
+    pub(crate) free_run: bool,
 }
 
 /// `--rate`: one of the plant rates the link budget knows (a whole number of µs per sample).
@@ -48,11 +54,45 @@ pub(crate) fn parse_rate(text: &str) -> Result<u32, String> {
     }
 }
 
+/// The pacing as the banner says it, and whether the plant runs free.
+fn describe_timing(pacing: Pacing, free_run: bool) -> String {
+    let paced = describe_pacing(pacing);
+    if free_run { format!("{paced}, free-running as the board (sample every period, watchdog 100 ms)") } else { paced }
+}
+
+/// How long a free-running plant's receive waits at most: well below a step at the fastest rate (1 ms).
+const FREE_RUN_POLL: Duration = Duration::from_millis(1);
+
+/// Serve until stopped, free-running at `free_run_speed` or in lockstep; a free run reports how its
+/// answers came.
+fn serve_steps<T: Transport>(
+    server: &mut PlantServer<T>,
+    free_run_speed: Option<f64>,
+    stop: &std::sync::atomic::AtomicBool,
+) -> Result<u64> {
+    let Some(speed) = free_run_speed else { return Ok(server.run(None, stop)?) };
+    let steps = server.run_free(speed, None, stop)?;
+    let s = server.stats();
+    eprintln!(
+        "sitl: free run: {} samples sent ({} not taken by a full line), {} answers a step or more late, {} stale, \
+         {} board watchdog trips",
+        s.sensor_sent, s.send_timeouts, s.late_actuators, s.stale_actuators, s.watchdog_trips
+    );
+    Ok(steps)
+}
+
 pub(crate) fn serve(args: &ServeArgs) -> Result<()> {
     if args.listen.is_none() && args.serial.is_none() {
         launch::check_instance_free(args.instance, false)?;
     }
     let (plant, pacing) = args.plant.build(realistic_plant_config())?;
+    let free_run_speed = match (args.free_run, pacing) {
+        (false, _) => None,
+        (true, Pacing::RealTime { speed }) => Some(speed),
+        (true, Pacing::Lockstep) => bail!("--free-run runs on the wall clock: give it a --speed, not max"),
+    };
+    // A free-running plant must not sleep in a receive past its next step.
+    let poll = if free_run_speed.is_some() { FREE_RUN_POLL } else { POLL_INTERVAL };
     if args.dt_us == 0 || args.dt_us > 20_000 {
         bail!("--dt-us must be in 1..=20000, got {}", args.dt_us);
     }
@@ -84,12 +124,11 @@ pub(crate) fn serve(args: &ServeArgs) -> Result<()> {
     let rc_in = bind_rc_in(rc_port)?;
     let (steps, radio, faults) = if let Some(spec) = &args.serial {
         let (device, baud) = parse_serial_spec(spec).map_err(anyhow::Error::msg).context("--serial")?;
-        let transport =
-            SerialTransport::open(&device, baud, POLL_INTERVAL).with_context(|| format!("opening {device}"))?;
+        let transport = SerialTransport::open(&device, baud, poll).with_context(|| format!("opening {device}"))?;
         eprintln!(
             "sitl: plant on serial {device} at {baud} baud, running {}; SIM_ parameters on udp \
              127.0.0.1:{sim_port}; {}",
-            describe_pacing(pacing),
+            describe_timing(pacing, free_run_speed.is_some()),
             describe_rc_in(rc_port)
         );
         let mut server = PlantServer::new(plant, transport, link);
@@ -97,13 +136,15 @@ pub(crate) fn serve(args: &ServeArgs) -> Result<()> {
         if let Some(port) = rc_in {
             server.set_rc_in(port);
         }
-        let steps = server.run(None, &stop)?;
+        let steps = serve_steps(&mut server, free_run_speed, &stop)?;
         (steps, radio_summary(&server), faults_summary(&server.stats()))
     } else {
         let port = instance_ports(args.instance)?.0;
         let listen = args.listen.clone().unwrap_or_else(|| format!("127.0.0.1:{port}"));
-        let mut server =
-            PlantServer::bind_udp(plant, listen.as_str(), link).with_context(|| format!("binding {listen}"))?;
+        let transport = UdpTransport::bind(listen.as_str())
+            .and_then(|t| t.with_poll(poll))
+            .with_context(|| format!("binding {listen}"))?;
+        let mut server = PlantServer::new(plant, transport, link);
         server.set_hook(Box::new(sim_params));
         if let Some(port) = rc_in {
             server.set_rc_in(port);
@@ -111,10 +152,10 @@ pub(crate) fn serve(args: &ServeArgs) -> Result<()> {
         eprintln!(
             "sitl: plant listening on udp {listen}, running {}; SIM_ parameters on udp 127.0.0.1:{sim_port}; {}; \
              waiting for an autopilot",
-            describe_pacing(pacing),
+            describe_timing(pacing, free_run_speed.is_some()),
             describe_rc_in(rc_port)
         );
-        let steps = server.run(None, &stop)?;
+        let steps = serve_steps(&mut server, free_run_speed, &stop)?;
         (steps, radio_summary(&server), faults_summary(&server.stats()))
     };
     eprintln!("sitl: {steps} steps served");

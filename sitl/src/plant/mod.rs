@@ -345,6 +345,12 @@ impl Plant {
         self.motors_running = running;
     }
 
+    /// Whether the motors ran in the last step (see [`Plant::set_motors_running`]).
+    #[must_use]
+    pub fn motors_running(&self) -> bool {
+        self.motors_running
+    }
+
     /// The pack (None when the plant simulates none).
     #[must_use]
     pub fn battery(&self) -> Option<&Battery> {
