@@ -448,4 +448,28 @@ mod tests {
         assert_eq!(thousands(999.0), "999");
         assert_eq!(thousands(1_152_000.0), "1,152,000");
     }
+
+    #[test]
+    fn docs_board_md_holds_the_budgets_and_the_refusal_as_the_code_prints_them() {
+        let page = include_str!(concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/board.md"));
+        for (rate_hz, baud) in [(250.0, 921_600), (500.0, 921_600), (500.0, 115_200), (80.0, 115_200)] {
+            let printed = LinkBudget::of(&PlantStreams::board(rate_hz), baud).lines().join("\n");
+            assert!(page.contains(&printed), "docs/board.md lacks, or has another, budget:\n{printed}");
+        }
+        let refusal = LinkBudget::of(&PlantStreams::board(500.0), 115_200).refusal("--rate").expect("refused");
+        assert!(page.contains(&refusal), "docs/board.md lacks the refusal:\n{refusal}");
+        let s = FrameSizes::get();
+        for (name, bytes) in [
+            ("HIL_SENSOR", s.hil_sensor),
+            ("HIL_GPS", s.hil_gps),
+            ("RC_CHANNELS", s.rc_channels),
+            ("BATTERY_STATUS", s.battery_status),
+            ("HIL_STATE_QUATERNION` (SITL truth only)", s.hil_state_quaternion),
+            ("HIL_ACTUATOR_CONTROLS` (armed)", s.hil_actuator_controls),
+        ] {
+            let row =
+                if name.contains('`') { format!("| `{name} | {bytes} |") } else { format!("| `{name}` | {bytes} |") };
+            assert!(page.contains(&row), "docs/board.md's frame table lacks `{row}`");
+        }
+    }
 }
