@@ -139,6 +139,7 @@ impl Rig {
                 .map(|b| sitl::link::battery_fields(&b.reading())),
             rc: self.rc,
             plant_ack: None,
+            plant_link: None,
         };
         let Some((sample_us, mut inputs)) = self.deliver(s.time_us, inputs) else {
             self.plant.step(self.last_pwm_us, DT_US);
