@@ -70,12 +70,13 @@ fn given_20_percent_link_loss_in_a_hover_then_drop_rate_comm_reads_the_plants_lo
     assert!((mean - 2000.0).abs() <= 3.0 * sigma_mean, "mean {mean:.0} of {full:?}");
     // WHEN the loss clears, and 3 s pass.
     let last_lost_us = *rig.link_lost_us.last().expect("samples were lost");
+    let clear_from_us = rig.now_us;
     rig.sim_set("SIM_LINK_LOSS", 0.0);
     rig.run_s(3.0, |_| {});
     let clear = rig.take_messages();
     // THEN a WARNING within 1 s of the loss starting, with the counts of the last second; WARNINGs at most
-    // once per 5 s while samples are missing in the last second (so one may come just after the loss
-    // clears); and one INFO exactly one second of samples after the last one lost, the last text.
+    // once per 5 s while samples go missing (none after the loss ended, though the last second still
+    // holds it); and one INFO exactly one second of samples after the last one lost, the last text.
     let said: Vec<_> = link_texts(&lossy).into_iter().chain(link_texts(&clear)).collect();
     println!(
         "texts (the loss from {loss_from_us} µs, its first samples lost at {:?} µs, its last at {last_lost_us} µs): \
@@ -91,6 +92,8 @@ fn given_20_percent_link_loss_in_a_hover_then_drop_rate_comm_reads_the_plants_lo
     assert!(warnings.iter().all(|(_, s, _)| *s == MavSeverity::MAV_SEVERITY_WARNING), "{said:?}");
     assert!(warnings.windows(2).all(|w| w[1].0 - w[0].0 >= 5_000_000), "{said:?}");
     assert!(warnings.len() >= 2, "10 s of loss: at least at 0 and 5 s: {said:?}");
+    // (A loss just before the clear is found by the first sample after it.)
+    assert!(warnings.iter().all(|w| w.0 <= clear_from_us + 2_000), "{said:?}");
     // And drop_rate_comm back to 0.
     let rates = drop_rates(&clear);
     assert!(rates.iter().all(|&(t, r)| r == plant_drop_rate_cpct(&rig.link_lost_us, t)), "{rates:?}");

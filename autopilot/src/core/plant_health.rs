@@ -16,10 +16,11 @@
 //! - the byte rates are the counters' growth over the last whole second of vehicle time.
 //!
 //! Out: a [`PlantLinkStatus`] (totals, the window, the byte counts and rates) and, from a step, at most
-//! one [`PlantLinkEvent`] for the vehicle to say: [`PlantLinkEvent::Missing`] (WARNING) when the window
-//! holds a missing sample, at most once per [`WARNING_INTERVAL_US`] of vehicle time while that lasts; and
-//! [`PlantLinkEvent::Complete`] (INFO) once after a warning, when a full window has passed without a
-//! missing sample. Like the estimator's source events, the texts announce changes; the repeat every 5 s
+//! one [`PlantLinkEvent`] for the vehicle to say: [`PlantLinkEvent::Missing`] (WARNING, with the window's
+//! counts) at a step that finds samples missing before it, at most once per [`WARNING_INTERVAL_US`] of
+//! vehicle time (so while the loss lasts, one every 5 s, and none for a loss that has ended but still
+//! fills the window); and [`PlantLinkEvent::Complete`] (INFO) once after a warning, when a full window
+//! has passed without a missing sample. Like the estimator's source events, the texts announce changes; the repeat every 5 s
 //! says how bad it still is.
 //!
 //! The monitor is the vehicle's: a vehicle rebuilt (a plant restart, a reboot) starts counting afresh.
@@ -189,12 +190,14 @@ impl PlantHealth {
             self.status.counters = counters;
         }
         self.measure_rates(now_us);
+        let mut missing = 0;
         if let Some(last_us) = self.last_us {
             if now_us <= last_us {
                 self.status.late_samples += 1;
                 return None;
             }
-            self.record_missing(missing_in_gap(now_us - last_us, self.period_us));
+            missing = missing_in_gap(now_us - last_us, self.period_us);
+            self.record_missing(missing);
         }
         self.last_us = Some(now_us);
         self.slots += 1;
@@ -205,7 +208,7 @@ impl PlantHealth {
         }
         self.status.window_expected_samples = u32::try_from(self.slots.min(self.window_slots)).unwrap_or(u32::MAX);
         self.status.window_missing_samples = u32::try_from(self.missing_slots.len()).unwrap_or(u32::MAX);
-        self.event(now_us)
+        self.event(now_us, missing > 0)
     }
 
     /// `count` slots missing before the next sample; the window keeps at most its own length of them.
@@ -238,11 +241,13 @@ impl PlantHealth {
         }
     }
 
-    fn event(&mut self, now_us: u64) -> Option<PlantLinkEvent> {
+    /// The event of a step at `now_us` that found samples missing before it (`fresh`) or not.
+    fn event(&mut self, now_us: u64, fresh: bool) -> Option<PlantLinkEvent> {
         let (missing, expected) = (self.status.window_missing_samples, self.status.window_expected_samples);
         if missing > 0 {
+            // Only a fresh loss is warned of: the window still holds a loss for a second after it ended.
             let due = self.last_warning_us.is_none_or(|at| now_us.saturating_sub(at) >= WARNING_INTERVAL_US);
-            if !due {
+            if !fresh || !due {
                 return None;
             }
             self.last_warning_us = Some(now_us);
@@ -358,6 +363,21 @@ mod tests {
                 .collect();
         assert_eq!(texts, ["Plant link: 2000 of 2000 samples missing", "Plant link: samples complete again"]);
         assert!(texts.iter().all(|t| t.len() <= 50));
+    }
+
+    #[test]
+    fn a_loss_that_ended_is_not_warned_again_though_the_window_still_holds_it() {
+        let mut h = PlantHealth::at_rate_hz(500);
+        run(&mut h, (0..500_u64).map(|k| k * P));
+        // Sample 500 (1.0 s) lost: warned at 1.002 s, complete at 2.0 s. Sample 2995 (5.99 s) lost: found
+        // at 5.992 s, within 5 s of the warning (not said); at 6.002 s the 5 s have passed and the window
+        // still holds it, but it has ended: nothing is said, and no INFO follows what was not warned.
+        let said = run(&mut h, (501..4_000_u64).filter(|&k| k != 2_995).map(|k| k * P));
+        assert_eq!(
+            said,
+            [(501 * P, PlantLinkEvent::Missing { missing: 1, expected: 500 }), (1_000 * P, PlantLinkEvent::Complete)]
+        );
+        assert_eq!(h.status().missing_samples, 2);
     }
 
     #[test]
