@@ -49,6 +49,7 @@ fn inputs(time_us: u64) -> VehicleInputs {
         }),
         rc: None,
         plant_ack: None,
+        plant_link: None,
     }
 }
 

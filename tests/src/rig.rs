@@ -1,7 +1,11 @@
 //! The whole vehicle core in-process, in lockstep with the real plant (`sitl::plant`) at 500 Hz, driven
 //! by MAVLink messages as a ground station sends them (`Vehicle::handle_message`). Sensor samples and the
 //! pack's readings (10 Hz, as the plant link sends them) are converted directly (no HIL encode/decode
-//! round trip). Pure simulated time: no sleeps.
+//! round trip). The plant link's delay and loss (`SIM_LINK_DELAY`, `SIM_LINK_LOSS`) are applied as
+//! `sitl::link` applies them: a tick delivers the newest sample at least the delay old, or none (lost,
+//! or still on its way), and then the plant steps on the last command. Pure simulated time: no sleeps.
+
+use std::collections::VecDeque;
 
 use autopilot::core::commander::FlightMode;
 use autopilot::core::estimator::{BaroSample, EstimatorSource, GeoOrigin, ImuSample, MagSample, TruthSample};
@@ -24,6 +28,8 @@ pub const GCS: MavHeader = MavHeader { system_id: 255, component_id: 190, sequen
 pub struct Rig {
     pub plant: Plant,
     pub vehicle: Vehicle,
+    /// The vehicle time: the time of the last sample the vehicle stepped on (the plant's, but for the
+    /// link's delay).
     pub now_us: u64,
     /// Last HEARTBEAT base_mode and EXTENDED_SYS_STATE landed_state seen.
     pub base_mode: MavModeFlag,
@@ -38,6 +44,13 @@ pub struct Rig {
     /// The plant's answer to a forwarded injection, for the vehicle's next tick (as the plant link sends
     /// its COMMAND_ACK first in the next sensor datagram).
     plant_ack: Option<PlantCommandAck>,
+    /// The link's delay line: samples on their way, with their plant time.
+    link_line: VecDeque<(u64, VehicleInputs)>,
+    /// The plant time of every sample the link lost (`SIM_LINK_LOSS`, or overtaken when the delay fell):
+    /// what the plant's `LinkStats::lost` counts, with the times.
+    pub link_lost_us: Vec<u64>,
+    /// The last command: the plant steps on it when no sample was delivered (as ESCs hold theirs).
+    last_pwm_us: [f64; 4],
 }
 
 impl Rig {
@@ -69,6 +82,9 @@ impl Rig {
             rc: None,
             sim,
             plant_ack: None,
+            link_line: VecDeque::new(),
+            link_lost_us: Vec::new(),
+            last_pwm_us: [autopilot::core::vehicle::PWM_MIN_US; 4],
         }
     }
 
@@ -91,7 +107,8 @@ impl Rig {
         rig
     }
 
-    /// One lockstep tick: sensors -> vehicle -> plant.
+    /// One lockstep tick: sensors -> the link (delay, loss) -> vehicle -> plant; without a sample
+    /// delivered, the plant steps on the last command.
     ///
     /// # Panics
     /// If the vehicle commands a PWM outside 1000-2000 µs or not finite.
@@ -121,9 +138,15 @@ impl Rig {
                 .filter(|_| sitl::link::battery_due(s.time_us, DT_US))
                 .map(|b| sitl::link::battery_fields(&b.reading())),
             rc: self.rc,
-            plant_ack: self.plant_ack.take(),
+            plant_ack: None,
+            plant_link: None,
         };
-        self.now_us = s.time_us;
+        let Some((sample_us, mut inputs)) = self.deliver(s.time_us, inputs) else {
+            self.plant.step(self.last_pwm_us, DT_US);
+            return;
+        };
+        inputs.plant_ack = self.plant_ack.take();
+        self.now_us = sample_us;
         let out = self.vehicle.step(self.now_us, &inputs);
         assert!(out.pwm_us.iter().all(|p| p.is_finite() && (1000.0..=2000.0).contains(p)), "pwm {:?}", out.pwm_us);
         for m in out.messages {
@@ -147,7 +170,31 @@ impl Rig {
             }
         }
         self.plant.set_motors_running(out.armed || out.motor_test);
+        self.last_pwm_us = out.pwm_us;
         self.plant.step(out.pwm_us, DT_US);
+    }
+
+    /// What the link delivers at plant time `t` of the sample `inputs` taken then, as `sitl::link`'s
+    /// `deliver`: without delay and loss, that sample; else the newest sample at least the delay old (one
+    /// it overtakes is lost), or `None`. One loss draw per tick while the loss is above 0.
+    fn deliver(&mut self, t: u64, inputs: VehicleInputs) -> Option<(u64, VehicleInputs)> {
+        let faults = self.plant.link_faults_mut();
+        if faults.is_clear() && self.link_line.is_empty() {
+            return Some((t, inputs));
+        }
+        if faults.draw_lost() {
+            self.link_lost_us.push(t);
+        } else {
+            self.link_line.push_back((t, inputs));
+        }
+        let delay_us = faults.delay_us();
+        let mut delivered = None;
+        while self.link_line.front().is_some_and(|(s, _)| s + delay_us <= t) {
+            if let Some((overtaken_us, _)) = delivered.replace(self.link_line.pop_front()).flatten() {
+                self.link_lost_us.push(overtaken_us);
+            }
+        }
+        delivered.flatten()
     }
 
     /// Sets the plant's SIM_ parameter `name` (a fault, a rotor multiplier, the payload) from the next

@@ -15,6 +15,7 @@ pub mod mission;
 pub mod navigator;
 pub mod params;
 pub mod plan;
+pub mod plant_health;
 pub mod vehicle;
 
 /// Seconds to whole microseconds of vehicle time: negative and NaN to 0, beyond `u64` (a hold of 1e30 s)

@@ -26,6 +26,11 @@
 //! Until the plant first speaks, and after each silence, the autopilot announces itself to the plant with
 //! a HEARTBEAT every second, as the plant only answers peers that spoke (`docs/design.md`, the plant
 //! protocol).
+//!
+//! The link counts the bytes it reads and writes (UDP or serial alike) and hands them, with its decoder's
+//! malformed frames, to every step (`VehicleInputs::plant_link`): the vehicle judges the link's health
+//! from them and from the sample times (`core::plant_health`: samples missing and late, the drop rate in
+//! SYS_STATUS, the texts, the ULog's `plant_link_status`). The run's totals end in [`PlantLinkStats`].
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -41,6 +46,7 @@ use crate::core::hil::{ActuatorCommand, encode_actuator_controls};
 use crate::core::mavlink::frame::{DecoderStats, FrameDecoder, encode_frame_v2};
 use crate::core::mavlink::statustext;
 use crate::core::params::ParamStore;
+use crate::core::plant_health::PlantLinkCounters;
 use crate::core::vehicle::{PWM_MIN_US, Vehicle, VehicleConfig, VehicleError};
 use crate::runtime::link::{Destination, Incoming};
 use crate::runtime::transport::Transport;
@@ -105,6 +111,13 @@ pub struct PlantLinkStats {
     pub plant_restarts: u64,
     /// The plant link's frame decoder: malformed frames and garbage bytes dropped.
     pub plant_decoder: DecoderStats,
+    /// Bytes read from and written to the plant link (UDP datagrams or serial bytes).
+    pub plant_rx_bytes: u64,
+    pub plant_tx_bytes: u64,
+    /// Plant samples missing (gaps in the sample times) and late (a time not after the last one), as
+    /// the vehicles counted them (`core::plant_health`), over the whole run.
+    pub plant_missing_samples: u64,
+    pub plant_late_samples: u64,
     /// Broadcast STATUSTEXTs not sent: over [`STATUSTEXT_PER_S`] (see [`TextLimiter`]).
     pub statustext_suppressed: u64,
     /// Flights written to the onboard ULog.
@@ -114,6 +127,29 @@ pub struct PlantLinkStats {
     /// First and last vehicle time seen (µs).
     pub first_time_us: Option<u64>,
     pub last_time_us: Option<u64>,
+}
+
+/// The plant transport with the bytes it carries counted each way (UDP or serial alike).
+struct CountedTransport<'a> {
+    inner: &'a mut dyn Transport,
+    rx_bytes: u64,
+    tx_bytes: u64,
+}
+
+impl CountedTransport<'_> {
+    fn send(&mut self, bytes: &[u8]) -> std::io::Result<()> {
+        self.inner.send(bytes)?;
+        self.tx_bytes += bytes.len() as u64;
+        Ok(())
+    }
+
+    fn recv(&mut self) -> std::io::Result<Option<&[u8]>> {
+        let got = self.inner.recv()?;
+        if let Some(bytes) = &got {
+            self.rx_bytes += bytes.len() as u64;
+        }
+        Ok(got)
+    }
 }
 
 /// The autopilot's frames to the plant: its own component and sequence.
@@ -165,6 +201,7 @@ pub fn run(
     let mut host = VehicleHost::new(vehicle.clone(), persisted, GcsFanout::new(vehicle.sysid, out));
     let mut decoder = FrameDecoder::new();
     let datagrams = transport.is_datagram();
+    let mut transport = CountedTransport { inner: transport, rx_bytes: 0, tx_bytes: 0 };
     let mut last_sensor: Option<Instant> = None;
     let mut last_announce: Option<Instant> = None;
     let mut last_fallback: Option<Instant> = None;
@@ -205,10 +242,14 @@ pub fn run(
         if let Some(bytes) = transport.recv().map_err(io)? {
             let frames = if datagrams { decoder.decode_datagram(bytes) } else { decoder.push(bytes) };
             let mut reply = None;
-            let malformed = decoder.stats().malformed();
+            let counters = PlantLinkCounters {
+                rx_bytes: transport.rx_bytes,
+                tx_bytes: transport.tx_bytes,
+                bad_frames: decoder.stats().malformed(),
+            };
             let restarts = host.stats.plant_restarts;
             for decoded in frames {
-                if let Some(cmd) = host.on_plant_frame(&decoded.message, malformed)? {
+                if let Some(cmd) = host.on_plant_frame(&decoded.message, counters)? {
                     reply = Some(cmd);
                 }
             }
@@ -254,6 +295,8 @@ pub fn run(
     host.stats.ulog_flights = ulog.flights;
     host.stats.ulog_dropped = ulog.dropped;
     host.stats.plant_decoder = decoder.stats();
+    host.stats.plant_rx_bytes = transport.rx_bytes;
+    host.stats.plant_tx_bytes = transport.tx_bytes;
     let lost = host.gcs.stats;
     host.stats.gcs_dropped = lost.gcs_dropped;
     host.stats.tlog_dropped = lost.tlog_dropped;
@@ -348,6 +391,49 @@ mod tests {
         assert_eq!(stats.steps, 3);
         assert_eq!((stats.first_time_us, stats.last_time_us), (Some(0), Some(4_000)));
         assert!(stats.plant_decoder.malformed() >= 1, "{stats:?}");
+    }
+
+    #[test]
+    fn the_link_counts_its_bytes_each_way_and_the_vehicle_its_samples_missing_and_late_and_says_so() {
+        let mut h = start(5);
+        let mut buf = vec![0u8; 2048];
+        let (len, autopilot) = h.plant.recv_from(&mut buf).expect("announce");
+        let mut received = len as u64;
+        let mut sent = 0_u64;
+        let mut decoder = FrameDecoder::new();
+        // GIVEN samples at 0, 2, 4 ms, then 10 ms (two missing), then 10 ms again (a resend: late).
+        for time_us in [0_u64, 2_000, 4_000, 10_000, 10_000] {
+            let frame = sensor_frame(time_us);
+            sent += frame.len() as u64;
+            h.plant.send_to(&frame, autopilot).expect("send");
+            loop {
+                let len = h.plant.recv(&mut buf).expect("reply");
+                received += len as u64;
+                let answered = decoder
+                    .decode_datagram(&buf[..len])
+                    .into_iter()
+                    .any(|f| matches!(f.message, MavMessage::HIL_ACTUATOR_CONTROLS(m) if m.time_usec == time_us));
+                if answered {
+                    break;
+                }
+            }
+        }
+        h.stop.store(true, Ordering::Relaxed);
+        let stats = h.thread.join().expect("join").expect("clean stop");
+        // Whatever else the autopilot wrote meanwhile (a repeated announcement) counts too.
+        h.plant.set_read_timeout(Some(Duration::from_millis(50))).expect("timeout");
+        while let Ok(len) = h.plant.recv(&mut buf) {
+            received += len as u64;
+        }
+        // THEN the link counted every byte each way, and the vehicle two samples missing and one late,
+        // and warned of the missing ones with the counts of its window (6 sample slots so far).
+        assert_eq!((stats.plant_rx_bytes, stats.plant_tx_bytes), (sent, received), "{stats:?}");
+        assert_eq!((stats.plant_missing_samples, stats.plant_late_samples), (2, 1), "{stats:?}");
+        let said = texts(&drain(&mut h.out_rx));
+        assert!(
+            said.contains(&(MavSeverity::MAV_SEVERITY_WARNING, "Plant link: 2 of 6 samples missing".to_owned())),
+            "{said:?}"
+        );
     }
 
     #[test]

@@ -9,6 +9,7 @@ use crate::core::estimator::{EstimatorSource, GeoOrigin};
 use crate::core::hil::{ActuatorCommand, HilInput, SensorSamples, decode_hil_message, dege7_to_deg, mm_to_m};
 use crate::core::mavlink::{LinkErrors, statustext};
 use crate::core::params::ParamStore;
+use crate::core::plant_health::PlantLinkCounters;
 use crate::core::vehicle::{PWM_MIN_US, ShellEffect, Vehicle, VehicleConfig, VehicleError, VehicleInputs};
 use crate::runtime::gcs_fanout::GcsFanout;
 use crate::runtime::link::{Destination, Incoming, LinkId};
@@ -39,6 +40,9 @@ pub struct VehicleHost {
     /// Where the vehicle's messages go.
     pub gcs: GcsFanout,
     pub stats: PlantLinkStats,
+    /// Samples missing and late that vehicles dropped before this one counted (each vehicle counts
+    /// afresh; the run's totals go on across a restart or reboot).
+    retired_samples: (u64, u64),
 }
 
 impl VehicleHost {
@@ -56,6 +60,7 @@ impl VehicleHost {
             persisted,
             gcs,
             stats: PlantLinkStats::default(),
+            retired_samples: (0, 0),
         }
     }
 
@@ -122,20 +127,27 @@ impl VehicleHost {
                 }
                 ShellEffect::Reboot => {
                     tracing::info!("reboot requested: the vehicle restarts from its stored parameters and mission");
-                    self.vehicle = None;
+                    self.drop_vehicle();
                     return;
                 }
             }
         }
     }
 
+    /// Drops the vehicle (it is rebuilt at the next sample), keeping the run's sample totals.
+    fn drop_vehicle(&mut self) {
+        self.retired_samples = (self.stats.plant_missing_samples, self.stats.plant_late_samples);
+        self.vehicle = None;
+    }
+
     /// One plant frame; returns the reply to send if it carried a `HIL_SENSOR`: the actuator command, and
-    /// the messages to write before it (a forwarded failure injection). `plant_malformed` is what the plant
-    /// link's decoder has dropped so far.
+    /// the messages to write before it (a forwarded failure injection). `link` is what the plant link has
+    /// counted so far (bytes each way, the decoder's malformed frames), handed to the step for the link's
+    /// health.
     pub fn on_plant_frame(
         &mut self,
         message: &MavMessage,
-        plant_malformed: u64,
+        link: PlantLinkCounters,
     ) -> Result<Option<PlantReply>, VehicleError> {
         if self.home.is_none()
             && let MavMessage::HIL_STATE_QUATERNION(m) = message
@@ -185,13 +197,13 @@ impl VehicleHost {
                     let text = statustext(MavSeverity::MAV_SEVERITY_CRITICAL, PLANT_RESTARTED_TEXT);
                     self.send_gcs(None, Destination::All, text);
                     self.stats.plant_restarts += 1;
-                    self.vehicle = None;
+                    self.drop_vehicle();
                 }
                 self.now_us = now_us;
                 self.stats.first_time_us.get_or_insert(now_us);
                 self.stats.last_time_us = Some(now_us);
-                let inputs = std::mem::take(&mut self.inputs);
-                let link_errors = self.link_errors(plant_malformed);
+                let inputs = VehicleInputs { plant_link: Some(link), ..std::mem::take(&mut self.inputs) };
+                let link_errors = self.link_errors(link.bad_frames);
                 let Some(vehicle) = self.vehicle()? else {
                     return Ok(Some(PlantReply {
                         actuators: ActuatorCommand {
@@ -205,7 +217,10 @@ impl VehicleHost {
                 };
                 vehicle.set_link_errors(link_errors);
                 let outputs = vehicle.step(now_us, &inputs);
+                let health = vehicle.plant_link_status();
                 self.stats.steps += 1;
+                self.stats.plant_missing_samples = self.retired_samples.0 + health.missing_samples;
+                self.stats.plant_late_samples = self.retired_samples.1 + health.late_samples;
                 // The flight log opens before the step's texts ("Armed" is its first) and samples after.
                 if let Some(vehicle) = self.vehicle.as_ref() {
                     self.gcs.out.flight_log.begin_step(now_us, vehicle);

@@ -45,7 +45,7 @@ pub use command::{
 pub use identity::{gcs_heartbeat, heartbeat, plant_lost_heartbeat};
 pub use telemetry::{
     Home, LinkErrors, Stream, StreamScheduler, TelemetrySnapshot, estimator_event_message, mission_current,
-    nav_event_message, statustext, statustext_chunks, sys_status_plant_lost,
+    nav_event_message, plant_link_event_message, statustext, statustext_chunks, sys_status_plant_lost,
 };
 
 /// The autopilot's component id (MAV_COMP_ID_AUTOPILOT1).

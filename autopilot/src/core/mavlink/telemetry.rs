@@ -15,6 +15,11 @@
 //! (mV), current (cA) and remaining (%), BATTERY_STATUS in full with the warning level as
 //! `charge_state`; without a reading in the last 5 s, MAVLink's "unknown" values (voltage UINT16_MAX,
 //! current -1, remaining -1, temperature INT16_MAX, consumption -1).
+//!
+//! The plant link (the ARM board's serial line, or UDP to the SITL plant) in SYS_STATUS: `drop_rate_comm`
+//! is its samples missing over the last second (`core::plant_health`), in MAVLink's centi-percent; the
+//! ground-station links have no such count (a lost ground-station datagram is not seen). `errors_comm`
+//! counts malformed frames on every link, the plant's and the ground stations' ([`LinkErrors`]).
 
 use crate::core::manual::ManualStatus;
 use ::mavlink::dialects::common::{
@@ -33,6 +38,7 @@ use crate::core::control::Controller;
 use crate::core::estimator::{EstimatorEvent, EstimatorFlags, EstimatorState, EventSeverity, GpsSample};
 use crate::core::hil::{encode_battery_status, encode_rc_channels};
 use crate::core::navigator::NavEvent;
+use crate::core::plant_health::{DROP_RATE_FULL_CPCT, PlantLinkEvent};
 
 /// Home: where the vehicle armed (m, NED about the estimator's origin) and, with an origin, geodetic.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -54,6 +60,8 @@ pub struct TelemetrySnapshot<'a> {
     pub pwm_us: [f64; 4],
     /// What the links have dropped so far (SYS_STATUS errors_comm and errors_count1).
     pub link_errors: LinkErrors,
+    /// The plant link's samples missing over the last second, centi-percent (SYS_STATUS drop_rate_comm).
+    pub plant_drop_rate_cpct: u16,
     /// The mission item being flown towards, when a mission is loaded (MISSION_CURRENT).
     pub mission_seq: Option<u16>,
     /// The controller, for the adaptive-weight stream.
@@ -161,9 +169,13 @@ impl Stream {
     #[must_use]
     pub fn message(self, snap: &TelemetrySnapshot<'_>) -> Option<MavMessage> {
         match self {
-            Self::SysStatus => {
-                Some(sys_status(&snap.estimate.flags, &snap.commander.battery, snap.link_errors, &snap.manual))
-            }
+            Self::SysStatus => Some(sys_status(
+                &snap.estimate.flags,
+                &snap.commander.battery,
+                snap.link_errors,
+                snap.plant_drop_rate_cpct,
+                &snap.manual,
+            )),
             Self::Attitude => Some(attitude(snap)),
             Self::AttitudeQuaternion => Some(attitude_quaternion(snap)),
             Self::LocalPositionNed => Some(local_position_ned(snap)),
@@ -223,6 +235,18 @@ pub fn estimator_event_message(event: &EstimatorEvent) -> MavMessage {
         EventSeverity::Info => MavSeverity::MAV_SEVERITY_INFO,
         EventSeverity::Warning => MavSeverity::MAV_SEVERITY_WARNING,
         EventSeverity::Critical => MavSeverity::MAV_SEVERITY_CRITICAL,
+    };
+    statustext(severity, &event.text())
+}
+
+/// What the ground station hears of the plant link's health (`core::plant_health`): a STATUSTEXT,
+/// WARNING while samples go missing ("Plant link: 100 of 500 samples missing"), INFO when they are
+/// complete again.
+#[must_use]
+pub fn plant_link_event_message(event: &PlantLinkEvent) -> MavMessage {
+    let severity = match event {
+        PlantLinkEvent::Missing { .. } => MavSeverity::MAV_SEVERITY_WARNING,
+        PlantLinkEvent::Complete => MavSeverity::MAV_SEVERITY_INFO,
     };
     statustext(severity, &event.text())
 }
@@ -377,12 +401,14 @@ pub fn rc_channels(now_us: u64, manual: &ManualStatus) -> Option<MavMessage> {
 /// faulted, so a lost, stuck or rejected source clears its bit; PREARM_CHECK: converged, i.e. armable). The battery present while it
 /// reports, healthy above its critical level; its voltage, current and remaining. The RC receiver present
 /// and enabled once a radio frame has arrived, healthy while the radio is fresh (`manual.rc_fresh`).
-/// `errors_comm` and `errors_count1`: see [`LinkErrors`].
+/// `errors_comm` and `errors_count1`: see [`LinkErrors`]. `drop_rate_comm`: `plant_drop_rate_cpct`, the
+/// plant link's samples missing over the last second (centi-percent, 0..=10000; see the module docs).
 #[must_use]
 pub fn sys_status(
     flags: &EstimatorFlags,
     battery: &BatteryStatus,
     errors: LinkErrors,
+    plant_drop_rate_cpct: u16,
     manual: &ManualStatus,
 ) -> MavMessage {
     use MavSysStatusSensor as S;
@@ -418,6 +444,7 @@ pub fn sys_status(
             .and_then(|b| b.current_a)
             .map_or(-1, |a| (a * 100.0).round().clamp(0.0, f64::from(i16::MAX)) as i16),
         battery_remaining: battery.remaining_pct().map_or(-1, |p| p as i8),
+        drop_rate_comm: plant_drop_rate_cpct.min(DROP_RATE_FULL_CPCT),
         errors_comm: u16::try_from(errors.malformed).unwrap_or(u16::MAX),
         errors_count1: u16::try_from(errors.signing_rejected).unwrap_or(u16::MAX),
         ..SYS_STATUS_DATA::default()
@@ -427,10 +454,12 @@ pub fn sys_status(
 /// SYS_STATUS while the plant link is lost (no sensor sample arrives): the sensors stay present and
 /// enabled but none is healthy (gyro, accel, mag, baro, GPS, and PREARM_CHECK: nothing could be checked),
 /// and the battery and the radio, read over the same link, are not reported (MAVLink's unknown values for
-/// the battery, as with no reading). The error counts as in [`sys_status`].
+/// the battery, as with no reading). The error counts as in [`sys_status`]; `drop_rate_comm` 10000 (100 %):
+/// no sample has arrived for the last second.
 #[must_use]
 pub fn sys_status_plant_lost(errors: LinkErrors) -> MavMessage {
-    sys_status(&EstimatorFlags::default(), &BatteryStatus::default(), errors, &ManualStatus::default())
+    let (flags, battery, manual) = (EstimatorFlags::default(), BatteryStatus::default(), ManualStatus::default());
+    sys_status(&flags, &battery, errors, DROP_RATE_FULL_CPCT, &manual)
 }
 
 /// What the shell's links have dropped so far, as SYS_STATUS reports it (each saturating at 65535).
@@ -704,7 +733,7 @@ mod tests {
             ..EstimatorFlags::default()
         };
         let health_of = |flags: &EstimatorFlags| {
-            let m = sys_status(flags, &BatteryStatus::default(), LinkErrors::default(), &ManualStatus::default());
+            let m = sys_status(flags, &BatteryStatus::default(), LinkErrors::default(), 0, &ManualStatus::default());
             let MavMessage::SYS_STATUS(s) = m else { panic!("{m:?}") };
             s.onboard_control_sensors_health
         };

@@ -13,6 +13,7 @@ use crate::core::estimator::{
 };
 use crate::core::hil::PlantCommandAck;
 use crate::core::manual::{ManualStatus, RcFrame};
+use crate::core::plant_health::{PlantLinkCounters, PlantLinkStatus};
 
 /// One step's sensor inputs (any may be absent).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -28,6 +29,10 @@ pub struct VehicleInputs {
     pub rc: Option<RcFrame>,
     /// The plant's answer to a command the vehicle forwarded to it (a failure injection).
     pub plant_ack: Option<PlantCommandAck>,
+    /// What the shell has counted on the plant link so far (bytes each way, malformed frames), for the
+    /// link's health ([`crate::core::plant_health`]); `None` from a host that does not count (the last
+    /// counts hold).
+    pub plant_link: Option<PlantLinkCounters>,
 }
 
 impl VehicleInputs {
@@ -101,8 +106,9 @@ impl VehicleOutputs {
 
 /// What the onboard log records of the vehicle after a step, copied out so that the shell encodes it
 /// without reaching into the vehicle: the estimate and the fused filter's innovations, the reference
-/// flown and the controller's attitude setpoint, the motor commands and the commander's state. The
-/// controller's own values (adaptive weights and the rest) are [`crate::core::control::Controller::telemetry`].
+/// flown and the controller's attitude setpoint, the motor commands, the commander's state and the plant
+/// link's health. The controller's own values (adaptive weights and the rest) are
+/// [`crate::core::control::Controller::telemetry`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct LogSnapshot {
     pub estimate: EstimatorState,
@@ -120,6 +126,8 @@ pub struct LogSnapshot {
     pub controller: ControllerKind,
     /// The pilot's input: the sticks in use (manual_control_setpoint) and the last radio frame (input_rc).
     pub manual: ManualStatus,
+    /// The plant link's health: samples missing and late, drop rate, bytes (plant_link_status).
+    pub plant_link: PlantLinkStatus,
 }
 
 /// What the vehicle asks of the shell around it.

@@ -8,7 +8,8 @@
 //! link lost), [`Vehicle::plant_lost_telemetry`]: the HEARTBEAT and SYS_STATUS that say so, for the shell
 //! to send on its wall-clock fallback.
 //!
-//! The step: the inputs feed the estimator -> the navigator's progress goes to the commander -> the
+//! The step: the sample's time to the plant link's monitor (samples missing or late, `core::plant_health`)
+//! -> the inputs feed the estimator -> the navigator's progress goes to the commander -> the
 //! commander steps on the estimate and the vehicle's facts (the mode and its intent) -> the navigator
 //! turns the intent into the one [`Reference`] the controller tracks (position with velocity and
 //! acceleration feed-forward from jerk-limited trajectories, or an attitude; `None` for idle) -> the
@@ -34,11 +35,12 @@ use crate::core::mavlink::params::ParamService;
 use crate::core::mavlink::router::OffboardReceiver;
 use crate::core::mavlink::{
     Home, LinkErrors, MavlinkService, Stream, TelemetrySnapshot, estimator_event_message, nav_event_message,
-    plant_lost_heartbeat, statustext, sys_status_plant_lost,
+    plant_link_event_message, plant_lost_heartbeat, statustext, sys_status_plant_lost,
 };
 use crate::core::navigator::{NavEvent, NavInput, Navigator};
 use crate::core::params::ParamStore;
 use crate::core::plan::{Frame, Plan, SetpointGuard};
+use crate::core::plant_health::{PlantHealth, PlantLinkStatus};
 
 mod control_stage;
 mod gcs;
@@ -90,6 +92,8 @@ pub struct Vehicle {
     motor_test: MotorTest,
     /// Failure injection (INJECT_FAILURE): what waits for the plant, and the inputs switched off.
     failures: FailureInjection,
+    /// The plant link's health: samples missing and late, on the sample period of LOOP_INNER_HZ.
+    plant_health: PlantHealth,
 }
 
 impl std::fmt::Debug for Vehicle {
@@ -157,6 +161,7 @@ impl Vehicle {
             manual_service: ManualControlService::default(),
             motor_test: MotorTest::default(),
             failures: FailureInjection::default(),
+            plant_health: PlantHealth::at_rate_hz(config.control.rates.inner_hz),
             config,
         })
     }
@@ -223,7 +228,15 @@ impl Vehicle {
             battery: self.output.battery,
             controller: self.control.controller().kind(),
             manual: self.manual_status,
+            plant_link: self.plant_health.status(),
         }
+    }
+
+    /// The plant link's health after the last step: samples received, missing and late, the last second's
+    /// drop rate, and the shell's byte counts (see [`crate::core::plant_health`]).
+    #[must_use]
+    pub fn plant_link_status(&self) -> PlantLinkStatus {
+        self.plant_health.status()
     }
 
     /// The motor commands of the last step (µs): the controller's, or a motor test's while one runs.
@@ -297,6 +310,7 @@ impl Vehicle {
             commander: &self.output,
             pwm_us: self.pwm_us(),
             link_errors: self.link_errors,
+            plant_drop_rate_cpct: self.plant_health.status().drop_rate_cpct(),
             mission_seq: (self.navigator.mission_len() > 0).then(|| self.navigator.current_seq()),
             controller: Some(self.control.controller()),
             manual: self.manual_status,
@@ -317,6 +331,8 @@ impl Vehicle {
     /// One step at `now_us`: estimator -> commander (mode and intent) -> navigator (the reference) ->
     /// control stage (PWM) -> telemetry. See the module docs.
     pub fn step(&mut self, now_us: u64, inputs: &VehicleInputs) -> VehicleOutputs {
+        // The plant link's health first: this sample's place in the plant's sequence.
+        let plant_text = self.plant_health.step(now_us, inputs.plant_link).map(|e| plant_link_event_message(&e));
         let tick = inputs.feed(now_us, &mut self.estimator, self.config.estimator.source);
         // A source lost, stuck, rejected or regained: said this step.
         let estimator_texts: Vec<MavMessage> =
@@ -383,6 +399,7 @@ impl Vehicle {
         let due = self.mavlink.due_with_home(now_us, &events, home.map(|h| h.pos_ned_m));
         let mut messages = due.messages(&self.snapshot(now_us, home.as_ref()), &events);
         messages.extend(estimator_texts);
+        messages.extend(plant_text);
         messages.extend(pilot_refusals);
         messages.extend(self.missions.poll(now_us).messages);
         messages.extend(self.param_service.due(&self.params));

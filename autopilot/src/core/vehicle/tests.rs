@@ -549,6 +549,8 @@ fn given_a_lost_plant_then_the_fallback_says_critical_disarmed_emergency_armed_a
     assert!(!status.onboard_control_sensors_present.contains(S::MAV_SYS_STATUS_SENSOR_BATTERY));
     assert_eq!((status.voltage_battery, status.current_battery, status.battery_remaining), (u16::MAX, -1, -1));
     assert_eq!((status.errors_comm, status.errors_count1), (3, 5));
+    // No sample for the last second: the plant link's drop rate is 100 % (it read 0 while stepping).
+    assert_eq!((healthy.drop_rate_comm, status.drop_rate_comm), (0, 10_000));
     // Asked again (the next wall second): the same.
     assert_eq!(v.plant_lost_telemetry(), lost);
     // WHEN armed and taking off, then the plant lost THEN EMERGENCY, armed, in TAKEOFF.

@@ -566,6 +566,66 @@ pub(crate) mod tests {
     }
 
     #[test]
+    fn a_flight_logs_plant_link_status_once_a_second_with_the_links_bytes_bad_frames_and_samples_missing_and_late() {
+        use crate::core::plant_health::PlantLinkCounters;
+        let root = scratch("plantlink");
+        let (tx, mut rx) = mpsc::channel(ULOG_CHANNEL_CAPACITY);
+        let mut log = FlightLogger::new(Some(tx), root.clone(), 1);
+        let mut writer = UlogWriter::default();
+        let (mut v, mut t) = (vehicle(), 0);
+        fly(&mut v, &mut log, &mut t, 0.5);
+        let arm = command_long(1, 0, MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        v.handle_message(t, &GCS, &arm);
+        // GIVEN an armed flight of 3 s whose link carries 120 bytes in and 60 out per sample period, loses
+        // every tenth sample, resends one sample a second and has a bad frame every 100 periods.
+        let k0 = t / 2_000;
+        let counters = |k: u64| PlantLinkCounters { rx_bytes: 120 * k, tx_bytes: 60 * k, bad_frames: k / 100 };
+        for k in k0..k0 + 1_500 {
+            let t_us = k * 2_000;
+            if k % 10 == 5 {
+                continue;
+            }
+            let repeats = if k % 500 == 7 { 2 } else { 1 };
+            for _ in 0..repeats {
+                let inputs = VehicleInputs { plant_link: Some(counters(k)), ..at_rest(t_us) };
+                let out = v.step(t_us, &inputs);
+                log.begin_step(t_us, &v);
+                for m in &out.messages {
+                    if let MavMessage::STATUSTEXT(s) = m {
+                        log.text(t_us, s.severity, s.text.to_str().unwrap_or(""));
+                    }
+                }
+                log.end_step(t_us, &v);
+            }
+        }
+        log.close();
+        let closed = drain(&mut rx, &mut writer);
+        let data = topics_of(&std::fs::read(&closed[0]).expect("read"));
+        // THEN plant_link_status once a second: the shell's counts, the byte rates over the last second,
+        // and the samples missing and late so far with the last second's drop rate.
+        let records = &data["plant_link_status"];
+        assert!((3..=4).contains(&records.len()), "{}", records.len());
+        let u64_at = |r: &[u8], at: usize| u64::from_le_bytes(r[at..at + 8].try_into().expect("8 bytes"));
+        for r in records {
+            assert_eq!(r.len(), 8 + 8 + 4 + 8 + 4 + 8 * 4 + 4, "timestamp and nine fields");
+            let k = u64_at(r, 0) / 2_000;
+            let c = counters(k);
+            assert_eq!([u64_at(r, 8), u64_at(r, 20), u64_at(r, 32)], [c.rx_bytes, c.tx_bytes, c.bad_frames]);
+            let stepped = (k0..=k).filter(|j| j % 10 != 5);
+            let missing = (k0..k).filter(|j| j % 10 == 5).count() as u64;
+            let late = (k0..=k).filter(|j| j % 500 == 7).count() as u64;
+            assert_eq!(u64_at(r, 48), missing, "missing_samples at {k}");
+            assert_eq!(u64_at(r, 56), late, "late_samples at {k}");
+            assert_eq!(u64_at(r, 40), 250 + stepped.count() as u64, "received_samples: 0.5 s before, then these");
+            if k >= k0 + 500 {
+                // A whole second of the flight behind it: 60000 and 30000 bytes/s, 10 % missing.
+                assert_eq!([f32_at(r, 16), f32_at(r, 28), f32_at(r, 64)], [60_000.0, 30_000.0, 10.0], "at {k}");
+            }
+        }
+        let _ = std::fs::remove_dir_all(&root);
+    }
+
+    #[test]
     fn a_motor_test_on_the_disarmed_vehicle_is_logged_with_actuator_outputs_showing_the_motor_at_its_pwm() {
         let root = scratch("motortest");
         let (tx, mut rx) = mpsc::channel(ULOG_CHANNEL_CAPACITY);

@@ -23,8 +23,10 @@ use crate::core::vehicle::{LogSnapshot, Vehicle};
 /// The pilot's input at PX4's default intervals: `input_rc` (the radio's last frame) every 500 ms once a
 /// frame has arrived, `manual_control_setpoint` (the sticks in use) every 200 ms once sticks have been in
 /// use (see [`logged`]). `estimator_status_flags` is PX4's topic reduced to the fields this estimator has,
-/// plus its own per-source fault codes (see [`px4_fault`]).
-pub const TOPICS: [(&str, u64); 13] = [
+/// plus its own per-source fault codes (see [`px4_fault`]). `plant_link_status` is this autopilot's own:
+/// the plant link's byte counts and rates, its bad frames, its samples missing and late and the last
+/// second's drop rate ([`crate::core::plant_health`]), once a second.
+pub const TOPICS: [(&str, u64); 14] = [
     ("vehicle_status", 1_000_000),
     ("vehicle_attitude", 20_000),
     ("vehicle_local_position", 20_000),
@@ -38,6 +40,7 @@ pub const TOPICS: [(&str, u64); 13] = [
     ("aco_weights", 100_000),
     ("input_rc", 500_000),
     ("manual_control_setpoint", 200_000),
+    ("plant_link_status", 1_000_000),
 ];
 
 /// Whether topic `name` has a record at this step: `input_rc` once a radio frame has arrived,
@@ -192,6 +195,17 @@ pub(super) fn fields(name: &str, telemetry: &[&'static str]) -> Vec<Field> {
             v.extend(["roll", "pitch", "yaw", "throttle"].map(f));
             v
         }
+        "plant_link_status" => vec![
+            Field::scalar(U64, "rx_bytes"),
+            f("rx_bytes_per_s"),
+            Field::scalar(U64, "tx_bytes"),
+            f("tx_bytes_per_s"),
+            Field::scalar(U64, "bad_frames"),
+            Field::scalar(U64, "received_samples"),
+            Field::scalar(U64, "missing_samples"),
+            Field::scalar(U64, "late_samples"),
+            f("drop_rate_pct"),
+        ],
         _ => Vec::new(),
     }
 }
@@ -342,6 +356,18 @@ pub(super) fn record(name: &str, now_us: u64, snap: &LogSnapshot, ctx: &RecordCo
             // PX4's throttle is [-1, 1] (-1 minimum); the sticks' is [0, 1].
             let sticks = m.sticks.map_or([f64::NAN; 4], |s| [s.roll, s.pitch, s.yaw, 2.0 * s.throttle - 1.0]);
             r.bool(m.sticks.is_some()).u8(px4_data_source(m.source)).f32s(&sticks)
+        }
+        "plant_link_status" => {
+            let p = &snap.plant_link;
+            r.u64(p.counters.rx_bytes)
+                .f32(p.rx_bytes_per_s)
+                .u64(p.counters.tx_bytes)
+                .f32(p.tx_bytes_per_s)
+                .u64(p.counters.bad_frames)
+                .u64(p.received_samples)
+                .u64(p.missing_samples)
+                .u64(p.late_samples)
+                .f32(p.drop_rate_pct())
         }
         _ => r,
     }
