@@ -4,6 +4,7 @@ use ::mavlink::dialects::common::{
     MISSION_ITEM_INT_DATA, PARAM_VALUE_DATA, STATUSTEXT_DATA,
 };
 use proptest::prelude::*;
+use std::collections::VecDeque;
 
 const ATTITUDE: StreamKey = StreamKey::of_id(30);
 
@@ -242,6 +243,37 @@ enum Kind {
     Stream,
 }
 
+/// What the property test expects of the governor.
+#[derive(Debug, Default)]
+struct Model {
+    waiting_priority: VecDeque<usize>,
+    waiting_transfer: VecDeque<usize>,
+    /// (time, bytes) of every item handed out.
+    written: Vec<(u64, usize)>,
+    sizes: std::collections::HashMap<usize, usize>,
+}
+
+impl Model {
+    /// Takes what the governor hands out at `t`, checking the order.
+    fn pop_all(&mut self, g: &mut LinkGovernor<(Kind, usize)>, t: u64) -> Result<(), TestCaseError> {
+        while let Some((kind, id)) = g.pop(t) {
+            match kind {
+                Kind::Priority => prop_assert_eq!(self.waiting_priority.pop_front(), Some(id), "priority in order"),
+                Kind::Transfer => {
+                    prop_assert!(self.waiting_priority.is_empty(), "a transfer went before a waiting priority message");
+                    prop_assert_eq!(self.waiting_transfer.pop_front(), Some(id), "transfers in order");
+                }
+                Kind::Stream => {
+                    prop_assert!(self.waiting_priority.is_empty(), "a stream went before a waiting priority message");
+                    prop_assert!(self.waiting_transfer.is_empty(), "a stream went before a waiting transfer");
+                }
+            }
+            self.written.push((t, self.sizes[&id]));
+        }
+        Ok(())
+    }
+}
+
 proptest! {
     #[test]
     fn priority_is_never_dropped_nor_behind_a_stream_and_the_bytes_fit_the_rate(
@@ -249,55 +281,27 @@ proptest! {
         ops in proptest::collection::vec(op(), 1..400),
     ) {
         let mut g = LinkGovernor::<(Kind, usize)>::new(rate);
+        let mut model = Model::default();
         let mut t = 0_u64;
-        let mut next = 0_usize;
-        let mut waiting_priority = std::collections::VecDeque::new();
-        let mut waiting_transfer = std::collections::VecDeque::new();
-        // (time, bytes) of every item handed out.
-        let mut written: Vec<(u64, usize)> = Vec::new();
-        let mut sizes = std::collections::HashMap::new();
-        let mut pop_all = |g: &mut LinkGovernor<(Kind, usize)>, t: u64,
-                           wp: &mut std::collections::VecDeque<usize>,
-                           wt: &mut std::collections::VecDeque<usize>,
-                           written: &mut Vec<(u64, usize)>,
-                           sizes: &std::collections::HashMap<usize, usize>| -> Result<(), TestCaseError> {
-            while let Some((kind, id)) = g.pop(t) {
-                match kind {
-                    Kind::Priority => prop_assert_eq!(wp.pop_front(), Some(id), "priority in order"),
-                    Kind::Transfer => {
-                        prop_assert!(wp.is_empty(), "a transfer went before a waiting priority message");
-                        prop_assert_eq!(wt.pop_front(), Some(id), "transfers in order");
-                    }
-                    Kind::Stream => {
-                        prop_assert!(wp.is_empty(), "a stream went before a waiting priority message");
-                        prop_assert!(wt.is_empty(), "a stream went before a waiting transfer");
-                    }
-                }
-                written.push((t, sizes[&id]));
-            }
-            Ok(())
-        };
-        for (dt, op) in ops {
+        for (id, (dt, op)) in ops.into_iter().enumerate() {
             t += dt;
-            let id = next;
-            next += 1;
             match op {
                 Op::Priority(b) => {
-                    sizes.insert(id, b);
+                    model.sizes.insert(id, b);
                     prop_assert_eq!(g.offer(t, Class::Priority, b, (Kind::Priority, id)), Offered::Queued);
-                    waiting_priority.push_back(id);
+                    model.waiting_priority.push_back(id);
                 }
                 Op::Transfer(b) => {
-                    sizes.insert(id, b);
+                    model.sizes.insert(id, b);
                     prop_assert_eq!(g.offer(t, Class::Transfer, b, (Kind::Transfer, id)), Offered::Queued);
-                    waiting_transfer.push_back(id);
+                    model.waiting_transfer.push_back(id);
                 }
                 Op::Stream(k, b) => {
-                    sizes.insert(id, b);
+                    model.sizes.insert(id, b);
                     g.offer(t, Class::Stream(StreamKey::of_id(k)), b, (Kind::Stream, id));
                 }
                 Op::Radio(txbuf) => g.on_radio_status(t, txbuf),
-                Op::Pop => pop_all(&mut g, t, &mut waiting_priority, &mut waiting_transfer, &mut written, &sizes)?,
+                Op::Pop => model.pop_all(&mut g, t)?,
             }
             prop_assert!((MULT_MIN..=1.0).contains(&g.mult()), "mult {}", g.mult());
         }
@@ -307,18 +311,20 @@ proptest! {
                 break;
             }
             t += 10_000;
-            pop_all(&mut g, t, &mut waiting_priority, &mut waiting_transfer, &mut written, &sizes)?;
+            model.pop_all(&mut g, t)?;
         }
-        prop_assert!(waiting_priority.is_empty() && waiting_transfer.is_empty());
+        prop_assert!(model.waiting_priority.is_empty() && model.waiting_transfer.is_empty());
         prop_assert_eq!(g.counters().priority.dropped + g.counters().transfer.dropped, 0);
         if rate > 0 {
             // Over any window [t_i, t_j]: bytes <= rate × window + one frame.
+            let written = &model.written;
             for i in 0..written.len() {
                 let mut sum = 0_u128;
                 for &(tj, bytes) in &written[i..] {
                     sum += bytes as u128;
-                    let allowed = u128::from(rate) * u128::from(tj - written[i].0) + MAX_FRAME_BYTES as u128 * 1_000_000;
-                    prop_assert!(sum * 1_000_000 <= allowed, "{} bytes in {} µs at {} B/s", sum, tj - written[i].0, rate);
+                    let window = u128::from(tj - written[i].0);
+                    let allowed = u128::from(rate) * window + MAX_FRAME_BYTES as u128 * 1_000_000;
+                    prop_assert!(sum * 1_000_000 <= allowed, "{} bytes in {} µs at {} B/s", sum, window, rate);
                 }
             }
         }
