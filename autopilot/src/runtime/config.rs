@@ -14,6 +14,9 @@
 //! udp_max_peers = 32                   # UDP peers broadcast to at once (1-1024); more are only answered
 //! udp_secure = false                   # true: SETUP_SIGNING accepted over UDP; only on a network you trust
 //! serial = "/dev/ttyUSB0:57600"        # a telemetry radio (none by default)
+//! serial_data_rate = 2000              # bytes/s the serial link's output is fitted to (default baud / 10;
+//!                                      # 0: unlimited); e.g. a SiK radio's air rate
+//! udp_data_rate = 0                    # bytes/s for everything the UDP socket sends (default 0: unlimited)
 //!
 //! [log]
 //! dir = "logs"                         # .tlog of all ground-station traffic per run (none by default)
@@ -33,6 +36,11 @@
 //! sending to `127.0.0.1:14550` (QGroundControl, shared by every instance, as PX4's) and to the instance's
 //! API port `127.0.0.1:14540+N` (14541+N from N = 10, skipping 14550), TCP on `0.0.0.0:5760+N`, system id
 //! N+1. Addresses given in the file are taken as written (not shifted by N).
+//!
+//! A serial link's output is fitted to its data rate (PX4's stream rate multiplier and a byte pacer,
+//! `core::mavlink::link_rate`): baud / 10 bytes/s unless `serial_data_rate` says otherwise. The UDP link
+//! is unlimited unless `udp_data_rate` is set (one governor for all the socket sends, a broadcast counted
+//! once per destination); TCP is always unlimited.
 
 use std::net::{Ipv4Addr, SocketAddr, SocketAddrV4, ToSocketAddrs};
 use std::path::{Path, PathBuf};
@@ -40,6 +48,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 
 use super::ports::InstancePorts;
+use super::serial::data_rate_of_baud;
 use super::tcp::{MAX_TCP_CLIENTS, TcpConfig};
 use super::transport::parse_serial_spec;
 use super::udp::{MAX_UDP_PEERS, PEER_EXPIRY, UdpConfig};
@@ -87,6 +96,10 @@ pub struct GcsSection {
     /// Whether the UDP link may carry a SETUP_SIGNING (default false). Only on a network you trust:
     /// anyone who reaches the port could set the key.
     pub udp_secure: Option<bool>,
+    /// Bytes/s the serial link's output is fitted to (default: baud / 10; 0: unlimited).
+    pub serial_data_rate: Option<u64>,
+    /// Bytes/s the UDP link's output is fitted to (default 0: unlimited).
+    pub udp_data_rate: Option<u64>,
 }
 
 /// The largest `tcp_max_clients` and `udp_max_peers` a configuration may ask for: each TCP client holds a
@@ -201,6 +214,8 @@ pub struct RuntimeConfig {
     pub tcp: Option<TcpConfig>,
     /// A serial ground-station link, if any: (device, baud).
     pub serial: Option<(String, u32)>,
+    /// The serial link's data rate, bytes/s (baud / 10 unless `[gcs] serial_data_rate`; 0: unlimited).
+    pub serial_data_rate: u64,
     /// Where `.tlog` files go; `None`: no log.
     pub log_dir: Option<PathBuf>,
     /// Where the ULog flight logs go (`<this>/<date>/<time>.ulg`): the state directory's `log/`, or with
@@ -269,6 +284,7 @@ impl RuntimeConfig {
             peer_expiry: PEER_EXPIRY,
             max_peers: peer_cap(file.gcs.udp_max_peers, MAX_UDP_PEERS, "gcs.udp_max_peers")?,
             secure: file.gcs.udp_secure.unwrap_or(false),
+            data_rate: file.gcs.udp_data_rate.unwrap_or(0),
         };
         let max_clients = peer_cap(file.gcs.tcp_max_clients, MAX_TCP_CLIENTS, "gcs.tcp_max_clients")?;
         let tcp = match file.gcs.tcp_bind.as_deref().map(str::trim) {
@@ -288,6 +304,11 @@ impl RuntimeConfig {
             .serial
             .map(|spec| parse_serial_spec(&spec).map_err(|message| ConfigError::Invalid { key: "gcs.serial", message }))
             .transpose()?;
+        let serial_data_rate = match (&serial, file.gcs.serial_data_rate) {
+            (_, Some(rate)) => rate,
+            (Some((_, baud)), None) => data_rate_of_baud(*baud),
+            (None, None) => 0,
+        };
         let vehicle = VehicleConfig { sysid, ..file.vehicle };
         let state_dir = match overrides.state_dir.or(file.state.dir).as_deref().map(str::trim) {
             Some("off") => None,
@@ -309,6 +330,7 @@ impl RuntimeConfig {
             udp,
             tcp,
             serial,
+            serial_data_rate,
             log_dir,
             ulog_dir,
             stop_on_stdin_eof: overrides.stop_on_stdin_eof,
@@ -335,6 +357,7 @@ mod tests {
         assert_eq!(c.udp.targets, vec![local(14550), local(14543)], "QGroundControl's port is shared");
         assert_eq!(c.tcp.as_ref().map(|t| t.bind), Some("0.0.0.0:5763".parse().expect("addr")));
         assert_eq!((c.serial, c.log_dir), (None, None));
+        assert_eq!(c.udp.data_rate, 0, "UDP unlimited by default");
         assert_eq!((c.udp.max_peers, c.udp.secure), (MAX_UDP_PEERS, false));
         assert_eq!(c.tcp.map(|t| t.max_clients), Some(MAX_TCP_CLIENTS));
         assert_eq!(c.ulog_dir, c.state_dir.map(|d| d.join("log")), "flight logs under the state directory");
@@ -402,6 +425,7 @@ mod tests {
         assert_eq!((c.udp.bind, c.udp.targets.clone()), (local(20000), vec![local(20001)]));
         assert_eq!(c.tcp, None);
         assert_eq!(c.serial, Some(("/dev/ttyUSB0".into(), 57_600)));
+        assert_eq!(c.serial_data_rate, 5760, "baud / 10 by default");
         assert_eq!(c.log_dir, Some(PathBuf::from("flights")));
         assert_eq!(c.state_dir, None);
         assert_eq!((c.vehicle.controller, c.vehicle.estimator.source), (ControllerKind::Pid, EstimatorSource::Truth));
@@ -410,6 +434,22 @@ mod tests {
         let c = RuntimeConfig::resolve(file, 0, o).expect("valid");
         assert_eq!(c.plant, PlantEndpoint::Udp(local(5000)));
         assert_eq!(c.log_dir, Some(PathBuf::from("x")));
+    }
+
+    #[test]
+    fn the_data_rates_of_the_serial_and_udp_links_are_set() {
+        let resolve = |text: &str| {
+            let file = ConfigFile::from_toml_str(text, "rates.toml").expect("parses");
+            let c = RuntimeConfig::resolve(file, 0, Overrides::default()).expect("valid");
+            (c.serial_data_rate, c.udp.data_rate)
+        };
+        assert_eq!(resolve("[gcs]\nserial = \"/dev/ttyUSB0:115200\"\n"), (11_520, 0));
+        assert_eq!(resolve("[gcs]\nserial = \"/dev/ttyUSB0:57600\"\nserial_data_rate = 2000\n"), (2000, 0));
+        assert_eq!(resolve("[gcs]\nserial = \"/dev/ttyUSB0:57600\"\nserial_data_rate = 0\n"), (0, 0));
+        assert_eq!(resolve("[gcs]\nudp_data_rate = 12000\n"), (0, 12_000));
+        let typo = ConfigFile::from_toml_str("[gcs]\nserial_datarate = 1\n", "t.toml").unwrap_err();
+        assert!(typo.to_string().contains("serial_datarate"), "{typo}");
+        assert!(ConfigFile::from_toml_str("[gcs]\nudp_data_rate = -1\n", "t.toml").is_err());
     }
 
     #[test]

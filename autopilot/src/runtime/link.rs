@@ -1,6 +1,7 @@
-//! What every ground-station link (UDP, TCP, later serial) exchanges with the core: [`Incoming`] messages
-//! in, tagged with the peer that sent them, and [`Outgoing`] messages back, to every peer or to one; and
-//! the links' typed error, [`LinkError`].
+//! What every ground-station link (UDP, TCP, serial) exchanges with the core: [`Incoming`] messages
+//! in, tagged with the peer that sent them, and [`Outgoing`] messages back, to every peer or to one; the
+//! links' typed error, [`LinkError`]; and what the links that fit their output to a data rate (serial,
+//! UDP with `udp_data_rate`) share: a frame's size ([`frame_bytes`]) and the multiplier's log ([`log_mult`]).
 
 use std::net::SocketAddr;
 
@@ -9,7 +10,8 @@ use mavlink::{MavHeader, MavlinkVersion};
 use tokio::sync::mpsc;
 use tokio::sync::mpsc::error::TrySendError;
 
-use super::frame::{DecodedFrame, LinkCounters};
+use super::frame::{DecodedFrame, LinkCounters, encode_v2};
+use crate::core::mavlink::link_rate::MultReport;
 
 /// Capacity of the channels between a link and the core, in messages. At the 20 Hz offboard stream of one
 /// MAVSDK client plus 1 Hz heartbeats this is seconds of slack; beyond it frames are dropped and counted
@@ -105,4 +107,24 @@ pub fn deliver(
         }
     }
     true
+}
+
+/// The bytes a MAVLink 2 signature adds to a frame.
+pub const SIGNATURE_BYTES: usize = 13;
+
+/// The size of `out`'s frame on the wire, `signed` or not: what a governed link's pacer counts.
+#[must_use]
+pub fn frame_bytes(out: &Outgoing, signed: bool) -> usize {
+    encode_v2(out.header, &out.message).len() + if signed { SIGNATURE_BYTES } else { 0 }
+}
+
+/// Logs a change of link `link`'s stream rate multiplier (`core::mavlink::link_rate`): at info when it
+/// moved by more than a factor 2 since the last such, else at debug.
+pub fn log_mult(link: &str, r: &MultReport) {
+    let (mult, previous, bandwidth, radio) = (r.mult, r.previous, r.bandwidth_mult, r.radio_mult);
+    if r.loud {
+        tracing::info!(%link, mult, previous, bandwidth, radio, "ground-station stream rate multiplier changed");
+    } else {
+        tracing::debug!(%link, mult, previous, bandwidth, radio, "ground-station stream rate multiplier changed");
+    }
 }

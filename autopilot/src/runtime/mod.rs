@@ -219,8 +219,13 @@ pub async fn run(config: RuntimeConfig) -> Result<PlantLinkStats, RuntimeError> 
         links.spawn(tcp.run(in_tx.clone(), rx, shutdown.clone()));
     }
     if let Some((path, baud)) = &config.serial {
-        let serial = SerialLink::open(&SerialConfig { link: out_links.len(), path: path.clone(), baud: *baud })?
-            .with_signing(signing.clone());
+        let serial = SerialLink::open(&SerialConfig {
+            link: out_links.len(),
+            path: path.clone(),
+            baud: *baud,
+            data_rate: config.serial_data_rate,
+        })?
+        .with_signing(signing.clone());
         secure.push(true);
         counters.push(serial.counters());
         let (tx, rx) = mpsc::channel(CHANNEL_CAPACITY);

@@ -1,28 +1,51 @@
 //! The serial ground-station link: a telemetry radio or a USB cable to a ground station, one peer, MAVLink
 //! 2 out (v1 accepted in). In: the port's byte stream through one stream decoder; each valid frame goes to
-//! the core as an [`Incoming`] (peer `0.0.0.0:0`: a serial link has one peer). Out: every [`Outgoing`],
-//! whatever its destination, is written to the port.
+//! the core as an [`Incoming`] (peer `0.0.0.0:0`: a serial link has one peer), a RADIO_STATUS (from the
+//! radio: any system id, typically SiK's 51/68) also to the link's governor. Out: every [`Outgoing`],
+//! whatever its destination, through the link's [`LinkGovernor`] (`core::mavlink::link_rate`), which fits
+//! the output to the link's data rate as PX4 does: HEARTBEAT, COMMAND_ACK and STATUSTEXT first and never
+//! thinned, parameter and mission transfers and replies next, in order, then the telemetry streams, thinned
+//! by PX4's rate multiplier (the data rate against the offered bytes, and the radio's RADIO_STATUS
+//! `txbuf`) and only the newest of each waiting. The data rate is [`SerialConfig::data_rate`]: baud / 10
+//! bytes/s (8N1) unless `[gcs] serial_data_rate` says otherwise (bytes/s; 0: unlimited, where only a
+//! radio's RADIO_STATUS thins the streams).
 //!
 //! The port is blocking (the `serialport` crate), so the link runs on a blocking thread: it reads for up
-//! to [`POLL_INTERVAL`], hands what it decoded to the core, then writes everything queued. A write that
-//! fails is counted and the link keeps going (a radio out of range); a read error that is not a timeout
-//! stops the link as a [`LinkError`].
+//! to [`POLL_INTERVAL`], or until the pacer next has a frame to write if that is sooner, hands what it
+//! decoded to the core, takes everything the core queued into the governor, then writes what the pacer
+//! allows. The UART's buffer so holds at most about a frame beyond what the line is sending, so a
+//! HEARTBEAT or a COMMAND_ACK never waits behind a parameter burst. Frames are numbered by the link
+//! (MAVLink's sequence per link, as PX4's), so a ground station counts the streams' thinning as what it
+//! is, not as loss. A write that fails is counted and the link keeps going (a radio out of range); a read
+//! error that is not a timeout stops the link as a [`LinkError`]. A change of the multiplier by 10 % or more
+//! is logged at debug, by more than a factor 2 since the last such at info.
 
 use std::net::SocketAddr;
 use std::sync::Arc;
-use std::time::Duration;
+use std::time::{Duration, Instant};
+
+use mavlink::dialects::common::MavMessage;
 
 use tokio::sync::mpsc;
 use tokio::sync::mpsc::error::TryRecvError;
 
 use super::frame::{CountingDecoder, LinkCounters};
-use super::link::{Incoming, LinkError, LinkId, Outgoing, deliver};
+use super::link::{Destination, Incoming, LinkError, LinkId, Outgoing, deliver, frame_bytes, log_mult};
 use super::shutdown::Shutdown;
 use super::signing::LinkSigning;
 use super::transport::{SerialTransport, Transport};
+use crate::core::mavlink::link_rate::{LinkGovernor, classify};
 
-/// How long a read waits before the queued output is written: the output latency of the link.
+/// How long a read waits at most before the queued output is taken: the output latency of the link.
 pub const POLL_INTERVAL: Duration = Duration::from_millis(10);
+/// How long a write may wait for room in the port's buffer before it counts as failed.
+pub const WRITE_TIMEOUT: Duration = Duration::from_millis(100);
+
+/// The data rate of a serial line at `baud` (8N1: ten bits a byte), bytes/s.
+#[must_use]
+pub const fn data_rate_of_baud(baud: u32) -> u64 {
+    baud as u64 / 10
+}
 
 /// The serial port to serve.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -32,6 +55,9 @@ pub struct SerialConfig {
     /// Device path (`/dev/ttyUSB0`).
     pub path: String,
     pub baud: u32,
+    /// Bytes/s the link's output is fitted to ([`data_rate_of_baud`] by default, `[gcs] serial_data_rate`);
+    /// 0: unlimited.
+    pub data_rate: u64,
 }
 
 /// An open serial link, ready to [`SerialLink::run`].
@@ -41,6 +67,7 @@ pub struct SerialLink {
     port: SerialTransport,
     counters: Arc<LinkCounters>,
     signing: Arc<LinkSigning>,
+    governor: LinkGovernor<Outgoing>,
 }
 
 /// The peer address a serial link reports its frames with.
@@ -54,8 +81,19 @@ impl SerialLink {
     pub fn open(config: &SerialConfig) -> Result<Self, LinkError> {
         let port = SerialTransport::open(&config.path, config.baud, POLL_INTERVAL)
             .map_err(|source| LinkError::Open { what: format!("serial {}", config.path), source })?;
-        tracing::info!(path = %config.path, baud = config.baud, "serial ground-station link open");
-        Ok(Self { link: config.link, port, counters: LinkCounters::new_shared(), signing: Arc::default() })
+        tracing::info!(
+            path = %config.path,
+            baud = config.baud,
+            data_rate = config.data_rate,
+            "serial ground-station link open (data rate in bytes/s, 0: unlimited)"
+        );
+        Ok(Self {
+            link: config.link,
+            port,
+            counters: LinkCounters::new_shared(),
+            signing: Arc::default(),
+            governor: LinkGovernor::new(config.data_rate),
+        })
     }
 
     /// Signs and verifies with the process's shared signing state (default: its own, off).
@@ -95,25 +133,29 @@ impl SerialLink {
     ) -> Result<(), LinkError> {
         let mut decoder = CountingDecoder::new(self.counters.clone());
         let path = self.port.describe();
+        let start = Instant::now();
+        let now_us = || u64::try_from(start.elapsed().as_micros()).unwrap_or(u64::MAX);
+        let mut sequence = 0_u8;
         while !shutdown.is_shutdown() {
+            let wait = self
+                .governor
+                .next_ready_in_us(now_us())
+                .map_or(POLL_INTERVAL, |us| Duration::from_micros(us).min(POLL_INTERVAL));
+            self.port.set_timeout(wait)?;
             if let Some(bytes) = self.port.recv()? {
                 let frames = self.signing.verify(decoder.push(bytes), &self.counters);
+                for f in &frames {
+                    if let MavMessage::RADIO_STATUS(radio) = &f.message {
+                        self.governor.on_radio_status(now_us(), radio.txbuf);
+                    }
+                }
                 if !deliver(incoming, &self.counters, self.link, SERIAL_PEER, frames) {
                     break;
                 }
             }
             loop {
                 match outgoing.try_recv() {
-                    Ok(out) => {
-                        let bytes = self.signing.encode(out.header, &out.message);
-                        match self.port.send(&bytes) {
-                            Ok(()) => self.counters.add_sent(bytes.len()),
-                            Err(e) => {
-                                self.counters.add_send_error();
-                                tracing::debug!(%path, error = %e, "serial write failed");
-                            }
-                        }
-                    }
+                    Ok(out) => self.offer(now_us(), out),
                     Err(TryRecvError::Empty) => break,
                     Err(TryRecvError::Disconnected) => {
                         tracing::info!(%path, "serial ground-station link stopped");
@@ -121,8 +163,31 @@ impl SerialLink {
                     }
                 }
             }
+            self.port.set_timeout(WRITE_TIMEOUT)?;
+            while let Some(mut out) = self.governor.pop(now_us()) {
+                out.header.sequence = sequence;
+                sequence = sequence.wrapping_add(1);
+                let bytes = self.signing.encode(out.header, &out.message);
+                match self.port.write_unflushed(&bytes) {
+                    Ok(()) => self.counters.add_sent(bytes.len()),
+                    Err(e) => {
+                        self.counters.add_send_error();
+                        tracing::debug!(%path, error = %e, "serial write failed");
+                    }
+                }
+            }
+            if let Some(report) = self.governor.take_mult_report() {
+                log_mult(&path, &report);
+            }
         }
         tracing::info!(%path, "serial ground-station link stopped");
         Ok(())
+    }
+
+    /// Hands `out` to the governor with the size of its frame.
+    fn offer(&mut self, now_us: u64, out: Outgoing) {
+        let bytes = frame_bytes(&out, self.signing.enabled());
+        let class = classify(&out.message, matches!(out.to, Destination::Peer(_)));
+        self.governor.offer(now_us, class, bytes, out);
     }
 }

@@ -219,6 +219,26 @@ impl SerialTransport {
     }
 }
 
+impl SerialTransport {
+    /// How long the next read (or write) may wait: a ground-station link sets it before each call, to the
+    /// time its pacer next has a frame to write (it costs no system call).
+    ///
+    /// # Errors
+    /// The port's error.
+    pub fn set_timeout(&mut self, timeout: Duration) -> io::Result<()> {
+        self.port.set_timeout(timeout).map_err(io::Error::from)
+    }
+
+    /// Writes `bytes` without waiting for them to leave the UART (no `tcdrain`, which at 57600 baud
+    /// blocks for the frame's transmission): for a writer that paces itself.
+    ///
+    /// # Errors
+    /// The write error (a timeout when the port's buffer stays full).
+    pub fn write_unflushed(&mut self, bytes: &[u8]) -> io::Result<()> {
+        self.port.write_all(bytes)
+    }
+}
+
 impl Transport for SerialTransport {
     fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
         self.port.write_all(bytes)?;

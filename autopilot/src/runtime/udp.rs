@@ -12,6 +12,12 @@
 //! that is answered but not broadcast to, and a burst of such refusals is logged once.
 //! rust-mavlink's `udpin` answers only the last sender, which is why this shell keeps its own socket.
 //!
+//! With a data rate (`[gcs] udp_data_rate`, bytes/s; 0 by default: unlimited) the socket's output goes
+//! through one [`LinkGovernor`] (`core::mavlink::link_rate`), as the serial link's does: priority messages
+//! first, transfers in order, the streams thinned by PX4's rate multiplier, the bytes paced; a broadcast
+//! counts its frame once per destination. A RADIO_STATUS received on the socket feeds it too. Frames are
+//! then numbered by the link.
+//!
 //! Malformed datagrams are counted in the link's `LinkStats` and dropped; a send that fails (nobody
 //! listening, full buffer) is counted and the link keeps running. Only a receive error that is not about
 //! one peer stops the link, as a [`LinkError`].
@@ -27,10 +33,12 @@ use tokio::sync::mpsc;
 use tokio::time::Instant;
 
 use super::frame::{CountingDecoder, LinkCounters};
-use super::link::{Destination, Incoming, LinkError, LinkId, Outgoing, deliver};
+use super::link::{Destination, Incoming, LinkError, LinkId, Outgoing, deliver, frame_bytes, log_mult};
 use super::ports::InstancePorts;
 use super::shutdown::Shutdown;
 use super::signing::LinkSigning;
+use crate::core::mavlink::common::MavMessage;
+use crate::core::mavlink::link_rate::{LinkGovernor, classify};
 
 /// How long a peer stays in the table without sending a valid frame.
 pub const PEER_EXPIRY: Duration = Duration::from_secs(10);
@@ -55,6 +63,9 @@ pub struct UdpConfig {
     /// Whether this link may carry a SETUP_SIGNING (`[gcs] udp_secure`): false by default, since anyone
     /// on the network reaches a UDP port; only for a network the user trusts (see `runtime::signing`).
     pub secure: bool,
+    /// Bytes/s everything the socket sends is fitted to (`[gcs] udp_data_rate`); 0 (the default):
+    /// unlimited, every message sent as it comes.
+    pub data_rate: u64,
 }
 
 impl UdpConfig {
@@ -70,6 +81,7 @@ impl UdpConfig {
             peer_expiry: PEER_EXPIRY,
             max_peers: MAX_UDP_PEERS,
             secure: false,
+            data_rate: 0,
         }
     }
 }
@@ -170,6 +182,22 @@ pub struct UdpLink {
     peers: PeerTable,
     counters: Arc<LinkCounters>,
     signing: Arc<LinkSigning>,
+    /// With a data rate: the governor and the link's own frame sequence.
+    governor: Option<Governed>,
+}
+
+/// A UDP link's output fitted to a data rate.
+#[derive(Debug)]
+struct Governed {
+    governor: LinkGovernor<Outgoing>,
+    start: Instant,
+    sequence: u8,
+}
+
+impl Governed {
+    fn now_us(&self) -> u64 {
+        u64::try_from(self.start.elapsed().as_micros()).unwrap_or(u64::MAX)
+    }
 }
 
 impl UdpLink {
@@ -182,7 +210,12 @@ impl UdpLink {
         let socket =
             UdpSocket::bind(config.bind).await.map_err(|source| LinkError::Bind { addr: config.bind, source })?;
         let local = socket.local_addr()?;
-        tracing::info!(%local, targets = ?config.targets, "UDP ground-station link bound");
+        tracing::info!(%local, targets = ?config.targets, data_rate = config.data_rate, "UDP ground-station link bound");
+        let governor = (config.data_rate > 0).then(|| Governed {
+            governor: LinkGovernor::new(config.data_rate),
+            start: Instant::now(),
+            sequence: 0,
+        });
         Ok(Self {
             link: config.link,
             socket,
@@ -190,6 +223,7 @@ impl UdpLink {
             peers: PeerTable::new(config.targets, config.peer_expiry, config.max_peers),
             counters: LinkCounters::new_shared(),
             signing: Arc::default(),
+            governor,
         })
     }
 
@@ -226,9 +260,20 @@ impl UdpLink {
         let mut decoder = CountingDecoder::new(self.counters.clone());
         let mut buf = vec![0u8; MAX_DATAGRAM_BYTES];
         loop {
+            let next_us = self.governor.as_mut().and_then(|g| {
+                let now = g.now_us();
+                g.governor.next_ready_in_us(now)
+            });
+            let paced = async {
+                match next_us {
+                    Some(us) => tokio::time::sleep(Duration::from_micros(us)).await,
+                    None => std::future::pending().await,
+                }
+            };
             tokio::select! {
                 biased;
                 () = shutdown.recv() => break,
+                () = paced => self.send_paced().await,
                 out = outgoing.recv() => {
                     let Some(out) = out else { break };
                     let mut batch = vec![out];
@@ -238,7 +283,12 @@ impl UdpLink {
                             Err(_) => break,
                         }
                     }
-                    self.send(&batch).await;
+                    if self.governor.is_some() {
+                        self.offer(batch);
+                        self.send_paced().await;
+                    } else {
+                        self.send(&batch).await;
+                    }
                 }
                 received = self.socket.recv_from(&mut buf) => {
                     let (len, peer) = match received {
@@ -261,6 +311,14 @@ impl UdpLink {
                         tracing::info!(%peer, "UDP ground-station peer joined");
                     }
                     let frames = self.signing.verify(frames, &self.counters);
+                    if let Some(g) = &mut self.governor {
+                        for f in &frames {
+                            if let MavMessage::RADIO_STATUS(radio) = &f.message {
+                                let now = g.now_us();
+                                g.governor.on_radio_status(now, radio.txbuf);
+                            }
+                        }
+                    }
                     if !deliver(&incoming, &self.counters, self.link, peer, frames) {
                         return Ok(());
                     }
@@ -269,6 +327,38 @@ impl UdpLink {
         }
         tracing::info!(local = %self.local, "UDP ground-station link stopped");
         Ok(())
+    }
+
+    /// Hands `batch` to the governor, each message counted once per destination.
+    fn offer(&mut self, batch: Vec<Outgoing>) {
+        let Some(g) = &mut self.governor else { return };
+        for peer in self.peers.expire(Instant::now()) {
+            tracing::info!(%peer, "UDP ground-station peer expired");
+        }
+        let broadcast_to = self.peers.broadcast_targets().len().max(1);
+        let signed = self.signing.enabled();
+        let now = g.now_us();
+        for out in batch {
+            let reply = matches!(out.to, Destination::Peer(_));
+            let bytes = frame_bytes(&out, signed) * if reply { 1 } else { broadcast_to };
+            g.governor.offer(now, classify(&out.message, reply), bytes, out);
+        }
+    }
+
+    /// Sends what the governor allows now, numbered by the link.
+    async fn send_paced(&mut self) {
+        let Some(g) = &mut self.governor else { return };
+        let mut ready = Vec::new();
+        let now = g.now_us();
+        while let Some(mut out) = g.governor.pop(now) {
+            out.header.sequence = g.sequence;
+            g.sequence = g.sequence.wrapping_add(1);
+            ready.push(out);
+        }
+        if let Some(report) = g.governor.take_mult_report() {
+            log_mult(&format!("udp://{}", self.local), &report);
+        }
+        self.send(&ready).await;
     }
 
     /// Sends `batch` in order, one frame per datagram: to every broadcast target, or a reply to its peer.
@@ -309,6 +399,7 @@ impl UdpLink {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::core::mavlink::link_rate::MAX_FRAME_BYTES;
     use crate::runtime::frame::DecodedFrame;
     use crate::runtime::frame::FrameDecoder;
     use crate::runtime::frame::encode_v2;
@@ -543,5 +634,56 @@ mod tests {
         assert!(!table.heard(SocketAddr::from(([127, 0, 0, 1], 20_000)), now));
         table.expire(now + Duration::from_secs(11));
         assert!(table.heard(SocketAddr::from(([127, 0, 0, 1], 30_000)), now + Duration::from_secs(11)));
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn with_a_data_rate_the_output_is_paced_and_an_ack_overtakes_a_parameter_burst() {
+        use mavlink::dialects::common::{MavParamType, PARAM_VALUE_DATA};
+        let fixed = loopback_socket().await;
+        let config = UdpConfig {
+            bind: "127.0.0.1:0".parse().expect("addr"),
+            targets: vec![fixed.local_addr().expect("addr")],
+            data_rate: 2000,
+            ..UdpConfig::default()
+        };
+        let link = UdpLink::bind(config).await.expect("bind link");
+        let (in_tx, _incoming) = mpsc::channel(CHANNEL_CAPACITY);
+        let (outgoing, out_rx) = mpsc::channel(CHANNEL_CAPACITY);
+        let (trigger, shutdown) = shutdown::channel();
+        let param = |index: u16| PARAM_VALUE_DATA {
+            param_value: 1.5,
+            param_count: 100,
+            param_index: index,
+            param_id: "MPC_XY_CRUISE".into(),
+            param_type: MavParamType::MAV_PARAM_TYPE_REAL32,
+        };
+        for index in 0..100 {
+            let message = MavMessage::PARAM_VALUE(param(index));
+            outgoing.send(Outgoing { to: Destination::All, header: VEHICLE, message }).await.expect("queued");
+        }
+        let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+            command: MavCmd::MAV_CMD_REQUEST_MESSAGE,
+            result: MavResult::MAV_RESULT_ACCEPTED,
+            ..COMMAND_ACK_DATA::default()
+        });
+        outgoing.send(Outgoing { to: Destination::All, header: VEHICLE, message: ack }).await.expect("queued");
+        let task = tokio::spawn(link.run(in_tx, out_rx, shutdown));
+        let start = Instant::now();
+        let mut got = Vec::new();
+        let mut bytes = 0;
+        while got.len() < 101 {
+            let frames = next_frames(&fixed).await.expect("every frame comes");
+            bytes += frames.iter().map(|f| encode_v2(f.header, &f.message).len()).sum::<usize>();
+            got.extend(frames.into_iter().map(|f| (f.header.sequence, f.message)));
+        }
+        let elapsed = start.elapsed().as_secs_f64();
+        assert!(matches!(got[0].1, MavMessage::COMMAND_ACK(_)), "the ACK goes first: {:?}", got[0].1);
+        let sequences: Vec<u8> = got.iter().map(|(s, _)| *s).collect();
+        assert_eq!(sequences, (0..101).collect::<Vec<u8>>(), "numbered by the link");
+        // Paced at 2000 B/s after the bucket's one frame.
+        let floor = (bytes - MAX_FRAME_BYTES) as f64 / 2000.0;
+        assert!(elapsed >= floor - 0.01 && elapsed < floor + 0.2, "{bytes} B in {elapsed:.3} s");
+        trigger.fire();
+        task.await.expect("task").expect("clean stop");
     }
 }

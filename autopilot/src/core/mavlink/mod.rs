@@ -13,6 +13,8 @@
 //! - `telemetry`: the default streams (SYS_STATUS, ATTITUDE(+_QUATERNION), LOCAL_POSITION_NED,
 //!   GLOBAL_POSITION_INT, GPS_RAW_INT, EXTENDED_SYS_STATE, HOME_POSITION, VFR_HUD, BATTERY_STATUS) on
 //!   vehicle time, and STATUSTEXT on events.
+//! - `link_rate`: per ground-station link, the classes of the outgoing messages, the stream multiplier
+//!   (data rate and RADIO_STATUS, as PX4's) and the byte pacer the shell's serial and UDP links write by.
 //! - While the plant link is lost no step comes: [`plant_lost_heartbeat`] and [`sys_status_plant_lost`]
 //!   are what the vehicle reports instead, on the shell's wall-clock cadence (`Vehicle::plant_lost_telemetry`).
 
@@ -26,6 +28,7 @@ pub mod failure;
 pub mod frame;
 pub mod housekeeping;
 pub mod identity;
+pub mod link_rate;
 pub mod manual;
 pub mod mission;
 pub mod offboard;
