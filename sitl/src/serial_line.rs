@@ -43,7 +43,7 @@ const IDLE_S: f64 = 0.05;
 /// The shortest sleep while bytes are in flight: the granularity of delivery.
 const MIN_WAIT_S: f64 = 0.001;
 /// How often a relay clears its sender end's exclusive-open flag.
-const CLEAR_EXCLUSIVE_S: f64 = 0.2;
+const CLEAR_EXCLUSIVE_S: f64 = 0.1;
 /// Bytes read from a sender at most at a time.
 const READ_CHUNK_BYTES: usize = 4096;
 
@@ -478,8 +478,6 @@ impl Relay {
 
 #[cfg(test)]
 mod tests {
-    use std::io::{Read, Write};
-
     use serialport::SerialPort;
 
     use super::*;
