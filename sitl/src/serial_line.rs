@@ -5,7 +5,7 @@
 //! slaves, opened as serial ports). Out: the same bytes at the other end, each one `10 / baud` s after the
 //! one before at best (8N1: a start bit, 8 data bits and a stop bit a byte), plus `latency`; some lost in
 //! runs of `burst_bytes`, some with one bit flipped, both drawn from a ChaCha8 stream per direction, so
-//! what is lost or corrupted depends only on the seed and the bytes sent, never on timing.
+//! what is lost or corrupted depends only on the seed and each byte's place in the stream, never on timing.
 //!
 //! One relay thread per direction moves the bytes from one pty master to the other: it reads what the
 //! sender wrote, gives every byte the time it leaves the wire, and writes the bytes that are due in small
