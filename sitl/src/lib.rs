@@ -7,6 +7,8 @@ pub mod pacer;
 pub mod plant;
 pub mod progress;
 pub mod scenario;
+#[cfg(unix)]
+pub mod serial_line;
 pub mod sim_params;
 pub mod sweep;
 pub mod tune;

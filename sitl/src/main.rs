@@ -7,6 +7,8 @@
 //! plant at real time unless told otherwise (`--speed X` for X times real time, `--speed max` or
 //! `--lockstep` for as fast as the autopilot answers), as a ground station and the person watching it
 //! expect; scenarios (`sitl scenario`, `sitl run --scenario`) are batch runs, always as fast as possible.
+//! `sitl line` is an emulated serial line (a UART or a telemetry radio: baud rate, loss, corruption, latency)
+//! between two pty devices, for tests that put two processes on its two ends.
 //! `sitl bench` (`bench`) measures the two-process real-time factor in lockstep and the CPU cost of the SITL
 //! and its telemetry in real time, or with `--vehicles N` how a swarm of N answers a ground station.
 //!
@@ -18,6 +20,8 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 use cli::bench::BenchArgs;
+#[cfg(unix)]
+use cli::line::LineArgs;
 use cli::run::RunArgs;
 use cli::scenario::ScenarioArgs;
 use cli::serve::ServeArgs;
@@ -51,6 +55,11 @@ enum Command {
     /// [controller] block and a parameter file (or say "no safe gains"), the trace, the convergence curves
     /// and a held-out report. With --evaluate: fly gain files on the spec's held-out set.
     Tune(TuneArgs),
+    /// An emulated serial line between two pty devices (symlinks --link-a and --link-b): a UART or a
+    /// telemetry radio at a baud rate (10 bits a byte), with loss in bursts, corruption and latency, until
+    /// SIGINT or SIGTERM.
+    #[cfg(unix)]
+    Line(LineArgs),
 }
 
 fn main() -> ExitCode {
@@ -62,6 +71,8 @@ fn main() -> ExitCode {
         Command::Bench(args) => cli::bench::run(&args),
         Command::Sweep(args) => cli::sweep::sweep(&args),
         Command::Tune(args) => cli::tune::tune(&args),
+        #[cfg(unix)]
+        Command::Line(args) => cli::line::line(&args),
     };
     autopilot::cli::exit("sitl", result)
 }

@@ -3,6 +3,8 @@
 
 pub(crate) mod bench;
 pub(crate) mod common;
+#[cfg(unix)]
+pub(crate) mod line;
 pub(crate) mod plots;
 pub(crate) mod run;
 pub(crate) mod scenario;
