@@ -319,6 +319,14 @@ pub struct LinkStats {
     pub decoder: DecoderStats,
 }
 
+/// What one read of the transport brought (see `PlantServer::receive`).
+#[derive(Debug)]
+struct Received {
+    /// The first frames from a peer: the transport has just adopted it.
+    first_contact: bool,
+    actuators: Vec<ActuatorCommand>,
+}
+
 /// One plant step's sensor datagram, kept until the plant steps.
 #[derive(Debug)]
 struct Pending {
@@ -707,7 +715,6 @@ impl<T: Transport> PlantServer<T> {
     fn wait_for_reply(&mut self, t: u64, datagram: &[u8], stop: &AtomicBool) -> Result<ActuatorCommand, LinkError> {
         let start = Instant::now();
         let mut last_send = start;
-        let datagrams = self.transport.is_datagram();
         loop {
             if stop.load(Ordering::Relaxed) {
                 return Err(LinkError::Stopped);
@@ -733,29 +740,18 @@ impl<T: Transport> PlantServer<T> {
                 }
                 last_send = now;
             }
-            let Some(bytes) = self.transport.recv()? else { continue };
-            let frames = if datagrams { self.decoder.decode_datagram(bytes) } else { self.decoder.push(bytes) };
-            if frames.is_empty() && datagrams {
-                self.stats.junk_datagrams += 1;
-            }
-            if !frames.is_empty() && !self.transport.has_peer() {
+            let Some(received) = self.receive()? else { continue };
+            if received.first_contact {
                 // First contact: answer whoever spoke, at once.
-                self.transport.adopt_last_sender();
                 self.transport.send(datagram)?;
                 last_send = Instant::now();
             }
             let mut reply = None;
-            for frame in &frames {
-                if let MavMessage::COMMAND_LONG(command) = &frame.message
-                    && command.command == MavCmd::MAV_CMD_INJECT_FAILURE
-                {
-                    self.inject_failure(command, &frame.header);
-                    continue;
-                }
-                match decode_hil_message(&frame.message, &self.home) {
-                    Some(HilInput::Actuators(cmd)) if cmd.time_us == t && reply.is_none() => reply = Some(cmd),
-                    Some(HilInput::Actuators(_)) => self.stats.stale_actuators += 1,
-                    _ => self.stats.other_messages += 1,
+            for cmd in received.actuators {
+                if cmd.time_us == t && reply.is_none() {
+                    reply = Some(cmd);
+                } else {
+                    self.stats.stale_actuators += 1;
                 }
             }
             if let Some(cmd) = reply {
@@ -763,6 +759,37 @@ impl<T: Transport> PlantServer<T> {
                 return Ok(cmd);
             }
         }
+    }
+
+    /// One read from the transport: its frames decoded (junk datagrams counted), a forwarded
+    /// `MAV_CMD_INJECT_FAILURE` applied, other messages counted; the actuator commands in arrival order.
+    /// On the first frames from a peer the transport adopts it (`first_contact`). `None` when nothing
+    /// came within the transport's poll interval.
+    fn receive(&mut self) -> Result<Option<Received>, LinkError> {
+        let datagrams = self.transport.is_datagram();
+        let Some(bytes) = self.transport.recv()? else { return Ok(None) };
+        let frames = if datagrams { self.decoder.decode_datagram(bytes) } else { self.decoder.push(bytes) };
+        if frames.is_empty() && datagrams {
+            self.stats.junk_datagrams += 1;
+        }
+        let first_contact = !frames.is_empty() && !self.transport.has_peer();
+        if first_contact {
+            self.transport.adopt_last_sender();
+        }
+        let mut actuators = Vec::new();
+        for frame in &frames {
+            if let MavMessage::COMMAND_LONG(command) = &frame.message
+                && command.command == MavCmd::MAV_CMD_INJECT_FAILURE
+            {
+                self.inject_failure(command, &frame.header);
+                continue;
+            }
+            match decode_hil_message(&frame.message, &self.home) {
+                Some(HilInput::Actuators(cmd)) => actuators.push(cmd),
+                _ => self.stats.other_messages += 1,
+            }
+        }
+        Ok(Some(Received { first_contact, actuators }))
     }
 
     /// Real-time pacing: sleep until the step from plant time `t` to `t + dt` is due at `speed` times wall

@@ -14,10 +14,9 @@ use std::os::unix::process::CommandExt;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use autopilot::core::hil::FrameDecoder;
 use autopilot::core::link_budget::{LinkBudget, PlantStreams};
 use autopilot::core::mavlink::common::{MavCmd, MavResult};
-use common::{Gcs, Guard, Seen, TruthLink, armed, free_instance, sitl_binary};
+use common::{Gcs, Guard, armed, free_instance, sitl_binary};
 use nalgebra::Vector3;
 use sitl::serial_line::{LineConfig, LineStats, SerialLine};
 
@@ -99,16 +98,7 @@ fn fly(rate_hz: u32, link: PlantLink) -> Flight {
     }
     let rc_port = sitl::link::rc::RC_IN_PORT + n;
     let rc_socket = UdpSocket::bind("127.0.0.1:0").expect("bind the radio");
-    let mut gcs = Gcs {
-        socket,
-        autopilot: format!("127.0.0.1:{}", 18570 + n),
-        sysid: u8::try_from(n + 1).expect("sysid"),
-        decoder: FrameDecoder::new(),
-        seen: Seen::default(),
-        wall_start: Instant::now(),
-        first_time_ms: None,
-        truth: TruthLink::new(n),
-    };
+    let mut gcs = Gcs::new(n, socket);
 
     // GIVEN the vehicle talking, the safety pilot's radio on (the plant sends RC_CHANNELS at 50 Hz, part
     // of the budget), the estimator converged and the plant's truth flowing.

@@ -23,7 +23,7 @@ use nalgebra::Vector3;
 
 mod common;
 
-use common::{GCS, Gcs, Guard, Seen, TruthLink, WALL_LIMIT, armed, free_instance, sitl_binary};
+use common::{GCS, Gcs, Guard, Seen, WALL_LIMIT, armed, free_instance, sitl_binary};
 
 /// The tests of this file run on parallel threads, and most run lockstep SITLs whose two processes poll
 /// their sockets and take both cores between them. The real-time pacing test measures a plain `sitl run`
@@ -86,16 +86,7 @@ fn fly(extra_args: &[&str]) {
     let (n, socket) = free_instance();
     let mut guard = start_sitl_run(n, &[&["--speed", "max"][..], extra_args].concat());
     let wall_start = Instant::now();
-    let mut gcs = Gcs {
-        socket,
-        autopilot: format!("127.0.0.1:{}", 18570 + n),
-        sysid: u8::try_from(n + 1).expect("sysid"),
-        decoder: FrameDecoder::new(),
-        seen: Seen::default(),
-        wall_start,
-        first_time_ms: None,
-        truth: TruthLink::new(n),
-    };
+    let mut gcs = Gcs::new(n, socket);
 
     // GIVEN the vehicle talking (HEARTBEATs) and its estimator converged (SYS_STATUS PREARM_CHECK healthy).
     while gcs.seen.heartbeats < 2 {

@@ -11,8 +11,7 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use autopilot::core::hil::{ActuatorCommand, HilInput, decode_hil_message};
-use mavlink::dialects::common::{MavCmd, MavMessage};
+use autopilot::core::hil::ActuatorCommand;
 
 use super::{HOOK_EVERY_STEPS, LinkError, PlantServer, Transport};
 
@@ -39,7 +38,6 @@ impl<T: Transport> PlantServer<T> {
         let speed = if speed.is_finite() && speed > 0.0 { speed } else { 1.0 };
         let wall0 = Instant::now();
         let t0 = self.plant.time_us();
-        let datagrams = self.transport.is_datagram();
         let mut steps = 0;
         while max_steps.is_none_or(|n| steps < n) && !stop.load(Ordering::Relaxed) {
             let t = self.plant.time_us();
@@ -62,25 +60,9 @@ impl<T: Transport> PlantServer<T> {
             let due = wall0 + Duration::from_secs_f64((t + self.config.dt_us - t0) as f64 * 1e-6 / speed);
             while Instant::now() < due {
                 self.poll_hook_if_due(Instant::now())?;
-                let Some(bytes) = self.transport.recv()? else { continue };
-                let frames = if datagrams { self.decoder.decode_datagram(bytes) } else { self.decoder.push(bytes) };
-                if frames.is_empty() && datagrams {
-                    self.stats.junk_datagrams += 1;
-                }
-                if !frames.is_empty() && !self.transport.has_peer() {
-                    self.transport.adopt_last_sender();
-                }
-                for frame in &frames {
-                    if let MavMessage::COMMAND_LONG(command) = &frame.message
-                        && command.command == MavCmd::MAV_CMD_INJECT_FAILURE
-                    {
-                        self.inject_failure(command, &frame.header);
-                        continue;
-                    }
-                    match decode_hil_message(&frame.message, &self.home) {
-                        Some(HilInput::Actuators(cmd)) => self.take_free_command(cmd, t),
-                        _ => self.stats.other_messages += 1,
-                    }
+                let Some(received) = self.receive()? else { continue };
+                for cmd in received.actuators {
+                    self.take_free_command(cmd, t);
                 }
             }
             let fresh = self.watchdog.last_command_at_us.is_some_and(|at| t.saturating_sub(at) <= BOARD_WATCHDOG_US);
@@ -138,6 +120,7 @@ mod tests {
     use crate::plant::{InitialState, Plant, PlantConfig};
     use autopilot::core::hil::{FrameDecoder, encode_actuator_controls, encode_frame_v2};
     use mavlink::MavHeader;
+    use mavlink::dialects::common::MavMessage;
     use std::net::UdpSocket;
     use std::sync::Arc;
 

@@ -141,6 +141,21 @@ pub struct Gcs {
 }
 
 impl Gcs {
+    /// A ground station of instance `n` listening on `socket` (its API port), speaking to the autopilot on
+    /// UDP 18570+N, with a client of the plant's SIM_ port for the truth; the wall-clock limit from now.
+    pub fn new(n: u16, socket: UdpSocket) -> Self {
+        Self {
+            socket,
+            autopilot: format!("127.0.0.1:{}", 18570 + n),
+            sysid: u8::try_from(n + 1).expect("sysid"),
+            decoder: FrameDecoder::new(),
+            seen: Seen::default(),
+            wall_start: Instant::now(),
+            first_time_ms: None,
+            truth: TruthLink::new(n),
+        }
+    }
+
     /// Read the plant's truth waiting, then whatever arrives for up to 100 ms of wall time, and update what
     /// we know.
     pub fn pump(&mut self) {
