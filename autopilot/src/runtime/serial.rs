@@ -22,19 +22,16 @@
 
 use std::net::SocketAddr;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
-
-use mavlink::dialects::common::MavMessage;
+use std::time::Duration;
 
 use tokio::sync::mpsc;
 use tokio::sync::mpsc::error::TryRecvError;
 
 use super::frame::{CountingDecoder, LinkCounters};
-use super::link::{Destination, Incoming, LinkError, LinkId, Outgoing, deliver, frame_bytes, log_mult};
+use super::link::{GovernedOutput, Incoming, LinkError, LinkId, Outgoing, deliver};
 use super::shutdown::Shutdown;
 use super::signing::LinkSigning;
 use super::transport::{SerialTransport, Transport};
-use crate::core::mavlink::link_rate::{LinkGovernor, classify};
 
 /// How long a read waits at most before the queued output is taken: the output latency of the link.
 pub const POLL_INTERVAL: Duration = Duration::from_millis(10);
@@ -67,7 +64,7 @@ pub struct SerialLink {
     port: SerialTransport,
     counters: Arc<LinkCounters>,
     signing: Arc<LinkSigning>,
-    governor: LinkGovernor<Outgoing>,
+    output: GovernedOutput,
 }
 
 /// The peer address a serial link reports its frames with.
@@ -92,7 +89,7 @@ impl SerialLink {
             port,
             counters: LinkCounters::new_shared(),
             signing: Arc::default(),
-            governor: LinkGovernor::new(config.data_rate),
+            output: GovernedOutput::new(config.data_rate),
         })
     }
 
@@ -133,29 +130,19 @@ impl SerialLink {
     ) -> Result<(), LinkError> {
         let mut decoder = CountingDecoder::new(self.counters.clone());
         let path = self.port.describe();
-        let start = Instant::now();
-        let now_us = || u64::try_from(start.elapsed().as_micros()).unwrap_or(u64::MAX);
-        let mut sequence = 0_u8;
         while !shutdown.is_shutdown() {
-            let wait = self
-                .governor
-                .next_ready_in_us(now_us())
-                .map_or(POLL_INTERVAL, |us| Duration::from_micros(us).min(POLL_INTERVAL));
+            let wait = self.output.next_ready_in().map_or(POLL_INTERVAL, |wait| wait.min(POLL_INTERVAL));
             self.port.set_timeout(wait)?;
             if let Some(bytes) = self.port.recv()? {
                 let frames = self.signing.verify(decoder.push(bytes), &self.counters);
-                for f in &frames {
-                    if let MavMessage::RADIO_STATUS(radio) = &f.message {
-                        self.governor.on_radio_status(now_us(), radio.txbuf);
-                    }
-                }
+                self.output.take_radio_status(&frames);
                 if !deliver(incoming, &self.counters, self.link, SERIAL_PEER, frames) {
                     break;
                 }
             }
             loop {
                 match outgoing.try_recv() {
-                    Ok(out) => self.offer(now_us(), out),
+                    Ok(out) => self.output.offer(out, self.signing.enabled(), 1),
                     Err(TryRecvError::Empty) => break,
                     Err(TryRecvError::Disconnected) => {
                         tracing::info!(%path, "serial ground-station link stopped");
@@ -164,9 +151,7 @@ impl SerialLink {
                 }
             }
             self.port.set_timeout(WRITE_TIMEOUT)?;
-            while let Some(mut out) = self.governor.pop(now_us()) {
-                out.header.sequence = sequence;
-                sequence = sequence.wrapping_add(1);
+            for out in self.output.ready(&path) {
                 let bytes = self.signing.encode(out.header, &out.message);
                 match self.port.write_unflushed(&bytes) {
                     Ok(()) => self.counters.add_sent(bytes.len()),
@@ -176,18 +161,8 @@ impl SerialLink {
                     }
                 }
             }
-            if let Some(report) = self.governor.take_mult_report() {
-                log_mult(&path, &report);
-            }
         }
         tracing::info!(%path, "serial ground-station link stopped");
         Ok(())
-    }
-
-    /// Hands `out` to the governor with the size of its frame.
-    fn offer(&mut self, now_us: u64, out: Outgoing) {
-        let bytes = frame_bytes(&out, self.signing.enabled());
-        let class = classify(&out.message, matches!(out.to, Destination::Peer(_)));
-        self.governor.offer(now_us, class, bytes, out);
     }
 }

@@ -33,12 +33,10 @@ use tokio::sync::mpsc;
 use tokio::time::Instant;
 
 use super::frame::{CountingDecoder, LinkCounters};
-use super::link::{Destination, Incoming, LinkError, LinkId, Outgoing, deliver, frame_bytes, log_mult};
+use super::link::{Destination, GovernedOutput, Incoming, LinkError, LinkId, Outgoing, deliver};
 use super::ports::InstancePorts;
 use super::shutdown::Shutdown;
 use super::signing::LinkSigning;
-use crate::core::mavlink::common::MavMessage;
-use crate::core::mavlink::link_rate::{LinkGovernor, classify};
 
 /// How long a peer stays in the table without sending a valid frame.
 pub const PEER_EXPIRY: Duration = Duration::from_secs(10);
@@ -182,22 +180,8 @@ pub struct UdpLink {
     peers: PeerTable,
     counters: Arc<LinkCounters>,
     signing: Arc<LinkSigning>,
-    /// With a data rate: the governor and the link's own frame sequence.
-    governor: Option<Governed>,
-}
-
-/// A UDP link's output fitted to a data rate.
-#[derive(Debug)]
-struct Governed {
-    governor: LinkGovernor<Outgoing>,
-    start: Instant,
-    sequence: u8,
-}
-
-impl Governed {
-    fn now_us(&self) -> u64 {
-        u64::try_from(self.start.elapsed().as_micros()).unwrap_or(u64::MAX)
-    }
+    /// With a data rate: the output fitted to it.
+    governor: Option<GovernedOutput>,
 }
 
 impl UdpLink {
@@ -211,11 +195,7 @@ impl UdpLink {
             UdpSocket::bind(config.bind).await.map_err(|source| LinkError::Bind { addr: config.bind, source })?;
         let local = socket.local_addr()?;
         tracing::info!(%local, targets = ?config.targets, data_rate = config.data_rate, "UDP ground-station link bound");
-        let governor = (config.data_rate > 0).then(|| Governed {
-            governor: LinkGovernor::new(config.data_rate),
-            start: Instant::now(),
-            sequence: 0,
-        });
+        let governor = (config.data_rate > 0).then(|| GovernedOutput::new(config.data_rate));
         Ok(Self {
             link: config.link,
             socket,
@@ -260,13 +240,10 @@ impl UdpLink {
         let mut decoder = CountingDecoder::new(self.counters.clone());
         let mut buf = vec![0u8; MAX_DATAGRAM_BYTES];
         loop {
-            let next_us = self.governor.as_mut().and_then(|g| {
-                let now = g.now_us();
-                g.governor.next_ready_in_us(now)
-            });
+            let next = self.governor.as_mut().and_then(GovernedOutput::next_ready_in);
             let paced = async {
-                match next_us {
-                    Some(us) => tokio::time::sleep(Duration::from_micros(us)).await,
+                match next {
+                    Some(wait) => tokio::time::sleep(wait).await,
                     None => std::future::pending().await,
                 }
             };
@@ -312,12 +289,7 @@ impl UdpLink {
                     }
                     let frames = self.signing.verify(frames, &self.counters);
                     if let Some(g) = &mut self.governor {
-                        for f in &frames {
-                            if let MavMessage::RADIO_STATUS(radio) = &f.message {
-                                let now = g.now_us();
-                                g.governor.on_radio_status(now, radio.txbuf);
-                            }
-                        }
+                        g.take_radio_status(&frames);
                     }
                     if !deliver(&incoming, &self.counters, self.link, peer, frames) {
                         return Ok(());
@@ -337,27 +309,16 @@ impl UdpLink {
         }
         let broadcast_to = self.peers.broadcast_targets().len().max(1);
         let signed = self.signing.enabled();
-        let now = g.now_us();
         for out in batch {
-            let reply = matches!(out.to, Destination::Peer(_));
-            let bytes = frame_bytes(&out, signed) * if reply { 1 } else { broadcast_to };
-            g.governor.offer(now, classify(&out.message, reply), bytes, out);
+            let copies = if matches!(out.to, Destination::Peer(_)) { 1 } else { broadcast_to };
+            g.offer(out, signed, copies);
         }
     }
 
     /// Sends what the governor allows now, numbered by the link.
     async fn send_paced(&mut self) {
         let Some(g) = &mut self.governor else { return };
-        let mut ready = Vec::new();
-        let now = g.now_us();
-        while let Some(mut out) = g.governor.pop(now) {
-            out.header.sequence = g.sequence;
-            g.sequence = g.sequence.wrapping_add(1);
-            ready.push(out);
-        }
-        if let Some(report) = g.governor.take_mult_report() {
-            log_mult(&format!("udp://{}", self.local), &report);
-        }
+        let ready = g.ready(&format!("udp://{}", self.local));
         self.send(&ready).await;
     }
 
