@@ -61,21 +61,11 @@ struct Cli {
     /// The plant's sample rate (Hz): LOOP_INNER_HZ, with LOOP_POS_HZ the largest divisor of it up to
     /// 100 Hz (250 -> 50), over the kept parameters. On a serial plant link the link budget at this rate
     /// is printed at start, and a rate that does not fit the line is refused, naming one that does.
-    #[arg(long, value_name = "HZ", value_parser = parse_rate)]
+    #[arg(long, value_name = "HZ", value_parser = link_budget::parse_plant_rate)]
     rate: Option<u32>,
     /// Stop when standard input closes (how `sitl run` keeps its autopilot from outliving it).
     #[arg(long, hide = true)]
     stop_on_stdin_eof: bool,
-}
-
-/// `--rate`: one of the plant rates the link budget knows (a whole number of µs per sample).
-fn parse_rate(text: &str) -> Result<u32, String> {
-    let rate_hz: u32 = text.parse().map_err(|_| format!("`{text}` is not a whole number of Hz"))?;
-    if link_budget::PLANT_RATES_HZ.contains(&rate_hz) {
-        Ok(rate_hz)
-    } else {
-        Err(format!("{rate_hz} Hz is not one of {:?}", link_budget::PLANT_RATES_HZ))
-    }
 }
 
 fn main() -> ExitCode {
@@ -118,11 +108,7 @@ fn run(cli: Cli) -> Result<()> {
     if let Some(c) = cli.controller {
         config.vehicle.controller = c;
     }
-    if let Some(rate_hz) = cli.rate {
-        config.vehicle.control.rates.inner_hz = rate_hz;
-        config.vehicle.control.rates.position_hz = link_budget::position_rate_hz(rate_hz);
-        config.plant_rate_hz = Some(rate_hz);
-    }
+    config.plant_rate_hz = cli.rate;
     if cli.wipe {
         let Some(dir) = &config.state_dir else {
             bail!("--wipe clears the state directory, and this start has none (--state-dir off)");

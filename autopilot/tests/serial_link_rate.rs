@@ -15,6 +15,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use autopilot::core::hil::{FrameDecoder, encode_frame_v2};
+use autopilot::core::link_budget::bytes_per_s_of_baud;
 use autopilot::core::mavlink::common::{
     ATTITUDE_DATA, ATTITUDE_QUATERNION_DATA, BATTERY_STATUS_DATA, COMMAND_ACK_DATA, DEBUG_VECT_DATA,
     EXTENDED_SYS_STATE_DATA, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA,
@@ -24,7 +25,7 @@ use autopilot::core::mavlink::common::{
 use autopilot::core::mavlink::telemetry::WEIGHT_VECTORS;
 use autopilot::core::mavlink::{MavHeader, Stream};
 use autopilot::runtime::link::{CHANNEL_CAPACITY, Destination, Outgoing};
-use autopilot::runtime::serial::{SerialConfig, SerialLink, data_rate_of_baud};
+use autopilot::runtime::serial::{SerialConfig, SerialLink};
 use autopilot::runtime::shutdown;
 use serialport::{SerialPort, TTYPort};
 use tokio::sync::mpsc;
@@ -208,7 +209,7 @@ fn attitude_count(got: &[Arrival], from_s: f64, to_s: f64) -> usize {
 async fn given_a_57600_line_then_the_streams_fit_heartbeats_and_acks_go_first_and_the_radio_thins_the_streams() {
     let (far, near) = TTYPort::pair().expect("a pty pair");
     let path = near.name().expect("the near end's path");
-    let config = SerialConfig { link: 0, path, baud: BAUD, data_rate: data_rate_of_baud(BAUD) };
+    let config = SerialConfig { link: 0, path, baud: BAUD, data_rate: bytes_per_s_of_baud(BAUD) };
     let link = SerialLink::open(&config).expect("open the link");
     let (in_tx, mut in_rx) = mpsc::channel(CHANNEL_CAPACITY);
     let (out_tx, out_rx) = mpsc::channel(CHANNEL_CAPACITY);

@@ -38,6 +38,31 @@ pub const FIT_PERCENT: f64 = 90.0;
 /// each with a position-loop rate at most 100 Hz that divides it ([`position_rate_hz`]).
 pub const PLANT_RATES_HZ: [u32; 9] = [1000, 500, 400, 250, 200, 125, 100, 80, 50];
 
+/// A plant rate given on a command line (`--rate`): one of [`PLANT_RATES_HZ`], or why not.
+///
+/// # Errors
+/// A message naming the text and the rates taken.
+pub fn parse_plant_rate(text: &str) -> Result<u32, String> {
+    let rate_hz: u32 = text.parse().map_err(|_| format!("`{text}` is not a whole number of Hz"))?;
+    if PLANT_RATES_HZ.contains(&rate_hz) {
+        Ok(rate_hz)
+    } else {
+        Err(format!("{rate_hz} Hz is not one of {PLANT_RATES_HZ:?}"))
+    }
+}
+
+/// The sample period of a plant rate (µs; whole for every one of [`PLANT_RATES_HZ`]).
+#[must_use]
+pub fn period_us(plant_rate_hz: u32) -> u64 {
+    1_000_000 / u64::from(plant_rate_hz.max(1))
+}
+
+/// The bytes per second a serial line at `baud` carries each way (8N1: [`BITS_PER_BYTE`] a byte).
+#[must_use]
+pub const fn bytes_per_s_of_baud(baud: u32) -> u64 {
+    baud as u64 / BITS_PER_BYTE as u64
+}
+
 /// The board's radio receiver frames (`RC_CHANNELS`, every 20 ms of plant time).
 pub const RC_RATE_HZ: f64 = 50.0;
 /// The board's battery monitor (`BATTERY_STATUS`, every 100 ms of plant time).
@@ -157,7 +182,7 @@ impl LinkBudget {
     /// The budget of `streams` on a line at `baud`.
     #[must_use]
     pub fn of(streams: &PlantStreams, baud: u32) -> Self {
-        let capacity_bytes_per_s = f64::from(baud) / f64::from(BITS_PER_BYTE);
+        let capacity_bytes_per_s = bytes_per_s_of_baud(baud) as f64;
         let sizes = FrameSizes::get();
         let r = streams.sample_rate_hz;
         let mut down = vec![StreamBytes { name: "HIL_SENSOR", frame_bytes: sizes.hil_sensor, rate_hz: r }];
@@ -401,7 +426,7 @@ mod tests {
         for hz in PLANT_RATES_HZ {
             let p = position_rate_hz(hz);
             assert!(p <= 100 && hz.is_multiple_of(p), "{hz} -> {p}");
-            assert!(1_000_000 % hz == 0, "{hz} Hz is a whole number of µs");
+            assert_eq!(period_us(hz) * u64::from(hz), 1_000_000, "{hz} Hz is a whole number of µs");
         }
     }
 

@@ -48,11 +48,11 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 
 use super::ports::InstancePorts;
-use super::serial::data_rate_of_baud;
 use super::tcp::{MAX_TCP_CLIENTS, TcpConfig};
 use super::transport::parse_serial_spec;
 use super::udp::{MAX_UDP_PEERS, PEER_EXPIRY, UdpConfig};
 use crate::core::config::VehicleConfig;
+use crate::core::link_budget::bytes_per_s_of_baud;
 
 /// A configuration that cannot be used; the message names the file and the key.
 #[derive(Debug, thiserror::Error)]
@@ -228,8 +228,8 @@ pub struct RuntimeConfig {
     pub state_dir: Option<PathBuf>,
     /// The MAVLink signing key file, if signing is to start on (see `runtime::signing`).
     pub signing_key_file: Option<PathBuf>,
-    /// `--rate HZ`: the plant's sample rate, set as LOOP_INNER_HZ (and LOOP_POS_HZ) over the kept
-    /// parameters; `None`: the parameters' own.
+    /// `--rate HZ`: the plant's sample rate, which `runtime::run` sets as LOOP_INNER_HZ (and LOOP_POS_HZ,
+    /// `link_budget::position_rate_hz`) in the vehicle and over the kept parameters; `None`: their own.
     pub plant_rate_hz: Option<u32>,
 }
 
@@ -306,7 +306,7 @@ impl RuntimeConfig {
             .transpose()?;
         let serial_data_rate = match (&serial, file.gcs.serial_data_rate) {
             (_, Some(rate)) => rate,
-            (Some((_, baud)), None) => data_rate_of_baud(*baud),
+            (Some((_, baud)), None) => bytes_per_s_of_baud(*baud),
             (None, None) => 0,
         };
         let vehicle = VehicleConfig { sysid, ..file.vehicle };

@@ -115,13 +115,13 @@ fn open_plant(endpoint: &PlantEndpoint) -> Result<Box<dyn Transport + Send>, Pla
 }
 
 /// `--rate`: the plant's sample rate over the kept parameters too, as a PARAM_SET of LOOP_INNER_HZ and
-/// LOOP_POS_HZ would set them (the vehicle config already carries them).
-fn set_plant_rate(persisted: &mut Persisted, rate_hz: u32) {
+/// LOOP_POS_HZ would set them (`run` has set them in the vehicle config).
+fn set_plant_rate(persisted: &mut Persisted, config: &RuntimeConfig) {
+    let rates = config.vehicle.control.rates;
     if let Some(store) = &mut persisted.params {
-        let position_hz = link_budget::position_rate_hz(rate_hz);
-        for (name, value) in [("LOOP_INNER_HZ", rate_hz), ("LOOP_POS_HZ", position_hz)] {
+        for (name, value) in [("LOOP_INNER_HZ", rates.inner_hz), ("LOOP_POS_HZ", rates.position_hz)] {
             if let Err(e) = store.set(name, value as f32) {
-                tracing::warn!("--rate {rate_hz}: {name} = {value}: {e}");
+                tracing::warn!("--rate: {name} = {value}: {e}");
             }
         }
     }
@@ -188,7 +188,11 @@ fn start_signing(config: &RuntimeConfig) -> Result<signing::LinkSigning, Runtime
 ///
 /// # Errors
 /// The first error ([`RuntimeError`]); the other tasks are still shut down.
-pub async fn run(config: RuntimeConfig) -> Result<PlantLinkStats, RuntimeError> {
+pub async fn run(mut config: RuntimeConfig) -> Result<PlantLinkStats, RuntimeError> {
+    if let Some(rate_hz) = config.plant_rate_hz {
+        config.vehicle.control.rates.inner_hz = rate_hz;
+        config.vehicle.control.rates.position_hz = link_budget::position_rate_hz(rate_hz);
+    }
     // Refuse a bad vehicle configuration before opening anything.
     Vehicle::new(config.vehicle.clone()).map_err(PlantLinkError::from)?;
     let (trigger, shutdown) = shutdown::channel();
@@ -252,8 +256,8 @@ pub async fn run(config: RuntimeConfig) -> Result<PlantLinkStats, RuntimeError> 
         Some(dir) => load_state(dir, &config.vehicle)?,
         None => Persisted::default(),
     };
-    if let Some(rate_hz) = config.plant_rate_hz {
-        set_plant_rate(&mut persisted, rate_hz);
+    if config.plant_rate_hz.is_some() {
+        set_plant_rate(&mut persisted, &config);
     }
     check_link_budget(&config, &persisted)?;
     let mut plant = open_plant(&config.plant)?;

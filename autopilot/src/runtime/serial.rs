@@ -38,12 +38,6 @@ pub const POLL_INTERVAL: Duration = Duration::from_millis(10);
 /// How long a write may wait for room in the port's buffer before it counts as failed.
 pub const WRITE_TIMEOUT: Duration = Duration::from_millis(100);
 
-/// The data rate of a serial line at `baud` (8N1: ten bits a byte), bytes/s.
-#[must_use]
-pub const fn data_rate_of_baud(baud: u32) -> u64 {
-    baud as u64 / 10
-}
-
 /// The serial port to serve.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct SerialConfig {
@@ -52,7 +46,7 @@ pub struct SerialConfig {
     /// Device path (`/dev/ttyUSB0`).
     pub path: String,
     pub baud: u32,
-    /// Bytes/s the link's output is fitted to ([`data_rate_of_baud`] by default, `[gcs] serial_data_rate`);
+    /// Bytes/s the link's output is fitted to ([`bytes_per_s_of_baud`](crate::core::link_budget::bytes_per_s_of_baud) by default, `[gcs] serial_data_rate`);
     /// 0: unlimited.
     pub data_rate: u64,
 }

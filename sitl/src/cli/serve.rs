@@ -1,7 +1,7 @@
 //! `sitl serve`: the plant served to an autopilot over the HIL plant protocol, on UDP or a serial port.
 
 use anyhow::{Context, Result, bail};
-use autopilot::core::link_budget::{LinkBudget, PLANT_RATES_HZ, PlantStreams};
+use autopilot::core::link_budget::{LinkBudget, PlantStreams, parse_plant_rate, period_us};
 use autopilot::runtime::transport::{POLL_INTERVAL, SerialTransport, parse_serial_spec};
 use clap::Args;
 use sitl::launch;
@@ -31,7 +31,7 @@ pub(crate) struct ServeArgs {
     pub(crate) dt_us: u64,
     /// Sensor samples per second (the board's rate), one of 1000, 500, 400, 250, 200, 125, 100, 80, 50;
     /// the autopilot must run at the same rate (`autopilot --rate`). Default 500.
-    #[arg(long, value_name = "HZ", value_parser = parse_rate)]
+    #[arg(long, value_name = "HZ", value_parser = parse_plant_rate)]
     pub(crate) rate: Option<u32>,
     /// Over `--serial`, send the simulator's ground truth (HIL_STATE_QUATERNION) too, as over UDP; a real
     /// board never sends it, so by default the serial link carries none.
@@ -42,16 +42,6 @@ pub(crate) struct ServeArgs {
     /// one (docs/board.md). Real time (or `--speed X`); not reproducible, unlike lockstep.
     #[arg(long, conflicts_with = "lockstep")]
     pub(crate) free_run: bool,
-}
-
-/// `--rate`: one of the plant rates the link budget knows (a whole number of µs per sample).
-pub(crate) fn parse_rate(text: &str) -> Result<u32, String> {
-    let rate_hz: u32 = text.parse().map_err(|_| format!("`{text}` is not a whole number of Hz"))?;
-    if PLANT_RATES_HZ.contains(&rate_hz) {
-        Ok(rate_hz)
-    } else {
-        Err(format!("{rate_hz} Hz is not one of {PLANT_RATES_HZ:?}"))
-    }
 }
 
 /// The pacing as the banner says it, and whether the plant runs free.
@@ -96,13 +86,14 @@ pub(crate) fn serve(args: &ServeArgs) -> Result<()> {
     if args.dt_us == 0 || args.dt_us > 20_000 {
         bail!("--dt-us must be in 1..=20000, got {}", args.dt_us);
     }
-    let dt_us = args.rate.map_or(args.dt_us, |hz| 1_000_000 / u64::from(hz));
+    let dt_us = args.rate.map_or(args.dt_us, period_us);
     let send_truth = args.serial.is_none() || args.truth;
     let link = LinkConfig { dt_us, pacing, send_truth, ..LinkConfig::default() };
     let rc_port = args.plant.rc_in_port(args.instance);
-    if let Some(spec) = &args.serial {
+    let serial =
+        args.serial.as_deref().map(parse_serial_spec).transpose().map_err(anyhow::Error::msg).context("--serial")?;
+    if let Some((_, baud)) = &serial {
         // The link budget, checked before anything is opened: a stream that cannot fit the line is refused.
-        let (_, baud) = parse_serial_spec(spec).map_err(anyhow::Error::msg).context("--serial")?;
         let streams = PlantStreams {
             sample_rate_hz: 1e6 / dt_us as f64,
             gps_rate_hz: plant.config().sensors.gps.rate_hz,
@@ -111,7 +102,7 @@ pub(crate) fn serve(args: &ServeArgs) -> Result<()> {
             truth: send_truth,
             odometry: false,
         };
-        let budget = LinkBudget::of(&streams, baud);
+        let budget = LinkBudget::of(&streams, *baud);
         for line in budget.lines() {
             eprintln!("sitl: {line}");
         }
@@ -122,8 +113,7 @@ pub(crate) fn serve(args: &ServeArgs) -> Result<()> {
     let stop = launch::ctrl_c_flag();
     let (sim_params, sim_port) = bind_sim_params(args.instance, &plant)?;
     let rc_in = bind_rc_in(rc_port)?;
-    let (steps, radio, faults) = if let Some(spec) = &args.serial {
-        let (device, baud) = parse_serial_spec(spec).map_err(anyhow::Error::msg).context("--serial")?;
+    let (steps, radio, faults) = if let Some((device, baud)) = serial {
         let transport = SerialTransport::open(&device, baud, poll).with_context(|| format!("opening {device}"))?;
         eprintln!(
             "sitl: plant on serial {device} at {baud} baud, running {}; SIM_ parameters on udp \

@@ -66,6 +66,7 @@ impl<T: Transport> PlantServer<T> {
                 }
             }
             let fresh = self.watchdog.last_command_at_us.is_some_and(|at| t.saturating_sub(at) <= BOARD_WATCHDOG_US);
+            let idle = ActuatorCommand { time_us: t, pwm_us: [1000.0; 4], armed: false, motor_test: false };
             let command = match self.last_command {
                 Some(cmd) if fresh => {
                     if self.watchdog.tripped {
@@ -80,9 +81,9 @@ impl<T: Transport> PlantServer<T> {
                         self.stats.watchdog_trips += 1;
                         self.watchdog.tripped = true;
                     }
-                    ActuatorCommand { time_us: t, pwm_us: [1000.0; 4], armed: false, motor_test: false }
+                    idle
                 }
-                None => ActuatorCommand { time_us: t, pwm_us: [1000.0; 4], armed: false, motor_test: false },
+                None => idle,
             };
             self.plant.set_motors_running(command.motors_running());
             self.plant.step(command.effective_pwm_us(), self.config.dt_us);
