@@ -251,6 +251,9 @@ struct Model {
     /// (time, bytes) of every item handed out.
     written: Vec<(u64, usize)>,
     sizes: std::collections::HashMap<usize, usize>,
+    /// When the last priority item and the last transfer were handed out (µs).
+    last_priority_us: u64,
+    last_transfer_us: u64,
 }
 
 impl Model {
@@ -258,10 +261,14 @@ impl Model {
     fn pop_all(&mut self, g: &mut LinkGovernor<(Kind, usize)>, t: u64) -> Result<(), TestCaseError> {
         while let Some((kind, id)) = g.pop(t) {
             match kind {
-                Kind::Priority => prop_assert_eq!(self.waiting_priority.pop_front(), Some(id), "priority in order"),
+                Kind::Priority => {
+                    prop_assert_eq!(self.waiting_priority.pop_front(), Some(id), "priority in order");
+                    self.last_priority_us = t;
+                }
                 Kind::Transfer => {
                     prop_assert!(self.waiting_priority.is_empty(), "a transfer went before a waiting priority message");
                     prop_assert_eq!(self.waiting_transfer.pop_front(), Some(id), "transfers in order");
+                    self.last_transfer_us = t;
                 }
                 Kind::Stream => {
                     prop_assert!(self.waiting_priority.is_empty(), "a stream went before a waiting priority message");
@@ -305,13 +312,28 @@ proptest! {
             }
             prop_assert!((MULT_MIN..=1.0).contains(&g.mult()), "mult {}", g.mult());
         }
-        // Given time, everything that was queued goes: nothing of priority or transfer was dropped.
-        for _ in 0..2000 {
-            if g.is_idle() {
-                break;
-            }
-            t += 10_000;
+        // The contract: what waits goes at the line's pace, polled when the governor says the next item
+        // is ready (as the runtime's links sleep): every priority item by the priority bytes waiting over
+        // the rate, every transfer by all the priority and transfer bytes waiting over the rate (each
+        // item's readiness rounds up by at most 1 µs). Nothing waits longer than its bytes need.
+        let waiting_bytes = |ids: &VecDeque<usize>| ids.iter().map(|id| model.sizes[id] as u64).sum::<u64>();
+        let priority_bytes = waiting_bytes(&model.waiting_priority);
+        let all_bytes = priority_bytes + waiting_bytes(&model.waiting_transfer);
+        let items = (model.waiting_priority.len() + model.waiting_transfer.len()) as u64;
+        let deadline_us = |bytes: u64| if rate == 0 { t } else { t + (bytes * 1_000_000).div_ceil(rate) + items };
+        let (priority_deadline_us, transfer_deadline_us) = (deadline_us(priority_bytes), deadline_us(all_bytes));
+        let (priority_waited, transfer_waited) = (!model.waiting_priority.is_empty(), !model.waiting_transfer.is_empty());
+        while let Some(wait_us) = g.next_ready_in_us(t) {
+            t += wait_us;
             model.pop_all(&mut g, t)?;
+        }
+        if priority_waited {
+            prop_assert!(model.last_priority_us <= priority_deadline_us,
+                "the last priority item went at {} µs, after {} µs", model.last_priority_us, priority_deadline_us);
+        }
+        if transfer_waited {
+            prop_assert!(model.last_transfer_us <= transfer_deadline_us,
+                "the last transfer went at {} µs, after {} µs", model.last_transfer_us, transfer_deadline_us);
         }
         prop_assert!(model.waiting_priority.is_empty() && model.waiting_transfer.is_empty());
         prop_assert_eq!(g.counters().priority.dropped + g.counters().transfer.dropped, 0);
