@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Turns `sitl scenario --json` output (JSON lines on stdin) into the README's result tables (Markdown on stdout),
+"""Turns `sitl scenario --json` output (JSON lines on stdin) into docs/results.md's tables (Markdown on stdout),
 including the paper's claims judged against our own numbers; with `sitl tune` output directories as arguments,
 also the held-out comparison of default and tuned gains, and with `--tuned-metrics FILE` (the paper's scenarios
 flown with the tuned gains) the claims against the tuned baselines. Standard library only."""

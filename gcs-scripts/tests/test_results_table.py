@@ -48,7 +48,7 @@ def test_settles_faster_needs_every_pair_and_aco_settling():
 
 
 def test_half_overshoot_and_faster_is_not_met_on_the_papers_roll_pitch_numbers_and_within_band_when_all_zero():
-    # The README's numbers: both at 0-0.6 % overshoot, settling within 0.25 s of each other.
+    # docs/experiments.md's numbers: both at 0-0.6 % overshoot, settling within 0.25 s of each other.
     pairs = [
         ((0.0, 1.22), (0.0, 1.10)),
         ((0.1, 0.86), (0.0, 1.11)),

@@ -1,4 +1,4 @@
-"""MAVLink 2 signing through `sitl run`, set up and used as the README says. With pymavlink: SETUP_SIGNING
+"""MAVLink 2 signing through `sitl run`, set up and used as docs/running.md says. With pymavlink: SETUP_SIGNING
 over TCP (a link the user made), then over UDP, where anyone on the network can send, an unsigned command
 is dropped, a signed one is answered, a replayed one is dropped; the key outlives a restart; a signed
 SETUP_SIGNING with the zero key turns signing off. With MAVProxy: `signing setup PASSPHRASE` over TCP, a
@@ -221,7 +221,7 @@ def test_mavproxy_signing_setup_then_only_signed_fresh_arm_commands_arm_and_the_
     sitl = start_sitl(tmp_path, speed="1")
     proxy = MavProxy(f"tcp:127.0.0.1:{5760 + sitl.instance}", tmp_path)
     try:
-        # GIVEN MAVProxy on the vehicle's TCP port sets the key from a passphrase, as the README says.
+        # GIVEN MAVProxy on the vehicle's TCP port sets the key from a passphrase, as docs/running.md says.
         assert proxy.wait_for("online system", 60) is not None, proxy.output()[-2000:]
         proxy.send(f"signing setup {PASSPHRASE}")
         assert proxy.wait_for("Signing enabled", 10) is not None, proxy.output()[-2000:]

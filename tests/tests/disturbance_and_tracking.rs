@@ -77,7 +77,7 @@ fn aco_flies_the_figure_8() {
     );
 }
 
-/// The README's "at 0.9 m/s ACO needs the reference's jerk" (`figure8-fast`, mismatch plant, noise on):
+/// docs/experiments.md's "at 0.9 m/s ACO needs the reference's jerk" (`figure8-fast`, mismatch plant, noise on):
 /// measured ACO 0.279 m cross-track RMS with velocity and acceleration feed-forward, 0.062 m with the jerk
 /// added (`cargo test -p tests --test disturbance_and_tracking fast -- --nocapture` prints all three
 /// controllers). Held at 0.07 m with the jerk, and at most a quarter of the RMS without it.

@@ -139,10 +139,10 @@ const CELLS_OFF_BY_A_PRINTED_DIGIT: [(&str, &str, &str); 8] = [
     ("paper-translation mismatch Pid e settling s", "7.65", "7.64"),
 ];
 
-/// The README's claim, cell by cell: of the 126 overshoot, settling and RMS cells of the prototype's
+/// docs/experiments.md's claim, cell by cell: of the 126 overshoot, settling and RMS cells of the prototype's
 /// attitude and translation tables (ACO, CA and PID, both plants), every one prints as the prototype's
 /// but exactly the eight listed, whose last printed digit differs by one. A cell that starts or stops
-/// matching fails this test, so the list in the README stays exact.
+/// matching fails this test, so the list in docs/experiments.md stays exact.
 #[test]
 fn the_reference_tables_match_to_the_printed_digit_in_all_but_8_of_126_cells() {
     let cells = printed_cells();

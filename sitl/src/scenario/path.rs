@@ -241,7 +241,7 @@ mod tests {
 
     #[test]
     fn given_the_figure8_waypoints_as_a_spline_then_a_lap_is_7_23_m_and_24_1_s_at_0_3_mps() {
-        // The README's figure-8 ("7.23 m a lap, 24.1 s at 0.3 m/s"), to its printed digits.
+        // docs/choices.md's figure-8 ("7.23 m a lap, 24.1 s at 0.3 m/s"), to its printed digits.
         let lap_m = TrackPath::new(PathKind::Spline, &autopilot::core::navigator::spline::FIGURE8_NE_M).length_m();
         assert_eq!((format!("{lap_m:.2}"), format!("{:.1}", lap_m / 0.3)), ("7.23".to_owned(), "24.1".to_owned()));
     }

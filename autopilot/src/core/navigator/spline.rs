@@ -9,7 +9,7 @@
 
 use nalgebra::{DMatrix, DVector, Vector2};
 
-/// The figure-8 of the paper's tracking experiment as this project reads it (README, "Choices"): nine
+/// The figure-8 of the paper's tracking experiment as this project reads it (docs/choices.md): nine
 /// waypoints (N, E in m) on a 0.6 m grid, closed, so the path through them is a periodic spline. The
 /// built-in `figure8` scenario and the ground-station scripts fly these points.
 pub const FIGURE8_NE_M: [[f64; 2]; 9] =
