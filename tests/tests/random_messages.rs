@@ -209,7 +209,8 @@ fn is_arm_command(msg: &MavMessage) -> bool {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
+    // 24 cases of the default 256: PROPTEST_CASES scales them with every other property test.
+    #![proptest_config(ProptestConfig::with_cases(ProptestConfig::default().cases * 24 / 256))]
 
     #[test]
     fn given_random_message_sequences_then_no_panic_no_arming_without_a_command_and_the_fence_holds(

@@ -345,7 +345,8 @@ fn any_pwm() -> impl Strategy<Value = f64> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(64))]
+    // 64 cases of the default 256: PROPTEST_CASES scales them with every other property test.
+    #![proptest_config(ProptestConfig::with_cases(ProptestConfig::default().cases * 64 / 256))]
 
     #[test]
     fn given_no_thrust_and_no_drag_when_released_then_it_falls_freely_at_g(

@@ -319,7 +319,8 @@ mod tests {
     }
 
     proptest! {
-        #![proptest_config(ProptestConfig::with_cases(96))]
+        // 96 cases of the default 256: PROPTEST_CASES scales them with every other property test.
+        #![proptest_config(ProptestConfig::with_cases(ProptestConfig::default().cases * 96 / 256))]
 
         /// Any event list: resolving never panics; a list is accepted exactly when every event is inside
         /// the run and every set is a SIM_ parameter its check accepts; an accepted list then flies.

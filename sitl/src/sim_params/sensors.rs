@@ -360,7 +360,8 @@ mod tests {
     }
 
     proptest! {
-        #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+        // 64 cases of the default 256: PROPTEST_CASES scales them with every other property test.
+        #![proptest_config(ProptestConfig::with_cases(ProptestConfig::default().cases * 64 / 256))]
 
         /// Random sequences of sets never panic; a set the table or the plant refuses changes nothing
         /// (neither a value on the port nor the plant); an accepted one is shown on the port.

@@ -371,7 +371,8 @@ fn apply<T: Copy>(feed: Feed, k: u64, sample: &mut Option<T>, held: &mut Option<
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 12, ..ProptestConfig::default() })]
+    // 12 cases of the default 256: PROPTEST_CASES scales them with every other property test.
+    #![proptest_config(ProptestConfig::with_cases(ProptestConfig::default().cases * 12 / 256))]
 
     /// Random dropouts and repeats on the barometer and magnetometer (and GPS dropouts) never panic, keep
     /// the state finite, and never flag a source fed healthy, varying data (the IMU always; the others when

@@ -490,7 +490,8 @@ fn any_intent() -> impl proptest::strategy::Strategy<Value = Intent> {
 }
 
 proptest::proptest! {
-    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(96))]
+    // 96 cases of the default 256: PROPTEST_CASES scales them with every other property test.
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(proptest::prelude::ProptestConfig::default().cases * 96 / 256))]
 
     /// Whatever the commander asks, in whatever order and for however long, the navigator's reference is
     /// finite; jerk-limited while an intent holds; and across every change of intent continuous in
