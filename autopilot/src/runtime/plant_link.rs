@@ -29,7 +29,7 @@
 //!
 //! The link counts the bytes it reads and writes (UDP or serial alike) and hands them, with its decoder's
 //! malformed frames, to every step (`VehicleInputs::plant_link`): the vehicle judges the link's health
-//! from them and from the sample times (`core::plant_health`: samples missing and late, the drop rate in
+//! from them and from the sample times (`core::plant_link::health`: samples missing and late, the drop rate in
 //! SYS_STATUS, the texts, the ULog's `plant_link_status`). The run's totals end in [`PlantLinkStats`].
 
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -42,11 +42,11 @@ use mavlink::dialects::common::{
 use tokio::sync::mpsc;
 use tokio::sync::mpsc::error::TryRecvError;
 
-use crate::core::hil::{ActuatorCommand, encode_actuator_controls};
 use crate::core::mavlink::frame::{DecoderStats, FrameDecoder, encode_frame_v2};
 use crate::core::mavlink::statustext;
 use crate::core::params::ParamStore;
-use crate::core::plant_health::PlantLinkCounters;
+use crate::core::plant_link::health::PlantLinkCounters;
+use crate::core::plant_link::{ActuatorCommand, encode_actuator_controls};
 use crate::core::vehicle::{PWM_MIN_US, Vehicle, VehicleConfig, VehicleError};
 use crate::runtime::link::{Destination, Incoming};
 use crate::runtime::transport::Transport;
@@ -115,7 +115,7 @@ pub struct PlantLinkStats {
     pub plant_rx_bytes: u64,
     pub plant_tx_bytes: u64,
     /// Plant samples missing (gaps in the sample times) and late (a time not after the last one), as
-    /// the vehicles counted them (`core::plant_health`), over the whole run.
+    /// the vehicles counted them (`core::plant_link::health`), over the whole run.
     pub plant_missing_samples: u64,
     pub plant_late_samples: u64,
     /// Broadcast STATUSTEXTs not sent: over [`STATUSTEXT_PER_S`] (see [`TextLimiter`]).
@@ -312,7 +312,7 @@ mod tests {
     use nalgebra::Vector3;
 
     use super::*;
-    use crate::core::hil::{HilSensorFields, decode_actuator_controls, encode_hil_sensor};
+    use crate::core::plant_link::{HilSensorFields, decode_actuator_controls, encode_hil_sensor};
     use crate::runtime::link::Outgoing;
     use crate::runtime::transport::UdpPeerTransport;
 

@@ -17,7 +17,7 @@
 //! current -1, remaining -1, temperature INT16_MAX, consumption -1).
 //!
 //! The plant link (the ARM board's serial line, or UDP to the SITL plant) in SYS_STATUS: `drop_rate_comm`
-//! is its samples missing over the last second (`core::plant_health`), in MAVLink's centi-percent; the
+//! is its samples missing over the last second (`core::plant_link::health`), in MAVLink's centi-percent; the
 //! ground-station links have no such count (a lost ground-station datagram is not seen). `errors_comm`
 //! counts malformed frames on every link, the plant's and the ground stations' ([`LinkErrors`]).
 
@@ -36,9 +36,9 @@ use crate::core::battery::{BatteryStatus, BatteryWarning};
 use crate::core::commander::{CommanderOutput, Event, LandedState};
 use crate::core::control::Controller;
 use crate::core::estimator::{EstimatorEvent, EstimatorFlags, EstimatorState, EventSeverity, GpsSample};
-use crate::core::hil::{encode_battery_status, encode_rc_channels};
 use crate::core::navigator::NavEvent;
-use crate::core::plant_health::{DROP_RATE_FULL_CPCT, PlantLinkEvent};
+use crate::core::plant_link::health::{DROP_RATE_FULL_CPCT, PlantLinkEvent};
+use crate::core::plant_link::{encode_battery_status, encode_rc_channels};
 
 /// Home: where the vehicle armed (m, NED about the estimator's origin) and, with an origin, geodetic.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -239,7 +239,7 @@ pub fn estimator_event_message(event: &EstimatorEvent) -> MavMessage {
     statustext(severity, &event.text())
 }
 
-/// What the ground station hears of the plant link's health (`core::plant_health`): a STATUSTEXT,
+/// What the ground station hears of the plant link's health (`core::plant_link::health`): a STATUSTEXT,
 /// WARNING while samples go missing ("Plant link: 100 of 500 samples missing"), INFO when they are
 /// complete again.
 #[must_use]

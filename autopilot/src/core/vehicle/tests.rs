@@ -597,7 +597,7 @@ fn given_sys_failure_en_1_when_a_gps_failure_is_injected_then_it_goes_to_the_pla
         matches!(out.plant_messages.as_slice(), [MavMessage::COMMAND_LONG(c)] if c.command == MavCmd::MAV_CMD_INJECT_FAILURE && c.param1 == 4.0 && c.param2 == 1.0)
     );
     t += DT_US;
-    let ack = crate::core::hil::PlantCommandAck { command_id: 420, result: MavResult::MAV_RESULT_ACCEPTED };
+    let ack = crate::core::plant_link::PlantCommandAck { command_id: 420, result: MavResult::MAV_RESULT_ACCEPTED };
     let out = v.step(t, &VehicleInputs { plant_ack: Some(ack), ..at_rest(t) });
     assert_eq!(ack_of(&out.messages), Some((MavCmd::MAV_CMD_INJECT_FAILURE, MavResult::MAV_RESULT_ACCEPTED)));
     assert!(out.plant_messages.is_empty());

@@ -567,7 +567,7 @@ pub(crate) mod tests {
 
     #[test]
     fn a_flight_logs_plant_link_status_once_a_second_with_the_links_bytes_bad_frames_and_samples_missing_and_late() {
-        use crate::core::plant_health::PlantLinkCounters;
+        use crate::core::plant_link::health::PlantLinkCounters;
         let root = scratch("plantlink");
         let (tx, mut rx) = mpsc::channel(ULOG_CHANNEL_CAPACITY);
         let mut log = FlightLogger::new(Some(tx), root.clone(), 1);
