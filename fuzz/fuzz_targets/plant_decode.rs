@@ -30,9 +30,9 @@ fuzz_target!(|data: &[u8]| {
                 && let MavMessage::HIL_STATE_QUATERNION(m) = &frame.message
             {
                 home = Some(GeoOrigin {
-                    lat_deg: autopilot::core::plant_link::dege7_to_deg(m.lat),
-                    lon_deg: autopilot::core::plant_link::dege7_to_deg(m.lon),
-                    alt_amsl_m: autopilot::core::plant_link::mm_to_m(m.alt),
+                    lat_deg: autopilot::core::mavlink::units::dege7_to_deg(m.lat),
+                    lon_deg: autopilot::core::mavlink::units::dege7_to_deg(m.lon),
+                    alt_amsl_m: autopilot::core::mavlink::units::mm_to_m(m.alt),
                 });
             }
             let origin = home.unwrap_or(GeoOrigin { lat_deg: 0.0, lon_deg: 0.0, alt_amsl_m: 0.0 });

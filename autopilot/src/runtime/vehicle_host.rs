@@ -6,10 +6,11 @@
 use mavlink::dialects::common::{MavMessage, MavSeverity};
 
 use crate::core::estimator::{EstimatorSource, GeoOrigin};
+use crate::core::mavlink::units::{dege7_to_deg, mm_to_m};
 use crate::core::mavlink::{LinkErrors, statustext};
 use crate::core::params::ParamStore;
 use crate::core::plant_link::health::PlantLinkCounters;
-use crate::core::plant_link::{ActuatorCommand, HilInput, SensorSamples, decode_hil_message, dege7_to_deg, mm_to_m};
+use crate::core::plant_link::{ActuatorCommand, HilInput, SensorSamples, decode_hil_message};
 use crate::core::vehicle::{PWM_MIN_US, ShellEffect, Vehicle, VehicleConfig, VehicleError, VehicleInputs};
 use crate::runtime::gcs_fanout::GcsFanout;
 use crate::runtime::link::{Destination, Incoming, LinkId};

@@ -17,11 +17,11 @@ use ::mavlink::dialects::common::{AttitudeTargetTypemask, MavFrame, MavMessage, 
 use nalgebra::{Quaternion, Rotation3, UnitQuaternion, Vector3};
 
 use super::addressed_to_us;
+use super::units::dege7_to_deg;
 use crate::core::estimator::GeoOrigin;
 use crate::core::mission::NavTarget;
 use crate::core::navigator::OffboardSetpoint;
 use crate::core::plan::{self, Frame, Unresolved};
-use crate::core::plant_link::dege7_to_deg;
 
 /// What the decoder needs to know of the vehicle.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

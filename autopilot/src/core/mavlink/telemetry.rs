@@ -31,6 +31,7 @@ use ::mavlink::dialects::common::{
 };
 use nalgebra::Vector3;
 
+use super::units::{deg_to_dege7, m_to_mm, mps_to_cmps_i16, rad_to_cdeg_0_360, to_centi_u16};
 use super::{identity, next_due_us};
 use crate::core::battery::{BatteryStatus, BatteryWarning};
 use crate::core::commander::{CommanderOutput, Event, LandedState};
@@ -331,26 +332,6 @@ fn time_boot_ms(now_us: u64) -> u32 {
     (now_us / 1000) as u32
 }
 
-fn deg_e7(angle_deg: f64) -> i32 {
-    (angle_deg * 1e7).round() as i32
-}
-
-fn mm(length_m: f64) -> i32 {
-    (length_m * 1e3).round() as i32
-}
-
-fn cm_i16(speed_mps: f64) -> i16 {
-    (speed_mps * 100.0).round() as i16
-}
-
-/// Heading of a vector or yaw in centidegrees 0..35999.
-fn cdeg_0_360(angle_rad: f64) -> u16 {
-    if !angle_rad.is_finite() {
-        return u16::MAX;
-    }
-    ((angle_rad.to_degrees().rem_euclid(360.0) * 100.0).round() as u16) % 36_000
-}
-
 fn sensors(bits: &[(bool, MavSysStatusSensor)]) -> MavSysStatusSensor {
     bits.iter().filter(|(on, _)| *on).fold(MavSysStatusSensor::empty(), |acc, (_, b)| acc | *b)
 }
@@ -524,14 +505,14 @@ fn global_position_int(snap: &TelemetrySnapshot<'_>) -> Option<MavMessage> {
     let v = est.vel_ned_mps;
     Some(MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
         time_boot_ms: time_boot_ms(snap.now_us),
-        lat: deg_e7(lat_deg),
-        lon: deg_e7(lon_deg),
-        alt: mm(alt_amsl_m),
-        relative_alt: mm(home_d_m - est.pos_ned_m.z),
-        vx: cm_i16(v.x),
-        vy: cm_i16(v.y),
-        vz: cm_i16(v.z),
-        hdg: cdeg_0_360(est.euler_rad.z),
+        lat: deg_to_dege7(lat_deg),
+        lon: deg_to_dege7(lon_deg),
+        alt: m_to_mm(alt_amsl_m),
+        relative_alt: m_to_mm(home_d_m - est.pos_ned_m.z),
+        vx: mps_to_cmps_i16(v.x),
+        vy: mps_to_cmps_i16(v.y),
+        vz: mps_to_cmps_i16(v.z),
+        hdg: rad_to_cdeg_0_360(est.euler_rad.z),
     }))
 }
 
@@ -545,18 +526,17 @@ fn gps_raw_int(gps: &GpsSample) -> MavMessage {
         5 => GpsFixType::GPS_FIX_TYPE_RTK_FLOAT,
         _ => GpsFixType::GPS_FIX_TYPE_RTK_FIXED,
     };
-    let centi = |x: f64| if x.is_finite() && x >= 0.0 { (x * 100.0).round().min(65_534.0) as u16 } else { u16::MAX };
     let v = gps.vel_ned_mps;
     let ground_mps = v.xy().norm();
     MavMessage::GPS_RAW_INT(GPS_RAW_INT_DATA {
         time_usec: gps.time_us,
-        lat: deg_e7(gps.lat_deg),
-        lon: deg_e7(gps.lon_deg),
-        alt: mm(gps.alt_amsl_m),
-        eph: centi(gps.eph_m),
-        epv: centi(gps.epv_m),
-        vel: centi(ground_mps),
-        cog: if ground_mps > 0.1 { cdeg_0_360(v.y.atan2(v.x)) } else { u16::MAX },
+        lat: deg_to_dege7(gps.lat_deg),
+        lon: deg_to_dege7(gps.lon_deg),
+        alt: m_to_mm(gps.alt_amsl_m),
+        eph: to_centi_u16(gps.eph_m),
+        epv: to_centi_u16(gps.epv_m),
+        vel: to_centi_u16(ground_mps),
+        cog: if ground_mps > 0.1 { rad_to_cdeg_0_360(v.y.atan2(v.x)) } else { u16::MAX },
         fix_type,
         satellites_visible: gps.satellites,
         ..Default::default()
@@ -574,9 +554,9 @@ fn home_position(home: &Home) -> Option<MavMessage> {
     let (lat_deg, lon_deg, alt_amsl_m) = home.geodetic?;
     let p = home.pos_ned_m;
     Some(MavMessage::HOME_POSITION(HOME_POSITION_DATA {
-        latitude: deg_e7(lat_deg),
-        longitude: deg_e7(lon_deg),
-        altitude: mm(alt_amsl_m),
+        latitude: deg_to_dege7(lat_deg),
+        longitude: deg_to_dege7(lon_deg),
+        altitude: m_to_mm(alt_amsl_m),
         x: p.x as f32,
         y: p.y as f32,
         z: p.z as f32,
@@ -593,7 +573,7 @@ fn vfr_hud(snap: &TelemetrySnapshot<'_>) -> MavMessage {
     let alt_m = est.origin.map_or(-est.pos_ned_m.z, |o| o.alt_amsl_m - est.pos_ned_m.z);
     let mean_pwm_us = snap.pwm_us.iter().sum::<f64>() / 4.0;
     let throttle_pct = ((mean_pwm_us - 1000.0) / 10.0).clamp(0.0, 100.0);
-    let heading_deg = i16::try_from(cdeg_0_360(est.euler_rad.z) / 100).unwrap_or(0);
+    let heading_deg = i16::try_from(rad_to_cdeg_0_360(est.euler_rad.z) / 100).unwrap_or(0);
     MavMessage::VFR_HUD(VFR_HUD_DATA {
         airspeed: ground_mps as f32,
         groundspeed: ground_mps as f32,

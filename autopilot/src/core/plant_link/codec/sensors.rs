@@ -4,11 +4,12 @@
 use mavlink::dialects::common::{HIL_GPS_DATA, HIL_SENSOR_DATA, HilSensorUpdatedFlags};
 use nalgebra::Vector3;
 
-use super::{
-    UNKNOWN_U16, centi_u16_to, cmps_i16_to_mps, deg_to_dege7, dege7_to_deg, m_to_mm, mm_to_m, mps_to_cmps_i16,
-    to_centi_u16, vec3_f32, vec3_f64,
-};
+use super::{vec3_f32, vec3_f64};
 use crate::core::estimator::{BaroSample, GpsSample, ImuSample, MagSample};
+use crate::core::mavlink::units::{
+    UNKNOWN_U16, centi_u16_to, cmps_i16_to_mps, deg_to_dege7, dege7_to_deg, m_to_mm, mm_to_m, mps_to_cmps_i16,
+    rad_to_cdeg_0_360, to_centi_u16,
+};
 
 // ---------------------------------------------------------------------------------------------------------
 // HIL_SENSOR
@@ -152,7 +153,6 @@ pub fn course_deg(vel_ned_mps: &Vector3<f64>) -> f64 {
 #[must_use]
 pub fn encode_hil_gps(gps: &GpsSample) -> HIL_GPS_DATA {
     let v = &gps.vel_ned_mps;
-    let cog_cdeg = ((course_deg(v) * 100.0).round() as u16) % 36_000;
     HIL_GPS_DATA {
         time_usec: gps.time_us,
         lat: deg_to_dege7(gps.lat_deg),
@@ -164,7 +164,7 @@ pub fn encode_hil_gps(gps: &GpsSample) -> HIL_GPS_DATA {
         vn: mps_to_cmps_i16(v.x),
         ve: mps_to_cmps_i16(v.y),
         vd: mps_to_cmps_i16(v.z),
-        cog: if v.iter().all(|x| x.is_finite()) { cog_cdeg } else { UNKNOWN_U16 },
+        cog: if v.iter().all(|x| x.is_finite()) { rad_to_cdeg_0_360(v.y.atan2(v.x)) } else { UNKNOWN_U16 },
         fix_type: gps.fix_type,
         satellites_visible: gps.satellites,
         ..Default::default()

@@ -3,6 +3,9 @@
 use super::*;
 use crate::core::estimator::{GeoOrigin, GpsSample, TruthSample};
 use crate::core::manual::RcFrame;
+use crate::core::mavlink::units::{
+    MPS2_PER_G, UNKNOWN_U16, centi_u16_to, deg_to_dege7, mps_to_cmps_i16, mps2_to_mg, to_centi_u16,
+};
 use mavlink::MavHeader;
 use mavlink::dialects::common::{MavBatteryChargeState, MavFrame, MavMessage, MavModeFlag};
 use nalgebra::{UnitQuaternion, Vector3};

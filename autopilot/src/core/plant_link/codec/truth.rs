@@ -4,11 +4,12 @@
 use mavlink::dialects::common::{HIL_STATE_QUATERNION_DATA, MavFrame, ODOMETRY_DATA};
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
-use super::{
-    cmps_i16_to_mps, deg_to_dege7, dege7_to_deg, m_to_mm, mg_to_mps2, mm_to_m, mps_to_cmps_i16, mps2_to_mg,
-    to_centi_u16, vec3_f64,
-};
+use super::vec3_f64;
 use crate::core::estimator::{GeoOrigin, TruthSample};
+use crate::core::mavlink::units::{
+    cmps_i16_to_mps, deg_to_dege7, dege7_to_deg, m_to_mm, mg_to_mps2, mm_to_m, mps_to_cmps_i16, mps2_to_mg,
+    to_centi_u16,
+};
 
 // ---------------------------------------------------------------------------------------------------------
 // HIL_STATE_QUATERNION
