@@ -5,7 +5,6 @@ pub mod commander;
 pub mod config;
 pub mod control;
 pub mod estimator;
-pub mod geofence;
 pub mod intent;
 pub mod manual;
 pub mod mavlink;
