@@ -84,7 +84,7 @@ impl Rig {
             plant_ack: None,
             link_line: VecDeque::new(),
             link_lost_us: Vec::new(),
-            last_pwm_us: [autopilot::core::vehicle::PWM_MIN_US; 4],
+            last_pwm_us: [autopilot::core::vehicle::MOTOR_PWM_MIN_US; 4],
         }
     }
 

@@ -47,7 +47,7 @@ use crate::core::mavlink::statustext;
 use crate::core::params::ParamStore;
 use crate::core::plant_link::health::PlantLinkCounters;
 use crate::core::plant_link::{ActuatorCommand, encode_actuator_controls};
-use crate::core::vehicle::{PWM_MIN_US, Vehicle, VehicleConfig, VehicleError};
+use crate::core::vehicle::{MOTOR_PWM_MIN_US, Vehicle, VehicleConfig, VehicleError};
 use crate::runtime::link::{Destination, Incoming};
 use crate::runtime::transport::Transport;
 
@@ -221,8 +221,12 @@ pub fn run(
                 );
                 let text = statustext(MavSeverity::MAV_SEVERITY_CRITICAL, PLANT_LOST_TEXT);
                 host.send_gcs(None, Destination::All, text);
-                let stopped =
-                    ActuatorCommand { time_us: host.now_us, pwm_us: [PWM_MIN_US; 4], armed: false, motor_test: false };
+                let stopped = ActuatorCommand {
+                    time_us: host.now_us,
+                    pwm_us: [MOTOR_PWM_MIN_US; 4],
+                    armed: false,
+                    motor_test: false,
+                };
                 let frame = plant.frame(&MavMessage::HIL_ACTUATOR_CONTROLS(encode_actuator_controls(&stopped)));
                 transport.send(&frame).map_err(io)?;
             } else {
@@ -568,7 +572,7 @@ mod tests {
         };
         let after = started.elapsed();
         assert!(after >= PLANT_SILENCE, "reported after {after:?}");
-        assert!(!stop_cmd.armed && stop_cmd.pwm_us == [PWM_MIN_US; 4], "{stop_cmd:?}");
+        assert!(!stop_cmd.armed && stop_cmd.pwm_us == [MOTOR_PWM_MIN_US; 4], "{stop_cmd:?}");
         // THEN the ground stations are told once, and keep getting the vehicle's HEARTBEAT, CRITICAL, with
         // a SYS_STATUS whose sensors are unhealthy, every second of wall time.
         let lost = collect_until(&mut h, Duration::from_secs(10), |m| fallback_heartbeats(m) >= 3)
@@ -655,7 +659,7 @@ mod tests {
             assert!((c.pwm_us[2] - 1200.0).abs() < 0.1 && [0, 1, 3].iter().all(|&i| c.pwm_us[i] == 1000.0), "{c:?}");
         }
         let last = commands.last().expect("stepped");
-        assert!(!last.motors_running() && last.effective_pwm_us() == [PWM_MIN_US; 4], "{last:?}");
+        assert!(!last.motors_running() && last.effective_pwm_us() == [MOTOR_PWM_MIN_US; 4], "{last:?}");
     }
 
     #[test]

@@ -52,7 +52,7 @@ pub use io::{LogSnapshot, ShellEffect, VehicleInputs, VehicleOutputs};
 use motor_test::MotorTest;
 
 /// The motor command range (µs): one definition, the distributor's.
-pub use crate::core::control::distributor::{PWM_MAX_US, PWM_MIN_US};
+pub use crate::core::control::distributor::{MOTOR_PWM_MAX_US, MOTOR_PWM_MIN_US};
 
 /// The interval (µs) of the adaptive-weight stream at `hz` (0 or less: off).
 fn weights_interval_us(hz: f32) -> u64 {

@@ -3,9 +3,9 @@
 
 use mavlink::dialects::common::{HIL_ACTUATOR_CONTROLS_DATA, HilActuatorControlsFlags, MavModeFlag};
 
-/// The motor command range (µs), the distributor's: `controls[i] = (pwm_us - PWM_MIN_US) / (PWM_MAX_US -
-/// PWM_MIN_US)`.
-pub use crate::core::control::distributor::{PWM_MAX_US, PWM_MIN_US};
+/// The motor command range (µs), the distributor's: `controls[i] = (pwm_us - MOTOR_PWM_MIN_US) / (MOTOR_PWM_MAX_US -
+/// MOTOR_PWM_MIN_US)`.
+pub use crate::core::control::distributor::{MOTOR_PWM_MAX_US, MOTOR_PWM_MIN_US};
 
 /// `MAV_MODE_FLAG_SAFETY_ARMED` in `HIL_ACTUATOR_CONTROLS.mode`.
 pub const MODE_FLAG_SAFETY_ARMED: u8 = 128;
@@ -13,8 +13,8 @@ pub const MODE_FLAG_SAFETY_ARMED: u8 = 128;
 /// Motor command PWM (µs) -> HIL control in [0, 1]: non-finite -> 1000 µs, clamped to 1000-2000 µs.
 #[must_use]
 pub fn pwm_us_to_control(pwm_us: f64) -> f32 {
-    let pwm_us = if pwm_us.is_finite() { pwm_us.clamp(PWM_MIN_US, PWM_MAX_US) } else { PWM_MIN_US };
-    ((pwm_us - PWM_MIN_US) / (PWM_MAX_US - PWM_MIN_US)) as f32
+    let pwm_us = if pwm_us.is_finite() { pwm_us.clamp(MOTOR_PWM_MIN_US, MOTOR_PWM_MAX_US) } else { MOTOR_PWM_MIN_US };
+    ((pwm_us - MOTOR_PWM_MIN_US) / (MOTOR_PWM_MAX_US - MOTOR_PWM_MIN_US)) as f32
 }
 
 /// HIL control -> PWM (µs): non-finite -> 1000 µs, clamped to [0, 1] (negative reverse-thrust values of
@@ -22,7 +22,7 @@ pub fn pwm_us_to_control(pwm_us: f64) -> f32 {
 #[must_use]
 pub fn control_to_pwm_us(control: f32) -> f64 {
     let control = if control.is_finite() { f64::from(control).clamp(0.0, 1.0) } else { 0.0 };
-    PWM_MIN_US + control * (PWM_MAX_US - PWM_MIN_US)
+    MOTOR_PWM_MIN_US + control * (MOTOR_PWM_MAX_US - MOTOR_PWM_MIN_US)
 }
 // ---------------------------------------------------------------------------------------------------------
 // HIL_ACTUATOR_CONTROLS
@@ -51,7 +51,7 @@ impl ActuatorCommand {
     /// What the motors get: `pwm_us` while they run, 1000 µs each otherwise.
     #[must_use]
     pub fn effective_pwm_us(&self) -> [f64; 4] {
-        if self.motors_running() { self.pwm_us } else { [PWM_MIN_US; 4] }
+        if self.motors_running() { self.pwm_us } else { [MOTOR_PWM_MIN_US; 4] }
     }
 }
 

@@ -45,8 +45,8 @@ use crate::core::estimator::{GeoOrigin, GpsSample, TruthSample};
 use crate::core::manual::RcFrame;
 pub use crate::core::mavlink::frame::{DecodedFrame, DecoderStats, FrameDecoder, encode_frame_v1, encode_frame_v2};
 pub use actuators::{
-    ActuatorCommand, MODE_FLAG_SAFETY_ARMED, PWM_MAX_US, PWM_MIN_US, control_to_pwm_us, decode_actuator_controls,
-    encode_actuator_controls, pwm_us_to_control,
+    ActuatorCommand, MODE_FLAG_SAFETY_ARMED, MOTOR_PWM_MAX_US, MOTOR_PWM_MIN_US, control_to_pwm_us,
+    decode_actuator_controls, encode_actuator_controls, pwm_us_to_control,
 };
 pub use battery_rc::{decode_battery_status, decode_rc_channels, encode_battery_status, encode_rc_channels};
 pub use sensors::{
