@@ -4,6 +4,7 @@
 use nalgebra::Vector3;
 
 use super::*;
+use crate::core::battery::BatteryWarning;
 use crate::core::intent::{AutoMode, HoldAt, Intent, ManualMode, Progress};
 
 const STEP_US: u64 = 10_000;

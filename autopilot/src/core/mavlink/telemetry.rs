@@ -20,26 +20,31 @@
 //! is its samples missing over the last second (`core::plant_link::health`), in MAVLink's centi-percent; the
 //! ground-station links have no such count (a lost ground-station datagram is not seen). `errors_comm`
 //! counts malformed frames on every link, the plant's and the ground stations' ([`LinkErrors`]).
+//!
+//! STATUSTEXT and the texts of events are `text`'s (re-exported here).
 
-use crate::core::manual::ManualStatus;
 use ::mavlink::dialects::common::{
     ATTITUDE_DATA, ATTITUDE_QUATERNION_DATA, BATTERY_STATUS_DATA, DEBUG_VECT_DATA, EXTENDED_SYS_STATE_DATA,
     GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA,
-    MISSION_CURRENT_DATA, MISSION_ITEM_REACHED_DATA, MavBatteryChargeState, MavBatteryFunction, MavBatteryType,
-    MavMessage, MavSeverity, MavSysStatusSensor, MavVtolState, RC_CHANNELS_DATA, STATUSTEXT_DATA, SYS_STATUS_DATA,
-    VFR_HUD_DATA,
+    MISSION_CURRENT_DATA, MavBatteryChargeState, MavBatteryFunction, MavBatteryType, MavMessage, MavSysStatusSensor,
+    MavVtolState, RC_CHANNELS_DATA, SYS_STATUS_DATA, VFR_HUD_DATA,
 };
 use nalgebra::Vector3;
 
 use super::units::{deg_to_dege7, m_to_mm, mps_to_cmps_i16, rad_to_cdeg_0_360, to_centi_u16};
 use super::{identity, next_due_us};
 use crate::core::battery::{BatteryStatus, BatteryWarning};
-use crate::core::commander::{CommanderOutput, Event, LandedState};
+use crate::core::commander::{CommanderOutput, LandedState};
 use crate::core::control::Controller;
-use crate::core::estimator::{EstimatorEvent, EstimatorFlags, EstimatorState, EventSeverity, GpsSample};
-use crate::core::navigator::NavEvent;
-use crate::core::plant_link::health::{DROP_RATE_FULL_CPCT, PlantLinkEvent};
+use crate::core::estimator::{EstimatorFlags, EstimatorState, GpsSample};
+use crate::core::manual::ManualStatus;
+use crate::core::plant_link::health::DROP_RATE_FULL_CPCT;
 use crate::core::plant_link::{encode_battery_status, encode_rc_channels};
+
+mod text;
+pub use text::{
+    estimator_event_message, event_severity, nav_event_message, plant_link_event_message, statustext, statustext_chunks,
+};
 
 /// Home: where the vehicle armed (m, NED about the estimator's origin) and, with an origin, geodetic.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -216,41 +221,6 @@ pub const WEIGHT_VECTORS: [(&str, [&str; 3]); 15] = [
     ("pid.vel_i", ["pid.vel_int_n_mps2", "pid.vel_int_e_mps2", "pid.vel_int_d_mps2"]),
     ("pid.rate_i", ["pid.rate_int_x_nm", "pid.rate_int_y_nm", "pid.rate_int_z_nm"]),
 ];
-
-/// What the ground station hears of a navigator event: MISSION_CURRENT, MISSION_ITEM_REACHED, or an INFO
-/// STATUSTEXT.
-#[must_use]
-pub fn nav_event_message(event: &NavEvent) -> MavMessage {
-    match event {
-        NavEvent::Current(seq) => mission_current(*seq),
-        NavEvent::Reached(seq) => MavMessage::MISSION_ITEM_REACHED(MISSION_ITEM_REACHED_DATA { seq: *seq }),
-        NavEvent::Text(text) => statustext(MavSeverity::MAV_SEVERITY_INFO, text),
-    }
-}
-
-/// What the ground station hears of an estimator event (a source lost, stuck, rejected or regained): a
-/// STATUSTEXT, WARNING for a lost aiding source, CRITICAL for the IMU, INFO when a source is back.
-#[must_use]
-pub fn estimator_event_message(event: &EstimatorEvent) -> MavMessage {
-    let severity = match event.severity() {
-        EventSeverity::Info => MavSeverity::MAV_SEVERITY_INFO,
-        EventSeverity::Warning => MavSeverity::MAV_SEVERITY_WARNING,
-        EventSeverity::Critical => MavSeverity::MAV_SEVERITY_CRITICAL,
-    };
-    statustext(severity, &event.text())
-}
-
-/// What the ground station hears of the plant link's health (`core::plant_link::health`): a STATUSTEXT,
-/// WARNING while samples go missing ("Plant link: 100 of 500 samples missing"), INFO when they are
-/// complete again.
-#[must_use]
-pub fn plant_link_event_message(event: &PlantLinkEvent) -> MavMessage {
-    let severity = match event {
-        PlantLinkEvent::Missing { .. } => MavSeverity::MAV_SEVERITY_WARNING,
-        PlantLinkEvent::Complete => MavSeverity::MAV_SEVERITY_INFO,
-    };
-    statustext(severity, &event.text())
-}
 
 /// MISSION_CURRENT for the item `seq` the mission flies towards: the one builder (the stream, a
 /// MISSION_SET_CURRENT's answer and the navigator's moves all send this).
@@ -610,54 +580,6 @@ fn battery_status(battery: &BatteryStatus) -> MavMessage {
         BatteryWarning::Emergency => C::MAV_BATTERY_CHARGE_STATE_EMERGENCY,
     };
     MavMessage::BATTERY_STATUS(encode_battery_status(&sample, charge_state))
-}
-
-/// A STATUSTEXT (text cut to MAVLink's 50 bytes at a character boundary).
-#[must_use]
-pub fn statustext(severity: MavSeverity, text: &str) -> MavMessage {
-    let mut end = text.len().min(50);
-    while !text.is_char_boundary(end) {
-        end -= 1;
-    }
-    MavMessage::STATUSTEXT(STATUSTEXT_DATA { severity, text: text[..end].into(), ..Default::default() })
-}
-
-/// `text` as STATUSTEXTs: one when it fits (50 bytes), else MAVLink 2 chunks that ground stations
-/// reassemble (QGroundControl, MAVProxy): every chunk carries the non-zero `id`, `chunk_seq` counts from
-/// 0, and the last chunk is shorter than 50 bytes (an empty one follows a text that fills its last chunk).
-#[must_use]
-pub fn statustext_chunks(severity: MavSeverity, text: &str, id: u16) -> Vec<MavMessage> {
-    if text.len() <= 50 {
-        return vec![statustext(severity, text)];
-    }
-    let id = id.max(1);
-    let mut chunks = Vec::new();
-    let mut rest = text;
-    loop {
-        let mut end = rest.len().min(50);
-        while !rest.is_char_boundary(end) {
-            end -= 1;
-        }
-        let chunk_seq = u8::try_from(chunks.len()).unwrap_or(u8::MAX);
-        chunks.push(MavMessage::STATUSTEXT(STATUSTEXT_DATA { severity, text: rest[..end].into(), id, chunk_seq }));
-        if end < 50 || chunk_seq == u8::MAX {
-            break;
-        }
-        rest = &rest[end..];
-    }
-    chunks
-}
-
-/// The severity of an event's STATUSTEXT: a kill or failsafe is critical, a low battery a warning, a
-/// disarm a notice, the rest info.
-#[must_use]
-pub fn event_severity(event: &Event) -> MavSeverity {
-    match event {
-        Event::Killed | Event::Failsafe { .. } => MavSeverity::MAV_SEVERITY_CRITICAL,
-        Event::BatteryLow { .. } => MavSeverity::MAV_SEVERITY_WARNING,
-        Event::Disarmed { .. } => MavSeverity::MAV_SEVERITY_NOTICE,
-        _ => MavSeverity::MAV_SEVERITY_INFO,
-    }
 }
 
 #[cfg(test)]
