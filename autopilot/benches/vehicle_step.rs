@@ -8,8 +8,8 @@ use std::hint::black_box;
 
 use autopilot::core::battery::BatterySample;
 use autopilot::core::estimator::{BaroSample, GpsSample, ImuSample, MagSample};
-use autopilot::core::hil::{ActuatorCommand, encode_actuator_controls, encode_frame_v2};
 use autopilot::core::mavlink::{MavHeader, common::MavMessage};
+use autopilot::core::plant_link::{ActuatorCommand, encode_actuator_controls, encode_frame_v2};
 use autopilot::core::vehicle::{Vehicle, VehicleConfig, VehicleInputs};
 use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::Vector3;

@@ -9,7 +9,7 @@ use std::process::ExitCode;
 use anyhow::{Context, Result, bail};
 use autopilot::core::control::ControllerKind;
 use autopilot::core::estimator::EstimatorSource;
-use autopilot::core::link_budget;
+use autopilot::core::plant_link::budget;
 use autopilot::runtime::{self, ConfigFile, Overrides, RuntimeConfig};
 use clap::{Parser, ValueEnum};
 
@@ -61,7 +61,7 @@ struct Cli {
     /// The plant's sample rate (Hz): LOOP_INNER_HZ, with LOOP_POS_HZ the largest divisor of it up to
     /// 100 Hz (250 -> 50), over the kept parameters. On a serial plant link the link budget at this rate
     /// is printed at start, and a rate that does not fit the line is refused, naming one that does.
-    #[arg(long, value_name = "HZ", value_parser = link_budget::parse_plant_rate)]
+    #[arg(long, value_name = "HZ", value_parser = budget::parse_plant_rate)]
     rate: Option<u32>,
     /// Stop when standard input closes (how `sitl run` keeps its autopilot from outliving it).
     #[arg(long, hide = true)]

@@ -14,8 +14,6 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use autopilot::core::hil::{FrameDecoder, encode_frame_v2};
-use autopilot::core::link_budget::bytes_per_s_of_baud;
 use autopilot::core::mavlink::common::{
     ATTITUDE_DATA, ATTITUDE_QUATERNION_DATA, BATTERY_STATUS_DATA, COMMAND_ACK_DATA, DEBUG_VECT_DATA,
     EXTENDED_SYS_STATE_DATA, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA,
@@ -24,6 +22,8 @@ use autopilot::core::mavlink::common::{
 };
 use autopilot::core::mavlink::telemetry::WEIGHT_VECTORS;
 use autopilot::core::mavlink::{MavHeader, Stream};
+use autopilot::core::plant_link::budget::bytes_per_s_of_baud;
+use autopilot::core::plant_link::{FrameDecoder, encode_frame_v2};
 use autopilot::runtime::link::{CHANNEL_CAPACITY, Destination, Outgoing};
 use autopilot::runtime::serial::{SerialConfig, SerialLink};
 use autopilot::runtime::shutdown;

@@ -1,10 +1,10 @@
-//! The ground-station and plant frame decoder (`core::hil::FrameDecoder`) on any bytes: as one datagram,
+//! The ground-station and plant frame decoder (`core::plant_link::FrameDecoder`) on any bytes: as one datagram,
 //! and as a stream cut at fuzzer-chosen points. Nothing panics; the partial frame kept between reads
 //! stays within one frame's size; the stream and the datagram agree on what a whole input holds; and
 //! every frame decoded re-encodes to bytes that decode to the same message.
 #![no_main]
 
-use autopilot::core::hil::{DecodedFrame, FrameDecoder, encode_frame_v1, encode_frame_v2};
+use autopilot::core::plant_link::{DecodedFrame, FrameDecoder, encode_frame_v1, encode_frame_v2};
 use libfuzzer_sys::fuzz_target;
 use mavlink::MavlinkVersion;
 

@@ -1,5 +1,5 @@
 //! The plant protocol as the autopilot reads it (`runtime::plant_link`): any datagrams from the plant's
-//! address, decoded by the frame decoder, turned into samples by `core::hil::decode_hil_message`, and
+//! address, decoded by the frame decoder, turned into samples by `core::plant_link::decode_hil_message`, and
 //! each HIL_SENSOR stepping a vehicle with what came before it in the datagram, as the plant link does.
 //! The input is split into datagrams at a fuzzer-chosen separator. Nothing panics, and every step keeps
 //! the vehicle's invariants (motor commands finite and in range, estimate finite); the plant's end of the
@@ -8,7 +8,7 @@
 
 use aco_fuzz::check_step;
 use autopilot::core::estimator::GeoOrigin;
-use autopilot::core::hil::{FrameDecoder, HilInput, SensorSamples, decode_hil_message};
+use autopilot::core::plant_link::{FrameDecoder, HilInput, SensorSamples, decode_hil_message};
 use autopilot::core::mavlink::common::MavMessage;
 use autopilot::core::vehicle::{Vehicle, VehicleConfig, VehicleInputs};
 use libfuzzer_sys::fuzz_target;
@@ -30,9 +30,9 @@ fuzz_target!(|data: &[u8]| {
                 && let MavMessage::HIL_STATE_QUATERNION(m) = &frame.message
             {
                 home = Some(GeoOrigin {
-                    lat_deg: autopilot::core::hil::dege7_to_deg(m.lat),
-                    lon_deg: autopilot::core::hil::dege7_to_deg(m.lon),
-                    alt_amsl_m: autopilot::core::hil::mm_to_m(m.alt),
+                    lat_deg: autopilot::core::mavlink::units::dege7_to_deg(m.lat),
+                    lon_deg: autopilot::core::mavlink::units::dege7_to_deg(m.lon),
+                    alt_amsl_m: autopilot::core::mavlink::units::mm_to_m(m.alt),
                 });
             }
             let origin = home.unwrap_or(GeoOrigin { lat_deg: 0.0, lon_deg: 0.0, alt_amsl_m: 0.0 });

@@ -8,11 +8,11 @@
 
 use std::path::{Path, PathBuf};
 
-use autopilot::core::hil::{
-    encode_battery_status, encode_frame_v2, encode_hil_gps, encode_hil_sensor, encode_hil_state_quaternion,
-};
 use autopilot::core::mavlink::MavHeader;
 use autopilot::core::mavlink::common::{MavBatteryChargeState, MavMessage};
+use autopilot::core::plant_link::{
+    encode_battery_status, encode_frame_v2, encode_hil_gps, encode_hil_sensor, encode_hil_state_quaternion,
+};
 use sitl::link::{battery_due, battery_fields, home_origin, sensor_fields, truth_fields};
 use sitl::plant::{InitialState, Plant, PlantConfig, SensorConfig};
 

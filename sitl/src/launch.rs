@@ -16,7 +16,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use autopilot::core::hil::ActuatorCommand;
+use autopilot::core::plant_link::ActuatorCommand;
 use autopilot::runtime::ports::{InstanceOutOfRange, InstancePorts};
 
 use crate::link::{LinkError, LinkStats, Pacing, PlantServer, UdpTransport};

@@ -1,4 +1,4 @@
-//! The plant's end of the plant protocol (MAVLink 2 HIL messages, see `autopilot::core::hil`), over UDP
+//! The plant's end of the plant protocol (MAVLink 2 HIL messages, see `autopilot::core::plant_link`), over UDP
 //! or serial. Out, once per plant step (`dt_us`, default 2 ms = 500 Hz) for plant time `t`: one datagram
 //! holding `HIL_GPS` (when the plant releases a fix, 10 Hz by default), `HIL_STATE_QUATERNION` (truth,
 //! optionally with the paper's state noise), optionally `ODOMETRY` (the same truth at float precision),
@@ -33,7 +33,7 @@
 //! never dropping a step ([`crate::pacer`]).
 //!
 //! Who binds (as PX4's simulator interface): the plant LISTENS on UDP 127.0.0.1:4560
-//! ([`autopilot::core::hil::DEFAULT_PLANT_PORT`]); the autopilot binds any port and announces itself by
+//! ([`autopilot::core::plant_link::DEFAULT_PLANT_PORT`]); the autopilot binds any port and announces itself by
 //! sending any MAVLink message (e.g. `HEARTBEAT`) to 4560. Until then the plant waits (`connect_timeout`,
 //! default forever). Afterwards the plant answers the sender of the last matching actuator message, so an
 //! autopilot restarted on another port is followed. Serial ([`SerialTransport`]) is point to point.
@@ -52,7 +52,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use autopilot::core::estimator::GeoOrigin;
-use autopilot::core::hil::{
+use autopilot::core::plant_link::{
     ActuatorCommand, DecoderStats, FrameDecoder, HilInput, decode_hil_message, encode_battery_status, encode_frame_v2,
     encode_hil_gps, encode_hil_sensor, encode_hil_state_quaternion, encode_odometry, encode_rc_channels,
 };
@@ -245,7 +245,7 @@ pub struct LinkConfig {
     /// Send the simulator's ground truth (`HIL_STATE_QUATERNION` with every sample); default on. A real
     /// board never sends it, so `sitl serve --serial` leaves it off unless asked (`--truth`).
     pub send_truth: bool,
-    /// Also send the truth as `ODOMETRY` at float precision (see `autopilot::core::hil::LocalTruth`), for
+    /// Also send the truth as `ODOMETRY` at float precision (see `autopilot::core::plant_link::LocalTruth`), for
     /// truth-fed runs; default off (HIL_STATE_QUATERNION's degE7 position is quantised to ±5.6 mm).
     pub truth_odometry: bool,
 }
@@ -814,8 +814,8 @@ impl<T: Transport> PlantServer<T> {
 mod tests {
     use super::*;
     use crate::plant::{InitialState, PlantConfig};
-    use autopilot::core::hil::{encode_actuator_controls, encode_frame_v2};
     use autopilot::core::manual::RcFrame;
+    use autopilot::core::plant_link::{encode_actuator_controls, encode_frame_v2};
     use mavlink::dialects::common::HEARTBEAT_DATA;
     use nalgebra::Vector3;
     use std::sync::Arc;

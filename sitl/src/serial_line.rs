@@ -33,7 +33,7 @@ use rustix::pty::OpenptFlags;
 use rustix::termios::OptionalActions;
 
 /// Bits on the wire per byte (8N1), as the link budget counts them.
-pub use autopilot::core::link_budget::BITS_PER_BYTE;
+pub use autopilot::core::plant_link::budget::BITS_PER_BYTE;
 /// The longest latency [`LineConfig::validate`] accepts.
 pub const MAX_LATENCY: Duration = Duration::from_secs(10);
 /// The largest `buffer_bytes` [`LineConfig::validate`] accepts.

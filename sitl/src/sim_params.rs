@@ -103,10 +103,10 @@ use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
-use autopilot::core::hil::{FrameDecoder, encode_frame_v1, encode_frame_v2};
 use autopilot::core::mavlink::params::{Applied, ParamService, encode_value, param_value};
 use autopilot::core::mavlink::{statustext, statustext_chunks};
 use autopilot::core::params::{ParamDef, ParamError, ParamKind, ParamStore};
+use autopilot::core::plant_link::{FrameDecoder, encode_frame_v1, encode_frame_v2};
 use mavlink::dialects::common::{
     HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavResult, MavSeverity, MavState, MavType, PARAM_SET_DATA,
 };

@@ -14,8 +14,8 @@ use std::os::unix::process::CommandExt;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use autopilot::core::link_budget::{LinkBudget, PlantStreams};
 use autopilot::core::mavlink::common::{MavCmd, MavResult};
+use autopilot::core::plant_link::budget::{LinkBudget, PlantStreams};
 use common::{Gcs, Guard, armed, free_instance, sitl_binary};
 use nalgebra::Vector3;
 use sitl::serial_line::{LineConfig, LineStats, SerialLine};

@@ -14,10 +14,10 @@ use std::os::unix::process::CommandExt;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use autopilot::core::hil::{FrameDecoder, encode_frame_v2};
 use autopilot::core::mavlink::command_long;
 use autopilot::core::mavlink::common::{MavCmd, MavLandedState, MavMessage, MavModeFlag, MavResult};
 use autopilot::core::mavlink::params::decode_value;
+use autopilot::core::plant_link::{FrameDecoder, encode_frame_v2};
 use autopilot::runtime::ports::InstancePorts;
 use nalgebra::Vector3;
 

@@ -20,9 +20,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use autopilot::core::hil::{FrameDecoder, HilSensorFields, encode_frame_v2, encode_hil_sensor};
 use autopilot::core::mavlink::common::{MavCmd, MavMessage, PARAM_REQUEST_READ_DATA};
 use autopilot::core::mavlink::{MavHeader, command_long, gcs_heartbeat};
+use autopilot::core::plant_link::{FrameDecoder, HilSensorFields, encode_frame_v2, encode_hil_sensor};
 use nalgebra::Vector3;
 
 /// The TCP client cap the autopilot runs with here (`[gcs] tcp_max_clients`).

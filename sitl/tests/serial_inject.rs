@@ -8,9 +8,9 @@ use std::io::{Read, Write};
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
-use autopilot::core::hil::{ActuatorCommand, FrameDecoder, encode_actuator_controls, encode_frame_v2};
 use autopilot::core::mavlink::common::{MavCmd, MavMessage, MavResult};
 use autopilot::core::mavlink::{MavHeader, command_long};
+use autopilot::core::plant_link::{ActuatorCommand, FrameDecoder, encode_actuator_controls, encode_frame_v2};
 use autopilot::runtime::transport::{POLL_INTERVAL, SerialTransport};
 use serialport::{SerialPort, TTYPort};
 use sitl::link::{LinkConfig, PlantServer};

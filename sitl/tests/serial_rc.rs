@@ -10,12 +10,12 @@ use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 use autopilot::core::estimator::GeoOrigin;
-use autopilot::core::hil::{
-    ActuatorCommand, FrameDecoder, HilInput, decode_hil_message, encode_actuator_controls, encode_frame_v2,
-};
 use autopilot::core::manual::RcFrame;
 use autopilot::core::mavlink::MavHeader;
 use autopilot::core::mavlink::common::MavMessage;
+use autopilot::core::plant_link::{
+    ActuatorCommand, FrameDecoder, HilInput, decode_hil_message, encode_actuator_controls, encode_frame_v2,
+};
 use autopilot::runtime::transport::{POLL_INTERVAL, SerialTransport};
 use serialport::{SerialPort, TTYPort};
 use sitl::link::{LinkConfig, PlantServer};

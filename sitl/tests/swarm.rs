@@ -8,8 +8,8 @@ use std::net::UdpSocket;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use autopilot::core::hil::FrameDecoder;
 use autopilot::core::mavlink::common::MavMessage;
+use autopilot::core::plant_link::FrameDecoder;
 use autopilot::runtime::ports::InstancePorts;
 
 const VEHICLES: u16 = 3;

@@ -9,12 +9,12 @@ use std::collections::VecDeque;
 
 use autopilot::core::commander::FlightMode;
 use autopilot::core::estimator::{BaroSample, EstimatorSource, GeoOrigin, ImuSample, MagSample, TruthSample};
-use autopilot::core::hil::PlantCommandAck;
 use autopilot::core::mavlink::MavHeader;
 use autopilot::core::mavlink::command_long;
 use autopilot::core::mavlink::common::{MavCmd, MavLandedState, MavMessage, MavModeFlag, MavResult, PARAM_SET_DATA};
 use autopilot::core::mavlink::params::{decode_value, encode_value};
 use autopilot::core::params::PARAMS;
+use autopilot::core::plant_link::PlantCommandAck;
 use autopilot::core::vehicle::{Vehicle, VehicleConfig, VehicleInputs};
 use sitl::plant::{InitialState, Plant, PlantConfig, SensorConfig};
 use sitl::sim_params::{FailureRequest, SimParamService};
@@ -84,7 +84,7 @@ impl Rig {
             plant_ack: None,
             link_line: VecDeque::new(),
             link_lost_us: Vec::new(),
-            last_pwm_us: [autopilot::core::vehicle::PWM_MIN_US; 4],
+            last_pwm_us: [autopilot::core::vehicle::MOTOR_PWM_MIN_US; 4],
         }
     }
 

@@ -5,7 +5,7 @@
 //! vehicle's texts. Pure simulated time: no sleeps.
 
 use autopilot::core::mavlink::common::{MavMessage, MavSeverity};
-use autopilot::core::plant_health::COMPLETE_TEXT;
+use autopilot::core::plant_link::health::COMPLETE_TEXT;
 use tests::rig::Rig;
 
 /// The samples of one second at 500 Hz: a lost one is 10000 / 500 = 20 centi-percent.

@@ -5,17 +5,14 @@ pub mod commander;
 pub mod config;
 pub mod control;
 pub mod estimator;
-pub mod geofence;
-pub mod hil;
 pub mod intent;
-pub mod link_budget;
 pub mod manual;
 pub mod mavlink;
 pub mod mission;
 pub mod navigator;
 pub mod params;
 pub mod plan;
-pub mod plant_health;
+pub mod plant_link;
 pub mod vehicle;
 
 /// Seconds to whole microseconds of vehicle time: negative and NaN to 0, beyond `u64` (a hold of 1e30 s)

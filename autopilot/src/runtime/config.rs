@@ -52,7 +52,7 @@ use super::tcp::{MAX_TCP_CLIENTS, TcpConfig};
 use super::transport::parse_serial_spec;
 use super::udp::{MAX_UDP_PEERS, PEER_EXPIRY, UdpConfig};
 use crate::core::config::VehicleConfig;
-use crate::core::link_budget::bytes_per_s_of_baud;
+use crate::core::plant_link::budget::bytes_per_s_of_baud;
 
 /// A configuration that cannot be used; the message names the file and the key.
 #[derive(Debug, thiserror::Error)]
@@ -229,7 +229,7 @@ pub struct RuntimeConfig {
     /// The MAVLink signing key file, if signing is to start on (see `runtime::signing`).
     pub signing_key_file: Option<PathBuf>,
     /// `--rate HZ`: the plant's sample rate, which `runtime::run` sets as LOOP_INNER_HZ (and LOOP_POS_HZ,
-    /// `link_budget::position_rate_hz`) in the vehicle and over the kept parameters; `None`: their own.
+    /// `plant_link::budget::position_rate_hz`) in the vehicle and over the kept parameters; `None`: their own.
     pub plant_rate_hz: Option<u32>,
 }
 

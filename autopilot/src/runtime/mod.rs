@@ -50,7 +50,7 @@ use tlog::{TlogError, TlogWriter};
 use transport::{SerialTransport, Transport, UdpPeerTransport};
 use udp::UdpLink;
 
-use crate::core::link_budget;
+use crate::core::plant_link::budget;
 use crate::core::vehicle::Vehicle;
 
 /// Frames the tlog task may lag behind before frames are dropped (and counted).
@@ -136,11 +136,9 @@ fn check_link_budget(config: &RuntimeConfig, persisted: &Persisted) -> Result<()
         store.apply(&mut vehicle);
     }
     let truth = vehicle.estimator.source == crate::core::estimator::EstimatorSource::Truth;
-    let streams = link_budget::PlantStreams {
-        truth,
-        ..link_budget::PlantStreams::board(f64::from(vehicle.control.rates.inner_hz))
-    };
-    let budget = link_budget::LinkBudget::of(&streams, *baud);
+    let streams =
+        budget::PlantStreams { truth, ..budget::PlantStreams::board(f64::from(vehicle.control.rates.inner_hz)) };
+    let budget = budget::LinkBudget::of(&streams, *baud);
     for line in budget.lines() {
         tracing::info!("{line}");
     }
@@ -191,7 +189,7 @@ fn start_signing(config: &RuntimeConfig) -> Result<signing::LinkSigning, Runtime
 pub async fn run(mut config: RuntimeConfig) -> Result<PlantLinkStats, RuntimeError> {
     if let Some(rate_hz) = config.plant_rate_hz {
         config.vehicle.control.rates.inner_hz = rate_hz;
-        config.vehicle.control.rates.position_hz = link_budget::position_rate_hz(rate_hz);
+        config.vehicle.control.rates.position_hz = budget::position_rate_hz(rate_hz);
     }
     // Refuse a bad vehicle configuration before opening anything.
     Vehicle::new(config.vehicle.clone()).map_err(PlantLinkError::from)?;

@@ -29,7 +29,7 @@
 //!
 //! The link counts the bytes it reads and writes (UDP or serial alike) and hands them, with its decoder's
 //! malformed frames, to every step (`VehicleInputs::plant_link`): the vehicle judges the link's health
-//! from them and from the sample times (`core::plant_health`: samples missing and late, the drop rate in
+//! from them and from the sample times (`core::plant_link::health`: samples missing and late, the drop rate in
 //! SYS_STATUS, the texts, the ULog's `plant_link_status`). The run's totals end in [`PlantLinkStats`].
 
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -42,12 +42,12 @@ use mavlink::dialects::common::{
 use tokio::sync::mpsc;
 use tokio::sync::mpsc::error::TryRecvError;
 
-use crate::core::hil::{ActuatorCommand, encode_actuator_controls};
 use crate::core::mavlink::frame::{DecoderStats, FrameDecoder, encode_frame_v2};
 use crate::core::mavlink::statustext;
 use crate::core::params::ParamStore;
-use crate::core::plant_health::PlantLinkCounters;
-use crate::core::vehicle::{PWM_MIN_US, Vehicle, VehicleConfig, VehicleError};
+use crate::core::plant_link::health::PlantLinkCounters;
+use crate::core::plant_link::{ActuatorCommand, encode_actuator_controls};
+use crate::core::vehicle::{MOTOR_PWM_MIN_US, Vehicle, VehicleConfig, VehicleError};
 use crate::runtime::link::{Destination, Incoming};
 use crate::runtime::transport::Transport;
 
@@ -115,7 +115,7 @@ pub struct PlantLinkStats {
     pub plant_rx_bytes: u64,
     pub plant_tx_bytes: u64,
     /// Plant samples missing (gaps in the sample times) and late (a time not after the last one), as
-    /// the vehicles counted them (`core::plant_health`), over the whole run.
+    /// the vehicles counted them (`core::plant_link::health`), over the whole run.
     pub plant_missing_samples: u64,
     pub plant_late_samples: u64,
     /// Broadcast STATUSTEXTs not sent: over [`STATUSTEXT_PER_S`] (see [`TextLimiter`]).
@@ -221,8 +221,12 @@ pub fn run(
                 );
                 let text = statustext(MavSeverity::MAV_SEVERITY_CRITICAL, PLANT_LOST_TEXT);
                 host.send_gcs(None, Destination::All, text);
-                let stopped =
-                    ActuatorCommand { time_us: host.now_us, pwm_us: [PWM_MIN_US; 4], armed: false, motor_test: false };
+                let stopped = ActuatorCommand {
+                    time_us: host.now_us,
+                    pwm_us: [MOTOR_PWM_MIN_US; 4],
+                    armed: false,
+                    motor_test: false,
+                };
                 let frame = plant.frame(&MavMessage::HIL_ACTUATOR_CONTROLS(encode_actuator_controls(&stopped)));
                 transport.send(&frame).map_err(io)?;
             } else {
@@ -312,7 +316,7 @@ mod tests {
     use nalgebra::Vector3;
 
     use super::*;
-    use crate::core::hil::{HilSensorFields, decode_actuator_controls, encode_hil_sensor};
+    use crate::core::plant_link::{HilSensorFields, decode_actuator_controls, encode_hil_sensor};
     use crate::runtime::link::Outgoing;
     use crate::runtime::transport::UdpPeerTransport;
 
@@ -568,7 +572,7 @@ mod tests {
         };
         let after = started.elapsed();
         assert!(after >= PLANT_SILENCE, "reported after {after:?}");
-        assert!(!stop_cmd.armed && stop_cmd.pwm_us == [PWM_MIN_US; 4], "{stop_cmd:?}");
+        assert!(!stop_cmd.armed && stop_cmd.pwm_us == [MOTOR_PWM_MIN_US; 4], "{stop_cmd:?}");
         // THEN the ground stations are told once, and keep getting the vehicle's HEARTBEAT, CRITICAL, with
         // a SYS_STATUS whose sensors are unhealthy, every second of wall time.
         let lost = collect_until(&mut h, Duration::from_secs(10), |m| fallback_heartbeats(m) >= 3)
@@ -655,7 +659,7 @@ mod tests {
             assert!((c.pwm_us[2] - 1200.0).abs() < 0.1 && [0, 1, 3].iter().all(|&i| c.pwm_us[i] == 1000.0), "{c:?}");
         }
         let last = commands.last().expect("stepped");
-        assert!(!last.motors_running() && last.effective_pwm_us() == [PWM_MIN_US; 4], "{last:?}");
+        assert!(!last.motors_running() && last.effective_pwm_us() == [MOTOR_PWM_MIN_US; 4], "{last:?}");
     }
 
     #[test]

@@ -46,7 +46,7 @@ pub struct SerialConfig {
     /// Device path (`/dev/ttyUSB0`).
     pub path: String,
     pub baud: u32,
-    /// Bytes/s the link's output is fitted to ([`bytes_per_s_of_baud`](crate::core::link_budget::bytes_per_s_of_baud) by default, `[gcs] serial_data_rate`);
+    /// Bytes/s the link's output is fitted to ([`bytes_per_s_of_baud`](crate::core::plant_link::budget::bytes_per_s_of_baud) by default, `[gcs] serial_data_rate`);
     /// 0: unlimited.
     pub data_rate: u64,
 }

@@ -3,10 +3,10 @@
 //! default, a file it cannot read or parse is moved aside), the start-up line that says what was
 //! restored, and the files a wipe removes. Saving is [`super::persist`]'s.
 
-use crate::core::geofence::{FENCE_COMMANDS, Fence, Rally};
 use crate::core::mavlink::common::MavCmd;
 use crate::core::mission::Mission;
 use crate::core::params::ParamStore;
+use crate::core::plan::geofence::{FENCE_COMMANDS, Fence, Rally};
 use crate::runtime::persist::{self, PersistError, Persister};
 
 /// What an earlier run left in the state directory, and where to save: the parameters (applied over the

@@ -6,11 +6,12 @@
 use mavlink::dialects::common::{MavMessage, MavSeverity};
 
 use crate::core::estimator::{EstimatorSource, GeoOrigin};
-use crate::core::hil::{ActuatorCommand, HilInput, SensorSamples, decode_hil_message, dege7_to_deg, mm_to_m};
+use crate::core::mavlink::units::{dege7_to_deg, mm_to_m};
 use crate::core::mavlink::{LinkErrors, statustext};
 use crate::core::params::ParamStore;
-use crate::core::plant_health::PlantLinkCounters;
-use crate::core::vehicle::{PWM_MIN_US, ShellEffect, Vehicle, VehicleConfig, VehicleError, VehicleInputs};
+use crate::core::plant_link::health::PlantLinkCounters;
+use crate::core::plant_link::{ActuatorCommand, HilInput, SensorSamples, decode_hil_message};
+use crate::core::vehicle::{MOTOR_PWM_MIN_US, ShellEffect, Vehicle, VehicleConfig, VehicleError, VehicleInputs};
 use crate::runtime::gcs_fanout::GcsFanout;
 use crate::runtime::link::{Destination, Incoming, LinkId};
 use crate::runtime::plant_link::{PLANT_RESTARTED_TEXT, PlantLinkStats};
@@ -208,7 +209,7 @@ impl VehicleHost {
                     return Ok(Some(PlantReply {
                         actuators: ActuatorCommand {
                             time_us: now_us,
-                            pwm_us: [PWM_MIN_US; 4],
+                            pwm_us: [MOTOR_PWM_MIN_US; 4],
                             armed: false,
                             motor_test: false,
                         },

@@ -54,7 +54,7 @@ pub(crate) struct RunArgs {
     pub(crate) state_dir: Option<String>,
     /// Sensor samples per second, for the plant and the autopilot alike (`autopilot --rate`): one of
     /// 1000, 500, 400, 250, 200, 125, 100, 80, 50. Default 500.
-    #[arg(long, value_name = "HZ", value_parser = autopilot::core::link_budget::parse_plant_rate, conflicts_with = "scenario")]
+    #[arg(long, value_name = "HZ", value_parser = autopilot::core::plant_link::budget::parse_plant_rate, conflicts_with = "scenario")]
     pub(crate) rate: Option<u32>,
     /// Stop after this many simulated seconds (default: run until Ctrl-C).
     #[arg(long)]
@@ -245,7 +245,7 @@ pub(crate) fn check_autopilot_config(args: &RunArgs, n: u16) -> Result<()> {
 /// ODOMETRY too.
 pub(crate) fn run_link_config(args: &RunArgs, pacing: Pacing) -> LinkConfig {
     LinkConfig {
-        dt_us: args.rate.map_or(LinkConfig::default().dt_us, autopilot::core::link_budget::period_us),
+        dt_us: args.rate.map_or(LinkConfig::default().dt_us, autopilot::core::plant_link::budget::period_us),
         pacing,
         connect_timeout: Some(Duration::from_secs(30)),
         truth_odometry: args.estimator.as_deref() == Some("truth"),

@@ -1,7 +1,7 @@
 //! `sitl serve`: the plant served to an autopilot over the HIL plant protocol, on UDP or a serial port.
 
 use anyhow::{Context, Result, bail};
-use autopilot::core::link_budget::{LinkBudget, PlantStreams, parse_plant_rate, period_us};
+use autopilot::core::plant_link::budget::{LinkBudget, PlantStreams, parse_plant_rate, period_us};
 use autopilot::runtime::transport::{POLL_INTERVAL, SerialTransport, parse_serial_spec};
 use clap::Args;
 use sitl::launch;

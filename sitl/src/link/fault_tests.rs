@@ -10,8 +10,10 @@ use std::thread;
 use std::time::Duration;
 
 use autopilot::core::battery::{BatteryConfig, BatteryMonitor, BatteryWarning};
-use autopilot::core::hil::{ActuatorCommand, FrameDecoder, HilInput, decode_hil_message, encode_actuator_controls};
 use autopilot::core::mavlink::command_long;
+use autopilot::core::plant_link::{
+    ActuatorCommand, FrameDecoder, HilInput, decode_hil_message, encode_actuator_controls,
+};
 use mavlink::MavHeader;
 use mavlink::dialects::common::{COMMAND_ACK_DATA, MavCmd, MavMessage, MavResult};
 use nalgebra::Vector3;

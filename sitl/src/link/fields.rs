@@ -3,7 +3,7 @@
 
 use autopilot::core::battery::BatterySample;
 use autopilot::core::estimator::{GeoOrigin, TruthSample};
-use autopilot::core::hil::HilSensorFields;
+use autopilot::core::plant_link::HilSensorFields;
 use nalgebra::UnitQuaternion;
 
 use crate::plant::sensors::{HomeConfig, NoisyState};

@@ -11,7 +11,7 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use autopilot::core::hil::ActuatorCommand;
+use autopilot::core::plant_link::ActuatorCommand;
 
 use super::{HOOK_EVERY_STEPS, LinkError, PlantServer, Transport};
 
@@ -119,7 +119,7 @@ mod tests {
     use super::*;
     use crate::link::{LinkConfig, UdpTransport};
     use crate::plant::{InitialState, Plant, PlantConfig};
-    use autopilot::core::hil::{FrameDecoder, encode_actuator_controls, encode_frame_v2};
+    use autopilot::core::plant_link::{FrameDecoder, encode_actuator_controls, encode_frame_v2};
     use mavlink::MavHeader;
     use mavlink::dialects::common::MavMessage;
     use std::net::UdpSocket;

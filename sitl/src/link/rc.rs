@@ -1,6 +1,6 @@
 //! The plant's RC input port, as ArduPilot's SITL has one: the pilot's radio from a gamepad bridge or a
 //! script, on UDP 127.0.0.1:[`RC_IN_PORT`] (`--rc-in-port`, 0 = off). Each datagram is 8 to 16
-//! little-endian `u16` PWM values (µs), channels 1..N, each in [`PWM_MIN_US`]..=[`PWM_MAX_US`]; anything
+//! little-endian `u16` PWM values (µs), channels 1..N, each in [`RC_PWM_MIN_US`]..=[`RC_PWM_MAX_US`]; anything
 //! else (an odd length, fewer than 8 or more than 16 values, a value out of range) is dropped whole and
 //! counted, with one warning the first time. The last good datagram is held as the receiver's frame
 //! ([`crate::plant::Radio::set_port_frame`]) until the next, as ArduPilot's SITL holds its RC input; the
@@ -11,7 +11,7 @@ use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
 
 use autopilot::core::manual::RcFrame;
 
-use crate::plant::radio::{PWM_MAX_US, PWM_MIN_US};
+use crate::plant::radio::{RC_PWM_MAX_US, RC_PWM_MIN_US};
 
 /// The default RC input port (ArduPilot SITL's, for instance 0).
 pub const RC_IN_PORT: u16 = 5501;
@@ -36,7 +36,7 @@ pub enum RcDatagramError {
     OddLength(usize),
     #[error("{0} values: a datagram carries {RC_IN_MIN_CHANNELS} to {RC_IN_MAX_CHANNELS} little-endian u16 PWM values")]
     Count(usize),
-    #[error("channel {channel} = {value_us} us is outside {PWM_MIN_US}..={PWM_MAX_US}")]
+    #[error("channel {channel} = {value_us} us is outside {RC_PWM_MIN_US}..={RC_PWM_MAX_US}")]
     Range { channel: usize, value_us: u16 },
 }
 
@@ -44,7 +44,7 @@ pub enum RcDatagramError {
 ///
 /// # Errors
 /// [`RcDatagramError`] for anything but 8 to 16 little-endian `u16` values each in
-/// [`PWM_MIN_US`]..=[`PWM_MAX_US`].
+/// [`RC_PWM_MIN_US`]..=[`RC_PWM_MAX_US`].
 pub fn parse_rc_datagram(bytes: &[u8]) -> Result<RcFrame, RcDatagramError> {
     if !bytes.len().is_multiple_of(2) {
         return Err(RcDatagramError::OddLength(bytes.len()));
@@ -56,7 +56,7 @@ pub fn parse_rc_datagram(bytes: &[u8]) -> Result<RcFrame, RcDatagramError> {
     let mut values_us = [0_u16; RC_IN_MAX_CHANNELS];
     for (i, pair) in bytes.chunks_exact(2).enumerate() {
         let value_us = u16::from_le_bytes([pair[0], pair[1]]);
-        if !(PWM_MIN_US..=PWM_MAX_US).contains(&value_us) {
+        if !(RC_PWM_MIN_US..=RC_PWM_MAX_US).contains(&value_us) {
             return Err(RcDatagramError::Range { channel: i + 1, value_us });
         }
         values_us[i] = value_us;
@@ -135,7 +135,7 @@ impl RcInPort {
                             error = %e,
                             "RC input: datagram dropped (later bad ones are counted, not logged): send \
                              {RC_IN_MIN_CHANNELS} to {RC_IN_MAX_CHANNELS} little-endian u16 PWM values, \
-                             {PWM_MIN_US}..={PWM_MAX_US} us"
+                             {RC_PWM_MIN_US}..={RC_PWM_MAX_US} us"
                         );
                     }
                 }
@@ -188,7 +188,7 @@ mod tests {
             let values: Vec<u16> = bytes.chunks(2).map(|c| u16::from_le_bytes([c[0], *c.get(1).unwrap_or(&0)])).collect();
             let good = bytes.len() % 2 == 0
                 && (RC_IN_MIN_CHANNELS..=RC_IN_MAX_CHANNELS).contains(&values.len())
-                && values.iter().all(|v| (PWM_MIN_US..=PWM_MAX_US).contains(v));
+                && values.iter().all(|v| (RC_PWM_MIN_US..=RC_PWM_MAX_US).contains(v));
             // As the port applies it: a good datagram replaces the held frame, a bad one changes nothing.
             let held = RcFrame::of(&[1234; 9]);
             let mut radio = crate::plant::Radio::default();
@@ -211,7 +211,9 @@ mod tests {
 
         /// In range by construction: always a frame.
         #[test]
-        fn any_8_to_16_values_in_range_parse(values in proptest::collection::vec(PWM_MIN_US..=PWM_MAX_US, 8..=16)) {
+        fn any_8_to_16_values_in_range_parse(
+            values in proptest::collection::vec(RC_PWM_MIN_US..=RC_PWM_MAX_US, 8..=16),
+        ) {
             let frame = parse_rc_datagram(&le(&values)).unwrap();
             prop_assert_eq!(&frame.channels_us[..values.len()], values.as_slice());
         }

@@ -15,7 +15,7 @@
 //! h >= 0.762 (23.8 %) spinning in yaw, and at most 0.703 kg of payload with zero margin left to control.
 
 use super::airframe::Airframe;
-use super::rotor::{PWM_MAX_US, PWM_MIN_US, lift_from_pwm_n};
+use super::rotor::{MOTOR_PWM_MAX_US, MOTOR_PWM_MIN_US, lift_from_pwm_n};
 
 /// The hover bounds of one airframe (see the module documentation).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -33,13 +33,13 @@ pub struct HoverEnvelope {
 /// The greatest lift of a healthy rotor of this airframe (N): k_F·F10(2000 µs).
 #[must_use]
 pub fn max_rotor_lift_n(airframe: &Airframe) -> f64 {
-    airframe.thrust_scale * lift_from_pwm_n(PWM_MAX_US)
+    airframe.thrust_scale * lift_from_pwm_n(MOTOR_PWM_MAX_US)
 }
 
 /// The least lift of a healthy rotor of this airframe (N): k_F·F10(1000 µs).
 #[must_use]
 pub fn min_rotor_lift_n(airframe: &Airframe) -> f64 {
-    airframe.thrust_scale * lift_from_pwm_n(PWM_MIN_US)
+    airframe.thrust_scale * lift_from_pwm_n(MOTOR_PWM_MIN_US)
 }
 
 /// The hover bounds of `airframe` (its payload included; its own rotor health ignored: the bounds are
@@ -179,7 +179,7 @@ mod tests {
                 let airframe = Airframe { rotor_health: [health * scale, 1.0, 1.0, 1.0], ..nominal.clone() };
                 // Rotor 1 at full PWM, rotor 4 matched to it (roll), rotors 2 and 3 equal (pitch) and as
                 // high as the heading allows (yaw: equal to rotor 1's; without: full PWM).
-                let f1 = commanded_lift_n(&[PWM_MAX_US; 4], &airframe)[0];
+                let f1 = commanded_lift_n(&[MOTOR_PWM_MAX_US; 4], &airframe)[0];
                 let f23 = if keep_yaw { f1 } else { max_rotor_lift_n(&airframe) };
                 let best_up_mps2 = -hover_derivative(&airframe, [f1, f23, f23, f1]).0;
                 let w = mix(&[f1, f23, f23, f1], airframe.arm_m, airframe.yaw_moment_m);

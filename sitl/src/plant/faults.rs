@@ -354,7 +354,7 @@ impl LinkFaults {
 
 #[cfg(test)]
 mod tests {
-    use autopilot::core::hil::{decode_hil_sensor, encode_hil_sensor};
+    use autopilot::core::plant_link::{decode_hil_sensor, encode_hil_sensor};
     use nalgebra::Vector3;
 
     use super::*;

@@ -13,9 +13,9 @@ use autopilot::core::manual::RcFrame;
 pub const SCHEDULE_CHANNELS: usize = 16;
 /// Lowest PWM (µs) a schedule or the RC input port accepts (wider than a radio's usual 1000..2000 end
 /// points, so a trimmed or extended radio fits).
-pub const PWM_MIN_US: u16 = 800;
+pub const RC_PWM_MIN_US: u16 = 800;
 /// Highest PWM (µs) a schedule or the RC input port accepts.
-pub const PWM_MAX_US: u16 = 2200;
+pub const RC_PWM_MAX_US: u16 = 2200;
 /// Every schedule channel's value before the first entry sets it (µs): centred, ...
 pub const SCHEDULE_CENTRE_US: u16 = 1500;
 /// ... except channel 3, the throttle (AETR), which starts low (µs).

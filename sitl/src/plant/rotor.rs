@@ -11,8 +11,8 @@ use nalgebra::Vector3;
 use super::airframe::Airframe;
 
 /// The PWM range the rotors accept (µs), the autopilot's: lower, NaN and ±inf commands are read as
-/// `PWM_MIN_US`; higher ones are clamped to `PWM_MAX_US`.
-pub use autopilot::core::control::distributor::{PWM_MAX_US, PWM_MIN_US};
+/// `MOTOR_PWM_MIN_US`; higher ones are clamped to `MOTOR_PWM_MAX_US`.
+pub use autopilot::core::control::distributor::{MOTOR_PWM_MAX_US, MOTOR_PWM_MIN_US};
 
 /// Array index of paper rotor 1, on the right arm (+y).
 pub const ROTOR_RIGHT: usize = 0;
@@ -23,11 +23,11 @@ pub const ROTOR_FRONT: usize = 2;
 /// Array index of paper rotor 4, on the left arm (-y).
 pub const ROTOR_LEFT: usize = 3;
 
-/// A PWM command made safe: NaN and ±inf become [`PWM_MIN_US`] (the motors' "off"), finite values are
+/// A PWM command made safe: NaN and ±inf become [`MOTOR_PWM_MIN_US`] (the motors' "off"), finite values are
 /// clamped to [1000, 2000] µs.
 #[must_use]
 pub fn sanitize_pwm_us(pwm_us: f64) -> f64 {
-    if pwm_us.is_finite() { pwm_us.clamp(PWM_MIN_US, PWM_MAX_US) } else { PWM_MIN_US }
+    if pwm_us.is_finite() { pwm_us.clamp(MOTOR_PWM_MIN_US, MOTOR_PWM_MAX_US) } else { MOTOR_PWM_MIN_US }
 }
 
 /// Steady-state lift of one rotor (N) at `pwm_us`: the exact upper-branch inverse of Eq 10,
@@ -83,10 +83,10 @@ pub fn lift_rate_nps(lift_n: &[f64; 4], commanded_n: &[f64; 4], motor_tau_s: f64
 pub fn pwm_holding_lift_us(lift_n: f64, index: usize, airframe: &Airframe) -> f64 {
     let gain = airframe.thrust_scale * airframe.rotor_health[index];
     let lift_f10 = lift_n / gain;
-    if gain > 0.0 && lift_f10 >= lift_from_pwm_n(PWM_MIN_US) {
+    if gain > 0.0 && lift_f10 >= lift_from_pwm_n(MOTOR_PWM_MIN_US) {
         sanitize_pwm_us(pwm_from_lift_us(lift_f10))
     } else {
-        PWM_MIN_US
+        MOTOR_PWM_MIN_US
     }
 }
 
@@ -158,6 +158,6 @@ mod tests {
         let pwm = pwm_holding_lift_us(lift, ROTOR_FRONT, &airframe);
         let back = commanded_lift_n(&[pwm; 4], &airframe)[ROTOR_FRONT];
         assert!((back - lift).abs() < 1e-10);
-        assert_eq!(pwm_holding_lift_us(0.0, ROTOR_LEFT, &airframe), PWM_MIN_US);
+        assert_eq!(pwm_holding_lift_us(0.0, ROTOR_LEFT, &airframe), MOTOR_PWM_MIN_US);
     }
 }

@@ -22,7 +22,7 @@ use std::collections::VecDeque;
 use autopilot::core::control::frames::wrap_pi;
 use autopilot::core::estimator::GeoOrigin;
 pub use autopilot::core::estimator::GpsSample;
-pub use autopilot::core::hil::HilBaroFields as BaroSample;
+pub use autopilot::core::plant_link::HilBaroFields as BaroSample;
 use nalgebra::Vector3;
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;

@@ -6,13 +6,13 @@
 use std::net::{SocketAddr, UdpSocket};
 use std::time::{Duration, Instant};
 
-use autopilot::core::hil::{FrameDecoder, encode_frame_v2};
 use autopilot::core::mavlink::MavHeader;
 use autopilot::core::mavlink::common::{
     MISSION_COUNT_DATA, MISSION_ITEM_INT_DATA, MavCmd, MavMessage, MavMissionResult, MavModeFlag, MavResult,
     MavSysStatusSensor,
 };
 use autopilot::core::mavlink::{command_long, gcs_heartbeat};
+use autopilot::core::plant_link::{FrameDecoder, encode_frame_v2};
 
 /// The ground station's identity (QGroundControl's).
 const GCS: MavHeader = MavHeader { system_id: 255, component_id: 190, sequence: 0 };

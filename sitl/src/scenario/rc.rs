@@ -25,7 +25,7 @@ use autopilot::core::manual::RcFrame;
 use serde::Deserialize;
 
 use crate::plant::radio::{
-    PWM_MAX_US, PWM_MIN_US, RcSchedule, SCHEDULE_CENTRE_US, SCHEDULE_CHANNELS, SCHEDULE_THROTTLE_START_US,
+    RC_PWM_MAX_US, RC_PWM_MIN_US, RcSchedule, SCHEDULE_CENTRE_US, SCHEDULE_CHANNELS, SCHEDULE_THROTTLE_START_US,
 };
 
 /// One `[[rc]]` entry as written.
@@ -84,8 +84,8 @@ pub fn schedule(entries: &[RcEntry], duration_s: f64) -> Result<RcSchedule, Stri
                             || format!("{name}: channel \"{key}\" is not a channel 1..{SCHEDULE_CHANNELS}"),
                         )?;
                     let value_us =
-                        u16::try_from(value).ok().filter(|v| (PWM_MIN_US..=PWM_MAX_US).contains(v)).ok_or_else(
-                            || format!("{name}: channel {n} = {value} us is outside {PWM_MIN_US}..={PWM_MAX_US}"),
+                        u16::try_from(value).ok().filter(|v| (RC_PWM_MIN_US..=RC_PWM_MAX_US).contains(v)).ok_or_else(
+                            || format!("{name}: channel {n} = {value} us is outside {RC_PWM_MIN_US}..={RC_PWM_MAX_US}"),
                         )?;
                     channels_us[n - 1] = value_us;
                 }

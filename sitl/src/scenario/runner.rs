@@ -9,7 +9,7 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::time::Instant;
 
-use autopilot::core::control::distributor::{PWM_MAX_US, PWM_MIN_US};
+use autopilot::core::control::distributor::{MOTOR_PWM_MAX_US, MOTOR_PWM_MIN_US};
 use autopilot::core::control::{ControlInput, ControllerKind, LoopRates, new_controller};
 use nalgebra::{Vector2, Vector3};
 use serde::Serialize;
@@ -237,7 +237,7 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
         rate_frd_radps: Vector3::from(init.rate_frd_radps),
         rotor_lift_n: None,
     };
-    let mut effort = EffortAccumulator::new(config.airframe.hover_pwm_us(), [PWM_MIN_US, PWM_MAX_US]);
+    let mut effort = EffortAccumulator::new(config.airframe.hover_pwm_us(), [MOTOR_PWM_MIN_US, MOTOR_PWM_MAX_US]);
     let airframe_before = config.airframe.clone();
     let mut plant = Plant::new(config, &initial, opts.seed)?;
     let schedule = scenario.sim_events()?;

@@ -40,8 +40,8 @@ use autopilot::core::config::{AirborneStart, VehicleConfig};
 use autopilot::core::control::ControllerKind;
 use autopilot::core::estimator::EstimatorSource;
 use autopilot::core::estimator::GeoOrigin;
-use autopilot::core::hil::deg_to_dege7;
 use autopilot::core::mavlink::common::{MISSION_ITEM_INT_DATA, MavCmd, MavFrame};
+use autopilot::core::mavlink::units::deg_to_dege7;
 use nalgebra::{Vector2, Vector3};
 use serde::Serialize;
 

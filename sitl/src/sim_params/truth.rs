@@ -1,7 +1,7 @@
 //! The plant's true state as it goes out on the SIM_ port: SIM_STATE (with SYSTEM_TIME) built from the
 //! plant's truth, and the stream that samples it at [`TRUTH_RATE_HZ`] of plant time.
 
-use autopilot::core::hil::deg_to_dege7;
+use autopilot::core::mavlink::units::deg_to_dege7;
 use mavlink::dialects::common::{MavMessage, SIM_STATE_DATA, SYSTEM_TIME_DATA};
 
 use crate::plant::sensors::{HomeConfig, geodetic_from_ned};

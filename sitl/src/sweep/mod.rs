@@ -19,7 +19,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Deserialize;
 
-use crate::plant::rotor::{PWM_MAX_US, PWM_MIN_US, lift_from_pwm_n};
+use crate::plant::rotor::{MOTOR_PWM_MAX_US, MOTOR_PWM_MIN_US, lift_from_pwm_n};
 use crate::plant::wind::GaussMarkovConfig;
 use crate::plant::{InitialState, Plant, TurbulenceConfig};
 use crate::scenario::runner::{self, RunOptions};
@@ -485,7 +485,7 @@ pub fn run_metric_values(scenario: &Scenario, opts: &RunOptions) -> Result<Vec<O
     let out = runner::run(scenario, opts)?;
     let airframe = runner::plant_config(scenario, opts.plant.as_deref())?.airframe;
     let weight_n = airframe.mass_kg * airframe.gravity_mps2;
-    let thrust_to_weight = [PWM_MAX_US, PWM_MIN_US].map(|pwm_us| {
+    let thrust_to_weight = [MOTOR_PWM_MAX_US, MOTOR_PWM_MIN_US].map(|pwm_us| {
         airframe.rotor_health.iter().map(|h| h * lift_from_pwm_n(pwm_us)).sum::<f64>() * airframe.thrust_scale
             / weight_n
     });

@@ -8,12 +8,12 @@ use std::process::{Child, Command};
 use std::time::{Duration, Instant};
 
 use autopilot::core::estimator::GeoOrigin;
-use autopilot::core::hil::{FrameDecoder, encode_frame_v2};
 use autopilot::core::mavlink::MavHeader;
 use autopilot::core::mavlink::command_long;
 use autopilot::core::mavlink::common::{
     MavCmd, MavLandedState, MavMessage, MavModeFlag, MavResult, MavSysStatusSensor,
 };
+use autopilot::core::plant_link::{FrameDecoder, encode_frame_v2};
 use autopilot::runtime::ports::InstancePorts;
 use nalgebra::Vector3;
 

@@ -8,7 +8,7 @@ use super::failsafe::{self, FailsafeAction};
 use super::failure_detector::FailureDetectorConfig;
 use super::land_detector::LandDetectorConfig;
 use crate::core::battery::{BatteryConfig, BatteryWarning};
-use crate::core::geofence::GeofenceConfig;
+use crate::core::plan::geofence::GeofenceConfig;
 
 /// The commander's parameters (PX4 names in the field docs).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

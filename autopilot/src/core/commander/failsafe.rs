@@ -23,7 +23,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{Action, Conditions, Event, State};
 use crate::core::battery::{BatterySample, BatteryWarning};
-use crate::core::geofence::Violation;
+use crate::core::plan::geofence::Violation;
 use crate::core::seconds_to_us;
 
 /// What a failsafe makes the vehicle do.

@@ -11,8 +11,8 @@ use super::land_detector::LandedState;
 use super::mode::{FlightMode, SystemStatus};
 use super::state_machine::State;
 use crate::core::battery::{BatterySample, BatteryStatus};
-use crate::core::geofence::Violation;
 use crate::core::intent::Intent;
+use crate::core::plan::geofence::Violation;
 
 /// The estimate as the commander needs it (NED about the estimator's origin).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -60,7 +60,7 @@ pub struct CommanderInputs {
     pub gcs_heartbeat_us: Option<u64>,
     /// A reading of the pack that arrived this step.
     pub battery: Option<BatterySample>,
-    /// The geofence is breached, or will be before the vehicle can stop (see `core::geofence`).
+    /// The geofence is breached, or will be before the vehicle can stop (see `core::plan::geofence`).
     pub fence_breach: Option<Violation>,
 }
 

@@ -4,6 +4,7 @@
 use nalgebra::Vector3;
 
 use super::*;
+use crate::core::battery::BatteryWarning;
 use crate::core::intent::{AutoMode, HoldAt, Intent, ManualMode, Progress};
 
 const STEP_US: u64 = 10_000;
@@ -28,7 +29,7 @@ struct Sim {
     /// The pack's state of charge the monitor reads every step (None: no pack).
     battery_remaining: Option<f64>,
     /// The geofence breach the vehicle would report.
-    fence_breach: Option<crate::core::geofence::Violation>,
+    fence_breach: Option<crate::core::plan::geofence::Violation>,
 }
 
 impl Sim {
@@ -728,7 +729,7 @@ fn given_com_low_bat_act_0_then_critical_and_emergency_are_only_said() {
 
 #[test]
 fn given_gf_action_hold_when_a_breach_starts_in_the_air_then_hold_once_and_rearm_inside() {
-    use crate::core::geofence::Violation;
+    use crate::core::plan::geofence::Violation;
     let mut sim = Sim::new();
     let mut c = holding(&mut sim);
     let mut config = *c.config();

@@ -13,13 +13,13 @@ use serde::{Deserialize, Serialize};
 
 use super::Airframe;
 
-/// Lowest PWM command (µs).
-pub const PWM_MIN_US: f64 = 1000.0;
-/// Highest PWM command (µs).
-pub const PWM_MAX_US: f64 = 2000.0;
-/// Rotor lift at `PWM_MIN_US`, the exact upper-branch inverse of Eq 10 (the spec rounds it to 11.277 N).
+/// The motors' lowest PWM command (µs); a radio channel's range is another, wider one.
+pub const MOTOR_PWM_MIN_US: f64 = 1000.0;
+/// The motors' highest PWM command (µs).
+pub const MOTOR_PWM_MAX_US: f64 = 2000.0;
+/// Rotor lift at `MOTOR_PWM_MIN_US`, the exact upper-branch inverse of Eq 10 (the spec rounds it to 11.277 N).
 pub const ROTOR_LIFT_MIN_N: f64 = 11.277_060_877_149_857;
-/// Rotor lift at `PWM_MAX_US`, the exact upper-branch inverse of Eq 10 (the spec rounds it to 14.477 N).
+/// Rotor lift at `MOTOR_PWM_MAX_US`, the exact upper-branch inverse of Eq 10 (the spec rounds it to 14.477 N).
 pub const ROTOR_LIFT_MAX_N: f64 = 14.476_943_047_337_304;
 
 /// Eq 10: PWM (µs) that produces the rotor lift `lift_n` (N): `1105 - 260 F + 22.23 F²`.
@@ -32,7 +32,7 @@ pub fn pwm_from_lift_us(lift_n: f64) -> f64 {
 /// 1000-2000 µs first. Eq 26's 261 / 30135.6 are the paper's misprint of 260 / 30656.6.
 #[must_use]
 pub fn lift_from_pwm_n(pwm_us: f64) -> f64 {
-    let p = pwm_us.clamp(PWM_MIN_US, PWM_MAX_US);
+    let p = pwm_us.clamp(MOTOR_PWM_MIN_US, MOTOR_PWM_MAX_US);
     (260.0 + (88.92 * p - 30656.6).sqrt()) / 44.46
 }
 
@@ -176,7 +176,7 @@ pub fn distribute(
     let mut pwm_us = [0.0; 4];
     for i in 0..4 {
         forces_n[i] = (c + rp[i] + k * yw[i]).clamp(f_min, f_max);
-        pwm_us[i] = pwm_from_lift_us(forces_n[i]).clamp(PWM_MIN_US, PWM_MAX_US);
+        pwm_us[i] = pwm_from_lift_us(forces_n[i]).clamp(MOTOR_PWM_MIN_US, MOTOR_PWM_MAX_US);
     }
 
     let (_, achieved) = mix_forward(&forces_n, airframe);
@@ -260,8 +260,8 @@ mod tests {
         assert!((hover - 1404.7).abs() < 0.2, "hover PWM {hover}");
         assert!((lift_from_pwm_n(1000.0) - 11.277).abs() < 1e-3);
         assert!((lift_from_pwm_n(2000.0) - 14.477).abs() < 1e-3);
-        assert!((lift_from_pwm_n(PWM_MIN_US) - ROTOR_LIFT_MIN_N).abs() < 1e-12);
-        assert!((lift_from_pwm_n(PWM_MAX_US) - ROTOR_LIFT_MAX_N).abs() < 1e-12);
+        assert!((lift_from_pwm_n(MOTOR_PWM_MIN_US) - ROTOR_LIFT_MIN_N).abs() < 1e-12);
+        assert!((lift_from_pwm_n(MOTOR_PWM_MAX_US) - ROTOR_LIFT_MAX_N).abs() < 1e-12);
         for p in [1000.0, 1234.5, 1404.7, 1999.0] {
             assert!((pwm_from_lift_us(lift_from_pwm_n(p)) - p).abs() < 1e-9);
         }

@@ -401,8 +401,8 @@ pub fn decode_command(sysid: u8, header: &MavHeader, msg: &MavMessage, ctx: &Com
             );
             let a = Params {
                 p: [c.param1, c.param2, c.param3, c.param4],
-                x: crate::core::hil::dege7_to_deg(c.x),
-                y: crate::core::hil::dege7_to_deg(c.y),
+                x: super::units::dege7_to_deg(c.x),
+                y: super::units::dege7_to_deg(c.y),
                 z: c.z,
                 relative,
             };

@@ -7,7 +7,7 @@
 //! Who simulates what: a fault of something the plant simulates (a motor, GPS, baro, magnetometer,
 //! accelerometer, gyro, the pack, the board's radio) is the plant's: it is forwarded, and the plant's
 //! COMMAND_ACK is the answer (ACCEPTED, UNSUPPORTED for a combination it does not simulate, DENIED for a
-//! value it refuses; see `core::hil` for the protocol). A plant that does not answer within
+//! value it refuses; see `core::plant_link` for the protocol). A plant that does not answer within
 //! [`PLANT_ANSWER_TIMEOUT_US`] of vehicle time (a real board that does not know the command) gets the
 //! ground station UNSUPPORTED. The autopilot's own inputs are its own, as in PX4 where the MAVLink module
 //! handles the link's failure: `MAVLINK_SIGNAL` OFF makes the vehicle deaf to every ground-station message
@@ -21,7 +21,7 @@
 use ::mavlink::dialects::common::{COMMAND_ACK_DATA, MavCmd, MavMessage, MavResult, MavSeverity};
 
 use super::telemetry::statustext;
-use crate::core::hil::{PlantCommandAck, encode_inject_failure};
+use crate::core::plant_link::{PlantCommandAck, encode_inject_failure};
 
 /// How long the vehicle waits for the plant's answer to a forwarded injection (µs of vehicle time).
 pub const PLANT_ANSWER_TIMEOUT_US: u64 = 300_000;

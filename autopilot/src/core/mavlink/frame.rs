@@ -240,7 +240,7 @@ impl FrameDecoder {
 mod tests {
     use super::*;
     use crate::core::estimator::GeoOrigin;
-    use crate::core::hil::{ActuatorCommand, HilInput, decode_hil_message, encode_actuator_controls};
+    use crate::core::plant_link::{ActuatorCommand, HilInput, decode_hil_message, encode_actuator_controls};
     use proptest::prelude::*;
 
     const HOME: GeoOrigin = GeoOrigin { lat_deg: 47.397_742, lon_deg: 8.545_594, alt_amsl_m: 488.0 };

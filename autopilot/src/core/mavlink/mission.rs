@@ -42,7 +42,7 @@
 //! - Mission types: `mission_type` (a MAVLink 2 extension field) tells the transfers apart: MISSION (0),
 //!   FENCE (1) and RALLY (2) each have their own stored plan, uploaded, downloaded and cleared by the same
 //!   protocol; every reply carries the transfer's type. Fence and rally items are validated as
-//!   `core::geofence` says ([`Fence::new`], [`Rally::new`]): a completed upload gives
+//!   `core::plan::geofence` says ([`Fence::new`], [`Rally::new`]): a completed upload gives
 //!   [`MissionEvent::FenceReplaced`] / [`MissionEvent::RallyReplaced`], a clear the same with an empty
 //!   plan. MISSION_CLEAR_ALL of type ALL (255) clears all three ([`MissionEvent::ClearedAll`]); ALL in any
 //!   other message is answered MAV_MISSION_UNSUPPORTED. MISSION_SET_CURRENT and the `current` flag are the
@@ -61,9 +61,9 @@ use ::mavlink::dialects::common::{
 
 use super::addressed_to_us;
 use super::telemetry::statustext;
-use crate::core::geofence::{Fence, Rally, validate_fence_item, validate_rally_item};
 use crate::core::mission::{Mission, MissionError, MissionItem, validate_item};
 use crate::core::plan::Plan;
+use crate::core::plan::geofence::{Fence, Rally, validate_fence_item, validate_rally_item};
 
 /// The service's tunables.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

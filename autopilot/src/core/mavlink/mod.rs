@@ -15,6 +15,8 @@
 //!   vehicle time, and STATUSTEXT on events.
 //! - `link_rate`: per ground-station link, the classes of the outgoing messages, the stream multiplier
 //!   (data rate and RADIO_STATUS, as PX4's) and the byte pacer the shell's serial and UDP links write by.
+//! - `units`: MAVLink's wire units (degE7, mm, cm/s, centi-units, milli-g, centidegrees), written once for
+//!   these messages and the plant protocol (`core::plant_link`).
 //! - While the plant link is lost no step comes: [`plant_lost_heartbeat`] and [`sys_status_plant_lost`]
 //!   are what the vehicle reports instead, on the shell's wall-clock cadence (`Vehicle::plant_lost_telemetry`).
 
@@ -36,6 +38,7 @@ pub mod params;
 pub mod router;
 pub mod signing;
 pub mod telemetry;
+pub mod units;
 
 /// The wire types of this API (so users need no direct dependency on the same `mavlink` version).
 pub use ::mavlink::MavHeader;

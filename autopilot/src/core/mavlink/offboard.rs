@@ -17,8 +17,8 @@ use ::mavlink::dialects::common::{AttitudeTargetTypemask, MavFrame, MavMessage, 
 use nalgebra::{Quaternion, Rotation3, UnitQuaternion, Vector3};
 
 use super::addressed_to_us;
+use super::units::dege7_to_deg;
 use crate::core::estimator::GeoOrigin;
-use crate::core::hil::dege7_to_deg;
 use crate::core::mission::NavTarget;
 use crate::core::navigator::OffboardSetpoint;
 use crate::core::plan::{self, Frame, Unresolved};

@@ -17,28 +17,34 @@
 //! current -1, remaining -1, temperature INT16_MAX, consumption -1).
 //!
 //! The plant link (the ARM board's serial line, or UDP to the SITL plant) in SYS_STATUS: `drop_rate_comm`
-//! is its samples missing over the last second (`core::plant_health`), in MAVLink's centi-percent; the
+//! is its samples missing over the last second (`core::plant_link::health`), in MAVLink's centi-percent; the
 //! ground-station links have no such count (a lost ground-station datagram is not seen). `errors_comm`
 //! counts malformed frames on every link, the plant's and the ground stations' ([`LinkErrors`]).
+//!
+//! STATUSTEXT and the texts of events are `text`'s (re-exported here).
 
-use crate::core::manual::ManualStatus;
 use ::mavlink::dialects::common::{
     ATTITUDE_DATA, ATTITUDE_QUATERNION_DATA, BATTERY_STATUS_DATA, DEBUG_VECT_DATA, EXTENDED_SYS_STATE_DATA,
     GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA,
-    MISSION_CURRENT_DATA, MISSION_ITEM_REACHED_DATA, MavBatteryChargeState, MavBatteryFunction, MavBatteryType,
-    MavMessage, MavSeverity, MavSysStatusSensor, MavVtolState, RC_CHANNELS_DATA, STATUSTEXT_DATA, SYS_STATUS_DATA,
-    VFR_HUD_DATA,
+    MISSION_CURRENT_DATA, MavBatteryChargeState, MavBatteryFunction, MavBatteryType, MavMessage, MavSysStatusSensor,
+    MavVtolState, RC_CHANNELS_DATA, SYS_STATUS_DATA, VFR_HUD_DATA,
 };
 use nalgebra::Vector3;
 
+use super::units::{deg_to_dege7, m_to_mm, mps_to_cmps_i16, rad_to_cdeg_0_360, to_centi_u16};
 use super::{identity, next_due_us};
 use crate::core::battery::{BatteryStatus, BatteryWarning};
-use crate::core::commander::{CommanderOutput, Event, LandedState};
+use crate::core::commander::{CommanderOutput, LandedState};
 use crate::core::control::Controller;
-use crate::core::estimator::{EstimatorEvent, EstimatorFlags, EstimatorState, EventSeverity, GpsSample};
-use crate::core::hil::{encode_battery_status, encode_rc_channels};
-use crate::core::navigator::NavEvent;
-use crate::core::plant_health::{DROP_RATE_FULL_CPCT, PlantLinkEvent};
+use crate::core::estimator::{EstimatorFlags, EstimatorState, GpsSample};
+use crate::core::manual::ManualStatus;
+use crate::core::plant_link::health::DROP_RATE_FULL_CPCT;
+use crate::core::plant_link::{encode_battery_status, encode_rc_channels};
+
+mod text;
+pub use text::{
+    estimator_event_message, event_severity, nav_event_message, plant_link_event_message, statustext, statustext_chunks,
+};
 
 /// Home: where the vehicle armed (m, NED about the estimator's origin) and, with an origin, geodetic.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -216,41 +222,6 @@ pub const WEIGHT_VECTORS: [(&str, [&str; 3]); 15] = [
     ("pid.rate_i", ["pid.rate_int_x_nm", "pid.rate_int_y_nm", "pid.rate_int_z_nm"]),
 ];
 
-/// What the ground station hears of a navigator event: MISSION_CURRENT, MISSION_ITEM_REACHED, or an INFO
-/// STATUSTEXT.
-#[must_use]
-pub fn nav_event_message(event: &NavEvent) -> MavMessage {
-    match event {
-        NavEvent::Current(seq) => mission_current(*seq),
-        NavEvent::Reached(seq) => MavMessage::MISSION_ITEM_REACHED(MISSION_ITEM_REACHED_DATA { seq: *seq }),
-        NavEvent::Text(text) => statustext(MavSeverity::MAV_SEVERITY_INFO, text),
-    }
-}
-
-/// What the ground station hears of an estimator event (a source lost, stuck, rejected or regained): a
-/// STATUSTEXT, WARNING for a lost aiding source, CRITICAL for the IMU, INFO when a source is back.
-#[must_use]
-pub fn estimator_event_message(event: &EstimatorEvent) -> MavMessage {
-    let severity = match event.severity() {
-        EventSeverity::Info => MavSeverity::MAV_SEVERITY_INFO,
-        EventSeverity::Warning => MavSeverity::MAV_SEVERITY_WARNING,
-        EventSeverity::Critical => MavSeverity::MAV_SEVERITY_CRITICAL,
-    };
-    statustext(severity, &event.text())
-}
-
-/// What the ground station hears of the plant link's health (`core::plant_health`): a STATUSTEXT,
-/// WARNING while samples go missing ("Plant link: 100 of 500 samples missing"), INFO when they are
-/// complete again.
-#[must_use]
-pub fn plant_link_event_message(event: &PlantLinkEvent) -> MavMessage {
-    let severity = match event {
-        PlantLinkEvent::Missing { .. } => MavSeverity::MAV_SEVERITY_WARNING,
-        PlantLinkEvent::Complete => MavSeverity::MAV_SEVERITY_INFO,
-    };
-    statustext(severity, &event.text())
-}
-
 /// MISSION_CURRENT for the item `seq` the mission flies towards: the one builder (the stream, a
 /// MISSION_SET_CURRENT's answer and the navigator's moves all send this).
 #[must_use]
@@ -329,26 +300,6 @@ impl StreamScheduler {
 /// Milliseconds since boot (the plant's clock starts at 0), wrapping as MAVLink's u32 does.
 fn time_boot_ms(now_us: u64) -> u32 {
     (now_us / 1000) as u32
-}
-
-fn deg_e7(angle_deg: f64) -> i32 {
-    (angle_deg * 1e7).round() as i32
-}
-
-fn mm(length_m: f64) -> i32 {
-    (length_m * 1e3).round() as i32
-}
-
-fn cm_i16(speed_mps: f64) -> i16 {
-    (speed_mps * 100.0).round() as i16
-}
-
-/// Heading of a vector or yaw in centidegrees 0..35999.
-fn cdeg_0_360(angle_rad: f64) -> u16 {
-    if !angle_rad.is_finite() {
-        return u16::MAX;
-    }
-    ((angle_rad.to_degrees().rem_euclid(360.0) * 100.0).round() as u16) % 36_000
 }
 
 fn sensors(bits: &[(bool, MavSysStatusSensor)]) -> MavSysStatusSensor {
@@ -524,14 +475,14 @@ fn global_position_int(snap: &TelemetrySnapshot<'_>) -> Option<MavMessage> {
     let v = est.vel_ned_mps;
     Some(MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
         time_boot_ms: time_boot_ms(snap.now_us),
-        lat: deg_e7(lat_deg),
-        lon: deg_e7(lon_deg),
-        alt: mm(alt_amsl_m),
-        relative_alt: mm(home_d_m - est.pos_ned_m.z),
-        vx: cm_i16(v.x),
-        vy: cm_i16(v.y),
-        vz: cm_i16(v.z),
-        hdg: cdeg_0_360(est.euler_rad.z),
+        lat: deg_to_dege7(lat_deg),
+        lon: deg_to_dege7(lon_deg),
+        alt: m_to_mm(alt_amsl_m),
+        relative_alt: m_to_mm(home_d_m - est.pos_ned_m.z),
+        vx: mps_to_cmps_i16(v.x),
+        vy: mps_to_cmps_i16(v.y),
+        vz: mps_to_cmps_i16(v.z),
+        hdg: rad_to_cdeg_0_360(est.euler_rad.z),
     }))
 }
 
@@ -545,18 +496,17 @@ fn gps_raw_int(gps: &GpsSample) -> MavMessage {
         5 => GpsFixType::GPS_FIX_TYPE_RTK_FLOAT,
         _ => GpsFixType::GPS_FIX_TYPE_RTK_FIXED,
     };
-    let centi = |x: f64| if x.is_finite() && x >= 0.0 { (x * 100.0).round().min(65_534.0) as u16 } else { u16::MAX };
     let v = gps.vel_ned_mps;
     let ground_mps = v.xy().norm();
     MavMessage::GPS_RAW_INT(GPS_RAW_INT_DATA {
         time_usec: gps.time_us,
-        lat: deg_e7(gps.lat_deg),
-        lon: deg_e7(gps.lon_deg),
-        alt: mm(gps.alt_amsl_m),
-        eph: centi(gps.eph_m),
-        epv: centi(gps.epv_m),
-        vel: centi(ground_mps),
-        cog: if ground_mps > 0.1 { cdeg_0_360(v.y.atan2(v.x)) } else { u16::MAX },
+        lat: deg_to_dege7(gps.lat_deg),
+        lon: deg_to_dege7(gps.lon_deg),
+        alt: m_to_mm(gps.alt_amsl_m),
+        eph: to_centi_u16(gps.eph_m),
+        epv: to_centi_u16(gps.epv_m),
+        vel: to_centi_u16(ground_mps),
+        cog: if ground_mps > 0.1 { rad_to_cdeg_0_360(v.y.atan2(v.x)) } else { u16::MAX },
         fix_type,
         satellites_visible: gps.satellites,
         ..Default::default()
@@ -574,9 +524,9 @@ fn home_position(home: &Home) -> Option<MavMessage> {
     let (lat_deg, lon_deg, alt_amsl_m) = home.geodetic?;
     let p = home.pos_ned_m;
     Some(MavMessage::HOME_POSITION(HOME_POSITION_DATA {
-        latitude: deg_e7(lat_deg),
-        longitude: deg_e7(lon_deg),
-        altitude: mm(alt_amsl_m),
+        latitude: deg_to_dege7(lat_deg),
+        longitude: deg_to_dege7(lon_deg),
+        altitude: m_to_mm(alt_amsl_m),
         x: p.x as f32,
         y: p.y as f32,
         z: p.z as f32,
@@ -593,7 +543,7 @@ fn vfr_hud(snap: &TelemetrySnapshot<'_>) -> MavMessage {
     let alt_m = est.origin.map_or(-est.pos_ned_m.z, |o| o.alt_amsl_m - est.pos_ned_m.z);
     let mean_pwm_us = snap.pwm_us.iter().sum::<f64>() / 4.0;
     let throttle_pct = ((mean_pwm_us - 1000.0) / 10.0).clamp(0.0, 100.0);
-    let heading_deg = i16::try_from(cdeg_0_360(est.euler_rad.z) / 100).unwrap_or(0);
+    let heading_deg = i16::try_from(rad_to_cdeg_0_360(est.euler_rad.z) / 100).unwrap_or(0);
     MavMessage::VFR_HUD(VFR_HUD_DATA {
         airspeed: ground_mps as f32,
         groundspeed: ground_mps as f32,
@@ -630,54 +580,6 @@ fn battery_status(battery: &BatteryStatus) -> MavMessage {
         BatteryWarning::Emergency => C::MAV_BATTERY_CHARGE_STATE_EMERGENCY,
     };
     MavMessage::BATTERY_STATUS(encode_battery_status(&sample, charge_state))
-}
-
-/// A STATUSTEXT (text cut to MAVLink's 50 bytes at a character boundary).
-#[must_use]
-pub fn statustext(severity: MavSeverity, text: &str) -> MavMessage {
-    let mut end = text.len().min(50);
-    while !text.is_char_boundary(end) {
-        end -= 1;
-    }
-    MavMessage::STATUSTEXT(STATUSTEXT_DATA { severity, text: text[..end].into(), ..Default::default() })
-}
-
-/// `text` as STATUSTEXTs: one when it fits (50 bytes), else MAVLink 2 chunks that ground stations
-/// reassemble (QGroundControl, MAVProxy): every chunk carries the non-zero `id`, `chunk_seq` counts from
-/// 0, and the last chunk is shorter than 50 bytes (an empty one follows a text that fills its last chunk).
-#[must_use]
-pub fn statustext_chunks(severity: MavSeverity, text: &str, id: u16) -> Vec<MavMessage> {
-    if text.len() <= 50 {
-        return vec![statustext(severity, text)];
-    }
-    let id = id.max(1);
-    let mut chunks = Vec::new();
-    let mut rest = text;
-    loop {
-        let mut end = rest.len().min(50);
-        while !rest.is_char_boundary(end) {
-            end -= 1;
-        }
-        let chunk_seq = u8::try_from(chunks.len()).unwrap_or(u8::MAX);
-        chunks.push(MavMessage::STATUSTEXT(STATUSTEXT_DATA { severity, text: rest[..end].into(), id, chunk_seq }));
-        if end < 50 || chunk_seq == u8::MAX {
-            break;
-        }
-        rest = &rest[end..];
-    }
-    chunks
-}
-
-/// The severity of an event's STATUSTEXT: a kill or failsafe is critical, a low battery a warning, a
-/// disarm a notice, the rest info.
-#[must_use]
-pub fn event_severity(event: &Event) -> MavSeverity {
-    match event {
-        Event::Killed | Event::Failsafe { .. } => MavSeverity::MAV_SEVERITY_CRITICAL,
-        Event::BatteryLow { .. } => MavSeverity::MAV_SEVERITY_WARNING,
-        Event::Disarmed { .. } => MavSeverity::MAV_SEVERITY_NOTICE,
-        _ => MavSeverity::MAV_SEVERITY_INFO,
-    }
 }
 
 #[cfg(test)]

@@ -35,10 +35,10 @@ use nalgebra::{Vector2, Vector3};
 
 use crate::core::control::Reference;
 use crate::core::estimator::GeoOrigin;
-use crate::core::geofence::Rally;
 pub use crate::core::intent::{AutoMode, HoldAt, Intent, ManualMode, Progress};
 use crate::core::manual::Sticks;
 pub use crate::core::mission::{NavCommand, NavItem, NavTarget, nav_items};
+use crate::core::plan::geofence::Rally;
 
 mod config;
 mod executor;

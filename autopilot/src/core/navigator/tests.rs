@@ -6,7 +6,7 @@ use nalgebra::{Vector2, Vector3};
 use super::spline::SplinePath;
 use super::*;
 use crate::core::control::Reference;
-use crate::core::geofence::Rally;
+use crate::core::plan::geofence::Rally;
 
 const ORIGIN: GeoOrigin = GeoOrigin { lat_deg: 47.397_742, lon_deg: 8.545_594, alt_amsl_m: 488.0 };
 const DT_S: f64 = 0.002;

@@ -6,9 +6,9 @@
 
 use nalgebra::Vector3;
 
+use super::geofence::{Fence, GeofenceConfig, Violation};
 use super::resolve::{Frame, resolve};
 use crate::core::estimator::GeoOrigin;
-use crate::core::geofence::{Fence, GeofenceConfig, Violation};
 use crate::core::mission::{NavCommand, NavItem, NavTarget};
 
 /// The farthest from home (m, in 3D) a commanded position may be: an offboard position setpoint, a

@@ -5,7 +5,7 @@
 
 use std::sync::Arc;
 
-use crate::core::geofence::{Fence, Rally};
+use super::geofence::{Fence, Rally};
 use crate::core::mission::{Mission, MissionError, NavItem, nav_items};
 
 /// The plans. See the module docs.

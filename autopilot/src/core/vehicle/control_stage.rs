@@ -6,7 +6,7 @@
 
 use crate::core::commander::{CommanderOutput, LandedState};
 use crate::core::config::{VehicleConfig, VehicleError};
-use crate::core::control::distributor::{PWM_MAX_US, PWM_MIN_US};
+use crate::core::control::distributor::{MOTOR_PWM_MAX_US, MOTOR_PWM_MIN_US};
 use crate::core::control::{ControlInput, Controller, ControllerConfig, Reference, distributor, try_new_controller};
 use crate::core::estimator::EstimatorState;
 
@@ -35,7 +35,7 @@ impl ControlStage {
     pub fn new(config: &VehicleConfig) -> Result<Self, VehicleError> {
         let controller = try_new_controller(config.controller, &config.control)?;
         let throttle_low_pwm_us = throttle_low_pwm_us(&config.control.aco.airframe, &config.control.aco.limits);
-        Ok(Self { controller, dirty: false, pwm_us: [PWM_MIN_US; 4], throttle_low_pwm_us })
+        Ok(Self { controller, dirty: false, pwm_us: [MOTOR_PWM_MIN_US; 4], throttle_low_pwm_us })
     }
 
     pub fn controller(&self) -> &dyn Controller {
@@ -72,7 +72,7 @@ impl ControlStage {
             self.pwm_us = self.control(state, out, reference, config);
         }
         if !out.motors_enabled {
-            self.pwm_us = [PWM_MIN_US; 4];
+            self.pwm_us = [MOTOR_PWM_MIN_US; 4];
         }
         self.pwm_us
     }
@@ -96,12 +96,12 @@ impl ControlStage {
     ) -> [f64; 4] {
         let Some(reference) = reference else {
             self.reset(config);
-            return [PWM_MIN_US; 4];
+            return [MOTOR_PWM_MIN_US; 4];
         };
         let on_ground = matches!(out.landed, LandedState::OnGround | LandedState::Undefined);
         if on_ground && !state.flags.position_valid {
             self.reset(config);
-            return [PWM_MIN_US; 4];
+            return [MOTOR_PWM_MIN_US; 4];
         }
         let input = ControlInput {
             pos_ned_m: state.pos_ned_m,
@@ -113,7 +113,7 @@ impl ControlStage {
         self.dirty = true;
         self.controller
             .update(&input, &reference)
-            .map(|p| if p.is_finite() { p.clamp(PWM_MIN_US, PWM_MAX_US) } else { PWM_MIN_US })
+            .map(|p| if p.is_finite() { p.clamp(MOTOR_PWM_MIN_US, MOTOR_PWM_MAX_US) } else { MOTOR_PWM_MIN_US })
     }
 }
 
@@ -129,6 +129,6 @@ mod tests {
         let pwm = throttle_low_pwm_us(&airframe, &ActuatorLimits::default());
         let hover = distributor::pwm_from_lift_us(airframe.hover_rotor_lift_n());
         println!("throttle low at or below {pwm:.1} µs (hover {hover:.1} µs)");
-        assert!(PWM_MIN_US < pwm && pwm < hover, "{pwm} µs (hover {hover} µs)");
+        assert!(MOTOR_PWM_MIN_US < pwm && pwm < hover, "{pwm} µs (hover {hover} µs)");
     }
 }

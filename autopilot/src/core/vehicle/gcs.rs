@@ -10,7 +10,6 @@ use nalgebra::Vector3;
 use super::{ShellEffect, Vehicle, weights_interval_us};
 use crate::core::commander::{Facts, FlightMode, Request};
 use crate::core::estimator::EstimatorState;
-use crate::core::geofence::{Fence, Rally, Violation};
 use crate::core::manual::PilotAction;
 use crate::core::manual::input::fltmode_flight_mode;
 use crate::core::mavlink::command::{AUTOPILOT_VERSION_ID, InboundCommand};
@@ -29,6 +28,7 @@ use crate::core::mavlink::{
 use crate::core::mission::{Mission, MissionError, NavTarget, items_to_wpl};
 use crate::core::navigator::OffboardSetpoint;
 use crate::core::params::ParamStore;
+use crate::core::plan::geofence::{Fence, Rally, Violation};
 use crate::core::plan::{self, Unresolved};
 
 /// What a ground station's message asks of the vehicle, once its service has decoded it.

@@ -11,9 +11,9 @@ use crate::core::control::{ControllerKind, Reference};
 use crate::core::estimator::{
     BaroSample, Estimator, EstimatorSource, EstimatorState, GpsSample, ImuSample, Innovations, MagSample, TruthSample,
 };
-use crate::core::hil::PlantCommandAck;
 use crate::core::manual::{ManualStatus, RcFrame};
-use crate::core::plant_health::{PlantLinkCounters, PlantLinkStatus};
+use crate::core::plant_link::PlantCommandAck;
+use crate::core::plant_link::health::{PlantLinkCounters, PlantLinkStatus};
 
 /// One step's sensor inputs (any may be absent).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -30,7 +30,7 @@ pub struct VehicleInputs {
     /// The plant's answer to a command the vehicle forwarded to it (a failure injection).
     pub plant_ack: Option<PlantCommandAck>,
     /// What the shell has counted on the plant link so far (bytes each way, malformed frames), for the
-    /// link's health ([`crate::core::plant_health`]); `None` from a host that does not count (the last
+    /// link's health ([`crate::core::plant_link::health`]); `None` from a host that does not count (the last
     /// counts hold).
     pub plant_link: Option<PlantLinkCounters>,
 }
@@ -92,7 +92,7 @@ pub struct VehicleOutputs {
     /// Telemetry due this step (HEARTBEAT, STATUSTEXT of events, streams), for every ground station.
     pub messages: Vec<MavMessage>,
     /// Messages for the plant, to write on the plant link before this step's actuator message (a
-    /// forwarded failure injection; see `core::hil`).
+    /// forwarded failure injection; see `core::plant_link`).
     pub plant_messages: Vec<MavMessage>,
 }
 

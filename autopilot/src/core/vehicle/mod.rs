@@ -8,7 +8,7 @@
 //! link lost), [`Vehicle::plant_lost_telemetry`]: the HEARTBEAT and SYS_STATUS that say so, for the shell
 //! to send on its wall-clock fallback.
 //!
-//! The step: the sample's time to the plant link's monitor (samples missing or late, `core::plant_health`)
+//! The step: the sample's time to the plant link's monitor (samples missing or late, `core::plant_link::health`)
 //! -> the inputs feed the estimator -> the navigator's progress goes to the commander -> the
 //! commander steps on the estimate and the vehicle's facts (the mode and its intent) -> the navigator
 //! turns the intent into the one [`Reference`] the controller tracks (position with velocity and
@@ -40,7 +40,7 @@ use crate::core::mavlink::{
 use crate::core::navigator::{NavEvent, NavInput, Navigator};
 use crate::core::params::ParamStore;
 use crate::core::plan::{Frame, Plan, SetpointGuard};
-use crate::core::plant_health::{PlantHealth, PlantLinkStatus};
+use crate::core::plant_link::health::{PlantHealth, PlantLinkStatus};
 
 mod control_stage;
 mod gcs;
@@ -52,7 +52,7 @@ pub use io::{LogSnapshot, ShellEffect, VehicleInputs, VehicleOutputs};
 use motor_test::MotorTest;
 
 /// The motor command range (µs): one definition, the distributor's.
-pub use crate::core::control::distributor::{PWM_MAX_US, PWM_MIN_US};
+pub use crate::core::control::distributor::{MOTOR_PWM_MAX_US, MOTOR_PWM_MIN_US};
 
 /// The interval (µs) of the adaptive-weight stream at `hz` (0 or less: off).
 fn weights_interval_us(hz: f32) -> u64 {
@@ -233,7 +233,7 @@ impl Vehicle {
     }
 
     /// The plant link's health after the last step: samples received, missing and late, the last second's
-    /// drop rate, and the shell's byte counts (see [`crate::core::plant_health`]).
+    /// drop rate, and the shell's byte counts (see [`crate::core::plant_link::health`]).
     #[must_use]
     pub fn plant_link_status(&self) -> PlantLinkStatus {
         self.plant_health.status()

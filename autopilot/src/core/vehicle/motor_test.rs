@@ -10,7 +10,7 @@
 //! is armed, and at any disarm, kill or flight termination command ([`MotorTest::stop`]: whoever sends
 //! one wants the motors stopped).
 
-use crate::core::control::distributor::{PWM_MAX_US, PWM_MIN_US};
+use crate::core::control::distributor::{MOTOR_PWM_MAX_US, MOTOR_PWM_MIN_US};
 use crate::core::mavlink::MotorTestRequest;
 
 /// A test running: the motor (0-based output), its PWM (µs) and the last vehicle time it runs at (µs).
@@ -37,7 +37,7 @@ impl MotorTest {
                 let thrust = if thrust.is_finite() { thrust.clamp(0.0, 1.0) } else { 0.0 };
                 self.running = Some(Running {
                     index: usize::from(motor.saturating_sub(1)).min(3),
-                    pwm_us: PWM_MIN_US + (PWM_MAX_US - PWM_MIN_US) * thrust,
+                    pwm_us: MOTOR_PWM_MIN_US + (MOTOR_PWM_MAX_US - MOTOR_PWM_MIN_US) * thrust,
                     until_us: now_us.saturating_add(timeout_us),
                 });
             }
@@ -60,7 +60,7 @@ impl MotorTest {
             self.running = None;
         }
         self.last_pwm_us = self.running.map(|r| {
-            let mut pwm_us = [PWM_MIN_US; 4];
+            let mut pwm_us = [MOTOR_PWM_MIN_US; 4];
             pwm_us[r.index] = r.pwm_us;
             pwm_us
         });

@@ -285,13 +285,13 @@ fn given_10s_of_vehicle_time_when_counted_then_each_stream_at_its_default_rate()
 fn given_disarmed_or_idle_or_non_finite_inputs_when_stepped_then_pwm_1000_and_never_nan() {
     let (mut v, mut t) = (truth_vehicle(), 0);
     for _ in 0..100 {
-        assert_eq!(v.step(t, &at_rest(t)).pwm_us, [PWM_MIN_US; 4], "disarmed");
+        assert_eq!(v.step(t, &at_rest(t)).pwm_us, [MOTOR_PWM_MIN_US; 4], "disarmed");
         t += DT_US;
     }
     v.handle_message(t, &GCS, &long(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, ARM, 1));
     let o = v.step(t, &at_rest(t));
     assert!(o.armed);
-    assert_eq!(o.pwm_us, [PWM_MIN_US; 4], "armed idle");
+    assert_eq!(o.pwm_us, [MOTOR_PWM_MIN_US; 4], "armed idle");
     v.handle_message(t, &GCS, &long(MavCmd::MAV_CMD_NAV_TAKEOFF, [f32::NAN; 7], 1));
     let mut spun_up = false;
     for i in 0..500 {
@@ -308,13 +308,13 @@ fn given_disarmed_or_idle_or_non_finite_inputs_when_stepped_then_pwm_1000_and_ne
             }
         }
         let pwm = v.step(t, &inputs).pwm_us;
-        assert!(pwm.iter().all(|p| p.is_finite() && (PWM_MIN_US..=PWM_MAX_US).contains(p)), "{pwm:?}");
-        spun_up |= pwm.iter().any(|p| *p > PWM_MIN_US);
+        assert!(pwm.iter().all(|p| p.is_finite() && (MOTOR_PWM_MIN_US..=MOTOR_PWM_MAX_US).contains(p)), "{pwm:?}");
+        spun_up |= pwm.iter().any(|p| *p > MOTOR_PWM_MIN_US);
     }
     assert!(spun_up, "the takeoff ran the controller");
     v.handle_message(t, &GCS, &long(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [0.0, 21196.0, 0.0, 0.0, 0.0, 0.0, 0.0], 1));
     t += DT_US;
-    assert_eq!(v.step(t, &at_rest(t)).pwm_us, [PWM_MIN_US; 4], "killed");
+    assert_eq!(v.step(t, &at_rest(t)).pwm_us, [MOTOR_PWM_MIN_US; 4], "killed");
 }
 
 #[test]
@@ -597,7 +597,7 @@ fn given_sys_failure_en_1_when_a_gps_failure_is_injected_then_it_goes_to_the_pla
         matches!(out.plant_messages.as_slice(), [MavMessage::COMMAND_LONG(c)] if c.command == MavCmd::MAV_CMD_INJECT_FAILURE && c.param1 == 4.0 && c.param2 == 1.0)
     );
     t += DT_US;
-    let ack = crate::core::hil::PlantCommandAck { command_id: 420, result: MavResult::MAV_RESULT_ACCEPTED };
+    let ack = crate::core::plant_link::PlantCommandAck { command_id: 420, result: MavResult::MAV_RESULT_ACCEPTED };
     let out = v.step(t, &VehicleInputs { plant_ack: Some(ack), ..at_rest(t) });
     assert_eq!(ack_of(&out.messages), Some((MavCmd::MAV_CMD_INJECT_FAILURE, MavResult::MAV_RESULT_ACCEPTED)));
     assert!(out.plant_messages.is_empty());

@@ -25,7 +25,7 @@ use crate::core::vehicle::{LogSnapshot, Vehicle};
 /// use (see [`logged`]). `estimator_status_flags` is PX4's topic reduced to the fields this estimator has,
 /// plus its own per-source fault codes (see [`px4_fault`]). `plant_link_status` is this autopilot's own:
 /// the plant link's byte counts and rates, its bad frames, its samples missing and late and the last
-/// second's drop rate ([`crate::core::plant_health`]), once a second.
+/// second's drop rate ([`crate::core::plant_link::health`]), once a second.
 pub const TOPICS: [(&str, u64); 14] = [
     ("vehicle_status", 1_000_000),
     ("vehicle_attitude", 20_000),

@@ -16,7 +16,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
-use autopilot::core::hil::FrameDecoder;
+use autopilot::core::plant_link::FrameDecoder;
 use autopilot::runtime::ports::InstancePorts;
 use clap::Args;
 use sitl::launch::{self, AutopilotChild, TempConfig};

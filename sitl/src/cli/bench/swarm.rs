@@ -8,8 +8,8 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
-use autopilot::core::hil::{FrameDecoder, encode_frame_v2};
 use autopilot::core::mavlink::command::command_long;
+use autopilot::core::plant_link::{FrameDecoder, encode_frame_v2};
 use autopilot::runtime::ports::InstancePorts;
 use clap::Parser;
 use mavlink::MavHeader;

@@ -23,6 +23,7 @@ use nalgebra::{Vector2, Vector3};
 use serde::{Deserialize, Serialize};
 
 use crate::core::estimator::GeoOrigin;
+use crate::core::mavlink::units::dege7_to_deg;
 use crate::core::mission::{LAT_LIMIT_DEGE7, LON_LIMIT_DEGE7, MissionError, MissionItem, XY_UNSET, is_global_frame};
 
 /// The time the vehicle keeps going before its brake takes hold (s): the controller's lag.
@@ -131,7 +132,7 @@ fn check_global_position(item: &MissionItem) -> Result<(f64, f64), MissionError>
     if item.y == XY_UNSET || !(-LON_LIMIT_DEGE7..=LON_LIMIT_DEGE7).contains(&item.y) {
         return Err(invalid(seq, 6, "longitude not set or out of range"));
     }
-    Ok((f64::from(item.x) * 1e-7, f64::from(item.y) * 1e-7))
+    Ok((dege7_to_deg(item.x), dege7_to_deg(item.y)))
 }
 
 /// Checks one fence item on its own (as it arrives in an upload); [`Fence::new`] checks how the items
@@ -192,7 +193,7 @@ impl Fence {
                 return Err(MissionError::Sequence { index: i, seq: item.seq });
             }
             validate_fence_item(item)?;
-            let at = |it: &MissionItem| (f64::from(it.x) * 1e-7, f64::from(it.y) * 1e-7);
+            let at = |it: &MissionItem| (dege7_to_deg(it.x), dege7_to_deg(it.y));
             match item.command {
                 C::MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION | C::MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION => {
                     let n = item.param1 as usize;
@@ -326,7 +327,7 @@ impl Rally {
     pub fn points_ne_m(&self, origin: &GeoOrigin) -> Vec<Vector2<f64>> {
         self.items
             .iter()
-            .map(|it| origin.ned_from_geodetic(f64::from(it.x) * 1e-7, f64::from(it.y) * 1e-7, origin.alt_amsl_m).xy())
+            .map(|it| origin.ned_from_geodetic(dege7_to_deg(it.x), dege7_to_deg(it.y), origin.alt_amsl_m).xy())
             .collect()
     }
 

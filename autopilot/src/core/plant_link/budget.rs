@@ -20,13 +20,13 @@ use mavlink::MavHeader;
 use mavlink::dialects::common::{MavBatteryChargeState, MavMessage};
 use nalgebra::{UnitQuaternion, Vector3};
 
-use super::battery::BatterySample;
-use super::estimator::{GeoOrigin, GpsSample, TruthSample};
-use super::hil::{
+use super::codec::{
     ActuatorCommand, HilBaroFields, HilSensorFields, encode_actuator_controls, encode_battery_status, encode_frame_v2,
     encode_hil_gps, encode_hil_sensor, encode_hil_state_quaternion, encode_odometry, encode_rc_channels,
 };
-use super::manual::RcFrame;
+use crate::core::battery::BatterySample;
+use crate::core::estimator::{GeoOrigin, GpsSample, TruthSample};
+use crate::core::manual::RcFrame;
 
 /// Bits on the wire per byte: a start bit, 8 data bits and a stop bit (8N1).
 pub const BITS_PER_BYTE: u32 = 10;
