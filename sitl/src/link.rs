@@ -10,9 +10,9 @@
 //! disarmed; stopped motors draw nothing from the pack).
 //!
 //! Failure injection: a `COMMAND_LONG` `MAV_CMD_INJECT_FAILURE` (420) the autopilot forwards (before its
-//! `HIL_ACTUATOR_CONTROLS`, in the same datagram or write) is applied before the step, through the SIM_
-//! parameter service (`crate::sim_params::SimParamService::inject_failure`: the hook's, else the server's
-//! own), and answered by exactly one `COMMAND_ACK` first in the next sensor datagram sent, before its
+//! `HIL_ACTUATOR_CONTROLS`, in the same datagram or write) is applied before the step, through the
+//! server's SIM_ parameter service ([`SimParamService::inject_failure`], the one its SIM_ port answers
+//! from), and answered by exactly one `COMMAND_ACK` first in the next sensor datagram sent, before its
 //! `HIL_SENSOR` (a resend of that datagram repeats it, as it repeats everything).
 //!
 //! Delay and loss (SIM_LINK_DELAY, SIM_LINK_LOSS, `crate::plant::LinkFaults`): every step's sample goes
@@ -38,7 +38,11 @@
 //! default forever). Afterwards the plant answers the sender of the last matching actuator message, so an
 //! autopilot restarted on another port is followed. Serial ([`SerialTransport`]) is point to point.
 //!
-//! A [`PlantHook`] (the SIM_ parameter service, `crate::sim_params`) may change the plant between
+//! The server always holds the plant's SIM_ parameter service ([`SimParamService`]): failure injections
+//! and a scenario's timed SIM_ sets ([`SimEvents`], fired just before the step they are due at) go
+//! through it, and a SIM_ port attached to the server ([`PlantServer::set_sim_port`]) answers from it.
+//!
+//! A [`PlantHook`] (the SIM_ port, [`SimParamLink`]) may change the plant between
 //! steps. It is polled every [`HOOK_EVERY_STEPS`] plant steps (0.1 s of plant time at 2 ms), and at
 //! least every [`HOOK_WAIT_INTERVAL`] of wall time while the server waits (for the autopilot's reply, its
 //! first datagram, or the real-time pacing): never once per step, which would cost the lockstep loop a
@@ -72,12 +76,11 @@ pub use fields::{
 
 use crate::pacer::Pacer;
 use crate::plant::{Plant, StateNoise};
-use crate::sim_params::{FailureRequest, Injection, SimParamService};
+pub use crate::sim_params::PLANT_COMPONENT_ID;
+use crate::sim_params::{FailureRequest, SimEvent, SimEvents, SimParamLink, SimParamService};
 
 /// MAVLink system id the plant sends with.
 pub const PLANT_SYSTEM_ID: u8 = 1;
-/// MAVLink component id the plant sends with (`MAV_COMP_ID_USER1`..: any; PX4 ignores it for HIL).
-pub const PLANT_COMPONENT_ID: u8 = 51;
 
 use autopilot::runtime::transport::{POLL_INTERVAL, SpinReceiver, is_transient};
 pub use autopilot::runtime::transport::{SerialTransport, Transport};
@@ -88,26 +91,29 @@ pub const HOOK_EVERY_STEPS: u64 = 50;
 pub const HOOK_WAIT_INTERVAL: Duration = Duration::from_millis(20);
 
 /// Something polled between plant steps that may change the plant (its wind) before the next step, such
-/// as the SIM_ parameter service. A poll must not block.
+/// as the SIM_ port. A poll must not block.
 pub trait PlantHook: Send + std::fmt::Debug {
-    /// Called with the plant between two steps: every [`HOOK_EVERY_STEPS`] steps and at least every
-    /// [`HOOK_WAIT_INTERVAL`] while the server waits.
+    /// Called with the plant and the server's SIM_ parameter service between two steps: every
+    /// [`HOOK_EVERY_STEPS`] steps and at least every [`HOOK_WAIT_INTERVAL`] while the server waits.
     ///
     /// # Errors
     /// An I/O error that is not transient; it ends the server's run as [`LinkError::Hook`].
-    fn poll(&mut self, plant: &mut Plant) -> io::Result<()>;
+    fn poll(&mut self, plant: &mut Plant, sim: &mut SimParamService) -> io::Result<()>;
 
     /// Called after every plant step with the plant as it now is, to take samples on plant time (the
     /// SIM_ port's truth stream). It must be cheap and make no system call: what it takes goes out at
     /// the next [`PlantHook::poll`].
     fn stepped(&mut self, _plant: &Plant) {}
+}
 
-    /// A `MAV_CMD_INJECT_FAILURE` the autopilot forwarded, received between two steps: a hook that holds
-    /// the plant's SIM_ parameter service applies it there (so its clients see the change) and returns
-    /// what it did; the default, for a hook without one, returns `None` and the server applies it through
-    /// its own service.
-    fn inject_failure(&mut self, _plant: &mut Plant, _request: &FailureRequest) -> Option<Injection> {
-        None
+/// The SIM_ port as the server's hook: it answers from the server's service.
+impl PlantHook for SimParamLink {
+    fn poll(&mut self, plant: &mut Plant, sim: &mut SimParamService) -> io::Result<()> {
+        SimParamLink::poll(self, sim, plant)
+    }
+
+    fn stepped(&mut self, plant: &Plant) {
+        SimParamLink::stepped(self, plant);
     }
 }
 
@@ -355,8 +361,11 @@ pub struct PlantServer<T: Transport> {
     delay_line: VecDeque<(u64, Vec<MavMessage>)>,
     /// `COMMAND_ACK`s owed to the autopilot, sent before the next `HIL_SENSOR`.
     acks: Vec<MavMessage>,
-    /// The server's own SIM_ parameter service, for injections when no hook holds one.
-    own_params: Option<SimParamService>,
+    /// The plant's SIM_ parameter service: failure injections and the timed sets go through it, and the
+    /// SIM_ port (the hook) answers from it.
+    sim: SimParamService,
+    /// A scenario's timed SIM_ parameter sets (none by default), fired through `sim` before a step.
+    events: SimEvents,
     /// The real-time pacer, from the first paced step.
     pacer: Option<Pacer>,
     /// Polled between steps (see [`PlantHook`]), with the wall time of its last poll.
@@ -381,6 +390,7 @@ impl<T: Transport> PlantServer<T> {
     #[must_use]
     pub fn new(plant: Plant, transport: T, config: LinkConfig) -> Self {
         let home = home_origin(&plant.config().sensors.home);
+        let sim = SimParamService::new(PLANT_SYSTEM_ID, &plant);
         Self {
             plant,
             transport,
@@ -393,7 +403,8 @@ impl<T: Transport> PlantServer<T> {
             pending: None,
             delay_line: VecDeque::new(),
             acks: Vec::new(),
-            own_params: None,
+            sim,
+            events: SimEvents::default(),
             pacer: None,
             hook: None,
             rc_in: None,
@@ -425,6 +436,36 @@ impl<T: Transport> PlantServer<T> {
         self.hook = Some((hook, Instant::now()));
     }
 
+    /// Serve the plant's SIM_ parameters on `port` from now on: the server's service answers for the
+    /// port's system, and the port is the server's hook (replacing any earlier one).
+    pub fn set_sim_port(&mut self, port: SimParamLink) {
+        self.sim.set_system_id(port.system_id());
+        self.set_hook(Box::new(port));
+    }
+
+    /// Fire `schedule` (a scenario's `[[event]]`, from `crate::sim_params::events::resolve`) through the
+    /// server's SIM_ parameter service, each event just before the first step at or after its time.
+    pub fn set_sim_events(&mut self, schedule: Vec<SimEvent>) {
+        self.events = SimEvents::new(schedule);
+    }
+
+    /// The plant's SIM_ parameter service (its values).
+    #[must_use]
+    pub fn sim_params(&self) -> &SimParamService {
+        &self.sim
+    }
+
+    /// The timed SIM_ sets: how many fired, and what the plant refused.
+    #[must_use]
+    pub fn sim_events(&self) -> &SimEvents {
+        &self.events
+    }
+
+    /// Step the plant by the link's `dt_us` with `pwm_us` held, the timed sets due firing first.
+    fn step_plant(&mut self, pwm_us: [f64; 4]) {
+        self.events.step(&mut self.sim, &mut self.plant, pwm_us, self.config.dt_us);
+    }
+
     /// Read the pilot's radio from `port` from now on (its last good frame is the receiver's until a
     /// schedule begins), whenever `RC_CHANNELS` is due.
     pub fn set_rc_in(&mut self, port: rc::RcInPort) {
@@ -441,7 +482,7 @@ impl<T: Transport> PlantServer<T> {
     fn poll_hook(&mut self, now: Instant) -> Result<(), LinkError> {
         if let Some((hook, polled_at)) = &mut self.hook {
             *polled_at = now;
-            hook.poll(&mut self.plant).map_err(LinkError::Hook)?;
+            hook.poll(&mut self.plant, &mut self.sim).map_err(LinkError::Hook)?;
         }
         Ok(())
     }
@@ -593,17 +634,15 @@ impl<T: Transport> PlantServer<T> {
         delivered.flatten()
     }
 
-    /// Apply a `MAV_CMD_INJECT_FAILURE` the autopilot forwarded (through the hook's SIM_ parameter
-    /// service, else the server's own) and owe `sender` its `COMMAND_ACK`.
+    /// Apply a `MAV_CMD_INJECT_FAILURE` the autopilot forwarded through the server's SIM_ parameter
+    /// service (what it changed goes to the SIM_ port's clients at its next poll) and owe `sender` its
+    /// `COMMAND_ACK`.
     fn inject_failure(&mut self, command: &COMMAND_LONG_DATA, sender: &MavHeader) {
         let request = FailureRequest { unit: command.param1, failure_type: command.param2, instance: command.param3 };
-        let plant = &mut self.plant;
-        let hooked = self.hook.as_mut().and_then(|(hook, _)| hook.inject_failure(plant, &request));
-        let injection = hooked.unwrap_or_else(|| {
-            self.own_params
-                .get_or_insert_with(|| SimParamService::new(PLANT_SYSTEM_ID, plant))
-                .inject_failure(&request, plant)
-        });
+        let injection = self.sim.inject_failure(&request, &mut self.plant);
+        if self.hook.is_some() {
+            self.sim.tell_peers(&injection.messages);
+        }
         tracing::info!(t_us = self.plant.time_us(), "plant: {} ({:?})", injection.text, injection.result);
         self.stats.injections += 1;
         self.acks.push(MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
@@ -684,7 +723,7 @@ impl<T: Transport> PlantServer<T> {
         };
         self.pace(t)?;
         self.plant.set_motors_running(command.motors_running());
-        self.plant.step(command.effective_pwm_us(), self.config.dt_us);
+        self.step_plant(command.effective_pwm_us());
         self.stats.steps += 1;
         self.last_command = Some(command);
         if let Some((hook, _)) = &mut self.hook {
@@ -1018,7 +1057,7 @@ mod tests {
     }
 
     impl PlantHook for CountingHook {
-        fn poll(&mut self, plant: &mut Plant) -> io::Result<()> {
+        fn poll(&mut self, plant: &mut Plant, _sim: &mut SimParamService) -> io::Result<()> {
             if self.polls.fetch_add(1, Ordering::Relaxed) == 0 {
                 plant.wind_mut().set_steady_ned_mps(Vector3::new(0.0, 3.0, 0.0));
             }

@@ -354,11 +354,9 @@ impl LinkFaults {
 
 #[cfg(test)]
 mod tests {
-    use autopilot::core::hil::{decode_hil_sensor, encode_hil_sensor};
     use nalgebra::Vector3;
 
     use super::*;
-    use crate::link::sensor_fields;
     use crate::plant::sensors::SensorConfig;
     use crate::plant::{InitialState, Plant, PlantConfig};
 
@@ -468,25 +466,6 @@ mod tests {
             checked += 1;
         }
         assert_eq!(checked, 6);
-    }
-
-    #[test]
-    fn given_baro_and_mag_off_then_they_are_absent_and_hil_sensor_carries_only_the_imu() {
-        let faulty = run(20, |k, plant| {
-            if k == 10 {
-                plant.sensor_faults_mut().set(Sensor::Baro, Fault::Off).expect("baro off");
-                plant.sensor_faults_mut().set(Sensor::Mag, Fault::Off).expect("mag off");
-            }
-        });
-        let s = faulty[10];
-        assert_eq!((s.mag_frd_gauss, s.baro), (None, None));
-        let msg = encode_hil_sensor(&sensor_fields(&s));
-        assert_eq!(msg.fields_updated.bits(), 0x3F, "accel and gyro bits only");
-        let decoded = decode_hil_sensor(&msg);
-        assert_eq!((decoded.mag_frd_gauss, decoded.baro), (None, None), "the autopilot reads no mag, no baro");
-        assert!(faulty[9].mag_frd_gauss.is_some() && faulty[9].baro.is_some());
-        let on = encode_hil_sensor(&sensor_fields(&faulty[9]));
-        assert_eq!(on.fields_updated.bits() & 0x1FC0, 0x1FC0 & !0x400, "mag, pressure, altitude, temperature");
     }
 
     #[test]

@@ -121,9 +121,8 @@ mod tests {
     use mavlink::types::CharArray;
     use proptest::prelude::*;
 
-    use super::super::{FailureRequest, SIM_PARAMS, SimParamService};
+    use super::super::{FailureRequest, PLANT_COMPONENT_ID, SIM_PARAMS, SimParamService};
     use super::*;
-    use crate::link::PLANT_COMPONENT_ID;
     use crate::plant::{BatteryConfig, InitialState, PlantConfig};
 
     const SYS: u8 = 1;
