@@ -51,279 +51,49 @@
 
 use std::collections::VecDeque;
 use std::io;
-use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
+use std::net::ToSocketAddrs;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use autopilot::core::estimator::GeoOrigin;
 use autopilot::core::hil::{
-    ActuatorCommand, DecoderStats, FrameDecoder, HilInput, decode_hil_message, encode_battery_status, encode_frame_v2,
+    ActuatorCommand, FrameDecoder, HilInput, decode_hil_message, encode_battery_status, encode_frame_v2,
     encode_hil_gps, encode_hil_sensor, encode_hil_state_quaternion, encode_odometry, encode_rc_channels,
 };
 use mavlink::MavHeader;
-use mavlink::dialects::common::{COMMAND_ACK_DATA, COMMAND_LONG_DATA, MavBatteryChargeState, MavCmd, MavMessage};
+use mavlink::dialects::common::{MavBatteryChargeState, MavCmd, MavMessage};
 
+mod config;
 mod fields;
 pub mod free_run;
 pub mod rc;
+mod sim;
+mod udp;
 
 #[cfg(test)]
 mod fault_tests;
 
+pub use config::{LinkConfig, LinkError, LinkStats, Pacing};
 pub use fields::{
     BATTERY_PERIOD_US, battery_due, battery_fields, home_origin, noisy_truth_fields, sensor_fields, truth_fields,
 };
 
 use crate::pacer::Pacer;
-use crate::plant::{Plant, StateNoise};
+use crate::plant::Plant;
 pub use crate::sim_params::PLANT_COMPONENT_ID;
-use crate::sim_params::{FailureRequest, SimEvent, SimEvents, SimParamLink, SimParamService};
+use crate::sim_params::{SimEvents, SimParamService};
+pub use sim::PlantHook;
+pub use udp::UdpTransport;
 
 /// MAVLink system id the plant sends with.
 pub const PLANT_SYSTEM_ID: u8 = 1;
 
-use autopilot::runtime::transport::{POLL_INTERVAL, SpinReceiver, is_transient};
 pub use autopilot::runtime::transport::{SerialTransport, Transport};
 
 /// Plant steps between two polls of the [`PlantHook`] (50 steps = 0.1 s of plant time at 2 ms).
 pub const HOOK_EVERY_STEPS: u64 = 50;
 /// Longest wall time between two polls of the [`PlantHook`] while the server waits.
 pub const HOOK_WAIT_INTERVAL: Duration = Duration::from_millis(20);
-
-/// Something polled between plant steps that may change the plant (its wind) before the next step, such
-/// as the SIM_ port. A poll must not block.
-pub trait PlantHook: Send + std::fmt::Debug {
-    /// Called with the plant and the server's SIM_ parameter service between two steps: every
-    /// [`HOOK_EVERY_STEPS`] steps and at least every [`HOOK_WAIT_INTERVAL`] while the server waits.
-    ///
-    /// # Errors
-    /// An I/O error that is not transient; it ends the server's run as [`LinkError::Hook`].
-    fn poll(&mut self, plant: &mut Plant, sim: &mut SimParamService) -> io::Result<()>;
-
-    /// Called after every plant step with the plant as it now is, to take samples on plant time (the
-    /// SIM_ port's truth stream). It must be cheap and make no system call: what it takes goes out at
-    /// the next [`PlantHook::poll`].
-    fn stepped(&mut self, _plant: &Plant) {}
-}
-
-/// The SIM_ port as the server's hook: it answers from the server's service.
-impl PlantHook for SimParamLink {
-    fn poll(&mut self, plant: &mut Plant, sim: &mut SimParamService) -> io::Result<()> {
-        SimParamLink::poll(self, sim, plant)
-    }
-
-    fn stepped(&mut self, plant: &Plant) {
-        SimParamLink::stepped(self, plant);
-    }
-}
-
-/// UDP: bound to the plant's port, sending to the autopilot that spoke last.
-#[derive(Debug)]
-pub struct UdpTransport {
-    socket: UdpSocket,
-    local: SocketAddr,
-    peer: Option<SocketAddr>,
-    last_sender: Option<SocketAddr>,
-    receiver: SpinReceiver,
-    buf: Vec<u8>,
-}
-
-impl UdpTransport {
-    /// Bind `addr` (e.g. `127.0.0.1:4560`, or port 0 in tests); no peer until one speaks. A `recv` polls
-    /// for [`UDP_SPIN`](autopilot::runtime::transport::UDP_SPIN), then waits at most [`POLL_INTERVAL`].
-    ///
-    /// # Errors
-    /// The bind or socket-option error.
-    pub fn bind(addr: impl ToSocketAddrs) -> io::Result<Self> {
-        let socket = UdpSocket::bind(addr)?;
-        socket.set_read_timeout(Some(POLL_INTERVAL))?;
-        socket.set_nonblocking(true)?;
-        let local = socket.local_addr()?;
-        Ok(Self {
-            socket,
-            local,
-            peer: None,
-            last_sender: None,
-            receiver: SpinReceiver::default(),
-            buf: vec![0; 65_536],
-        })
-    }
-
-    /// Wait at most `poll` in a `recv` instead of [`POLL_INTERVAL`] (a free-running plant steps on its own
-    /// clock and must not sleep past a step).
-    ///
-    /// # Errors
-    /// The socket-option error.
-    pub fn with_poll(self, poll: Duration) -> io::Result<Self> {
-        self.socket.set_read_timeout(Some(poll.max(Duration::from_micros(100))))?;
-        Ok(self)
-    }
-
-    /// Send to `peer` from the start instead of waiting for it to speak.
-    #[must_use]
-    pub fn with_peer(mut self, peer: SocketAddr) -> Self {
-        self.peer = Some(peer);
-        self
-    }
-
-    /// The bound address.
-    ///
-    /// # Errors
-    /// The socket's error.
-    pub fn local_addr(&self) -> io::Result<SocketAddr> {
-        self.socket.local_addr()
-    }
-
-    /// The autopilot's address, once known.
-    #[must_use]
-    pub fn peer(&self) -> Option<SocketAddr> {
-        self.peer
-    }
-}
-
-impl Transport for UdpTransport {
-    /// Nothing to send to before the autopilot spoke; an autopilot gone away is not an error here (the
-    /// link-loss timer reports it).
-    fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
-        let Some(peer) = self.peer else { return Ok(()) };
-        match self.socket.send_to(bytes, peer) {
-            Ok(_) => Ok(()),
-            Err(e) if is_transient(&e) => Ok(()),
-            Err(e) => Err(e),
-        }
-    }
-
-    /// A port-unreachable report (Windows: `ConnectionReset`) for an autopilot not yet or no longer
-    /// listening is read as "nothing received": the resend and link-loss timers handle it.
-    fn recv(&mut self) -> io::Result<Option<&[u8]>> {
-        let buf = &mut self.buf;
-        let Some((n, from)) = self.receiver.recv(&self.socket, |s| s.recv_from(buf))? else {
-            return Ok(None);
-        };
-        self.last_sender = Some(from);
-        Ok(Some(&self.buf[..n]))
-    }
-
-    fn is_datagram(&self) -> bool {
-        true
-    }
-
-    fn has_peer(&self) -> bool {
-        self.peer.is_some()
-    }
-
-    fn adopt_last_sender(&mut self) {
-        if self.last_sender.is_some() {
-            self.peer = self.last_sender;
-        }
-    }
-
-    fn describe(&self) -> String {
-        format!("udp://{}", self.local)
-    }
-}
-
-/// How plant time relates to wall time.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Pacing {
-    /// As fast as the autopilot answers ([`LinkConfig`]'s default, for tests and scenarios; `sitl run` and
-    /// `sitl serve` run at real time unless given `--speed max`).
-    Lockstep,
-    /// Lockstep, and plant time never ahead of `speed` times wall time (1.0 = real time).
-    RealTime { speed: f64 },
-}
-
-/// Timing of the link.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LinkConfig {
-    /// Plant step per sensor sample (µs); default 2000 (500 Hz).
-    pub dt_us: u64,
-    pub pacing: Pacing,
-    /// Wall time without a reply before the sensor datagram is resent; default 1 s.
-    pub resend_timeout: Duration,
-    /// Wall time without a reply before [`LinkError::LinkLost`]; default 5 s.
-    pub link_lost_timeout: Duration,
-    /// Wall time to wait for the autopilot's first datagram; `None` (default) = forever.
-    pub connect_timeout: Option<Duration>,
-    /// White noise added to the truth in `HIL_STATE_QUATERNION` (the paper's truth-fed "hardware" runs);
-    /// `None` (default): exact truth.
-    pub truth_noise: Option<StateNoise>,
-    /// Send the simulator's ground truth (`HIL_STATE_QUATERNION` with every sample); default on. A real
-    /// board never sends it, so `sitl serve --serial` leaves it off unless asked (`--truth`).
-    pub send_truth: bool,
-    /// Also send the truth as `ODOMETRY` at float precision (see `autopilot::core::hil::LocalTruth`), for
-    /// truth-fed runs; default off (HIL_STATE_QUATERNION's degE7 position is quantised to ±5.6 mm).
-    pub truth_odometry: bool,
-}
-
-impl Default for LinkConfig {
-    fn default() -> Self {
-        Self {
-            dt_us: 2000,
-            pacing: Pacing::Lockstep,
-            resend_timeout: Duration::from_secs(1),
-            link_lost_timeout: Duration::from_secs(5),
-            connect_timeout: None,
-            truth_noise: None,
-            send_truth: true,
-            truth_odometry: false,
-        }
-    }
-}
-
-/// Link errors.
-#[derive(Debug, thiserror::Error)]
-pub enum LinkError {
-    #[error("plant link I/O: {0}")]
-    Io(#[from] io::Error),
-    #[error("link lost: no actuator reply for plant time {time_us} µs within {waited:?}")]
-    LinkLost { time_us: u64, waited: Duration },
-    #[error("no autopilot connected within {waited:?}")]
-    NoPeer { waited: Duration },
-    #[error("stopped")]
-    Stopped,
-    #[error("plant hook: {0}")]
-    Hook(#[source] io::Error),
-    #[error("RC input port: {0}")]
-    RcIn(#[source] io::Error),
-}
-
-/// What the link saw; every field only grows.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct LinkStats {
-    /// Plant steps taken.
-    pub steps: u64,
-    /// Sensor datagrams sent (first sends, not resends).
-    pub sensor_sent: u64,
-    /// `HIL_GPS` messages sent.
-    pub gps_sent: u64,
-    /// `RC_CHANNELS` messages sent (the radio receiver's output).
-    pub rc_sent: u64,
-    /// Sensor datagrams resent after `resend_timeout`.
-    pub resends: u64,
-    /// Actuator replies for another time than the one awaited (free-running: for a sample older than the
-    /// command held, or not yet sent).
-    pub stale_actuators: u64,
-    /// Free-running: actuator replies taken a step or more after their sample's own step (the line or the
-    /// autopilot took longer than a period).
-    pub late_actuators: u64,
-    /// Free-running: sensor datagrams the line would not take within the poll interval (dropped).
-    pub send_timeouts: u64,
-    /// Free-running: times the board's watchdog put the motors at minimum (no command for 100 ms).
-    pub watchdog_trips: u64,
-    /// Well-formed messages other than `HIL_ACTUATOR_CONTROLS` and `MAV_CMD_INJECT_FAILURE` (ignored).
-    pub other_messages: u64,
-    /// Datagrams without a single good frame.
-    pub junk_datagrams: u64,
-    /// Sensor datagrams the link lost (SIM_LINK_LOSS) or dropped for a newer one when the delay fell.
-    pub lost: u64,
-    /// Plant steps taken on the last command because no sensor datagram went out (lost or delayed).
-    pub held_steps: u64,
-    /// `MAV_CMD_INJECT_FAILURE` commands received (each answered by one `COMMAND_ACK`).
-    pub injections: u64,
-    /// The frame decoder's counts (garbage, bad CRC, truncated, ...).
-    pub decoder: DecoderStats,
-}
 
 /// What one read of the transport brought (see `PlantServer::receive`).
 #[derive(Debug)]
@@ -431,41 +201,6 @@ impl<T: Transport> PlantServer<T> {
         self.pacer = None;
     }
 
-    /// Poll `hook` between steps from now on (replacing any earlier one).
-    pub fn set_hook(&mut self, hook: Box<dyn PlantHook>) {
-        self.hook = Some((hook, Instant::now()));
-    }
-
-    /// Serve the plant's SIM_ parameters on `port` from now on: the server's service answers for the
-    /// port's system, and the port is the server's hook (replacing any earlier one).
-    pub fn set_sim_port(&mut self, port: SimParamLink) {
-        self.sim.set_system_id(port.system_id());
-        self.set_hook(Box::new(port));
-    }
-
-    /// Fire `schedule` (a scenario's `[[event]]`, from `crate::sim_params::events::resolve`) through the
-    /// server's SIM_ parameter service, each event just before the first step at or after its time.
-    pub fn set_sim_events(&mut self, schedule: Vec<SimEvent>) {
-        self.events = SimEvents::new(schedule);
-    }
-
-    /// The plant's SIM_ parameter service (its values).
-    #[must_use]
-    pub fn sim_params(&self) -> &SimParamService {
-        &self.sim
-    }
-
-    /// The timed SIM_ sets: how many fired, and what the plant refused.
-    #[must_use]
-    pub fn sim_events(&self) -> &SimEvents {
-        &self.events
-    }
-
-    /// Step the plant by the link's `dt_us` with `pwm_us` held, the timed sets due firing first.
-    fn step_plant(&mut self, pwm_us: [f64; 4]) {
-        self.events.step(&mut self.sim, &mut self.plant, pwm_us, self.config.dt_us);
-    }
-
     /// Read the pilot's radio from `port` from now on (its last good frame is the receiver's until a
     /// schedule begins), whenever `RC_CHANNELS` is due.
     pub fn set_rc_in(&mut self, port: rc::RcInPort) {
@@ -476,25 +211,6 @@ impl<T: Transport> PlantServer<T> {
     #[must_use]
     pub fn rc_in(&self) -> Option<&rc::RcInPort> {
         self.rc_in.as_ref()
-    }
-
-    /// Poll the hook now, if there is one.
-    fn poll_hook(&mut self, now: Instant) -> Result<(), LinkError> {
-        if let Some((hook, polled_at)) = &mut self.hook {
-            *polled_at = now;
-            hook.poll(&mut self.plant, &mut self.sim).map_err(LinkError::Hook)?;
-        }
-        Ok(())
-    }
-
-    /// Poll the hook if it has not been polled for [`HOOK_WAIT_INTERVAL`] (the server is waiting).
-    fn poll_hook_if_due(&mut self, now: Instant) -> Result<(), LinkError> {
-        match &self.hook {
-            Some((_, polled_at)) if now.saturating_duration_since(*polled_at) >= HOOK_WAIT_INTERVAL => {
-                self.poll_hook(now)
-            }
-            _ => Ok(()),
-        }
     }
 
     #[must_use]
@@ -632,26 +348,6 @@ impl<T: Transport> PlantServer<T> {
             }
         }
         delivered.flatten()
-    }
-
-    /// Apply a `MAV_CMD_INJECT_FAILURE` the autopilot forwarded through the server's SIM_ parameter
-    /// service (what it changed goes to the SIM_ port's clients at its next poll) and owe `sender` its
-    /// `COMMAND_ACK`.
-    fn inject_failure(&mut self, command: &COMMAND_LONG_DATA, sender: &MavHeader) {
-        let request = FailureRequest { unit: command.param1, failure_type: command.param2, instance: command.param3 };
-        let injection = self.sim.inject_failure(&request, &mut self.plant);
-        if self.hook.is_some() {
-            self.sim.tell_peers(&injection.messages);
-        }
-        tracing::info!(t_us = self.plant.time_us(), "plant: {} ({:?})", injection.text, injection.result);
-        self.stats.injections += 1;
-        self.acks.push(MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
-            command: MavCmd::MAV_CMD_INJECT_FAILURE,
-            result: injection.result,
-            target_system: u8::try_from(sender.system_id).unwrap_or(0),
-            target_component: sender.component_id,
-            ..COMMAND_ACK_DATA::default()
-        }));
     }
 
     /// One lockstep cycle: send the sensors for the current plant time `t`, wait for the reply for `t`,
@@ -857,6 +553,7 @@ mod tests {
     use autopilot::core::manual::RcFrame;
     use mavlink::dialects::common::HEARTBEAT_DATA;
     use nalgebra::Vector3;
+    use std::net::{SocketAddr, UdpSocket};
     use std::sync::Arc;
     use std::thread;
 
