@@ -11,7 +11,7 @@ use mavlink::dialects::common::{COMMAND_ACK_DATA, COMMAND_LONG_DATA, MavCmd, Mav
 
 use super::{HOOK_WAIT_INTERVAL, LinkError, PlantServer, Transport};
 use crate::plant::Plant;
-use crate::sim_params::{FailureRequest, SimEvent, SimEvents, SimParamLink, SimParamService};
+use crate::sim_params::{SimEvent, SimEvents, SimParamLink, SimParamService};
 
 /// Something polled between plant steps that may change the plant (its wind) before the next step, such
 /// as the SIM_ port. A poll must not block.
@@ -99,8 +99,7 @@ impl<T: Transport> PlantServer<T> {
     /// service (what it changed goes to the SIM_ port's clients at its next poll) and owe `sender` its
     /// `COMMAND_ACK`.
     pub(super) fn inject_failure(&mut self, command: &COMMAND_LONG_DATA, sender: &MavHeader) {
-        let request = FailureRequest { unit: command.param1, failure_type: command.param2, instance: command.param3 };
-        let injection = self.sim.inject_failure(&request, &mut self.plant);
+        let injection = self.sim.inject_forwarded([command.param1, command.param2, command.param3], &mut self.plant);
         if self.hook.is_some() {
             self.sim.tell_peers(&injection.messages);
         }

@@ -96,10 +96,11 @@ mod sensors;
 mod truth;
 
 pub use events::{EventSpec, SimEvent, SimEvents};
-pub use inject::{FailureRequest, Injection, Refusal, failure_sets, failure_unit};
+pub use inject::{Injection, Refusal, failure_sets, request_of};
 pub use port::{HEARTBEAT_PERIOD, PEER_EXPIRY, SimParamLink, heartbeat};
 pub use truth::{TRUTH_PERIOD_US, TRUTH_RATE_HZ, TruthStream, sim_state, truth_messages};
 
+use autopilot::core::mavlink::failure::FailureRequest;
 use autopilot::core::mavlink::params::{Applied, ParamService, encode_value, param_value};
 use autopilot::core::mavlink::{statustext, statustext_chunks};
 use autopilot::core::params::{ParamDef, ParamError, ParamKind, ParamStore};
@@ -429,15 +430,19 @@ impl SimParamService {
         Ok(out)
     }
 
-    /// Answer a MAV_CMD_INJECT_FAILURE forwarded by the autopilot ([`failure_sets`]): apply its sets in
-    /// order through [`SimParamService::set`], all or none (a set the plant refuses undoes the ones before
-    /// it and answers DENIED).
+    /// Answer the MAV_CMD_INJECT_FAILURE the autopilot forwarded with `params` (its param1..param3):
+    /// DENIED when one is not a whole number >= 0 ([`request_of`]), else [`SimParamService::inject_failure`].
+    pub fn inject_forwarded(&mut self, params: [f32; 3], plant: &mut Plant) -> Injection {
+        match request_of(params) {
+            Ok(request) => self.inject_failure(&request, plant),
+            Err(r) => refused(r),
+        }
+    }
+
+    /// Answer a failure injection ([`failure_sets`]): apply its sets in order through
+    /// [`SimParamService::set`], all or none (a set the plant refuses undoes the ones before it and
+    /// answers DENIED).
     pub fn inject_failure(&mut self, request: &FailureRequest, plant: &mut Plant) -> Injection {
-        let refused = |r: Refusal| {
-            let text = format!("failure injection refused: {}", r.reason);
-            let messages = statustext_chunks(MavSeverity::MAV_SEVERITY_WARNING, &text, 1);
-            Injection { result: r.result, text, messages }
-        };
         let sets = match failure_sets(request, |name| self.get(name)) {
             Ok(sets) => sets,
             Err(r) => return refused(r),
@@ -480,6 +485,13 @@ impl SimParamService {
         }
         out
     }
+}
+
+/// An injection that changed nothing: the ACK's result and the warning saying why.
+fn refused(r: Refusal) -> Injection {
+    let text = format!("failure injection refused: {}", r.reason);
+    let messages = statustext_chunks(MavSeverity::MAV_SEVERITY_WARNING, &text, 1);
+    Injection { result: r.result, text, messages }
 }
 
 /// The value of SIM_ parameter `index` in `store` (the table's default if the index were not in it).
