@@ -2,6 +2,7 @@
 """Module-level import graph of a Rust crate's sources and its cycles (non-test code only).
 
 Usage: scripts/import_cycles.py [SRC_DIR]   (default: sitl/src)
+       STRICT=1 scripts/import_cycles.py      (every file its own node, a folder's mod.rs too)
 
 Nodes: one per file-level module; a folder's `mod.rs` and the files beside it in that same folder are
 one node (the folder), since a parent and its children are one unit of code. A file `x.rs` whose
@@ -90,7 +91,7 @@ def node_of(rel):
     d, name = os.path.split(rel)
     if rel in ("lib.rs", "main.rs"):
         return rel
-    if os.path.exists(os.path.join(SRC, d, "mod.rs")) and d:
+    if os.environ.get("STRICT") is None and os.path.exists(os.path.join(SRC, d, "mod.rs")) and d:
         return d + "/"
     return rel
 
