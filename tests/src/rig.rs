@@ -11,13 +11,16 @@ use autopilot::core::commander::FlightMode;
 use autopilot::core::estimator::{BaroSample, EstimatorSource, GeoOrigin, ImuSample, MagSample, TruthSample};
 use autopilot::core::mavlink::MavHeader;
 use autopilot::core::mavlink::command_long;
-use autopilot::core::mavlink::common::{MavCmd, MavLandedState, MavMessage, MavModeFlag, MavResult, PARAM_SET_DATA};
+use autopilot::core::mavlink::common::{
+    FailureType, FailureUnit, MavCmd, MavLandedState, MavMessage, MavModeFlag, MavResult, PARAM_SET_DATA,
+};
+use autopilot::core::mavlink::failure::FailureRequest;
 use autopilot::core::mavlink::params::{decode_value, encode_value};
 use autopilot::core::params::PARAMS;
 use autopilot::core::plant_link::PlantCommandAck;
 use autopilot::core::vehicle::{Vehicle, VehicleConfig, VehicleInputs};
 use sitl::plant::{InitialState, Plant, PlantConfig, SensorConfig};
-use sitl::sim_params::{FailureRequest, SimParamService};
+use sitl::sim_params::SimParamService;
 
 /// The plant step and control period (µs).
 pub const DT_US: u64 = 2_000;
@@ -161,8 +164,7 @@ impl Rig {
             if let MavMessage::COMMAND_LONG(c) = m
                 && c.command == MavCmd::MAV_CMD_INJECT_FAILURE
             {
-                let request = FailureRequest { unit: c.param1, failure_type: c.param2, instance: c.param3 };
-                let injection = self.sim.inject_failure(&request, &mut self.plant);
+                let injection = self.sim.inject_forwarded([c.param1, c.param2, c.param3], &mut self.plant);
                 self.plant_ack = Some(PlantCommandAck {
                     command_id: MavCmd::MAV_CMD_INJECT_FAILURE as u32,
                     result: injection.result,
@@ -230,14 +232,15 @@ impl Rig {
         (self.now_us - start) as f64 * 1e-6
     }
 
-    /// MAV_CMD_INJECT_FAILURE as a ground station sends it (`unit`, `failure_type`, `instance`: MAVLink's
-    /// FAILURE_UNIT and FAILURE_TYPE numbers): the vehicle forwards it to the plant, which answers on the
+    /// MAV_CMD_INJECT_FAILURE as a ground station sends it (`failure_type` of `unit` `instance`, 0 = all):
+    /// the vehicle forwards it to the plant, which answers on the
     /// next tick; ticks until the vehicle's ACK and returns its result (the messages stay in `messages`).
     ///
     /// # Panics
     /// When no ACK comes within 1 s.
-    pub fn inject(&mut self, unit: u8, failure_type: u8, instance: u8) -> MavResult {
-        let params = [f32::from(unit), f32::from(failure_type), f32::from(instance), 0.0, 0.0, 0.0, 0.0];
+    pub fn inject(&mut self, unit: FailureUnit, failure_type: FailureType, instance: u8) -> MavResult {
+        let [unit, failure_type, instance] = FailureRequest::new(unit, failure_type, u32::from(instance)).params();
+        let params = [unit, failure_type, instance, 0.0, 0.0, 0.0, 0.0];
         let msg = command_long(1, 1, MavCmd::MAV_CMD_INJECT_FAILURE, params);
         let replies = self.vehicle.handle_message(self.now_us, &GCS, &msg);
         let ack = |m: &MavMessage| match m {

@@ -6,18 +6,22 @@
 
 use autopilot::core::commander::{FlightMode, State};
 use autopilot::core::estimator::EstimatorSource;
-use autopilot::core::mavlink::common::{MavMessage, MavResult, MavSeverity};
-use autopilot::core::mavlink::failure::unit;
+use autopilot::core::mavlink::common::FailureType::{
+    FAILURE_TYPE_GARBAGE as GARBAGE, FAILURE_TYPE_OFF as OFF, FAILURE_TYPE_OK as OK, FAILURE_TYPE_SLOW as SLOW,
+    FAILURE_TYPE_STUCK as STUCK, FAILURE_TYPE_WRONG as WRONG,
+};
+use autopilot::core::mavlink::common::{FailureType, FailureUnit, MavMessage, MavResult, MavSeverity};
 use nalgebra::Vector3;
 use tests::rig::Rig;
 
-/// MAVLink FAILURE_TYPE values.
-const OK: u8 = 0;
-const OFF: u8 = 1;
-const STUCK: u8 = 2;
-const GARBAGE: u8 = 3;
-const WRONG: u8 = 4;
-const SLOW: u8 = 5;
+/// MAVLink FAILURE_UNIT values, by their short names.
+mod unit {
+    pub use autopilot::core::mavlink::common::FailureUnit::{
+        FAILURE_UNIT_SENSOR_ACCEL as ACCEL, FAILURE_UNIT_SENSOR_BARO as BARO, FAILURE_UNIT_SENSOR_GPS as GPS,
+        FAILURE_UNIT_SENSOR_GYRO as GYRO, FAILURE_UNIT_SENSOR_MAG as MAG, FAILURE_UNIT_SYSTEM_BATTERY as BATTERY,
+        FAILURE_UNIT_SYSTEM_MAVLINK_SIGNAL as MAVLINK_SIGNAL, FAILURE_UNIT_SYSTEM_MOTOR as MOTOR,
+    };
+}
 
 /// The rig's hover (2.5 m, Hold, 5 s), SYS_FAILURE_EN = 1.
 fn hovering() -> Rig {
@@ -55,10 +59,10 @@ impl Flight {
 }
 
 /// Injects `(unit, failure_type, instance)` into a hover and flies `seconds` (or until disarmed).
-fn fly_with(rig: &mut Rig, unit: u8, failure_type: u8, instance: u8, seconds: f64) -> Flight {
+fn fly_with(rig: &mut Rig, unit: FailureUnit, failure_type: FailureType, instance: u8, seconds: f64) -> Flight {
     let hold: Vector3<f64> = rig.plant.truth().pos_ned_m;
     let start_us = rig.now_us;
-    assert_eq!(rig.inject(unit, failure_type, instance), accepted(), "{unit}/{failure_type}/{instance}");
+    assert_eq!(rig.inject(unit, failure_type, instance), accepted(), "{unit:?}/{failure_type:?}/{instance}");
     let mut flight = Flight {
         said: Vec::new(),
         worst_horizontal_m: 0.0,
@@ -87,7 +91,7 @@ fn fly_with(rig: &mut Rig, unit: u8, failure_type: u8, instance: u8, seconds: f6
     flight.killed = rig.vehicle.commander().state() == State::Killed;
     flight.on_ground = rig.plant.truth().on_ground;
     flight.said = said_since(rig, start_us);
-    println!("{unit}/{failure_type}/{instance}: {flight:?}");
+    println!("{unit:?}/{failure_type:?}/{instance}: {flight:?}");
     flight
 }
 

@@ -7,7 +7,7 @@ use autopilot::core::commander::{FlightMode, LandedState};
 use autopilot::core::control::ControllerKind;
 use autopilot::core::estimator::EstimatorSource;
 use autopilot::core::manual::{RcFrame, Sticks, expo_deadzone};
-use autopilot::core::mavlink::common::{MANUAL_CONTROL_DATA, MavCmd, MavMessage, MavResult};
+use autopilot::core::mavlink::common::{FailureType, FailureUnit, MANUAL_CONTROL_DATA, MavCmd, MavMessage, MavResult};
 use autopilot::core::navigator::ManualFlightConfig;
 use autopilot::core::navigator::trajectory::{Limits, Motion1, Profile};
 use nalgebra::Vector3;
@@ -517,7 +517,10 @@ fn given_rc_signal_injected_off_in_position_mode_then_the_sticks_still_sent_are_
     let hold = rig.plant.truth().pos_ned_m;
     // WHEN RC_SIGNAL is injected OFF (MAV_CMD_INJECT_FAILURE 104/1): the ground station's sticks keep
     // coming, the vehicle no longer takes them.
-    assert_eq!(rig.inject(104, 1, 0), MavResult::MAV_RESULT_ACCEPTED);
+    assert_eq!(
+        rig.inject(FailureUnit::FAILURE_UNIT_SYSTEM_RC_SIGNAL, FailureType::FAILURE_TYPE_OFF, 0),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
     let off_us = rig.now_us;
     let mut returned_us = None;
     let mut worst_m: f64 = 0.0;
@@ -535,7 +538,10 @@ fn given_rc_signal_injected_off_in_position_mode_then_the_sticks_still_sent_are_
     assert!(worst_m <= 0.1, "held {worst_m} m before the return");
     assert_eq!(said(&mut rig, "Failsafe: manual control lost, returning").len(), 1, "announced once");
     // RC_SIGNAL OK: the sticks are heard again.
-    assert_eq!(rig.inject(104, 0, 0), MavResult::MAV_RESULT_ACCEPTED);
+    assert_eq!(
+        rig.inject(FailureUnit::FAILURE_UNIT_SYSTEM_RC_SIGNAL, FailureType::FAILURE_TYPE_OK, 0),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
     fly(&mut rig, 1.0, Some(centre()), |_| {});
     assert_eq!(said(&mut rig, "Manual control regained").len(), 1);
 }

@@ -9,6 +9,5 @@ pub(crate) mod plots;
 pub(crate) mod run;
 pub(crate) mod scenario;
 pub(crate) mod serve;
-pub(crate) mod swarm;
 pub(crate) mod sweep;
 pub(crate) mod tune;

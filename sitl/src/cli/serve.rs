@@ -122,7 +122,7 @@ pub(crate) fn serve(args: &ServeArgs) -> Result<()> {
             describe_rc_in(rc_port)
         );
         let mut server = PlantServer::new(plant, transport, link);
-        server.set_hook(Box::new(sim_params));
+        server.set_sim_port(sim_params);
         if let Some(port) = rc_in {
             server.set_rc_in(port);
         }
@@ -135,7 +135,7 @@ pub(crate) fn serve(args: &ServeArgs) -> Result<()> {
             .and_then(|t| t.with_poll(poll))
             .with_context(|| format!("binding {listen}"))?;
         let mut server = PlantServer::new(plant, transport, link);
-        server.set_hook(Box::new(sim_params));
+        server.set_sim_port(sim_params);
         if let Some(port) = rc_in {
             server.set_rc_in(port);
         }

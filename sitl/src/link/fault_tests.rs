@@ -178,7 +178,7 @@ fn given_the_sim_port_as_hook_then_an_injection_is_applied_through_it_and_its_cl
     let mut server = server(7);
     let sim = SimParamLink::bind("127.0.0.1:0", 1, server.plant()).expect("bind SIM_ port");
     let sim_addr = sim.local_addr().expect("addr");
-    server.set_hook(Box::new(sim));
+    server.set_sim_port(sim);
     // A ground station on the SIM_ port, heard before the injection.
     let gcs = UdpSocket::bind("127.0.0.1:0").expect("gcs");
     gcs.set_read_timeout(Some(Duration::from_secs(2))).expect("timeout");

@@ -86,7 +86,7 @@ impl<T: Transport> PlantServer<T> {
                 None => idle,
             };
             self.plant.set_motors_running(command.motors_running());
-            self.plant.step(command.effective_pwm_us(), self.config.dt_us);
+            self.step_plant(command.effective_pwm_us());
             self.stats.steps += 1;
             steps += 1;
             if let Some((hook, _)) = &mut self.hook {

@@ -21,6 +21,7 @@
 //! reason ([`FaultError`]), and nothing changes.
 
 use autopilot::core::estimator::GeoOrigin;
+use mavlink::dialects::common::FailureType;
 use nalgebra::Vector3;
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
@@ -51,30 +52,46 @@ pub enum Fault {
 }
 
 impl Fault {
-    /// The fault of a MAVLink `FAILURE_TYPE` number (0..4); `None` for any other (5 SLOW, 6 DELAYED, 7
-    /// INTERMITTENT are not simulated).
+    /// Every fault, in `FAILURE_TYPE` order.
+    pub const ALL: [Self; 5] = [Self::Ok, Self::Off, Self::Stuck, Self::Garbage, Self::Wrong];
+
+    /// The fault of a MAVLink `FAILURE_TYPE` (OK .. WRONG); `None` for any other (SLOW, DELAYED,
+    /// INTERMITTENT and DRIFT are not simulated).
     #[must_use]
-    pub fn from_failure_type(value: u32) -> Option<Self> {
-        match value {
-            0 => Some(Self::Ok),
-            1 => Some(Self::Off),
-            2 => Some(Self::Stuck),
-            3 => Some(Self::Garbage),
-            4 => Some(Self::Wrong),
+    pub fn from_mavlink(failure_type: FailureType) -> Option<Self> {
+        match failure_type {
+            FailureType::FAILURE_TYPE_OK => Some(Self::Ok),
+            FailureType::FAILURE_TYPE_OFF => Some(Self::Off),
+            FailureType::FAILURE_TYPE_STUCK => Some(Self::Stuck),
+            FailureType::FAILURE_TYPE_GARBAGE => Some(Self::Garbage),
+            FailureType::FAILURE_TYPE_WRONG => Some(Self::Wrong),
             _ => None,
         }
+    }
+
+    /// Its MAVLink `FAILURE_TYPE`.
+    #[must_use]
+    pub fn mavlink(self) -> FailureType {
+        match self {
+            Self::Ok => FailureType::FAILURE_TYPE_OK,
+            Self::Off => FailureType::FAILURE_TYPE_OFF,
+            Self::Stuck => FailureType::FAILURE_TYPE_STUCK,
+            Self::Garbage => FailureType::FAILURE_TYPE_GARBAGE,
+            Self::Wrong => FailureType::FAILURE_TYPE_WRONG,
+        }
+    }
+
+    /// The fault of a MAVLink `FAILURE_TYPE` number (0..4, as a SIM_*_FAIL parameter holds it); `None` for
+    /// any other.
+    #[must_use]
+    pub fn from_failure_type(value: u32) -> Option<Self> {
+        Self::ALL.into_iter().find(|f| f.mavlink() as u32 == value)
     }
 
     /// Its MAVLink `FAILURE_TYPE` number.
     #[must_use]
     pub fn failure_type(self) -> u8 {
-        match self {
-            Self::Ok => 0,
-            Self::Off => 1,
-            Self::Stuck => 2,
-            Self::Garbage => 3,
-            Self::Wrong => 4,
-        }
+        self.mavlink() as u8
     }
 
     /// Lowercase name, for texts ("ok", "off", "stuck", "garbage", "wrong").
@@ -301,7 +318,7 @@ fn jumped(fix: &GpsSample, jump_ne_m: [f64; 2], home: &GeoOrigin) -> GpsSample {
 }
 
 /// Impairments of the plant link's sensor datagrams to the autopilot (SIM_LINK_DELAY,
-/// SIM_LINK_LOSS), applied by `crate::link` (see there for how they keep the lockstep going): the
+/// SIM_LINK_LOSS), applied by the plant link (see `link` for how they keep the lockstep going): the
 /// added delay, and the chance that a datagram is lost, drawn once per plant step while it is above 0 from
 /// the plant seed's own stream [`super::stream::LINK_LOSS`].
 #[derive(Debug, Clone)]
@@ -354,11 +371,9 @@ impl LinkFaults {
 
 #[cfg(test)]
 mod tests {
-    use autopilot::core::plant_link::{decode_hil_sensor, encode_hil_sensor};
     use nalgebra::Vector3;
 
     use super::*;
-    use crate::link::sensor_fields;
     use crate::plant::sensors::SensorConfig;
     use crate::plant::{InitialState, Plant, PlantConfig};
 
@@ -468,25 +483,6 @@ mod tests {
             checked += 1;
         }
         assert_eq!(checked, 6);
-    }
-
-    #[test]
-    fn given_baro_and_mag_off_then_they_are_absent_and_hil_sensor_carries_only_the_imu() {
-        let faulty = run(20, |k, plant| {
-            if k == 10 {
-                plant.sensor_faults_mut().set(Sensor::Baro, Fault::Off).expect("baro off");
-                plant.sensor_faults_mut().set(Sensor::Mag, Fault::Off).expect("mag off");
-            }
-        });
-        let s = faulty[10];
-        assert_eq!((s.mag_frd_gauss, s.baro), (None, None));
-        let msg = encode_hil_sensor(&sensor_fields(&s));
-        assert_eq!(msg.fields_updated.bits(), 0x3F, "accel and gyro bits only");
-        let decoded = decode_hil_sensor(&msg);
-        assert_eq!((decoded.mag_frd_gauss, decoded.baro), (None, None), "the autopilot reads no mag, no baro");
-        assert!(faulty[9].mag_frd_gauss.is_some() && faulty[9].baro.is_some());
-        let on = encode_hil_sensor(&sensor_fields(&faulty[9]));
-        assert_eq!(on.fields_updated.bits() & 0x1FC0, 0x1FC0 & !0x400, "mag, pressure, altitude, temperature");
     }
 
     #[test]

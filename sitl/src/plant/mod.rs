@@ -3,8 +3,9 @@
 //! and the paper's noisy truth-fed state ([`NoisyState`]). No I/O, no clocks: time is the sum of the step
 //! lengths; randomness comes from one seed split into a ChaCha8 stream per subsystem.
 //!
-//! A step runs in named phases, as ArduPilot's `SIM_Multicopter` and PX4's SIH do:
-//! 0. `fire_due_events`: a scenario's timed SIM_ parameter sets whose time has come (none by default);
+//! A step runs in named phases, as ArduPilot's `SIM_Multicopter` and PX4's SIH do (a scenario's timed
+//! SIM_ parameter sets are not the plant's: whoever steps it applies those due just before the step, as
+//! changes of its wind, airframe, sensors, pack and radio through the methods below):
 //! 1. `update_wind`: steady + gust + turbulence, evaluated once at the start of the step and held;
 //! 2. `rotor_forces`: the commanded lift k_F·h_i·F10(PWM_i) of each rotor (Eq 10 inverse), held;
 //! 3. `equations_of_motion`: RK4 substeps of `integrator_step_s` (1 ms) of the Newton-Euler model with
@@ -42,7 +43,6 @@ pub use rigid_body::RigidBodyState;
 pub use sensors::{BaroSample, GpsSample, NoisyState, SensorConfig, SensorSample, Sensors, StateNoise};
 pub use wind::{GustConfig, TurbulenceConfig, Wind, WindConfig};
 
-use crate::sim_params::SimEvents;
 use rigid_body::HeldInputs;
 
 /// Configuration and validation errors of the plant.
@@ -77,7 +77,7 @@ pub mod stream {
     pub const ACCEL_GARBAGE: u64 = 15;
     /// The gyro's readings while it reads garbage.
     pub const GYRO_GARBAGE: u64 = 16;
-    /// Which sensor datagrams the plant link loses (SIM_LINK_LOSS, `crate::link`).
+    /// Which sensor datagrams the plant link loses (SIM_LINK_LOSS, applied by the plant link).
     pub const LINK_LOSS: u64 = 17;
 }
 
@@ -214,11 +214,8 @@ pub struct Plant {
     motors_running: bool,
     /// The airframe's radio receiver (no output unless a schedule or the RC input port gives it one).
     radio: Radio,
-    /// Delay and loss of the plant link's sensor datagrams (applied by the plant link, `crate::link`).
+    /// Delay and loss of the plant link's sensor datagrams (applied by the plant link).
     link_faults: LinkFaults,
-    /// A scenario's timed SIM_ parameter sets, fired at the start of the first step at or after their
-    /// time (`crate::sim_params::events`).
-    events: Option<SimEvents>,
 }
 
 impl Plant {
@@ -269,7 +266,6 @@ impl Plant {
             motors_running: true,
             radio: Radio::default(),
             link_faults: LinkFaults::new(seed),
-            events: None,
             state,
             time_us: 0,
             last_pwm_us,
@@ -295,38 +291,11 @@ impl Plant {
         if dt_us == 0 {
             return;
         }
-        self.fire_due_events();
         let wind_ned_mps = self.update_wind();
         let inputs = self.rotor_forces(&pwm_us, wind_ned_mps);
         self.equations_of_motion(&inputs, dt_us as f64 * 1e-6);
         self.drain_battery(dt_us as f64 * 1e-6);
         self.time_us += dt_us;
-    }
-
-    /// Phase 0: the scheduled events whose time has come act from this step on.
-    fn fire_due_events(&mut self) {
-        if self.events.as_ref().is_some_and(|e| e.due(self.time_us))
-            && let Some(mut events) = self.events.take()
-        {
-            events.fire_due(self);
-            self.events = Some(events);
-        }
-    }
-
-    /// The scheduled events (a scenario's `[[event]]`), if any.
-    #[must_use]
-    pub fn sim_events(&self) -> Option<&SimEvents> {
-        self.events.as_ref()
-    }
-
-    /// The scheduled events, to share their SIM_ parameter service with the plant's SIM_ port.
-    pub fn sim_events_mut(&mut self) -> Option<&mut SimEvents> {
-        self.events.as_mut()
-    }
-
-    /// Schedule `events` (replacing any), or none; see `crate::sim_params::events::install`.
-    pub fn set_sim_events(&mut self, events: Option<SimEvents>) {
-        self.events = events;
     }
 
     /// Phase 5: the pack delivers the rotors' power at the lifts the step ended with. A plant without a

@@ -1,7 +1,7 @@
 //! The airframe's radio receiver, as the ARM board reads it: what the pilot's radio says now (an
 //! [`RcFrame`], or nothing when the receiver has no output), from a stick schedule on plant time
 //! ([`RcSchedule`], a scenario's `[[rc]]`), from the last good frame of the plant's RC input port
-//! (`crate::link::rc`), and silenced while SIM_RC_FAIL = 1 (`crate::sim_params`). The plant link sends
+//! (the plant link's, `link::rc`), and silenced while SIM_RC_FAIL = 1 (a SIM_ parameter). The plant link sends
 //! what [`Radio::output`] gives as `RC_CHANNELS` at 50 Hz of plant time; it touches nothing the
 //! physics or the sensors use, so a plant without a radio runs bit for bit as before.
 //!

@@ -21,6 +21,7 @@ use super::reference::{ReferenceGen, ReferenceMode, ReferenceSpec, TrackGen};
 use super::{MetricKind, OverrideValue, Scenario, ScenarioError};
 use crate::plant::sensors::NoisyState;
 use crate::plant::{AirframeConfig, GroundConfig, InitialState, Plant, PlantConfig, envelope};
+use crate::sim_params::{SimEvents, SimParamService};
 
 /// What varies between runs of one scenario.
 #[derive(Debug, Clone, PartialEq)]
@@ -240,10 +241,10 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
     let mut effort = EffortAccumulator::new(config.airframe.hover_pwm_us(), [MOTOR_PWM_MIN_US, MOTOR_PWM_MAX_US]);
     let airframe_before = config.airframe.clone();
     let mut plant = Plant::new(config, &initial, opts.seed)?;
-    let schedule = scenario.sim_events()?;
-    if !schedule.is_empty() {
-        crate::sim_params::events::install(&mut plant, 1, schedule);
-    }
+    // A scenario's timed SIM_ parameter sets, through a SIM_ parameter service of system 1 as the plant
+    // server's would go (none fire without `[[event]]`).
+    let mut events = SimEvents::new(scenario.sim_events()?);
+    let mut sim = SimParamService::new(1, &plant);
     let noise = scenario.state_noise()?;
     let mut reference = ReferenceGen::new(&scenario.reference, opts.mode);
 
@@ -303,10 +304,10 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
             row.extend(controller.telemetry().iter().map(|(_, v)| *v));
             trace.rows.push(row);
         }
-        plant.step(pwm_us, dt_us);
+        events.step(&mut sim, &mut plant, pwm_us, dt_us);
     }
 
-    if let Some(r) = plant.sim_events().and_then(|e| e.refusals().first()) {
+    if let Some(r) = events.refusals().first() {
         return Err(ScenarioError::Invalid(format!(
             "[[event]] at {} s: the plant refused {}: {}",
             r.at_us as f64 * 1e-6,

@@ -271,9 +271,6 @@ fn launch(
     let config_text = autopilot_config(scenario, opts, &plant)?;
     plant.radio_mut().set_schedule(scenario.rc_schedule()?);
     let schedule = scenario.sim_events()?;
-    if !schedule.is_empty() {
-        crate::sim_params::events::install(&mut plant, (opts.instance + 1) as u8, schedule);
-    }
     let rc_in = opts
         .rc_in_port
         .map(|port| {
@@ -286,6 +283,7 @@ fn launch(
     let addr = format!("127.0.0.1:{}", 4560 + opts.instance);
     let mut server = PlantServer::bind_udp(plant, addr.as_str(), link)
         .map_err(|source| TwoProcessError::Bind { addr: addr.clone(), source })?;
+    server.set_sim_events(schedule);
     if let Some(port) = rc_in {
         server.set_rc_in(port);
     }

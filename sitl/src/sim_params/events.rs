@@ -1,17 +1,18 @@
 //! Timed SIM_ parameter sets: a scenario's `[[event]]` (`at_s = 5.0`, `set = { SIM_MOT1_EFF = 0.9 }`).
 //! In, the events as written; out, a validated schedule ([`resolve`]: every name a SIM_ parameter, every
 //! value within its range, every time within the run, refused at load with the event and key named) and
-//! its driver ([`SimEvents`]), which the plant runs at the start of each step: the sets of every event whose
-//! time has come (the first plant step that starts at or after `at_s`) go through the SIM_ parameter
-//! service ([`SimParamService::set_now`]), exactly as a PARAM_SET on the plant's SIM_ port would, so the
-//! port shows the values an event set. The same driver runs in the in-process runner (`sitl scenario`)
-//! and the plant server (`sitl run --scenario`).
+//! its driver ([`SimEvents`], plain data: the schedule, the next event and the refusals), which whoever
+//! steps the plant runs just before each step ([`SimEvents::step`]): the sets of every event whose time
+//! has come (the first plant step that starts at or after `at_s`) go through the SIM_ parameter service
+//! ([`SimParamService::set_now`]), exactly as a PARAM_SET on the plant's SIM_ port would, so the port
+//! shows the values an event set. The same driver runs in the in-process runner (`sitl scenario`) and
+//! the plant server (`sitl run --scenario`), with the service each of them holds; the plant itself knows
+//! nothing of the events.
 //!
 //! Within one event the sets go in [`super::SIM_PARAMS`] table order (a gust's speed before its switch);
 //! events at the same time go in file order.
 
 use std::collections::BTreeMap;
-use std::sync::{Arc, Mutex, PoisonError};
 
 use serde::{Deserialize, Serialize};
 
@@ -90,34 +91,21 @@ pub struct Refusal {
     pub reason: String,
 }
 
-/// The driver of a schedule on one plant: the next event to fire and the SIM_ parameter service the sets
-/// go through (shared with the plant's SIM_ port when it has one, see [`SimEvents::share_service`]).
-/// Cloning a plant clones its events with a service of its own.
-#[derive(Debug)]
+/// The driver of a schedule on one plant: the next event to fire and the sets the plant refused. The
+/// sets go through the SIM_ parameter service its stepper lends ([`SimEvents::step`]). No schedule (the
+/// default) never fires.
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct SimEvents {
-    schedule: Arc<[SimEvent]>,
+    schedule: Vec<SimEvent>,
     next: usize,
-    service: Arc<Mutex<SimParamService>>,
     refusals: Vec<Refusal>,
 }
 
-impl Clone for SimEvents {
-    fn clone(&self) -> Self {
-        let service = self.service.lock().unwrap_or_else(PoisonError::into_inner).clone();
-        Self {
-            schedule: Arc::clone(&self.schedule),
-            next: self.next,
-            service: Arc::new(Mutex::new(service)),
-            refusals: self.refusals.clone(),
-        }
-    }
-}
-
 impl SimEvents {
-    /// The driver of `schedule` (from [`resolve`]), its sets going through `service`.
+    /// The driver of `schedule` (from [`resolve`]).
     #[must_use]
-    pub fn new(schedule: Vec<SimEvent>, service: SimParamService) -> Self {
-        Self { schedule: schedule.into(), next: 0, service: Arc::new(Mutex::new(service)), refusals: Vec::new() }
+    pub fn new(schedule: Vec<SimEvent>) -> Self {
+        Self { schedule, next: 0, refusals: Vec::new() }
     }
 
     /// Whether an event is due at plant time `time_us` (at or after its time and not yet fired).
@@ -126,10 +114,9 @@ impl SimEvents {
         self.schedule.get(self.next).is_some_and(|e| e.at_us <= time_us)
     }
 
-    /// Fire every event due at the plant's current time, in order, through the service.
-    pub fn fire_due(&mut self, plant: &mut Plant) {
+    /// Fire every event due at the plant's current time, in order, through `service`.
+    pub fn fire_due(&mut self, service: &mut SimParamService, plant: &mut Plant) {
         let now_us = plant.time_us();
-        let mut service = self.service.lock().unwrap_or_else(PoisonError::into_inner);
         while let Some(event) = self.schedule.get(self.next).filter(|e| e.at_us <= now_us) {
             for &(index, value) in &event.sets {
                 if let Err(reason) = service.set_now(index, value, plant) {
@@ -138,6 +125,15 @@ impl SimEvents {
             }
             self.next += 1;
         }
+    }
+
+    /// One plant step with the schedule: the events due at the plant's time fire through `service` first
+    /// (none at a zero-length step, which is no step), then the plant steps by `dt_us` with `pwm_us` held.
+    pub fn step(&mut self, service: &mut SimParamService, plant: &mut Plant, pwm_us: [f64; 4], dt_us: u64) {
+        if dt_us != 0 && self.due(plant.time_us()) {
+            self.fire_due(service, plant);
+        }
+        plant.step(pwm_us, dt_us);
     }
 
     /// Events fired so far.
@@ -151,18 +147,6 @@ impl SimEvents {
     pub fn refusals(&self) -> &[Refusal] {
         &self.refusals
     }
-
-    /// Send the sets through `service` from now on (the plant's SIM_ port's, so both see the same values).
-    pub fn share_service(&mut self, service: Arc<Mutex<SimParamService>>) {
-        self.service = service;
-    }
-}
-
-/// Give `plant` the schedule `schedule`, its sets through a SIM_ parameter service of system `system_id`
-/// read from the plant (replaced by the SIM_ port's, [`super::SimParamLink::carry_events_of`]).
-pub fn install(plant: &mut Plant, system_id: u8, schedule: Vec<SimEvent>) {
-    let service = SimParamService::new(system_id, plant);
-    plant.set_sim_events(Some(SimEvents::new(schedule, service)));
 }
 
 #[cfg(test)]
@@ -173,6 +157,12 @@ mod tests {
 
     fn event(at_s: f64, set: &[(&str, f64)]) -> EventSpec {
         EventSpec { at_s, set: set.iter().map(|(k, v)| ((*k).to_owned(), *v)).collect() }
+    }
+
+    /// The driver of `schedule` and a SIM_ parameter service of system 1 read from `plant`, as a stepper
+    /// holds them.
+    fn install(plant: &Plant, schedule: Result<Vec<SimEvent>, String>) -> (SimEvents, SimParamService) {
+        (SimEvents::new(schedule.unwrap()), SimParamService::new(1, plant))
     }
 
     fn hover_plant() -> Plant {
@@ -230,50 +220,45 @@ mod tests {
     #[test]
     fn given_an_event_at_5_ms_when_stepping_2_ms_then_it_acts_from_the_step_starting_at_6_ms_and_not_before() {
         let mut plant = hover_plant();
-        install(&mut plant, 1, resolve(&[event(0.005, &[("SIM_MOT1_EFF", 0.5)])], 1.0).unwrap());
+        let (mut events, mut service) = install(&plant, resolve(&[event(0.005, &[("SIM_MOT1_EFF", 0.5)])], 1.0));
         let pwm = plant.last_pwm_us();
         let health = |p: &Plant| p.config().airframe.rotor_health[0];
         for start_us in [0, 2000, 4000] {
             assert_eq!((plant.time_us(), health(&plant)), (start_us, 1.0));
-            plant.step(pwm, 2000);
+            events.step(&mut service, &mut plant, pwm, 2000);
         }
         // The step from 4 ms ended at 6 ms with the rotor healthy; the next one starts at 6 ms >= 5 ms.
-        assert_eq!(plant.sim_events().unwrap().fired(), 0);
+        assert_eq!(events.fired(), 0);
         let lift_before = plant.truth().rotor_lift_n[0];
-        plant.step(pwm, 2000);
-        assert_eq!((health(&plant), plant.sim_events().unwrap().fired()), (0.5, 1));
+        events.step(&mut service, &mut plant, pwm, 2000);
+        assert_eq!((health(&plant), events.fired()), (0.5, 1));
         // And it acted within that step: rotor 1's lift falls toward half (lag 40 ms), the others hold.
         let t = plant.truth();
         assert!(t.rotor_lift_n[0] < lift_before - 0.1, "{:?}", t.rotor_lift_n);
         assert!((t.rotor_lift_n[1] - lift_before).abs() < 1e-9, "{:?}", t.rotor_lift_n);
         // A zero-length step is no step: nothing fires at it.
         let mut idle = hover_plant();
-        install(&mut idle, 1, resolve(&[event(0.0, &[("SIM_MOT1_EFF", 0.5)])], 1.0).unwrap());
-        idle.step(pwm, 0);
+        let (mut events, mut service) = install(&idle, resolve(&[event(0.0, &[("SIM_MOT1_EFF", 0.5)])], 1.0));
+        events.step(&mut service, &mut idle, pwm, 0);
         assert_eq!(health(&idle), 1.0);
-        idle.step(pwm, 2000);
+        events.step(&mut service, &mut idle, pwm, 2000);
         assert_eq!(health(&idle), 0.5);
     }
 
     #[test]
     fn given_events_with_a_sim_port_then_the_port_shows_their_values_and_tells_its_peers() {
+        // The service the events go through is the one the SIM_ port answers from and empties to its peers.
         let mut plant = hover_plant();
-        install(
-            &mut plant,
-            1,
-            resolve(&[event(0.0, &[("SIM_PAYLOAD_KG", 0.25), ("SIM_CG_OFS_X", 0.05)])], 1.0).unwrap(),
-        );
-        let link = super::super::SimParamLink::bind("127.0.0.1:0", 1, &plant).expect("bind");
-        link.carry_events_of(&mut plant);
+        let (mut events, mut service) =
+            install(&plant, resolve(&[event(0.0, &[("SIM_PAYLOAD_KG", 0.25), ("SIM_CG_OFS_X", 0.05)])], 1.0));
         let pwm = plant.last_pwm_us();
-        plant.step(pwm, 2000);
+        events.step(&mut service, &mut plant, pwm, 2000);
         let payload = plant.config().airframe.payload;
         assert_eq!((payload.mass_kg, payload.offset_frd_m.x), (f64::from(0.25_f32), f64::from(0.05_f32)));
-        // One lock at a time: the service is behind a mutex the plant's step shares.
-        let payload_kg = link.service().get("SIM_PAYLOAD_KG");
-        let offset_x_m = link.service().get("SIM_CG_OFS_X");
+        let payload_kg = service.get("SIM_PAYLOAD_KG");
+        let offset_x_m = service.get("SIM_CG_OFS_X");
         assert_eq!((payload_kg, offset_x_m), (Some(0.25), Some(0.05)));
-        let echoes = link.service().take_outbox();
+        let echoes = service.take_outbox();
         let names: Vec<String> = echoes
             .iter()
             .filter_map(|m| match m {
@@ -335,12 +320,11 @@ mod tests {
                     prop_assert!(valid);
                     prop_assert!(schedule.windows(2).all(|w| w[0].at_us <= w[1].at_us));
                     let mut plant = hover_plant();
-                    install(&mut plant, 1, schedule);
+                    let (mut events, mut service) = install(&plant, Ok(schedule));
                     let pwm = plant.last_pwm_us();
                     for _ in 0..1100 {
-                        plant.step(pwm, 2000);
+                        events.step(&mut service, &mut plant, pwm, 2000);
                     }
-                    let events = plant.sim_events().unwrap();
                     prop_assert_eq!(events.fired(), events.schedule.len());
                     prop_assert!(plant.config().airframe.validate().is_ok());
                 }

@@ -1,6 +1,7 @@
 //! The plant's answer to a MAV_CMD_INJECT_FAILURE the autopilot forwards over the plant link
-//! (`COMMAND_LONG` 420: param1 failure unit, param2 failure type, param3 instance, 0 = all): a pure mapping
-//! ([`failure_sets`]) from the request to SIM_ parameter sets, which the SIM_ parameter service applies as
+//! (`COMMAND_LONG` 420: param1 failure unit, param2 failure type, param3 instance, 0 = all), read as the
+//! autopilot's own [`FailureRequest`] ([`request_of`]), and a pure mapping ([`failure_sets`], on the
+//! `mavlink` crate's `FailureUnit` and `FailureType`) from the request to SIM_ parameter sets, which the SIM_ parameter service applies as
 //! a ground station's sets (so the plant's SIM_ port always shows the injected state, and an injection and
 //! a set of the same parameters are the same thing). The table (MAVLink `FAILURE_UNIT` / `FAILURE_TYPE`
 //! numbers):
@@ -23,36 +24,13 @@
 //! changed. The motor rows need the plant's SIM_MOTn_EFF parameters: looked up by name, a plant without
 //! them answers those rows UNSUPPORTED.
 
-use mavlink::dialects::common::{MavMessage, MavResult};
+use autopilot::core::mavlink::failure::FailureRequest;
+use mavlink::dialects::common::{FailureUnit, MavMessage, MavResult};
 
 use crate::plant::{Fault, Sensor};
 
-/// MAVLink `FAILURE_UNIT` numbers the plant knows.
-pub mod failure_unit {
-    pub const SENSOR_GYRO: u32 = 0;
-    pub const SENSOR_ACCEL: u32 = 1;
-    pub const SENSOR_MAG: u32 = 2;
-    pub const SENSOR_BARO: u32 = 3;
-    pub const SENSOR_GPS: u32 = 4;
-    pub const SYSTEM_BATTERY: u32 = 100;
-    pub const SYSTEM_MOTOR: u32 = 101;
-    pub const SYSTEM_RC_SIGNAL: u32 = 104;
-    pub const SYSTEM_MAVLINK_SIGNAL: u32 = 105;
-}
-
 /// The motors of the quadrotor (instances 1..=MOTORS).
 pub const MOTORS: u32 = 4;
-
-/// An injection request as `COMMAND_LONG` carries it: param1, param2, param3 (floats on the wire).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FailureRequest {
-    /// Failure unit (param1).
-    pub unit: f32,
-    /// Failure type (param2).
-    pub failure_type: f32,
-    /// Instance, 0 = all (param3).
-    pub instance: f32,
-}
 
 /// Why a request changes nothing: the ACK's result and a text for the plant's SIM_ port.
 #[derive(Debug, Clone, PartialEq)]
@@ -90,14 +68,27 @@ fn whole(value: f32, what: &str) -> Result<u32, Refusal> {
     }
 }
 
+/// The request a forwarded `COMMAND_LONG` carries in param1..param3 (unit, type, instance), each a whole
+/// number >= 0.
+///
+/// # Errors
+/// [`Refusal`] DENIED for the first parameter that is not (NaN, 2.5, -1), nothing changed.
+pub fn request_of([unit, failure_type, instance]: [f32; 3]) -> Result<FailureRequest, Refusal> {
+    Ok(FailureRequest {
+        unit_id: whole(unit, "failure unit")?,
+        type_id: whole(failure_type, "failure type")?,
+        instance: whole(instance, "instance")?,
+    })
+}
+
 /// The sensor of a sensor failure unit.
-fn sensor_of(unit: u32) -> Option<Sensor> {
-    match unit {
-        failure_unit::SENSOR_GYRO => Some(Sensor::Gyro),
-        failure_unit::SENSOR_ACCEL => Some(Sensor::Accel),
-        failure_unit::SENSOR_MAG => Some(Sensor::Mag),
-        failure_unit::SENSOR_BARO => Some(Sensor::Baro),
-        failure_unit::SENSOR_GPS => Some(Sensor::Gps),
+fn sensor_of(unit: Option<FailureUnit>) -> Option<Sensor> {
+    match unit? {
+        FailureUnit::FAILURE_UNIT_SENSOR_GYRO => Some(Sensor::Gyro),
+        FailureUnit::FAILURE_UNIT_SENSOR_ACCEL => Some(Sensor::Accel),
+        FailureUnit::FAILURE_UNIT_SENSOR_MAG => Some(Sensor::Mag),
+        FailureUnit::FAILURE_UNIT_SENSOR_BARO => Some(Sensor::Baro),
+        FailureUnit::FAILURE_UNIT_SENSOR_GPS => Some(Sensor::Gps),
         _ => None,
     }
 }
@@ -132,17 +123,15 @@ fn single(instance: u32, what: &str) -> Result<(), Refusal> {
 /// current value of a SIM_ parameter (`None` when the plant has no such parameter).
 ///
 /// # Errors
-/// [`Refusal`]: UNSUPPORTED for a combination the plant does not simulate, DENIED for a parameter that is
-/// not a whole number >= 0.
+/// [`Refusal`] UNSUPPORTED for a combination the plant does not simulate.
 pub fn failure_sets(
     request: &FailureRequest,
     value_of: impl Fn(&str) -> Option<f32>,
 ) -> Result<Vec<(String, f32)>, Refusal> {
-    let unit = whole(request.unit, "failure unit")?;
-    let type_number = whole(request.failure_type, "failure type")?;
-    let instance = whole(request.instance, "instance")?;
-    let fault = Fault::from_failure_type(type_number)
-        .ok_or_else(|| Refusal::unsupported(format!("failure type {type_number} is not simulated by the plant")))?;
+    let (unit, instance) = (request.unit(), request.instance);
+    let fault = request.failure_type().and_then(Fault::from_mavlink).ok_or_else(|| {
+        Refusal::unsupported(format!("failure type {} is not simulated by the plant", request.type_id))
+    })?;
     let no = |what: &str| Refusal::unsupported(format!("{what} {} is not simulated by the plant", fault.word()));
     if let Some(sensor) = sensor_of(unit) {
         single(instance, sensor.name())?;
@@ -152,9 +141,12 @@ pub fn failure_sets(
         return Ok(vec![(sensor_param(sensor).to_owned(), f32::from(fault.failure_type()))]);
     }
     match unit {
-        failure_unit::SYSTEM_BATTERY | failure_unit::SYSTEM_RC_SIGNAL => {
-            let (what, param) =
-                if unit == failure_unit::SYSTEM_BATTERY { ("battery", "SIM_BAT_FAIL") } else { ("RC", "SIM_RC_FAIL") };
+        Some(FailureUnit::FAILURE_UNIT_SYSTEM_BATTERY | FailureUnit::FAILURE_UNIT_SYSTEM_RC_SIGNAL) => {
+            let (what, param) = if request.is_unit(FailureUnit::FAILURE_UNIT_SYSTEM_BATTERY) {
+                ("battery", "SIM_BAT_FAIL")
+            } else {
+                ("RC", "SIM_RC_FAIL")
+            };
             single(instance, what)?;
             match fault {
                 Fault::Ok => Ok(vec![(param.to_owned(), 0.0)]),
@@ -162,7 +154,7 @@ pub fn failure_sets(
                 _ => Err(no(what)),
             }
         }
-        failure_unit::SYSTEM_MOTOR => {
+        Some(FailureUnit::FAILURE_UNIT_SYSTEM_MOTOR) => {
             if instance > MOTORS {
                 return Err(Refusal::unsupported(format!("the quadrotor has motors 1..{MOTORS}, not {instance}")));
             }
@@ -185,10 +177,10 @@ pub fn failure_sets(
                 })
                 .collect()
         }
-        failure_unit::SYSTEM_MAVLINK_SIGNAL => {
+        Some(FailureUnit::FAILURE_UNIT_SYSTEM_MAVLINK_SIGNAL) => {
             Err(Refusal::unsupported("the ground-station link is the autopilot's, not the plant's"))
         }
-        _ => Err(Refusal::unsupported(format!("failure unit {unit} is not simulated by the plant"))),
+        _ => Err(Refusal::unsupported(format!("failure unit {} is not simulated by the plant", request.unit_id))),
     }
 }
 
@@ -213,9 +205,7 @@ mod tests {
     }
 
     fn sets(unit: u32, failure_type: u32, instance: u32) -> Result<Sets, Refusal> {
-        let request =
-            FailureRequest { unit: unit as f32, failure_type: failure_type as f32, instance: instance as f32 };
-        failure_sets(&request, with_motors)
+        failure_sets(&FailureRequest { unit_id: unit, type_id: failure_type, instance }, with_motors)
     }
 
     fn one(name: &str, value: f32) -> Result<Sets, MavResult> {
@@ -308,7 +298,7 @@ mod tests {
             (4.0, 1.0, 0.5, "instance 0.5"),
             (4.0, f32::INFINITY, 0.0, "failure type inf"),
         ] {
-            let refusal = failure_sets(&FailureRequest { unit, failure_type, instance }, with_motors).expect_err(what);
+            let refusal = request_of([unit, failure_type, instance]).expect_err(what);
             assert_eq!(refusal.result, MavResult::MAV_RESULT_DENIED, "{what}");
             assert_eq!(refusal.reason, format!("{what} is not a whole number >= 0"));
         }
@@ -317,12 +307,12 @@ mod tests {
     #[test]
     fn given_a_plant_without_motor_parameters_then_every_motor_row_is_unsupported_naming_the_parameter() {
         for failure_type in [0, 1, 4] {
-            let request = FailureRequest { unit: 101.0, failure_type: failure_type as f32, instance: 2.0 };
+            let request = FailureRequest { unit_id: 101, type_id: failure_type, instance: 2 };
             let refusal = failure_sets(&request, without_motors).expect_err("no SIM_MOT2_EFF");
             assert_eq!(refusal.result, MavResult::MAV_RESULT_UNSUPPORTED);
             assert_eq!(refusal.reason, "SIM_MOT2_EFF is not a parameter of this plant");
         }
-        let gps = FailureRequest { unit: 4.0, failure_type: 1.0, instance: 0.0 };
+        let gps = FailureRequest { unit_id: 4, type_id: 1, instance: 0 };
         assert_eq!(failure_sets(&gps, without_motors).map_err(|r| r.result), one("SIM_GPS_FAIL", 1.0));
     }
 }

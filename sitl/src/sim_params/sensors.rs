@@ -121,10 +121,10 @@ mod tests {
     use mavlink::types::CharArray;
     use proptest::prelude::*;
 
-    use super::super::{FailureRequest, SIM_PARAMS, SimParamService};
+    use super::super::{PLANT_COMPONENT_ID, SIM_PARAMS, SimParamService};
     use super::*;
-    use crate::link::PLANT_COMPONENT_ID;
     use crate::plant::{BatteryConfig, InitialState, PlantConfig};
+    use autopilot::core::mavlink::failure::FailureRequest;
 
     const SYS: u8 = 1;
 
@@ -279,7 +279,7 @@ mod tests {
         assert_eq!(s.get("SIM_BAT_FAIL"), Some(0.0));
         assert!(s.set("SIM_BAT_FAIL", 0.0, &mut plant).is_ok(), "clearing is always fine");
         // Injected, it is DENIED (a value the plant refuses), nothing changed.
-        let battery_off = FailureRequest { unit: 100.0, failure_type: 1.0, instance: 0.0 };
+        let battery_off = FailureRequest { unit_id: 100, type_id: 1, instance: 0 };
         let injection = s.inject_failure(&battery_off, &mut plant);
         assert_eq!(injection.result, MavResult::MAV_RESULT_DENIED);
         assert!(injection.text.contains("no battery"), "{}", injection.text);
@@ -290,7 +290,7 @@ mod tests {
     fn given_an_injection_through_the_service_then_the_port_shows_the_state_and_a_refused_one_changes_nothing() {
         let mut plant = plant();
         let mut s = SimParamService::new(SYS, &plant);
-        let gps_stuck = FailureRequest { unit: 4.0, failure_type: 2.0, instance: 0.0 };
+        let gps_stuck = FailureRequest { unit_id: 4, type_id: 2, instance: 0 };
         let injection = s.inject_failure(&gps_stuck, &mut plant);
         assert_eq!(injection.result, MavResult::MAV_RESULT_ACCEPTED);
         assert_eq!(injection.text, "failure injected: SIM_GPS_FAIL = 2");
@@ -298,25 +298,25 @@ mod tests {
         assert_eq!((texts, values), (vec![injection.text.clone()], vec![("SIM_GPS_FAIL".to_owned(), 2.0)]));
         assert_eq!(s.get("SIM_GPS_FAIL"), Some(2.0));
         assert_eq!(plant.sensor_faults().fault(Sensor::Gps), Fault::Stuck);
-        let rc_off = FailureRequest { unit: 104.0, failure_type: 1.0, instance: 0.0 };
+        let rc_off = FailureRequest { unit_id: 104, type_id: 1, instance: 0 };
         assert_eq!(s.inject_failure(&rc_off, &mut plant).result, MavResult::MAV_RESULT_ACCEPTED);
         assert!(plant.radio().failed() && s.get("SIM_RC_FAIL") == Some(1.0));
 
         let every = |s: &SimParamService| (0..SIM_PARAMS.len()).map(|i| s.value(i)).collect::<Vec<_>>();
         let before = (every(&s), observed(&plant));
         for (request, result) in [
-            (FailureRequest { unit: 1.0, failure_type: 1.0, instance: 0.0 }, MavResult::MAV_RESULT_UNSUPPORTED),
-            (FailureRequest { unit: 4.0, failure_type: 7.0, instance: 0.0 }, MavResult::MAV_RESULT_UNSUPPORTED),
-            (FailureRequest { unit: 105.0, failure_type: 1.0, instance: 0.0 }, MavResult::MAV_RESULT_UNSUPPORTED),
-            (FailureRequest { unit: 4.0, failure_type: 1.0, instance: f32::NAN }, MavResult::MAV_RESULT_DENIED),
+            ([1.0, 1.0, 0.0], MavResult::MAV_RESULT_UNSUPPORTED),
+            ([4.0, 7.0, 0.0], MavResult::MAV_RESULT_UNSUPPORTED),
+            ([105.0, 1.0, 0.0], MavResult::MAV_RESULT_UNSUPPORTED),
+            ([4.0, 1.0, f32::NAN], MavResult::MAV_RESULT_DENIED),
         ] {
-            let injection = s.inject_failure(&request, &mut plant);
+            let injection = s.inject_forwarded(request, &mut plant);
             assert_eq!(injection.result, result, "{request:?}");
             assert!(injection.text.starts_with("failure injection refused: "), "{}", injection.text);
             assert!(split(&injection.messages).1.is_empty(), "no value changed");
             assert_eq!((every(&s), observed(&plant)), before, "{request:?} changed nothing");
         }
-        let clear = FailureRequest { unit: 4.0, failure_type: 0.0, instance: 1.0 };
+        let clear = FailureRequest { unit_id: 4, type_id: 0, instance: 1 };
         assert_eq!(s.inject_failure(&clear, &mut plant).result, MavResult::MAV_RESULT_ACCEPTED);
         assert_eq!(plant.sensor_faults().fault(Sensor::Gps), Fault::Ok);
     }
@@ -329,8 +329,8 @@ mod tests {
         let mut plant = plant();
         let mut s = SimParamService::new(SYS, &plant);
         s.set("SIM_MOT_WRNG_EFF", 0.6, &mut plant).expect("in range");
-        let motor2_wrong = FailureRequest { unit: 101.0, failure_type: 4.0, instance: 2.0 };
-        let all_off = FailureRequest { unit: 101.0, failure_type: 1.0, instance: 0.0 };
+        let motor2_wrong = FailureRequest { unit_id: 101, type_id: 4, instance: 2 };
+        let all_off = FailureRequest { unit_id: 101, type_id: 1, instance: 0 };
         if s.get("SIM_MOT1_EFF").is_some() {
             assert_eq!(s.inject_failure(&motor2_wrong, &mut plant).result, MavResult::MAV_RESULT_ACCEPTED);
             assert_eq!(s.get("SIM_MOT2_EFF"), Some(0.6));

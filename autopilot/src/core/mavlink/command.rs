@@ -57,6 +57,9 @@ pub enum CommandEffect {
     Deny(String),
     /// Not a command this vehicle knows.
     Unsupported,
+    /// INJECT_FAILURE (420): param1 unit, param2 type, param3 instance, for the failure-injection service
+    /// (see [`super::failure`]), which answers it itself: now, or when the plant has.
+    InjectFailure(FailureRequest),
 }
 
 /// A geodetic point of a command: latitude, longitude (deg), altitude (m) AMSL or above home.
@@ -91,8 +94,6 @@ pub enum VehicleCommand {
     NoOp,
     /// ACTUATOR_TEST (310) or DO_MOTOR_TEST (209): spin one motor, or stop it (disarmed only).
     MotorTest(MotorTestRequest),
-    /// INJECT_FAILURE (420): param1 unit, param2 type, param3 instance (see [`super::failure`]).
-    InjectFailure(FailureRequest),
 }
 
 /// How many motors the vehicle has: motor N = output N = the paper's rotor N (1 right, 2 rear, 3 front,
@@ -347,7 +348,7 @@ fn effect(command: MavCmd, a: &Params, ctx: &CommandContext) -> CommandEffect {
         MavCmd::MAV_CMD_ACTUATOR_TEST => actuator_test(p[0], p[1], a.x),
         MavCmd::MAV_CMD_DO_MOTOR_TEST => motor_test(p, a.x),
         MavCmd::MAV_CMD_INJECT_FAILURE => match FailureRequest::from_params(p[0], p[1], p[2]) {
-            Some(request) => CommandEffect::Vehicle(VehicleCommand::InjectFailure(request)),
+            Some(request) => CommandEffect::InjectFailure(request),
             None => {
                 CommandEffect::Deny("Failure injection: unit, type and instance must be whole numbers 0-255".into())
             }

@@ -18,7 +18,9 @@
 //! module; they react to the data the fault changes (a GPS that stops, a rotor that lifts less), as they
 //! would to the fault itself.
 
-use ::mavlink::dialects::common::{COMMAND_ACK_DATA, MavCmd, MavMessage, MavResult, MavSeverity};
+use ::mavlink::dialects::common::{
+    COMMAND_ACK_DATA, FailureType, FailureUnit, MavCmd, MavMessage, MavResult, MavSeverity,
+};
 
 use super::telemetry::statustext;
 use crate::core::plant_link::{PlantCommandAck, encode_inject_failure};
@@ -26,82 +28,149 @@ use crate::core::plant_link::{PlantCommandAck, encode_inject_failure};
 /// How long the vehicle waits for the plant's answer to a forwarded injection (µs of vehicle time).
 pub const PLANT_ANSWER_TIMEOUT_US: u64 = 300_000;
 
-/// MAVLink's FAILURE_UNIT values this module names.
-pub mod unit {
-    pub const GYRO: u8 = 0;
-    pub const ACCEL: u8 = 1;
-    pub const MAG: u8 = 2;
-    pub const BARO: u8 = 3;
-    pub const GPS: u8 = 4;
-    pub const BATTERY: u8 = 100;
-    pub const MOTOR: u8 = 101;
-    pub const RC_SIGNAL: u8 = 104;
-    pub const MAVLINK_SIGNAL: u8 = 105;
-}
+/// Every FAILURE_UNIT the MAVLink dialect names (each one's number is its value).
+const UNITS: [FailureUnit; 17] = {
+    use FailureUnit::*;
+    [
+        FAILURE_UNIT_SENSOR_GYRO,
+        FAILURE_UNIT_SENSOR_ACCEL,
+        FAILURE_UNIT_SENSOR_MAG,
+        FAILURE_UNIT_SENSOR_BARO,
+        FAILURE_UNIT_SENSOR_GPS,
+        FAILURE_UNIT_SENSOR_OPTICAL_FLOW,
+        FAILURE_UNIT_SENSOR_VIO,
+        FAILURE_UNIT_SENSOR_DISTANCE_SENSOR,
+        FAILURE_UNIT_SENSOR_AIRSPEED,
+        FAILURE_UNIT_SYSTEM_BATTERY,
+        FAILURE_UNIT_SYSTEM_MOTOR,
+        FAILURE_UNIT_SYSTEM_SERVO,
+        FAILURE_UNIT_SYSTEM_AVOIDANCE,
+        FAILURE_UNIT_SYSTEM_RC_SIGNAL,
+        FAILURE_UNIT_SYSTEM_MAVLINK_SIGNAL,
+        FAILURE_UNIT_SYSTEM_ESC,
+        FAILURE_UNIT_SYSTEM_TRAFFIC_AVOIDANCE,
+    ]
+};
 
-/// MAVLink's FAILURE_TYPE values this module names.
-pub mod kind {
-    pub const OK: u8 = 0;
-    pub const OFF: u8 = 1;
-}
+/// Every FAILURE_TYPE the MAVLink dialect names.
+const TYPES: [FailureType; 9] = {
+    use FailureType::*;
+    [
+        FAILURE_TYPE_OK,
+        FAILURE_TYPE_OFF,
+        FAILURE_TYPE_STUCK,
+        FAILURE_TYPE_GARBAGE,
+        FAILURE_TYPE_WRONG,
+        FAILURE_TYPE_SLOW,
+        FAILURE_TYPE_DELAYED,
+        FAILURE_TYPE_INTERMITTENT,
+        FAILURE_TYPE_DRIFT,
+    ]
+};
 
-/// One MAV_CMD_INJECT_FAILURE: param1 the unit, param2 the type, param3 the instance (0 = all).
+/// One MAV_CMD_INJECT_FAILURE, as the autopilot decodes it and the plant applies it: param1 the unit
+/// (MAVLink's FAILURE_UNIT), param2 the type (FAILURE_TYPE), param3 the instance (0 = all). The numbers are
+/// kept as sent, so that a unit or type the dialect does not name (unit 200, type 9) is still carried,
+/// forwarded and answered in its own words; [`FailureRequest::unit`] and [`FailureRequest::failure_type`]
+/// read them as the dialect's [`FailureUnit`] and [`FailureType`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct FailureRequest {
-    pub unit: u8,
-    pub failure_type: u8,
-    pub instance: u8,
+    /// FAILURE_UNIT number (param1).
+    pub unit_id: u32,
+    /// FAILURE_TYPE number (param2).
+    pub type_id: u32,
+    /// Instance, 0 = all (param3).
+    pub instance: u32,
 }
 
 impl FailureRequest {
+    /// `failure_type` of `unit` `instance` (0 = all).
+    #[must_use]
+    pub fn new(unit: FailureUnit, failure_type: FailureType, instance: u32) -> Self {
+        Self { unit_id: unit as u32, type_id: failure_type as u32, instance }
+    }
+
     /// The request in a command's parameters; None when one is not a whole number 0-255 (a malformed
     /// command, refused with DENIED by the caller).
     #[must_use]
     pub fn from_params(param1: f32, param2: f32, param3: f32) -> Option<Self> {
-        let byte = |x: f32| (x.is_finite() && x.fract() == 0.0 && (0.0..=255.0).contains(&x)).then_some(x as u8);
-        Some(Self { unit: byte(param1)?, failure_type: byte(param2)?, instance: byte(param3)? })
+        let byte = |x: f32| (x.is_finite() && x.fract() == 0.0 && (0.0..=255.0).contains(&x)).then_some(x as u32);
+        Some(Self { unit_id: byte(param1)?, type_id: byte(param2)?, instance: byte(param3)? })
+    }
+
+    /// param1..param3 of the command that carries it.
+    #[must_use]
+    pub fn params(&self) -> [f32; 3] {
+        [self.unit_id as f32, self.type_id as f32, self.instance as f32]
+    }
+
+    /// The unit, if the dialect names it.
+    #[must_use]
+    pub fn unit(&self) -> Option<FailureUnit> {
+        UNITS.into_iter().find(|u| *u as u32 == self.unit_id)
+    }
+
+    /// The failure type, if the dialect names it.
+    #[must_use]
+    pub fn failure_type(&self) -> Option<FailureType> {
+        TYPES.into_iter().find(|t| *t as u32 == self.type_id)
+    }
+
+    /// Whether it is of `unit`.
+    #[must_use]
+    pub fn is_unit(&self, unit: FailureUnit) -> bool {
+        self.unit_id == unit as u32
+    }
+
+    /// Whether it is of `failure_type`.
+    #[must_use]
+    pub fn is_type(&self, failure_type: FailureType) -> bool {
+        self.type_id == failure_type as u32
     }
 
     /// How a ground station's operator reads it ("gps off", "motor 1 wrong").
     #[must_use]
     pub fn describe(&self) -> String {
-        let unit = match self.unit {
-            unit::GYRO => "gyro",
-            unit::ACCEL => "accel",
-            unit::MAG => "mag",
-            unit::BARO => "baro",
-            unit::GPS => "gps",
-            5 => "optical flow",
-            6 => "vio",
-            7 => "distance sensor",
-            8 => "airspeed",
-            unit::BATTERY => "battery",
-            unit::MOTOR => "motor",
-            102 => "servo",
-            103 => "avoidance",
-            unit::RC_SIGNAL => "rc signal",
-            unit::MAVLINK_SIGNAL => "mavlink signal",
-            106 => "esc",
-            107 => "traffic avoidance",
-            _ => "unit",
-        };
-        let what = match self.failure_type {
-            0 => "ok",
-            1 => "off",
-            2 => "stuck",
-            3 => "garbage",
-            4 => "wrong",
-            5 => "slow",
-            6 => "delayed",
-            7 => "intermittent",
-            8 => "drift",
-            _ => "type",
-        };
-        let known_unit = unit != "unit";
-        let known_type = what != "type";
-        let unit = if known_unit { unit.to_owned() } else { format!("unit {}", self.unit) };
-        let what = if known_type { what.to_owned() } else { format!("type {}", self.failure_type) };
+        use FailureType::*;
+        use FailureUnit::*;
+        let unit = self.unit().map(|u| match u {
+            FAILURE_UNIT_SENSOR_GYRO => "gyro",
+            FAILURE_UNIT_SENSOR_ACCEL => "accel",
+            FAILURE_UNIT_SENSOR_MAG => "mag",
+            FAILURE_UNIT_SENSOR_BARO => "baro",
+            FAILURE_UNIT_SENSOR_GPS => "gps",
+            FAILURE_UNIT_SENSOR_OPTICAL_FLOW => "optical flow",
+            FAILURE_UNIT_SENSOR_VIO => "vio",
+            FAILURE_UNIT_SENSOR_DISTANCE_SENSOR => "distance sensor",
+            FAILURE_UNIT_SENSOR_AIRSPEED => "airspeed",
+            FAILURE_UNIT_SYSTEM_BATTERY => "battery",
+            FAILURE_UNIT_SYSTEM_MOTOR => "motor",
+            FAILURE_UNIT_SYSTEM_SERVO => "servo",
+            FAILURE_UNIT_SYSTEM_AVOIDANCE => "avoidance",
+            FAILURE_UNIT_SYSTEM_RC_SIGNAL => "rc signal",
+            FAILURE_UNIT_SYSTEM_MAVLINK_SIGNAL => "mavlink signal",
+            FAILURE_UNIT_SYSTEM_ESC => "esc",
+            FAILURE_UNIT_SYSTEM_TRAFFIC_AVOIDANCE => "traffic avoidance",
+        });
+        let what = self.failure_type().map(|t| match t {
+            FAILURE_TYPE_OK => "ok",
+            FAILURE_TYPE_OFF => "off",
+            FAILURE_TYPE_STUCK => "stuck",
+            FAILURE_TYPE_GARBAGE => "garbage",
+            FAILURE_TYPE_WRONG => "wrong",
+            FAILURE_TYPE_SLOW => "slow",
+            FAILURE_TYPE_DELAYED => "delayed",
+            FAILURE_TYPE_INTERMITTENT => "intermittent",
+            FAILURE_TYPE_DRIFT => "drift",
+        });
+        let unit = unit.map_or_else(|| format!("unit {}", self.unit_id), str::to_owned);
+        let what = what.map_or_else(|| format!("type {}", self.type_id), str::to_owned);
         if self.instance == 0 { format!("{unit} {what}") } else { format!("{unit} {} {what}", self.instance) }
+    }
+
+    /// An OFF or OK of it (the only types the autopilot's own inputs take).
+    fn off_or_ok(&self) -> bool {
+        self.is_type(FailureType::FAILURE_TYPE_OFF) || self.is_type(FailureType::FAILURE_TYPE_OK)
     }
 }
 
@@ -138,16 +207,15 @@ impl FailureInjection {
         if !enabled {
             return reply(from, MavResult::MAV_RESULT_DENIED, Some("Injection denied: SYS_FAILURE_EN is 0"));
         }
-        if request.unit == unit::MAVLINK_SIGNAL {
-            return match (request.failure_type, request.instance) {
-                (kind::OFF | kind::OK, 0 | 1) => {
-                    self.gcs_link_off = request.failure_type == kind::OFF;
-                    accepted(from, &request)
-                }
-                _ => unsupported(from, &request),
+        if request.is_unit(FailureUnit::FAILURE_UNIT_SYSTEM_MAVLINK_SIGNAL) {
+            return if request.off_or_ok() && request.instance <= 1 {
+                self.gcs_link_off = request.is_type(FailureType::FAILURE_TYPE_OFF);
+                accepted(from, &request)
+            } else {
+                unsupported(from, &request)
             };
         }
-        if request.unit == unit::RC_SIGNAL && !matches!(request.failure_type, kind::OFF | kind::OK) {
+        if request.is_unit(FailureUnit::FAILURE_UNIT_SYSTEM_RC_SIGNAL) && !request.off_or_ok() {
             return unsupported(from, &request);
         }
         match self.pending {
@@ -168,10 +236,7 @@ impl FailureInjection {
 
     /// The COMMAND_LONGs to write on the plant link before this step's actuator message (drained).
     pub fn take_plant_messages(&mut self) -> Vec<MavMessage> {
-        self.to_plant
-            .drain(..)
-            .map(|r| MavMessage::COMMAND_LONG(encode_inject_failure(r.unit, r.failure_type, r.instance)))
-            .collect()
+        self.to_plant.drain(..).map(|r| MavMessage::COMMAND_LONG(encode_inject_failure(r.params()))).collect()
     }
 
     /// The plant's answer: the ACK (and what it means in words) for the ground station that asked. An
@@ -183,8 +248,8 @@ impl FailureInjection {
         let Some(p) = self.pending.take() else { return Vec::new() };
         match ack.result {
             MavResult::MAV_RESULT_ACCEPTED => {
-                if p.request.unit == unit::RC_SIGNAL {
-                    self.manual_off = p.request.failure_type == kind::OFF;
+                if p.request.is_unit(FailureUnit::FAILURE_UNIT_SYSTEM_RC_SIGNAL) {
+                    self.manual_off = p.request.is_type(FailureType::FAILURE_TYPE_OFF);
                 }
                 accepted(p.from, &p.request)
             }
@@ -256,10 +321,19 @@ fn unsupported(from: Requester, request: &FailureRequest) -> Vec<MavMessage> {
 mod tests {
     use super::*;
 
-    const GCS: Requester = Requester { system: 255, component: 190 };
+    use FailureUnit::*;
 
-    fn req(unit: u8, failure_type: u8, instance: u8) -> FailureRequest {
-        FailureRequest { unit, failure_type, instance }
+    const GCS: Requester = Requester { system: 255, component: 190 };
+    const OK: u32 = FailureType::FAILURE_TYPE_OK as u32;
+    const OFF: u32 = FailureType::FAILURE_TYPE_OFF as u32;
+
+    /// A unit's number.
+    fn u(unit: FailureUnit) -> u32 {
+        unit as u32
+    }
+
+    fn req(unit_id: u32, type_id: u32, instance: u32) -> FailureRequest {
+        FailureRequest { unit_id, type_id, instance }
     }
 
     fn result_of(messages: &[MavMessage]) -> Option<MavResult> {
@@ -292,7 +366,11 @@ mod tests {
     #[test]
     fn given_sys_failure_en_0_when_any_failure_is_injected_then_it_is_denied_and_nothing_goes_to_the_plant() {
         let mut f = FailureInjection::default();
-        for r in [req(unit::GPS, kind::OFF, 0), req(unit::MAVLINK_SIGNAL, kind::OFF, 0), req(200, 9, 0)] {
+        for r in [
+            req(u(FAILURE_UNIT_SENSOR_GPS), OFF, 0),
+            req(u(FAILURE_UNIT_SYSTEM_MAVLINK_SIGNAL), OFF, 0),
+            req(200, 9, 0),
+        ] {
             let out = f.inject(0, GCS, r, false);
             assert_eq!(result_of(&out), Some(MavResult::MAV_RESULT_DENIED));
             assert_eq!(text_of(&out), "Injection denied: SYS_FAILURE_EN is 0");
@@ -304,14 +382,14 @@ mod tests {
     #[test]
     fn given_a_plant_fault_when_injected_then_it_is_forwarded_once_and_the_plants_ack_is_the_answer() {
         let mut f = FailureInjection::default();
-        assert!(f.inject(1_000, GCS, req(unit::GPS, kind::OFF, 0), true).is_empty());
+        assert!(f.inject(1_000, GCS, req(u(FAILURE_UNIT_SENSOR_GPS), OFF, 0), true).is_empty());
         let forwarded = f.take_plant_messages();
         assert_eq!(forwarded.len(), 1);
         let MavMessage::COMMAND_LONG(c) = &forwarded[0] else { panic!("{forwarded:?}") };
         assert_eq!((c.command, c.param1, c.param2, c.param3), (MavCmd::MAV_CMD_INJECT_FAILURE, 4.0, 1.0, 0.0));
         assert!(f.take_plant_messages().is_empty(), "drained");
         // A retransmission of the same command while it waits is not forwarded again.
-        assert!(f.inject(2_000, GCS, req(unit::GPS, kind::OFF, 0), true).is_empty());
+        assert!(f.inject(2_000, GCS, req(u(FAILURE_UNIT_SENSOR_GPS), OFF, 0), true).is_empty());
         assert!(f.take_plant_messages().is_empty());
         let out = f.on_plant_ack(plant_ack(MavResult::MAV_RESULT_ACCEPTED));
         assert_eq!(result_of(&out), Some(MavResult::MAV_RESULT_ACCEPTED));
@@ -323,11 +401,11 @@ mod tests {
     #[test]
     fn given_the_plant_answers_unsupported_or_refuses_then_the_ground_station_gets_that_result_in_words() {
         let mut f = FailureInjection::default();
-        f.inject(0, GCS, req(5, kind::OFF, 0), true);
+        f.inject(0, GCS, req(5, OFF, 0), true);
         let out = f.on_plant_ack(plant_ack(MavResult::MAV_RESULT_UNSUPPORTED));
         assert_eq!(result_of(&out), Some(MavResult::MAV_RESULT_UNSUPPORTED));
         assert_eq!(text_of(&out), "Injection not supported: optical flow off");
-        f.inject(0, GCS, req(unit::MOTOR, 4, 7), true);
+        f.inject(0, GCS, req(u(FAILURE_UNIT_SYSTEM_MOTOR), 4, 7), true);
         let out = f.on_plant_ack(plant_ack(MavResult::MAV_RESULT_DENIED));
         assert_eq!(result_of(&out), Some(MavResult::MAV_RESULT_DENIED));
         assert_eq!(text_of(&out), "Injection refused by the plant: motor 7 wrong");
@@ -336,22 +414,22 @@ mod tests {
     #[test]
     fn given_no_plant_answer_when_0_3_s_of_vehicle_time_pass_then_unsupported_and_a_new_injection_is_taken() {
         let mut f = FailureInjection::default();
-        f.inject(1_000_000, GCS, req(unit::BARO, 2, 0), true);
+        f.inject(1_000_000, GCS, req(u(FAILURE_UNIT_SENSOR_BARO), 2, 0), true);
         assert!(f.step(1_299_999).is_empty());
         let out = f.step(1_300_000);
         assert_eq!(result_of(&out), Some(MavResult::MAV_RESULT_UNSUPPORTED));
         assert_eq!(text_of(&out), "Injection: no plant answer (baro stuck)");
         assert!(f.step(2_000_000).is_empty(), "answered once");
         f.take_plant_messages();
-        assert!(f.inject(2_000_000, GCS, req(unit::MAG, 1, 0), true).is_empty());
+        assert!(f.inject(2_000_000, GCS, req(u(FAILURE_UNIT_SENSOR_MAG), 1, 0), true).is_empty());
         assert_eq!(f.take_plant_messages().len(), 1);
     }
 
     #[test]
     fn given_one_injection_waiting_when_a_different_one_comes_then_it_is_temporarily_rejected() {
         let mut f = FailureInjection::default();
-        f.inject(0, GCS, req(unit::GPS, kind::OFF, 0), true);
-        let out = f.inject(0, GCS, req(unit::BARO, kind::OFF, 0), true);
+        f.inject(0, GCS, req(u(FAILURE_UNIT_SENSOR_GPS), OFF, 0), true);
+        let out = f.inject(0, GCS, req(u(FAILURE_UNIT_SENSOR_BARO), OFF, 0), true);
         assert_eq!(result_of(&out), Some(MavResult::MAV_RESULT_TEMPORARILY_REJECTED));
         assert_eq!(f.take_plant_messages().len(), 1, "only the first went to the plant");
     }
@@ -359,7 +437,7 @@ mod tests {
     #[test]
     fn given_mavlink_signal_off_then_only_the_injection_command_is_heard_until_ok_restores_the_link() {
         let mut f = FailureInjection::default();
-        let out = f.inject(0, GCS, req(unit::MAVLINK_SIGNAL, kind::OFF, 0), true);
+        let out = f.inject(0, GCS, req(u(FAILURE_UNIT_SYSTEM_MAVLINK_SIGNAL), OFF, 0), true);
         assert_eq!(result_of(&out), Some(MavResult::MAV_RESULT_ACCEPTED));
         assert!(f.take_plant_messages().is_empty(), "the link is the autopilot's own");
         assert!(!f.hears(&MavMessage::HEARTBEAT(Default::default())));
@@ -372,10 +450,10 @@ mod tests {
             [105.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
         );
         assert!(f.hears(&ok));
-        let out = f.inject(0, GCS, req(unit::MAVLINK_SIGNAL, kind::OK, 0), true);
+        let out = f.inject(0, GCS, req(u(FAILURE_UNIT_SYSTEM_MAVLINK_SIGNAL), OK, 0), true);
         assert_eq!(result_of(&out), Some(MavResult::MAV_RESULT_ACCEPTED));
         assert!(f.hears(&MavMessage::HEARTBEAT(Default::default())));
-        let out = f.inject(0, GCS, req(unit::MAVLINK_SIGNAL, 2, 0), true);
+        let out = f.inject(0, GCS, req(u(FAILURE_UNIT_SYSTEM_MAVLINK_SIGNAL), 2, 0), true);
         assert_eq!(result_of(&out), Some(MavResult::MAV_RESULT_UNSUPPORTED));
     }
 
@@ -383,17 +461,17 @@ mod tests {
     fn given_rc_signal_off_accepted_by_the_plant_then_manual_control_is_ignored_until_ok() {
         let mut f = FailureInjection::default();
         let sticks = MavMessage::MANUAL_CONTROL(Default::default());
-        f.inject(0, GCS, req(unit::RC_SIGNAL, kind::OFF, 0), true);
+        f.inject(0, GCS, req(u(FAILURE_UNIT_SYSTEM_RC_SIGNAL), OFF, 0), true);
         assert_eq!(f.take_plant_messages().len(), 1, "the board's radio is the plant's");
         assert!(f.hears(&sticks), "not before the plant accepted it");
         f.on_plant_ack(plant_ack(MavResult::MAV_RESULT_ACCEPTED));
         assert!(!f.hears(&sticks));
         assert!(!f.hears(&MavMessage::RC_CHANNELS_OVERRIDE(Default::default())));
         assert!(f.hears(&MavMessage::HEARTBEAT(Default::default())));
-        f.inject(0, GCS, req(unit::RC_SIGNAL, kind::OK, 0), true);
+        f.inject(0, GCS, req(u(FAILURE_UNIT_SYSTEM_RC_SIGNAL), OK, 0), true);
         f.on_plant_ack(plant_ack(MavResult::MAV_RESULT_ACCEPTED));
         assert!(f.hears(&sticks));
-        let out = f.inject(0, GCS, req(unit::RC_SIGNAL, 2, 0), true);
+        let out = f.inject(0, GCS, req(u(FAILURE_UNIT_SYSTEM_RC_SIGNAL), 2, 0), true);
         assert_eq!(result_of(&out), Some(MavResult::MAV_RESULT_UNSUPPORTED));
     }
 
@@ -427,10 +505,10 @@ mod tests {
                     MavResult::MAV_RESULT_TEMPORARILY_REJECTED,
                 ];
                 // A few units, so that retransmissions and collisions with the waiting one are common.
-                let unit = [unit::GYRO, unit::BARO, unit::GPS, 5, unit::MOTOR, unit::RC_SIGNAL, unit::MAVLINK_SIGNAL, 200][unit];
+                let unit = [u(FAILURE_UNIT_SENSOR_GYRO), u(FAILURE_UNIT_SENSOR_BARO), u(FAILURE_UNIT_SENSOR_GPS), 5, u(FAILURE_UNIT_SYSTEM_MOTOR), u(FAILURE_UNIT_SYSTEM_RC_SIGNAL), u(FAILURE_UNIT_SYSTEM_MAVLINK_SIGNAL), 200][unit];
                 let out = match what {
                     0 => {
-                        let r = req(unit, kind, instance);
+                        let r = req(unit, u32::from(kind), u32::from(instance));
                         let retransmission = enabled && f.pending.is_some_and(|p| p.request == r && p.from == GCS);
                         if !retransmission {
                             asked += 1;

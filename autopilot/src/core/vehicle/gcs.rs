@@ -171,11 +171,6 @@ impl Vehicle {
     /// Applies a command and answers it: its ACK (and STATUSTEXT on refusal), then any message it asked
     /// for.
     fn apply_command(&mut self, now_us: u64, cmd: &InboundCommand) -> Vec<MavMessage> {
-        if let CommandEffect::Vehicle(VehicleCommand::InjectFailure(request)) = cmd.effect {
-            // Answered by the failure-injection service: now, or when the plant has answered.
-            let from = Requester { system: cmd.sender_system, component: cmd.sender_component };
-            return self.failures.inject(now_us, from, request, self.params.failure_injection_enabled());
-        }
         let mut extra = Vec::new();
         let facts = self.facts(now_us);
         if matches!(cmd.effect, CommandEffect::Request(Request::Disarm { .. } | Request::Kill)) {
@@ -183,6 +178,11 @@ impl Vehicle {
             self.motor_test.stop();
         }
         let outcome = match cmd.effect.clone() {
+            CommandEffect::InjectFailure(request) => {
+                // Answered by the failure-injection service: now, or when the plant has answered.
+                let from = Requester { system: cmd.sender_system, component: cmd.sender_component };
+                return self.failures.inject(now_us, from, request, self.params.failure_injection_enabled());
+            }
             CommandEffect::Request(req) => self.request(now_us, facts, req).map_err(Some),
             CommandEffect::Vehicle(command) => self.vehicle_command(now_us, facts, command, &mut extra),
             CommandEffect::Deny(text) => Err(Some(text)),
@@ -291,8 +291,6 @@ impl Vehicle {
                 Ok(())
             }
             VehicleCommand::NoOp => Ok(()),
-            // Never reached: `apply_command` hands it to the failure-injection service first.
-            VehicleCommand::InjectFailure(_) => Err(None),
             VehicleCommand::MotorTest(request) => {
                 // PX4's order: armed first, then the enable parameter.
                 if self.commander.armed() {

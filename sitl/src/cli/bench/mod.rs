@@ -155,7 +155,7 @@ fn bench_once(
     let (sim_params, _) = bind_sim_params(n, &plant)?;
     let mut server =
         PlantServer::bind_udp(plant, listen.as_str(), link).with_context(|| format!("binding {listen}"))?;
-    server.set_hook(Box::new(sim_params));
+    server.set_sim_port(sim_params);
     let counter = TelemetryCounter::listen(qgc_port)?;
     let mut args: Vec<OsString> = vec![
         "--plant".into(),

@@ -11,15 +11,12 @@ use anyhow::{Context, Result, bail};
 use autopilot::core::mavlink::command::command_long;
 use autopilot::core::plant_link::{FrameDecoder, encode_frame_v2};
 use autopilot::runtime::ports::InstancePorts;
-use clap::Parser;
 use mavlink::MavHeader;
 use mavlink::dialects::common::{MavCmd, MavMessage};
 use sitl::launch::{self, AutopilotChild};
 
 use super::{BenchArgs, Summary, describe};
-use crate::cli::run::RunArgs;
-use crate::cli::swarm::start_swarm;
-use crate::{Cli, Command};
+use crate::cli::run::{RunArgs, start_swarm};
 
 /// The swarm target: every vehicle's HEARTBEAT interval at the ground station, p99 (s).
 pub const HEARTBEAT_P99_LIMIT_S: f64 = 1.2;
@@ -47,9 +44,7 @@ const REQUESTED_MESSAGE_ID: f32 = 148.0;
 /// the same command line, so the swarm is started exactly as `sitl run -n N` starts it.
 fn swarm_run_args(first: u16, count: u16) -> Result<RunArgs> {
     let (first, count) = (first.to_string(), count.to_string());
-    let cli = Cli::try_parse_from(["sitl", "run", "-n", &count, "-i", &first, "--state-dir", "off", "--no-ulog"])?;
-    let Command::Run(run) = cli.command else { bail!("`sitl run` parsed as another command") };
-    Ok(run)
+    RunArgs::parse_options(["-n", &count, "-i", &first, "--state-dir", "off", "--no-ulog"])
 }
 
 /// CPU seconds (user + system) of every thread of process `pid` (`self` for this one), by thread id,

@@ -80,11 +80,11 @@ pub struct PlantCommandAck {
 /// The COMMAND_LONG that forwards a failure injection to the plant (see [`crate::core::plant_link`]): unit, type and
 /// instance as MAV_CMD_INJECT_FAILURE's param1..3, addressed to whoever is at the other end of the link.
 #[must_use]
-pub fn encode_inject_failure(unit: u8, failure_type: u8, instance: u8) -> COMMAND_LONG_DATA {
+pub fn encode_inject_failure([unit, failure_type, instance]: [f32; 3]) -> COMMAND_LONG_DATA {
     COMMAND_LONG_DATA {
-        param1: f32::from(unit),
-        param2: f32::from(failure_type),
-        param3: f32::from(instance),
+        param1: unit,
+        param2: failure_type,
+        param3: instance,
         command: MavCmd::MAV_CMD_INJECT_FAILURE,
         target_system: 0,
         target_component: 0,

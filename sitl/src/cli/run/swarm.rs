@@ -11,8 +11,8 @@ use sitl::link::{PlantServer, UdpTransport};
 use sitl::plant::{InitialState, Plant};
 use sitl::progress::Progress;
 
-use super::common::{bind_sim_params, describe_pacing, duration_us, realistic_plant_config};
-use super::run::{RunArgs, autopilot_args, check_autopilot_config, run_link_config};
+use super::args::{RunArgs, autopilot_args, check_autopilot_config, run_link_config};
+use crate::cli::common::{bind_sim_params, describe_pacing, duration_us, realistic_plant_config};
 
 /// Where swarm vehicle `k` of `count` starts: on a square grid `spacing_m` apart, rows north, columns east
 /// (NED, metres from the plant origin).
@@ -54,7 +54,7 @@ pub(crate) fn start_swarm(
         let (sim_params, _) = bind_sim_params(n, &plant)?;
         let mut server = PlantServer::bind_udp(plant, listen.as_str(), run_link_config(args, pacing))
             .with_context(|| format!("binding {listen}"))?;
-        server.set_hook(Box::new(sim_params));
+        server.set_sim_port(sim_params);
         servers.push(server);
         // Each vehicle keeps its own state: a directory given for the swarm holds one per instance.
         let state_dir = match args.state_dir.as_deref().map(str::trim) {

@@ -3,7 +3,7 @@
 //! plant's true state (SIM_STATE, 50 Hz of plant time) for any client to judge a flight by.
 //!
 //! In: MAVLink datagrams on UDP 127.0.0.1:[`SIM_PARAM_PORT_BASE`] + N (instance N) addressed to system
-//! N+1 (or 0), component [`crate::link::PLANT_COMPONENT_ID`] (or 0): PARAM_REQUEST_LIST, PARAM_REQUEST_READ
+//! N+1 (or 0), component [`PLANT_COMPONENT_ID`] (or 0): PARAM_REQUEST_LIST, PARAM_REQUEST_READ
 //! (by `param_index` when >= 0, else by `param_id`) and PARAM_SET; any other message (a client's
 //! HEARTBEAT) only makes its sender a peer. Out, to the sender's address in the MAVLink version it used:
 //! PARAM_VALUE (`param_count` = [`SIM_PARAMS`]`.len()`, `param_index` = its table index; the reals REAL32,
@@ -22,14 +22,14 @@
 //!
 //! A set takes effect at the next plant step (the wind is evaluated at the start of each step). The
 //! [`SimParamService`] is pure (messages and a plant in, replies out); [`SimParamLink`] is its socket,
-//! polled by the plant server between steps (see [`crate::link::PlantHook`]: every 50 steps and at least
+//! polled by the plant server between steps with the server's service (the plant link's `PlantHook`: every 50 steps and at least
 //! every 20 ms of wall time while the plant waits, never once per step).
 //!
 //! The parameter machinery is the autopilot's, not a copy: [`SIM_PARAMS`] is a table of the autopilot's
 //! [`ParamDef`] with no docs group and no config binding ([`SimParamDef`] = `ParamDef<(), ()>`), its values
 //! live in the autopilot's [`ParamStore`] over that table, and the protocol (addressing, lookup by index or
 //! id, type decoding, range and kind checks, PARAM_VALUE encoding, refusal texts) is the autopilot's [`ParamService`] for
-//! component [`crate::link::PLANT_COMPONENT_ID`]. What is the plant's own is `apply`, the hook
+//! component [`PLANT_COMPONENT_ID`]. What is the plant's own is `apply`, the hook
 //! [`ParamService::on_message_with`] calls with a set that passed the table's check: it changes the wind,
 //! moves SIM_BEAUFORT and SIM_GUST_SPD together and writes the gust's note, or refuses with the wind's own
 //! reason. A refusal therefore reads as the autopilot's does (`SIM_GUST_SPD: 40 not in 0..30`, `unknown
@@ -64,7 +64,7 @@
 //! 0` (the truth, not an estimate). The position is the plant's local NED mapped to WGS-84 about the
 //! plant's home (`[sensors.home]`) by the map its GPS uses, [`geodetic_from_ned`], so a fix and the
 //! truth agree to the GPS noise. Samples taken between two polls go out at the next poll (every
-//! [`crate::link::HOOK_EVERY_STEPS`] steps, or every 20 ms of wall time while the plant waits), in order.
+//! 50 plant steps (the plant link's `HOOK_EVERY_STEPS`), or every 20 ms of wall time while the plant waits), in order.
 //!
 //! The pack: SIM_BAT_DRAIN (s, PX4's) > 0 drains it linearly from full to empty in that time while the
 //! motors run (0: by the current the rotors draw, the default), SIM_BAT_MIN_PCT (%, PX4's; default 0
@@ -91,40 +91,32 @@
 mod airframe;
 pub mod events;
 mod inject;
+mod port;
 mod sensors;
 mod truth;
 
 pub use events::{EventSpec, SimEvent, SimEvents};
-pub use inject::{FailureRequest, Injection, Refusal, failure_sets, failure_unit};
+pub use inject::{Injection, Refusal, failure_sets, request_of};
+pub use port::{HEARTBEAT_PERIOD, PEER_EXPIRY, SimParamLink, heartbeat};
 pub use truth::{TRUTH_PERIOD_US, TRUTH_RATE_HZ, TruthStream, sim_state, truth_messages};
 
-use std::io;
-use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
-use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
-use std::time::{Duration, Instant};
-
+use autopilot::core::mavlink::failure::FailureRequest;
 use autopilot::core::mavlink::params::{Applied, ParamService, encode_value, param_value};
 use autopilot::core::mavlink::{statustext, statustext_chunks};
 use autopilot::core::params::{ParamDef, ParamError, ParamKind, ParamStore};
-use autopilot::core::plant_link::{FrameDecoder, encode_frame_v1, encode_frame_v2};
-use mavlink::dialects::common::{
-    HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavResult, MavSeverity, MavState, MavType, PARAM_SET_DATA,
-};
+use mavlink::dialects::common::{MavMessage, MavResult, MavSeverity, PARAM_SET_DATA};
 use mavlink::types::CharArray;
-use mavlink::{MavHeader, MavlinkVersion};
 use nalgebra::Vector3;
 
-use crate::link::{PLANT_COMPONENT_ID, PlantHook};
 use crate::plant::wind::{BEAUFORT, GaussMarkovConfig, beaufort};
 use crate::plant::{GustConfig, Plant, TurbulenceConfig, Wind};
 
 /// Instance N's SIM_ parameter port is this + N (on 127.0.0.1; the instance port scheme is
 /// `autopilot::runtime::ports`).
 pub use autopilot::runtime::ports::SIM_PARAM_PORT_BASE;
-/// A peer that has not spoken for this long gets no more heartbeats.
-pub const PEER_EXPIRY: Duration = Duration::from_secs(10);
-/// Wall time between two heartbeats to the peers.
-pub const HEARTBEAT_PERIOD: Duration = Duration::from_secs(1);
+/// MAVLink component id the plant sends with, on the plant link and on its SIM_ port
+/// (`MAV_COMP_ID_USER1`..: any; PX4 ignores it for HIL).
+pub const PLANT_COMPONENT_ID: u8 = 51;
 /// Plant time of a gust that is installed but never blows (s): a gust must exist for the turbulence to
 /// be scaled by it, and "no gust yet" is a gust whose onset is 30 years away.
 const DORMANT_ONSET_S: f64 = 1e9;
@@ -394,6 +386,17 @@ impl SimParamService {
         self.system_id
     }
 
+    /// Answer for system `system_id` from now on (the SIM_ port's, when one is attached to the plant link).
+    pub fn set_system_id(&mut self, system_id: u8) {
+        self.system_id = system_id;
+    }
+
+    /// Queue `messages` for every peer of the SIM_ port, sent at its next poll (what a forwarded failure
+    /// injection changed).
+    pub fn tell_peers(&mut self, messages: &[MavMessage]) {
+        self.outbox.extend_from_slice(messages);
+    }
+
     /// The current value of parameter `index`.
     #[must_use]
     pub fn value(&self, index: usize) -> Option<f32> {
@@ -427,15 +430,19 @@ impl SimParamService {
         Ok(out)
     }
 
-    /// Answer a MAV_CMD_INJECT_FAILURE forwarded by the autopilot ([`failure_sets`]): apply its sets in
-    /// order through [`SimParamService::set`], all or none (a set the plant refuses undoes the ones before
-    /// it and answers DENIED).
+    /// Answer the MAV_CMD_INJECT_FAILURE the autopilot forwarded with `params` (its param1..param3):
+    /// DENIED when one is not a whole number >= 0 ([`request_of`]), else [`SimParamService::inject_failure`].
+    pub fn inject_forwarded(&mut self, params: [f32; 3], plant: &mut Plant) -> Injection {
+        match request_of(params) {
+            Ok(request) => self.inject_failure(&request, plant),
+            Err(r) => refused(r),
+        }
+    }
+
+    /// Answer a failure injection ([`failure_sets`]): apply its sets in order through
+    /// [`SimParamService::set`], all or none (a set the plant refuses undoes the ones before it and
+    /// answers DENIED).
     pub fn inject_failure(&mut self, request: &FailureRequest, plant: &mut Plant) -> Injection {
-        let refused = |r: Refusal| {
-            let text = format!("failure injection refused: {}", r.reason);
-            let messages = statustext_chunks(MavSeverity::MAV_SEVERITY_WARNING, &text, 1);
-            Injection { result: r.result, text, messages }
-        };
         let sets = match failure_sets(request, |name| self.get(name)) {
             Ok(sets) => sets,
             Err(r) => return refused(r),
@@ -478,6 +485,13 @@ impl SimParamService {
         }
         out
     }
+}
+
+/// An injection that changed nothing: the ACK's result and the warning saying why.
+fn refused(r: Refusal) -> Injection {
+    let text = format!("failure injection refused: {}", r.reason);
+    let messages = statustext_chunks(MavSeverity::MAV_SEVERITY_WARNING, &text, 1);
+    Injection { result: r.result, text, messages }
 }
 
 /// The value of SIM_ parameter `index` in `store` (the table's default if the index were not in it).
@@ -587,192 +601,6 @@ fn release(wind: &mut Wind, now_s: f64) -> Result<f64, crate::plant::PlantError>
     Ok(config.release_s)
 }
 
-/// The plant's HEARTBEAT (see the module documentation for the type).
-#[must_use]
-pub fn heartbeat() -> MavMessage {
-    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-        custom_mode: 0,
-        mavtype: MavType::MAV_TYPE_ONBOARD_CONTROLLER,
-        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
-        base_mode: MavModeFlag::empty(),
-        system_status: MavState::MAV_STATE_ACTIVE,
-        mavlink_version: 3,
-    })
-}
-
-/// A client that spoke to the plant.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Peer {
-    addr: SocketAddr,
-    heard: Instant,
-    version: MavlinkVersion,
-}
-
-/// The SIM_ parameter service on its UDP socket (non-blocking): each [`SimParamLink::poll`] reads every
-/// datagram waiting, answers it, sends the truth samples taken since the last poll and the heartbeat when
-/// due.
-#[derive(Debug)]
-pub struct SimParamLink {
-    socket: UdpSocket,
-    /// Shared with the plant's scheduled events ([`events::SimEvents`]), if it has any.
-    service: Arc<Mutex<SimParamService>>,
-    system_id: u8,
-    decoder: FrameDecoder,
-    peers: Vec<Peer>,
-    truth: TruthStream,
-    next_heartbeat: Instant,
-    sequence: u8,
-    buf: Vec<u8>,
-    /// Messages for every live peer at the next poll (what a forwarded failure injection changed).
-    outbox: Vec<MavMessage>,
-}
-
-impl SimParamLink {
-    /// Bind `addr` (e.g. `127.0.0.1:19550`, or port 0 in tests) for system `system_id`, the values read
-    /// from `plant` (see [`SimParamService::new`]). A plant with scheduled events: see
-    /// [`SimParamLink::carry_events_of`].
-    ///
-    /// # Errors
-    /// The bind or socket-option error.
-    pub fn bind(addr: impl ToSocketAddrs, system_id: u8, plant: &Plant) -> io::Result<Self> {
-        let socket = UdpSocket::bind(addr)?;
-        socket.set_nonblocking(true)?;
-        let service = Arc::new(Mutex::new(SimParamService::new(system_id, plant)));
-        Ok(Self {
-            socket,
-            service,
-            system_id,
-            decoder: FrameDecoder::new(),
-            peers: Vec::new(),
-            truth: TruthStream::new(plant.time_us()),
-            next_heartbeat: Instant::now(),
-            sequence: 0,
-            buf: vec![0; 65_536],
-            outbox: Vec::new(),
-        })
-    }
-
-    /// The bound address.
-    ///
-    /// # Errors
-    /// The socket's error.
-    pub fn local_addr(&self) -> io::Result<SocketAddr> {
-        self.socket.local_addr()
-    }
-
-    /// Send the sets of `plant`'s scheduled events (a scenario's `[[event]]`) through this port's service
-    /// from now on, so the port shows what they set and tells its peers (nothing without events).
-    pub fn carry_events_of(&self, plant: &mut Plant) {
-        if let Some(events) = plant.sim_events_mut() {
-            events.share_service(Arc::clone(&self.service));
-        }
-    }
-
-    /// The service (its values).
-    pub fn service(&self) -> MutexGuard<'_, SimParamService> {
-        self.service.lock().unwrap_or_else(PoisonError::into_inner)
-    }
-
-    fn send(&mut self, msg: &MavMessage, to: SocketAddr, version: MavlinkVersion) -> io::Result<()> {
-        self.send_all(std::slice::from_ref(msg), to, version)
-    }
-
-    /// `msgs` in one datagram, in order.
-    fn send_all(&mut self, msgs: &[MavMessage], to: SocketAddr, version: MavlinkVersion) -> io::Result<()> {
-        let mut bytes = Vec::with_capacity(128 * msgs.len());
-        for msg in msgs {
-            let header = MavHeader {
-                system_id: self.system_id.into(),
-                component_id: PLANT_COMPONENT_ID,
-                sequence: self.sequence,
-            };
-            self.sequence = self.sequence.wrapping_add(1);
-            bytes.extend(match version {
-                MavlinkVersion::V1 => encode_frame_v1(header, msg).unwrap_or_else(|| encode_frame_v2(header, msg)),
-                MavlinkVersion::V2 => encode_frame_v2(header, msg),
-            });
-        }
-        match self.socket.send_to(&bytes, to) {
-            Ok(_) => Ok(()),
-            Err(e) if autopilot::runtime::transport::is_transient(&e) => Ok(()),
-            Err(e) => Err(e),
-        }
-    }
-
-    /// Read and answer everything waiting, send what forwarded failure injections changed and the truth
-    /// samples taken since the last poll to the peers (one datagram each), then the heartbeat to the live
-    /// peers if it is due.
-    ///
-    /// # Errors
-    /// A socket error that is not transient (a client gone away is transient).
-    pub fn poll(&mut self, plant: &mut Plant) -> io::Result<()> {
-        loop {
-            let (n, from) = match self.socket.recv_from(&mut self.buf) {
-                Ok(got) => got,
-                Err(e) if e.kind() == io::ErrorKind::WouldBlock => break,
-                Err(e) if autopilot::runtime::transport::is_transient(&e) => continue,
-                Err(e) => return Err(e),
-            };
-            let frames = self.decoder.decode_datagram(&self.buf[..n]);
-            let now = Instant::now();
-            for frame in frames {
-                match self.peers.iter_mut().find(|p| p.addr == from) {
-                    Some(p) => {
-                        p.heard = now;
-                        p.version = frame.version;
-                    }
-                    None => self.peers.push(Peer { addr: from, heard: now, version: frame.version }),
-                }
-                let replies = self.service().on_message(&frame.message, plant);
-                for reply in replies {
-                    self.send(&reply, from, frame.version)?;
-                }
-            }
-        }
-        // The injections' texts and values, and what a scenario's events set, to every peer.
-        let mut outbox = std::mem::take(&mut self.outbox);
-        outbox.extend(self.service().take_outbox());
-        for p in self.peers.clone() {
-            if !outbox.is_empty() {
-                self.send_all(&outbox, p.addr, p.version)?;
-            }
-        }
-        let samples = self.truth.take();
-        for p in self.peers.clone() {
-            for sample in &samples {
-                self.send_all(sample, p.addr, p.version)?;
-            }
-        }
-        let now = Instant::now();
-        if now >= self.next_heartbeat {
-            self.next_heartbeat = now + HEARTBEAT_PERIOD;
-            self.peers.retain(|p| now.saturating_duration_since(p.heard) < PEER_EXPIRY);
-            let beat = heartbeat();
-            for p in self.peers.clone() {
-                self.send(&beat, p.addr, p.version)?;
-            }
-        }
-        Ok(())
-    }
-}
-
-impl PlantHook for SimParamLink {
-    fn poll(&mut self, plant: &mut Plant) -> io::Result<()> {
-        SimParamLink::poll(self, plant)
-    }
-
-    fn stepped(&mut self, plant: &Plant) {
-        self.truth.stepped(plant, !self.peers.is_empty());
-    }
-
-    /// Applied through the port's service; what changed goes to the port's clients at the next poll.
-    fn inject_failure(&mut self, plant: &mut Plant, request: &FailureRequest) -> Option<Injection> {
-        let injection = self.service().inject_failure(request, plant);
-        self.outbox.extend(injection.messages.iter().cloned());
-        Some(injection)
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -783,6 +611,11 @@ mod tests {
     use mavlink::dialects::common::SIM_STATE_DATA;
     use mavlink::dialects::common::{MavParamType, PARAM_REQUEST_LIST_DATA, PARAM_REQUEST_READ_DATA, PARAM_SET_DATA};
     use mavlink::types::CharArray;
+    use mavlink::{MavHeader, MavlinkVersion};
+    use std::net::UdpSocket;
+    use std::time::Duration;
+
+    use autopilot::core::plant_link::{FrameDecoder, encode_frame_v1, encode_frame_v2};
 
     fn index_of(name: &str) -> Option<usize> {
         SIM_PARAMS.iter().position(|d| d.name == name)
@@ -1296,6 +1129,7 @@ mod tests {
         // GIVEN the service with a MAVLink 2 and a MAVLink 1 client that said HEARTBEAT.
         let mut plant = flying_plant();
         let home = plant.config().sensors.home;
+        let mut service = SimParamService::new(SYS, &plant);
         let mut link = SimParamLink::bind("127.0.0.1:0", SYS, &plant).expect("bind");
         let addr = link.local_addr().expect("addr");
         let gcs = MavHeader { system_id: 255, component_id: 190, sequence: 0 };
@@ -1304,15 +1138,15 @@ mod tests {
         v2.send_to(&encode_frame_v2(gcs, &heartbeat()), addr).expect("send");
         v1.send_to(&encode_frame_v1(gcs, &heartbeat()).expect("v1"), addr).expect("send");
         std::thread::sleep(Duration::from_millis(50));
-        link.poll(&mut plant).expect("poll");
+        link.poll(&mut service, &mut plant).expect("poll");
         // WHEN the plant steps 0.2 s (100 steps at 2 ms) as the plant server steps it, polled every 50.
         let mut truths = Vec::new();
         for step in 1..=100 {
             plant.step([1550.0; 4], 2000);
-            PlantHook::stepped(&mut link, &plant);
+            link.stepped(&plant);
             truths.push(plant.truth());
             if step % 50 == 0 {
-                link.poll(&mut plant).expect("poll");
+                link.poll(&mut service, &mut plant).expect("poll");
             }
         }
         // THEN each client has 10 datagrams of SYSTEM_TIME then SIM_STATE at t = 20..200 ms, in its
@@ -1353,6 +1187,7 @@ mod tests {
     #[test]
     fn given_a_socket_client_then_replies_go_to_it_and_heartbeats_follow_in_its_version() {
         let mut plant = calm_plant();
+        let mut service = SimParamService::new(SYS, &plant);
         let mut link = SimParamLink::bind("127.0.0.1:0", SYS, &plant).expect("bind");
         let addr = link.local_addr().expect("addr");
         let client = UdpSocket::bind("127.0.0.1:0").expect("client");
@@ -1360,7 +1195,7 @@ mod tests {
         let gcs = MavHeader { system_id: 255, component_id: 190, sequence: 0 };
         client.send_to(&encode_frame_v2(gcs, &set_msg("SIM_GUST_SPD", 5.0)), addr).expect("send");
         std::thread::sleep(Duration::from_millis(50));
-        link.poll(&mut plant).expect("poll");
+        link.poll(&mut service, &mut plant).expect("poll");
         let mut decoder = FrameDecoder::new();
         let mut buf = [0u8; 2048];
         let mut got = Vec::new();
@@ -1377,9 +1212,9 @@ mod tests {
             values(&echoed)[..2],
             [("SIM_GUST_SPD".into(), 5.0, 3, COUNT), ("SIM_BEAUFORT".into(), 3.0, 8, COUNT)]
         );
-        assert_eq!(link.service().get("SIM_GUST_SPD"), Some(5.0));
+        assert_eq!(service.get("SIM_GUST_SPD"), Some(5.0));
         // No more heartbeats before a second has passed.
-        link.poll(&mut plant).expect("poll");
+        link.poll(&mut service, &mut plant).expect("poll");
         client.set_read_timeout(Some(Duration::from_millis(100))).expect("timeout");
         assert!(client.recv_from(&mut buf).is_err());
 
@@ -1392,7 +1227,7 @@ mod tests {
         });
         client.send_to(&encode_frame_v1(gcs, &read).expect("v1"), addr).expect("send");
         std::thread::sleep(Duration::from_millis(50));
-        link.poll(&mut plant).expect("poll");
+        link.poll(&mut service, &mut plant).expect("poll");
         client.set_read_timeout(Some(Duration::from_secs(2))).expect("timeout");
         let (n, _) = client.recv_from(&mut buf).expect("reply");
         let frames = decoder.decode_datagram(&buf[..n]);

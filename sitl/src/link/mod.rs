@@ -10,9 +10,9 @@
 //! disarmed; stopped motors draw nothing from the pack).
 //!
 //! Failure injection: a `COMMAND_LONG` `MAV_CMD_INJECT_FAILURE` (420) the autopilot forwards (before its
-//! `HIL_ACTUATOR_CONTROLS`, in the same datagram or write) is applied before the step, through the SIM_
-//! parameter service (`crate::sim_params::SimParamService::inject_failure`: the hook's, else the server's
-//! own), and answered by exactly one `COMMAND_ACK` first in the next sensor datagram sent, before its
+//! `HIL_ACTUATOR_CONTROLS`, in the same datagram or write) is applied before the step, through the
+//! server's SIM_ parameter service ([`SimParamService::inject_failure`], the one its SIM_ port answers
+//! from), and answered by exactly one `COMMAND_ACK` first in the next sensor datagram sent, before its
 //! `HIL_SENSOR` (a resend of that datagram repeats it, as it repeats everything).
 //!
 //! Delay and loss (SIM_LINK_DELAY, SIM_LINK_LOSS, `crate::plant::LinkFaults`): every step's sample goes
@@ -38,7 +38,11 @@
 //! default forever). Afterwards the plant answers the sender of the last matching actuator message, so an
 //! autopilot restarted on another port is followed. Serial ([`SerialTransport`]) is point to point.
 //!
-//! A [`PlantHook`] (the SIM_ parameter service, `crate::sim_params`) may change the plant between
+//! The server always holds the plant's SIM_ parameter service ([`SimParamService`]): failure injections
+//! and a scenario's timed SIM_ sets ([`SimEvents`], fired just before the step they are due at) go
+//! through it, and a SIM_ port attached to the server ([`PlantServer::set_sim_port`]) answers from it.
+//!
+//! A [`PlantHook`] (the SIM_ port, [`SimParamLink`]) may change the plant between
 //! steps. It is polled every [`HOOK_EVERY_STEPS`] plant steps (0.1 s of plant time at 2 ms), and at
 //! least every [`HOOK_WAIT_INTERVAL`] of wall time while the server waits (for the autopilot's reply, its
 //! first datagram, or the real-time pacing): never once per step, which would cost the lockstep loop a
@@ -47,277 +51,49 @@
 
 use std::collections::VecDeque;
 use std::io;
-use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
+use std::net::ToSocketAddrs;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use autopilot::core::estimator::GeoOrigin;
 use autopilot::core::plant_link::{
-    ActuatorCommand, DecoderStats, FrameDecoder, HilInput, decode_hil_message, encode_battery_status, encode_frame_v2,
+    ActuatorCommand, FrameDecoder, HilInput, decode_hil_message, encode_battery_status, encode_frame_v2,
     encode_hil_gps, encode_hil_sensor, encode_hil_state_quaternion, encode_odometry, encode_rc_channels,
 };
 use mavlink::MavHeader;
-use mavlink::dialects::common::{COMMAND_ACK_DATA, COMMAND_LONG_DATA, MavBatteryChargeState, MavCmd, MavMessage};
+use mavlink::dialects::common::{MavBatteryChargeState, MavCmd, MavMessage};
 
+mod config;
 mod fields;
 pub mod free_run;
 pub mod rc;
+mod sim;
+mod udp;
 
 #[cfg(test)]
 mod fault_tests;
 
+pub use config::{LinkConfig, LinkError, LinkStats, Pacing};
 pub use fields::{
     BATTERY_PERIOD_US, battery_due, battery_fields, home_origin, noisy_truth_fields, sensor_fields, truth_fields,
 };
 
 use crate::pacer::Pacer;
-use crate::plant::{Plant, StateNoise};
-use crate::sim_params::{FailureRequest, Injection, SimParamService};
+use crate::plant::Plant;
+pub use crate::sim_params::PLANT_COMPONENT_ID;
+use crate::sim_params::{SimEvents, SimParamService};
+pub use sim::PlantHook;
+pub use udp::UdpTransport;
 
 /// MAVLink system id the plant sends with.
 pub const PLANT_SYSTEM_ID: u8 = 1;
-/// MAVLink component id the plant sends with (`MAV_COMP_ID_USER1`..: any; PX4 ignores it for HIL).
-pub const PLANT_COMPONENT_ID: u8 = 51;
 
-use autopilot::runtime::transport::{POLL_INTERVAL, SpinReceiver, is_transient};
 pub use autopilot::runtime::transport::{SerialTransport, Transport};
 
 /// Plant steps between two polls of the [`PlantHook`] (50 steps = 0.1 s of plant time at 2 ms).
 pub const HOOK_EVERY_STEPS: u64 = 50;
 /// Longest wall time between two polls of the [`PlantHook`] while the server waits.
 pub const HOOK_WAIT_INTERVAL: Duration = Duration::from_millis(20);
-
-/// Something polled between plant steps that may change the plant (its wind) before the next step, such
-/// as the SIM_ parameter service. A poll must not block.
-pub trait PlantHook: Send + std::fmt::Debug {
-    /// Called with the plant between two steps: every [`HOOK_EVERY_STEPS`] steps and at least every
-    /// [`HOOK_WAIT_INTERVAL`] while the server waits.
-    ///
-    /// # Errors
-    /// An I/O error that is not transient; it ends the server's run as [`LinkError::Hook`].
-    fn poll(&mut self, plant: &mut Plant) -> io::Result<()>;
-
-    /// Called after every plant step with the plant as it now is, to take samples on plant time (the
-    /// SIM_ port's truth stream). It must be cheap and make no system call: what it takes goes out at
-    /// the next [`PlantHook::poll`].
-    fn stepped(&mut self, _plant: &Plant) {}
-
-    /// A `MAV_CMD_INJECT_FAILURE` the autopilot forwarded, received between two steps: a hook that holds
-    /// the plant's SIM_ parameter service applies it there (so its clients see the change) and returns
-    /// what it did; the default, for a hook without one, returns `None` and the server applies it through
-    /// its own service.
-    fn inject_failure(&mut self, _plant: &mut Plant, _request: &FailureRequest) -> Option<Injection> {
-        None
-    }
-}
-
-/// UDP: bound to the plant's port, sending to the autopilot that spoke last.
-#[derive(Debug)]
-pub struct UdpTransport {
-    socket: UdpSocket,
-    local: SocketAddr,
-    peer: Option<SocketAddr>,
-    last_sender: Option<SocketAddr>,
-    receiver: SpinReceiver,
-    buf: Vec<u8>,
-}
-
-impl UdpTransport {
-    /// Bind `addr` (e.g. `127.0.0.1:4560`, or port 0 in tests); no peer until one speaks. A `recv` polls
-    /// for [`UDP_SPIN`](autopilot::runtime::transport::UDP_SPIN), then waits at most [`POLL_INTERVAL`].
-    ///
-    /// # Errors
-    /// The bind or socket-option error.
-    pub fn bind(addr: impl ToSocketAddrs) -> io::Result<Self> {
-        let socket = UdpSocket::bind(addr)?;
-        socket.set_read_timeout(Some(POLL_INTERVAL))?;
-        socket.set_nonblocking(true)?;
-        let local = socket.local_addr()?;
-        Ok(Self {
-            socket,
-            local,
-            peer: None,
-            last_sender: None,
-            receiver: SpinReceiver::default(),
-            buf: vec![0; 65_536],
-        })
-    }
-
-    /// Wait at most `poll` in a `recv` instead of [`POLL_INTERVAL`] (a free-running plant steps on its own
-    /// clock and must not sleep past a step).
-    ///
-    /// # Errors
-    /// The socket-option error.
-    pub fn with_poll(self, poll: Duration) -> io::Result<Self> {
-        self.socket.set_read_timeout(Some(poll.max(Duration::from_micros(100))))?;
-        Ok(self)
-    }
-
-    /// Send to `peer` from the start instead of waiting for it to speak.
-    #[must_use]
-    pub fn with_peer(mut self, peer: SocketAddr) -> Self {
-        self.peer = Some(peer);
-        self
-    }
-
-    /// The bound address.
-    ///
-    /// # Errors
-    /// The socket's error.
-    pub fn local_addr(&self) -> io::Result<SocketAddr> {
-        self.socket.local_addr()
-    }
-
-    /// The autopilot's address, once known.
-    #[must_use]
-    pub fn peer(&self) -> Option<SocketAddr> {
-        self.peer
-    }
-}
-
-impl Transport for UdpTransport {
-    /// Nothing to send to before the autopilot spoke; an autopilot gone away is not an error here (the
-    /// link-loss timer reports it).
-    fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
-        let Some(peer) = self.peer else { return Ok(()) };
-        match self.socket.send_to(bytes, peer) {
-            Ok(_) => Ok(()),
-            Err(e) if is_transient(&e) => Ok(()),
-            Err(e) => Err(e),
-        }
-    }
-
-    /// A port-unreachable report (Windows: `ConnectionReset`) for an autopilot not yet or no longer
-    /// listening is read as "nothing received": the resend and link-loss timers handle it.
-    fn recv(&mut self) -> io::Result<Option<&[u8]>> {
-        let buf = &mut self.buf;
-        let Some((n, from)) = self.receiver.recv(&self.socket, |s| s.recv_from(buf))? else {
-            return Ok(None);
-        };
-        self.last_sender = Some(from);
-        Ok(Some(&self.buf[..n]))
-    }
-
-    fn is_datagram(&self) -> bool {
-        true
-    }
-
-    fn has_peer(&self) -> bool {
-        self.peer.is_some()
-    }
-
-    fn adopt_last_sender(&mut self) {
-        if self.last_sender.is_some() {
-            self.peer = self.last_sender;
-        }
-    }
-
-    fn describe(&self) -> String {
-        format!("udp://{}", self.local)
-    }
-}
-
-/// How plant time relates to wall time.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Pacing {
-    /// As fast as the autopilot answers ([`LinkConfig`]'s default, for tests and scenarios; `sitl run` and
-    /// `sitl serve` run at real time unless given `--speed max`).
-    Lockstep,
-    /// Lockstep, and plant time never ahead of `speed` times wall time (1.0 = real time).
-    RealTime { speed: f64 },
-}
-
-/// Timing of the link.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LinkConfig {
-    /// Plant step per sensor sample (µs); default 2000 (500 Hz).
-    pub dt_us: u64,
-    pub pacing: Pacing,
-    /// Wall time without a reply before the sensor datagram is resent; default 1 s.
-    pub resend_timeout: Duration,
-    /// Wall time without a reply before [`LinkError::LinkLost`]; default 5 s.
-    pub link_lost_timeout: Duration,
-    /// Wall time to wait for the autopilot's first datagram; `None` (default) = forever.
-    pub connect_timeout: Option<Duration>,
-    /// White noise added to the truth in `HIL_STATE_QUATERNION` (the paper's truth-fed "hardware" runs);
-    /// `None` (default): exact truth.
-    pub truth_noise: Option<StateNoise>,
-    /// Send the simulator's ground truth (`HIL_STATE_QUATERNION` with every sample); default on. A real
-    /// board never sends it, so `sitl serve --serial` leaves it off unless asked (`--truth`).
-    pub send_truth: bool,
-    /// Also send the truth as `ODOMETRY` at float precision (see `autopilot::core::plant_link::LocalTruth`), for
-    /// truth-fed runs; default off (HIL_STATE_QUATERNION's degE7 position is quantised to ±5.6 mm).
-    pub truth_odometry: bool,
-}
-
-impl Default for LinkConfig {
-    fn default() -> Self {
-        Self {
-            dt_us: 2000,
-            pacing: Pacing::Lockstep,
-            resend_timeout: Duration::from_secs(1),
-            link_lost_timeout: Duration::from_secs(5),
-            connect_timeout: None,
-            truth_noise: None,
-            send_truth: true,
-            truth_odometry: false,
-        }
-    }
-}
-
-/// Link errors.
-#[derive(Debug, thiserror::Error)]
-pub enum LinkError {
-    #[error("plant link I/O: {0}")]
-    Io(#[from] io::Error),
-    #[error("link lost: no actuator reply for plant time {time_us} µs within {waited:?}")]
-    LinkLost { time_us: u64, waited: Duration },
-    #[error("no autopilot connected within {waited:?}")]
-    NoPeer { waited: Duration },
-    #[error("stopped")]
-    Stopped,
-    #[error("plant hook: {0}")]
-    Hook(#[source] io::Error),
-    #[error("RC input port: {0}")]
-    RcIn(#[source] io::Error),
-}
-
-/// What the link saw; every field only grows.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct LinkStats {
-    /// Plant steps taken.
-    pub steps: u64,
-    /// Sensor datagrams sent (first sends, not resends).
-    pub sensor_sent: u64,
-    /// `HIL_GPS` messages sent.
-    pub gps_sent: u64,
-    /// `RC_CHANNELS` messages sent (the radio receiver's output).
-    pub rc_sent: u64,
-    /// Sensor datagrams resent after `resend_timeout`.
-    pub resends: u64,
-    /// Actuator replies for another time than the one awaited (free-running: for a sample older than the
-    /// command held, or not yet sent).
-    pub stale_actuators: u64,
-    /// Free-running: actuator replies taken a step or more after their sample's own step (the line or the
-    /// autopilot took longer than a period).
-    pub late_actuators: u64,
-    /// Free-running: sensor datagrams the line would not take within the poll interval (dropped).
-    pub send_timeouts: u64,
-    /// Free-running: times the board's watchdog put the motors at minimum (no command for 100 ms).
-    pub watchdog_trips: u64,
-    /// Well-formed messages other than `HIL_ACTUATOR_CONTROLS` and `MAV_CMD_INJECT_FAILURE` (ignored).
-    pub other_messages: u64,
-    /// Datagrams without a single good frame.
-    pub junk_datagrams: u64,
-    /// Sensor datagrams the link lost (SIM_LINK_LOSS) or dropped for a newer one when the delay fell.
-    pub lost: u64,
-    /// Plant steps taken on the last command because no sensor datagram went out (lost or delayed).
-    pub held_steps: u64,
-    /// `MAV_CMD_INJECT_FAILURE` commands received (each answered by one `COMMAND_ACK`).
-    pub injections: u64,
-    /// The frame decoder's counts (garbage, bad CRC, truncated, ...).
-    pub decoder: DecoderStats,
-}
 
 /// What one read of the transport brought (see `PlantServer::receive`).
 #[derive(Debug)]
@@ -355,8 +131,11 @@ pub struct PlantServer<T: Transport> {
     delay_line: VecDeque<(u64, Vec<MavMessage>)>,
     /// `COMMAND_ACK`s owed to the autopilot, sent before the next `HIL_SENSOR`.
     acks: Vec<MavMessage>,
-    /// The server's own SIM_ parameter service, for injections when no hook holds one.
-    own_params: Option<SimParamService>,
+    /// The plant's SIM_ parameter service: failure injections and the timed sets go through it, and the
+    /// SIM_ port (the hook) answers from it.
+    sim: SimParamService,
+    /// A scenario's timed SIM_ parameter sets (none by default), fired through `sim` before a step.
+    events: SimEvents,
     /// The real-time pacer, from the first paced step.
     pacer: Option<Pacer>,
     /// Polled between steps (see [`PlantHook`]), with the wall time of its last poll.
@@ -381,6 +160,7 @@ impl<T: Transport> PlantServer<T> {
     #[must_use]
     pub fn new(plant: Plant, transport: T, config: LinkConfig) -> Self {
         let home = home_origin(&plant.config().sensors.home);
+        let sim = SimParamService::new(PLANT_SYSTEM_ID, &plant);
         Self {
             plant,
             transport,
@@ -393,7 +173,8 @@ impl<T: Transport> PlantServer<T> {
             pending: None,
             delay_line: VecDeque::new(),
             acks: Vec::new(),
-            own_params: None,
+            sim,
+            events: SimEvents::default(),
             pacer: None,
             hook: None,
             rc_in: None,
@@ -420,11 +201,6 @@ impl<T: Transport> PlantServer<T> {
         self.pacer = None;
     }
 
-    /// Poll `hook` between steps from now on (replacing any earlier one).
-    pub fn set_hook(&mut self, hook: Box<dyn PlantHook>) {
-        self.hook = Some((hook, Instant::now()));
-    }
-
     /// Read the pilot's radio from `port` from now on (its last good frame is the receiver's until a
     /// schedule begins), whenever `RC_CHANNELS` is due.
     pub fn set_rc_in(&mut self, port: rc::RcInPort) {
@@ -435,25 +211,6 @@ impl<T: Transport> PlantServer<T> {
     #[must_use]
     pub fn rc_in(&self) -> Option<&rc::RcInPort> {
         self.rc_in.as_ref()
-    }
-
-    /// Poll the hook now, if there is one.
-    fn poll_hook(&mut self, now: Instant) -> Result<(), LinkError> {
-        if let Some((hook, polled_at)) = &mut self.hook {
-            *polled_at = now;
-            hook.poll(&mut self.plant).map_err(LinkError::Hook)?;
-        }
-        Ok(())
-    }
-
-    /// Poll the hook if it has not been polled for [`HOOK_WAIT_INTERVAL`] (the server is waiting).
-    fn poll_hook_if_due(&mut self, now: Instant) -> Result<(), LinkError> {
-        match &self.hook {
-            Some((_, polled_at)) if now.saturating_duration_since(*polled_at) >= HOOK_WAIT_INTERVAL => {
-                self.poll_hook(now)
-            }
-            _ => Ok(()),
-        }
     }
 
     #[must_use]
@@ -593,28 +350,6 @@ impl<T: Transport> PlantServer<T> {
         delivered.flatten()
     }
 
-    /// Apply a `MAV_CMD_INJECT_FAILURE` the autopilot forwarded (through the hook's SIM_ parameter
-    /// service, else the server's own) and owe `sender` its `COMMAND_ACK`.
-    fn inject_failure(&mut self, command: &COMMAND_LONG_DATA, sender: &MavHeader) {
-        let request = FailureRequest { unit: command.param1, failure_type: command.param2, instance: command.param3 };
-        let plant = &mut self.plant;
-        let hooked = self.hook.as_mut().and_then(|(hook, _)| hook.inject_failure(plant, &request));
-        let injection = hooked.unwrap_or_else(|| {
-            self.own_params
-                .get_or_insert_with(|| SimParamService::new(PLANT_SYSTEM_ID, plant))
-                .inject_failure(&request, plant)
-        });
-        tracing::info!(t_us = self.plant.time_us(), "plant: {} ({:?})", injection.text, injection.result);
-        self.stats.injections += 1;
-        self.acks.push(MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
-            command: MavCmd::MAV_CMD_INJECT_FAILURE,
-            result: injection.result,
-            target_system: u8::try_from(sender.system_id).unwrap_or(0),
-            target_component: sender.component_id,
-            ..COMMAND_ACK_DATA::default()
-        }));
-    }
-
     /// One lockstep cycle: send the sensors for the current plant time `t`, wait for the reply for `t`,
     /// (pace,) step the plant by `dt_us` with its PWM. Returns the command applied. With the link's delay
     /// or loss (SIM_LINK_DELAY, SIM_LINK_LOSS) the datagram sent may be an older sample (the reply
@@ -684,7 +419,7 @@ impl<T: Transport> PlantServer<T> {
         };
         self.pace(t)?;
         self.plant.set_motors_running(command.motors_running());
-        self.plant.step(command.effective_pwm_us(), self.config.dt_us);
+        self.step_plant(command.effective_pwm_us());
         self.stats.steps += 1;
         self.last_command = Some(command);
         if let Some((hook, _)) = &mut self.hook {
@@ -818,6 +553,7 @@ mod tests {
     use autopilot::core::plant_link::{encode_actuator_controls, encode_frame_v2};
     use mavlink::dialects::common::HEARTBEAT_DATA;
     use nalgebra::Vector3;
+    use std::net::{SocketAddr, UdpSocket};
     use std::sync::Arc;
     use std::thread;
 
@@ -1018,7 +754,7 @@ mod tests {
     }
 
     impl PlantHook for CountingHook {
-        fn poll(&mut self, plant: &mut Plant) -> io::Result<()> {
+        fn poll(&mut self, plant: &mut Plant, _sim: &mut SimParamService) -> io::Result<()> {
             if self.polls.fetch_add(1, Ordering::Relaxed) == 0 {
                 plant.wind_mut().set_steady_ned_mps(Vector3::new(0.0, 3.0, 0.0));
             }
