@@ -128,3 +128,24 @@ fn the_layout_in_design_md_names_every_top_level_module_and_nothing_that_is_gone
     unnamed.sort();
     assert!(unnamed.is_empty(), "modules docs/design.md's Layout does not name (add a line each): {unnamed:?}");
 }
+
+#[test]
+fn the_physics_imports_nothing_above_it() {
+    // sitl's layers: plant (physics) < sim_params (SIM_ service, faults) < link < scenario, sweep, tune < cli.
+    // The plant names no module of the crate but its own (`scripts/import_cycles.py` checks the rest).
+    let root = root();
+    let mut files = Vec::new();
+    rust_files(&root, &root.join("sitl/src/plant"), &mut files);
+    assert!(files.len() > 5, "found only {} plant files", files.len());
+    let mut upward = Vec::new();
+    for f in &files {
+        let text = std::fs::read_to_string(root.join(f)).expect("a readable source file");
+        for (i, line) in text.lines().enumerate() {
+            let code = line.split("//").next().unwrap_or("");
+            if code.match_indices("crate::").any(|(at, _)| !code[at..].starts_with("crate::plant")) {
+                upward.push(format!("  {f}:{}: {}", i + 1, line.trim()));
+            }
+        }
+    }
+    assert!(upward.is_empty(), "the plant imports from above it:\n{}", upward.join("\n"));
+}
