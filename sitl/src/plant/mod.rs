@@ -25,6 +25,8 @@ pub mod radio;
 pub mod rigid_body;
 pub mod rotor;
 pub mod sensors;
+#[cfg(test)]
+pub(crate) mod testing;
 pub mod wind;
 
 use nalgebra::{UnitQuaternion, Vector3};
