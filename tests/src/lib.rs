@@ -1,6 +1,7 @@
 //! Shared pieces of the acceptance tests: the reference prototype's result table (spec section (d)),
 //! its golden traces, and a helper that runs a built-in scenario in lockstep.
 
+pub mod repo;
 pub mod rig;
 
 use autopilot::core::control::{ControllerKind, LoopRates};

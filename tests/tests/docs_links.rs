@@ -1,31 +1,7 @@
 //! The repository's documentation stands alone: every relative link in every Markdown file resolves to a
 //! file or folder inside the repository, and no file points outside it to the shared folder beside it.
 
-use std::path::{Path, PathBuf};
-
-/// The repository's root (this crate sits one level below it).
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("the tests crate is inside the repository").to_path_buf()
-}
-
-/// Every file below `dir` but build outputs, virtual environments and git's own.
-fn files(dir: &Path, out: &mut Vec<PathBuf>) {
-    let Ok(entries) = std::fs::read_dir(dir) else { return };
-    for entry in entries.flatten() {
-        let path = entry.path();
-        let name = entry.file_name();
-        let name = name.to_string_lossy();
-        if path.is_dir() {
-            if !matches!(name.as_ref(), "target" | ".git" | ".venv" | "node_modules" | "__pycache__")
-                && !name.ends_with(".egg-info")
-            {
-                files(&path, out);
-            }
-        } else {
-            out.push(path);
-        }
-    }
-}
+use tests::repo::{files, root};
 
 /// The targets of the inline links `[text](target)` in `text`, without titles and anchors.
 fn link_targets(text: &str) -> Vec<String> {

@@ -2,31 +2,24 @@
 //! [`MAX_LINES`] lines, and docs/design.md's Layout names every top-level module and nothing that is gone.
 
 use std::collections::BTreeSet;
-use std::path::{Path, PathBuf};
+use std::path::Path;
+
+use tests::repo::{files, root};
 
 /// The most non-test lines a source file may hold (the parameter table is exempt: it is one declaration).
 const MAX_LINES: usize = 650;
 
-/// The repository's root (this crate sits one level below it).
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("the tests crate is inside the repository").to_path_buf()
-}
-
-/// Every `.rs` file below `dir` (relative to `root`, with `/`), but build outputs and environments.
-fn rust_files(root: &Path, dir: &Path, out: &mut Vec<String>) {
-    let Ok(entries) = std::fs::read_dir(dir) else { return };
-    for entry in entries.flatten() {
-        let path = entry.path();
-        let name = entry.file_name().to_string_lossy().into_owned();
-        if path.is_dir() {
-            if !matches!(name.as_str(), "target" | ".git" | ".venv" | "node_modules") && !name.starts_with('.') {
-                rust_files(root, &path, out);
-            }
-        } else if name.ends_with(".rs") {
-            let rel = path.strip_prefix(root).expect("below the root");
-            out.push(rel.components().map(|c| c.as_os_str().to_string_lossy()).collect::<Vec<_>>().join("/"));
-        }
-    }
+/// Every `.rs` file below `dir`, relative to `root` (with `/`).
+fn rust_files(root: &Path, dir: &Path) -> Vec<String> {
+    let mut all = Vec::new();
+    files(dir, &mut all);
+    all.into_iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "rs"))
+        .map(|p| {
+            let rel = p.strip_prefix(root).expect("below the root");
+            rel.components().map(|c| c.as_os_str().to_string_lossy()).collect::<Vec<_>>().join("/")
+        })
+        .collect()
 }
 
 /// Whether `rel` is held to the limit: not a test (a `tests`/`test` folder or a `tests.rs`), a bench, a
@@ -51,8 +44,7 @@ fn non_test_lines(text: &str) -> usize {
 #[test]
 fn no_non_test_source_file_is_over_650_lines() {
     let root = root();
-    let mut files = Vec::new();
-    rust_files(&root, &root, &mut files);
+    let mut files = rust_files(&root, &root);
     files.sort();
     let limited: Vec<&String> = files.iter().filter(|f| is_limited(f)).collect();
     assert!(limited.len() > 100, "found only {} source files: is the walk right?", limited.len());
@@ -134,8 +126,7 @@ fn the_physics_imports_nothing_above_it() {
     // sitl's layers: plant (physics) < sim_params (SIM_ service, faults) < link < scenario, sweep, tune < cli.
     // The plant names no module of the crate but its own (`scripts/import_cycles.py` checks the rest).
     let root = root();
-    let mut files = Vec::new();
-    rust_files(&root, &root.join("sitl/src/plant"), &mut files);
+    let files = rust_files(&root, &root.join("sitl/src/plant"));
     assert!(files.len() > 5, "found only {} plant files", files.len());
     let mut upward = Vec::new();
     for f in &files {
