@@ -8,7 +8,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::Vector3;
 
 fn bench_aco_tick(c: &mut Criterion) {
-    let mut ctrl = new_controller(ControllerKind::Aco, &ControllerConfig::default());
+    let mut ctrl = new_controller(ControllerKind::ACO, &ControllerConfig::default());
     let reference = Reference::position(Vector3::new(1.0, -1.0, -3.0), 0.2);
     let mut k: u64 = 0;
     c.bench_function("aco_control_tick", |b| {

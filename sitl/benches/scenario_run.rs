@@ -24,7 +24,7 @@ fn scenario_run(c: &mut Criterion) {
         let modes = scenario.reference_modes();
         group.throughput(Throughput::Elements((scenario.duration_s * 1000.0).round() as u64));
         for &mode in &modes {
-            let opts = RunOptions { mode, ..RunOptions::new(ControllerKind::Aco) };
+            let opts = RunOptions { mode, ..RunOptions::new(ControllerKind::ACO) };
             let id = if modes.len() > 1 { format!("{name}/{mode}") } else { (*name).to_owned() };
             group.bench_function(id, |b| b.iter(|| black_box(run(black_box(&scenario), &opts).expect("runs"))));
         }
@@ -44,7 +44,7 @@ fn tick_floor(c: &mut Criterion) {
         let hover = Vector3::new(0.0, 0.0, -1.5);
         let initial = InitialState { pos_ned_m: hover, ..InitialState::default() };
         let mut plant = Plant::new(config, &initial, 1).expect("the plant builds");
-        let mut controller = new_controller(ControllerKind::Aco, &scenario.controller);
+        let mut controller = new_controller(ControllerKind::ACO, &scenario.controller);
         let reference = Reference::position(hover, 0.0);
         group.bench_function(name, |b| {
             b.iter(|| {

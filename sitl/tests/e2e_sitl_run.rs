@@ -398,7 +398,7 @@ fn gust_hover_through_two_processes_reproduces_the_in_process_metrics_within_5_p
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let two: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
     let scenario = sitl::scenario::Scenario::load("gust-hover").expect("built-in");
-    let opts = sitl::scenario::runner::RunOptions::new(autopilot::core::control::ControllerKind::Aco);
+    let opts = sitl::scenario::runner::RunOptions::new(autopilot::core::control::ControllerKind::ACO);
     let one = sitl::scenario::runner::run(&scenario, &opts).expect("in-process run").metrics;
     let one = serde_json::to_value(one.gust.expect("gust metrics")).expect("JSON");
     // THEN every gust metric agrees within 5 % (and nothing was resent or went non-finite).
@@ -554,7 +554,7 @@ fn figure8_flown_as_a_mission_through_two_processes_tracks_within_1_5x_of_the_in
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let two: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
     let scenario = sitl::scenario::Scenario::load("figure8").expect("built-in");
-    let opts = sitl::scenario::runner::RunOptions::new(autopilot::core::control::ControllerKind::Aco);
+    let opts = sitl::scenario::runner::RunOptions::new(autopilot::core::control::ControllerKind::ACO);
     let one = sitl::scenario::runner::run(&scenario, &opts).expect("in-process run").metrics;
     let one = one.track.expect("track metrics");
     // THEN every mission item is reported reached and the cross-track RMS is within 1.5x.

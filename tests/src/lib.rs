@@ -32,48 +32,50 @@ pub struct ReferenceRow {
     pub rms: [f64; 3],
 }
 
-use ControllerKind::{Aco, Ca, Pid};
+const ACO: ControllerKind = ControllerKind::ACO;
+const CA: ControllerKind = ControllerKind::CA;
+const PID: ControllerKind = ControllerKind::PID;
 
 /// Spec (d), "Paper attitude scenario".
 pub const ATTITUDE_TABLE: &[ReferenceRow] = &[
     ReferenceRow {
         plant: "mismatch",
-        controller: Aco,
+        controller: ACO,
         steps: &[step(0.0, 1.22), step(0.1, 0.86), step(0.0, 2.89)],
         worst_later_overshoot_pct: Some(0.6),
         rms: [0.066, 0.076, 0.111],
     },
     ReferenceRow {
         plant: "mismatch",
-        controller: Ca,
+        controller: CA,
         steps: &[step(0.0, 1.10), step(0.0, 1.11), step(0.0, 5.78)],
         worst_later_overshoot_pct: Some(1.8),
         rms: [0.063, 0.076, 0.122],
     },
     ReferenceRow {
         plant: "mismatch",
-        controller: Pid,
+        controller: PID,
         steps: &[step(0.0, 2.00), step(6.8, 1.77), step(0.0, 4.67)],
         worst_later_overshoot_pct: Some(12.8),
         rms: [0.066, 0.075, 0.112],
     },
     ReferenceRow {
         plant: "nominal",
-        controller: Aco,
+        controller: ACO,
         steps: &[step(0.0, 1.13), step(0.0, 0.82), step(0.0, 2.36)],
         worst_later_overshoot_pct: Some(0.6),
         rms: [0.062, 0.072, 0.097],
     },
     ReferenceRow {
         plant: "nominal",
-        controller: Ca,
+        controller: CA,
         steps: &[step(0.4, 0.92), step(0.6, 0.95), step(0.2, 5.91)],
         worst_later_overshoot_pct: Some(2.6),
         rms: [0.061, 0.072, 0.099],
     },
     ReferenceRow {
         plant: "nominal",
-        controller: Pid,
+        controller: PID,
         steps: &[step(0.0, 1.30), step(0.8, 0.61), step(0.0, 3.89)],
         worst_later_overshoot_pct: Some(3.3),
         rms: [0.061, 0.070, 0.097],
@@ -86,42 +88,42 @@ pub const ATTITUDE_TABLE: &[ReferenceRow] = &[
 pub const TRANSLATION_TABLE: &[ReferenceRow] = &[
     ReferenceRow {
         plant: "mismatch",
-        controller: Aco,
+        controller: ACO,
         steps: &[step(0.0, 6.64), step(0.0, 6.84), step(0.1, 5.33), step(0.1, 3.92)],
         worst_later_overshoot_pct: None,
         rms: [0.354, 0.423, 0.923],
     },
     ReferenceRow {
         plant: "mismatch",
-        controller: Ca,
+        controller: CA,
         steps: &[step(3.1, 5.95), step(6.6, 8.23), step(0.0, 6.40), step(0.2, 3.68)],
         worst_later_overshoot_pct: None,
         rms: [0.332, 0.420, 0.921],
     },
     ReferenceRow {
         plant: "mismatch",
-        controller: Pid,
+        controller: PID,
         steps: &[step(0.0, 9.23), step(0.0, 7.64), step(0.0, 8.40), step(0.0, 6.24)],
         worst_later_overshoot_pct: None,
         rms: [0.315, 0.444, 0.931],
     },
     ReferenceRow {
         plant: "nominal",
-        controller: Aco,
+        controller: ACO,
         steps: &[step(0.0, 5.66), step(0.0, 5.65), step(0.1, 4.53), step(0.1, 3.96)],
         worst_later_overshoot_pct: None,
         rms: [0.322, 0.322, 0.798],
     },
     ReferenceRow {
         plant: "nominal",
-        controller: Ca,
+        controller: CA,
         steps: &[step(4.2, 7.36), step(4.1, 7.33), step(0.2, 3.73), step(0.1, 4.15)],
         worst_later_overshoot_pct: None,
         rms: [0.318, 0.318, 0.790],
     },
     ReferenceRow {
         plant: "nominal",
-        controller: Pid,
+        controller: PID,
         steps: &[step(0.0, 6.22), step(0.0, 6.24), step(0.0, 7.51), step(0.0, 6.67)],
         worst_later_overshoot_pct: None,
         rms: [0.319, 0.319, 0.801],

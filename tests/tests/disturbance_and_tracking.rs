@@ -1,7 +1,10 @@
 //! Gust, turbulence and figure-8 experiments (mismatch plant, sensor noise on), in lockstep: the ACO
 //! acceptance checks of spec (e), the baselines' sanity ranges, and bit-reproducibility.
 
-use autopilot::core::control::ControllerKind::{Aco, Ca, Pid};
+use autopilot::core::control::ControllerKind;
+const ACO: ControllerKind = ControllerKind::ACO;
+const CA: ControllerKind = ControllerKind::CA;
+const PID: ControllerKind = ControllerKind::PID;
 use sitl::scenario::ReferenceMode::{FeedForward, FeedForwardJerk, PositionOnly};
 use sitl::scenario::metrics::GustMetrics;
 use tests::cached;
@@ -16,7 +19,7 @@ fn recovery(g: &GustMetrics) -> (f64, f64) {
 
 #[test]
 fn aco_rejects_the_beaufort_4_gust() {
-    let (aco, ca, pid) = (gust(Aco), gust(Ca), gust(Pid));
+    let (aco, ca, pid) = (gust(ACO), gust(CA), gust(PID));
     let (a_on, a_off) = recovery(&aco);
     for (name, other) in [("CA", &ca), ("PID", &pid)] {
         let (o_on, o_off) = recovery(other);
@@ -30,8 +33,8 @@ fn aco_rejects_the_beaufort_4_gust() {
 
 #[test]
 fn baselines_recover_from_the_gust_in_their_specified_ranges() {
-    let (ca_on, ca_off) = recovery(&gust(Ca));
-    let (pid_on, pid_off) = recovery(&gust(Pid));
+    let (ca_on, ca_off) = recovery(&gust(CA));
+    let (pid_on, pid_off) = recovery(&gust(PID));
     for (what, v, lo, hi) in [
         ("CA onset", ca_on, 6.0, 8.0),
         ("CA release", ca_off, 6.0, 8.0),
@@ -57,18 +60,18 @@ fn aco_halves_the_turbulence_error_of_ca_over_five_seeds() {
             .collect();
         v.iter().sum::<f64>() / v.len() as f64
     };
-    let (aco, ca) = (mean(Aco), mean(Ca));
+    let (aco, ca) = (mean(ACO), mean(CA));
     assert!(aco <= 0.08 && aco <= 0.5 * ca, "mean horizontal rms over 5 seeds: ACO {aco:.3} m, CA {ca:.3} m");
 }
 
 #[test]
 fn aco_flies_the_figure_8() {
     let track = |c, mode| cached("figure8", c, "mismatch", 1, 500, mode).metrics.track.clone().expect("track metrics");
-    let ff = track(Aco, FeedForward);
+    let ff = track(ACO, FeedForward);
     assert!(ff.cross_track_rms_m <= 0.025, "feed-forward cross-track rms {:.3} m", ff.cross_track_rms_m);
     assert!(ff.cross_track_max_m <= 0.07, "feed-forward cross-track max {:.3} m", ff.cross_track_max_m);
     assert!(ff.alt_rms_m <= 0.01, "altitude rms {:.4} m", ff.alt_rms_m);
-    let (aco, ca) = (track(Aco, PositionOnly), track(Ca, PositionOnly));
+    let (aco, ca) = (track(ACO, PositionOnly), track(CA, PositionOnly));
     assert!(
         aco.cross_track_rms_m <= 1.05 * ca.cross_track_rms_m,
         "position-only cross-track rms {:.3} m vs CA {:.3} m",
@@ -85,14 +88,14 @@ fn aco_flies_the_figure_8() {
 fn aco_on_the_fast_figure_8_tracks_within_7_cm_rms_with_the_jerk_and_4x_better_than_without() {
     let track =
         |c, mode| cached("figure8-fast", c, "mismatch", 1, 500, mode).metrics.track.clone().expect("track metrics");
-    for (name, c) in [("ACO", Aco), ("CA", Ca), ("PID", Pid)] {
+    for (name, c) in [("ACO", ACO), ("CA", CA), ("PID", PID)] {
         let (ff, jerk) = (track(c, FeedForward), track(c, FeedForwardJerk));
         println!(
             "figure8-fast {name}: feed-forward {:.3} / {:.3} m, with jerk {:.3} / {:.3} m cross-track RMS / max",
             ff.cross_track_rms_m, ff.cross_track_max_m, jerk.cross_track_rms_m, jerk.cross_track_max_m
         );
     }
-    let (ff, jerk) = (track(Aco, FeedForward).cross_track_rms_m, track(Aco, FeedForwardJerk).cross_track_rms_m);
+    let (ff, jerk) = (track(ACO, FeedForward).cross_track_rms_m, track(ACO, FeedForwardJerk).cross_track_rms_m);
     assert!(jerk <= 0.07, "with the jerk: cross-track rms {jerk:.3} m");
     assert!(jerk <= 0.25 * ff, "with the jerk {jerk:.3} m against {ff:.3} m without");
 }
@@ -100,7 +103,7 @@ fn aco_on_the_fast_figure_8_tracks_within_7_cm_rms_with_the_jerk_and_4x_better_t
 #[test]
 fn noisy_runs_stay_finite_and_inside_the_weight_bounds() {
     for (scenario, mode) in [("gust-hover", FeedForward), ("figure8", FeedForward), ("turbulence-hover", FeedForward)] {
-        let out = cached(scenario, Aco, "mismatch", 1, 500, mode);
+        let out = cached(scenario, ACO, "mismatch", 1, 500, mode);
         assert!(!out.metrics.non_finite, "{scenario}: non-finite value");
         assert!(!out.metrics.weights_at_bounds, "{scenario}: an LMS weight reached its bound");
     }
@@ -108,9 +111,9 @@ fn noisy_runs_stay_finite_and_inside_the_weight_bounds() {
 
 #[test]
 fn the_same_seed_gives_a_bit_identical_trace_and_another_seed_does_not() {
-    let a = tests::run("turbulence-hover", Aco, "mismatch", 7, 500, FeedForward);
-    let b = tests::run("turbulence-hover", Aco, "mismatch", 7, 500, FeedForward);
-    let c = tests::run("turbulence-hover", Aco, "mismatch", 8, 500, FeedForward);
+    let a = tests::run("turbulence-hover", ACO, "mismatch", 7, 500, FeedForward);
+    let b = tests::run("turbulence-hover", ACO, "mismatch", 7, 500, FeedForward);
+    let c = tests::run("turbulence-hover", ACO, "mismatch", 8, 500, FeedForward);
     let bits = |t: &sitl::scenario::runner::Trace| t.rows.iter().flatten().map(|v| v.to_bits()).collect::<Vec<u64>>();
     assert_eq!(bits(&a.trace), bits(&b.trace), "same seed, different trace");
     assert_ne!(bits(&a.trace), bits(&c.trace), "different seeds, same trace");

@@ -1,7 +1,10 @@
 //! The paper's attitude and translation experiments, noise-free, in lockstep: equivalence with the
 //! reference prototype (its table and golden traces) and the ACO acceptance checks of spec (e).
 
-use autopilot::core::control::ControllerKind::{self, Aco, Ca, Pid};
+use autopilot::core::control::ControllerKind;
+const ACO: ControllerKind = ControllerKind::ACO;
+const CA: ControllerKind = ControllerKind::CA;
+const PID: ControllerKind = ControllerKind::PID;
 use sitl::scenario::ReferenceMode::FeedForward;
 use sitl::scenario::runner::RunOutput;
 use tests::{ATTITUDE_TABLE, ReferenceRow, TRANSLATION_TABLE, cached, golden, rms, segment};
@@ -65,10 +68,10 @@ fn check_equivalence(row: &ReferenceRow, out: &RunOutput, attitude: bool) -> Vec
 #[test]
 fn aco_matches_the_reference_results_on_both_plants_within_1_point_0_3_s_and_5_percent() {
     let mut bad = Vec::new();
-    for row in ATTITUDE_TABLE.iter().filter(|r| r.controller == Aco) {
+    for row in ATTITUDE_TABLE.iter().filter(|r| r.controller == ACO) {
         bad.extend(check_equivalence(row, &att(row.controller, row.plant), true));
     }
-    for row in TRANSLATION_TABLE.iter().filter(|r| r.controller == Aco) {
+    for row in TRANSLATION_TABLE.iter().filter(|r| r.controller == ACO) {
         bad.extend(check_equivalence(row, &trans(row.controller, row.plant), false));
     }
     assert!(bad.is_empty(), "ACO departs from the reference results:\n{}", bad.join("\n"));
@@ -77,7 +80,7 @@ fn aco_matches_the_reference_results_on_both_plants_within_1_point_0_3_s_and_5_p
 #[test]
 fn baselines_match_the_reference_translation_results_on_both_plants_within_1_point_0_3_s_and_5_percent() {
     let mut bad = Vec::new();
-    for row in TRANSLATION_TABLE.iter().filter(|r| r.controller != Aco) {
+    for row in TRANSLATION_TABLE.iter().filter(|r| r.controller != ACO) {
         bad.extend(check_equivalence(row, &trans(row.controller, row.plant), false));
     }
     assert!(bad.is_empty(), "baselines depart from the reference results:\n{}", bad.join("\n"));
@@ -86,7 +89,7 @@ fn baselines_match_the_reference_translation_results_on_both_plants_within_1_poi
 #[test]
 fn baselines_match_the_reference_attitude_results_on_both_plants_within_1_point_0_3_s_and_5_percent() {
     let mut bad = Vec::new();
-    for row in ATTITUDE_TABLE.iter().filter(|r| r.controller != Aco) {
+    for row in ATTITUDE_TABLE.iter().filter(|r| r.controller != ACO) {
         bad.extend(check_equivalence(row, &att(row.controller, row.plant), true));
     }
     assert!(bad.is_empty(), "baselines depart from the reference results:\n{}", bad.join("\n"));
@@ -129,14 +132,14 @@ fn printed_cells() -> Vec<(String, String, String)> {
 /// The cells where our figure, printed to the prototype's digits, differs from its table: (row and cell,
 /// ours, the prototype's). Each is one unit in the last printed digit.
 const CELLS_OFF_BY_A_PRINTED_DIGIT: [(&str, &str, &str); 8] = [
-    ("paper-attitude mismatch Aco roll rms", "0.065", "0.066"),
-    ("paper-attitude mismatch Pid pitch overshoot %", "6.9", "6.8"),
-    ("paper-attitude mismatch Pid pitch settling s", "1.78", "1.77"),
-    ("paper-attitude mismatch Pid yaw settling s", "4.68", "4.67"),
-    ("paper-attitude mismatch Pid worst overshoot on the 6/10 s steps %", "12.9", "12.8"),
-    ("paper-attitude nominal Pid roll settling s", "1.31", "1.30"),
-    ("paper-attitude nominal Pid worst overshoot on the 6/10 s steps %", "3.4", "3.3"),
-    ("paper-translation mismatch Pid e settling s", "7.65", "7.64"),
+    ("paper-attitude mismatch ACO roll rms", "0.065", "0.066"),
+    ("paper-attitude mismatch PID pitch overshoot %", "6.9", "6.8"),
+    ("paper-attitude mismatch PID pitch settling s", "1.78", "1.77"),
+    ("paper-attitude mismatch PID yaw settling s", "4.68", "4.67"),
+    ("paper-attitude mismatch PID worst overshoot on the 6/10 s steps %", "12.9", "12.8"),
+    ("paper-attitude nominal PID roll settling s", "1.31", "1.30"),
+    ("paper-attitude nominal PID worst overshoot on the 6/10 s steps %", "3.4", "3.3"),
+    ("paper-translation mismatch PID e settling s", "7.65", "7.64"),
 ];
 
 /// docs/experiments.md's claim, cell by cell: of the 126 overshoot, settling and RMS cells of the prototype's
@@ -166,7 +169,7 @@ fn aco_follows_the_golden_traces_within_2_mm_and_30_urad() {
     let mut worst = Vec::new();
     for plant in PLANTS {
         for (scenario, file) in [("paper-attitude", "att"), ("paper-translation", "pos")] {
-            let out = cached(scenario, Aco, plant, 1, 500, FeedForward);
+            let out = cached(scenario, ACO, plant, 1, 500, FeedForward);
             let gold = golden(&format!("golden_ACO_paper_{file}_{plant}.csv"));
             assert_eq!(out.trace.rows.len(), gold.len(), "{scenario} {plant}: trace rows");
             let (mut dp, mut da) = (0.0_f64, 0.0_f64);
@@ -194,7 +197,7 @@ fn aco_follows_the_golden_traces_within_2_mm_and_30_urad() {
 #[test]
 fn aco_attitude_meets_its_acceptance_checks() {
     for plant in PLANTS {
-        let (aco, ca) = (att(Aco, plant), att(Ca, plant));
+        let (aco, ca) = (att(ACO, plant), att(CA, plant));
         for seg in aco.metrics.segments.iter().flatten() {
             let who = format!("{plant} {} t0 {}", seg.axis, seg.t0_s);
             assert!(seg.overshoot_pct <= 2.0, "{who}: overshoot {:.2} %", seg.overshoot_pct);
@@ -226,7 +229,7 @@ fn aco_attitude_meets_its_acceptance_checks() {
 #[test]
 fn aco_translation_meets_its_acceptance_checks() {
     for plant in PLANTS {
-        let (aco, ca) = (trans(Aco, plant), trans(Ca, plant));
+        let (aco, ca) = (trans(ACO, plant), trans(CA, plant));
         for seg in aco.metrics.segments.iter().flatten() {
             let who = format!("{plant} {} t0 {}", seg.axis, seg.t0_s);
             assert!(seg.overshoot_pct <= 1.0, "{who}: overshoot {:.2} %", seg.overshoot_pct);
@@ -256,8 +259,8 @@ fn aco_translation_meets_its_acceptance_checks() {
 fn aco_stays_finite_inside_its_weight_bounds_and_its_pwm_at_most_1_2x_as_busy_as_pid() {
     for plant in PLANTS {
         for scenario in ["paper-attitude", "paper-translation"] {
-            let aco = cached(scenario, Aco, plant, 1, 500, FeedForward);
-            let pid = cached(scenario, Pid, plant, 1, 500, FeedForward);
+            let aco = cached(scenario, ACO, plant, 1, 500, FeedForward);
+            let pid = cached(scenario, PID, plant, 1, 500, FeedForward);
             assert!(!aco.metrics.non_finite, "{scenario} {plant}: non-finite value");
             assert!(!aco.metrics.weights_at_bounds, "{scenario} {plant}: an LMS weight reached its bound");
             let (a, p) = (aco.metrics.pwm_activity_us, pid.metrics.pwm_activity_us);
@@ -269,10 +272,10 @@ fn aco_stays_finite_inside_its_weight_bounds_and_its_pwm_at_most_1_2x_as_busy_as
 #[test]
 fn baselines_are_the_specified_ones_on_the_mismatch_plant() {
     for axis in ["n", "e"] {
-        let os = segment(&trans(Ca, "mismatch"), axis, 0.0).overshoot_pct;
+        let os = segment(&trans(CA, "mismatch"), axis, 0.0).overshoot_pct;
         assert!((2.0..=8.0).contains(&os), "CA {axis} overshoot {os:.2} % outside 2-8 %");
     }
-    let os = segment(&att(Pid, "mismatch"), "pitch", 0.0).overshoot_pct;
+    let os = segment(&att(PID, "mismatch"), "pitch", 0.0).overshoot_pct;
     assert!((5.0..=9.0).contains(&os), "PID pitch overshoot {os:.2} % outside 5-9 %");
 }
 
@@ -283,9 +286,9 @@ fn aco_paper_metrics_at_250_and_1000_hz_stay_within_10_percent_or_0_2_s_of_their
     let mut bad = Vec::new();
     for scenario in ["paper-attitude", "paper-translation"] {
         for plant in PLANTS {
-            let base = cached(scenario, Aco, plant, 1, 500, FeedForward);
+            let base = cached(scenario, ACO, plant, 1, 500, FeedForward);
             for hz in [250, 1000] {
-                let out = cached(scenario, Aco, plant, 1, hz, FeedForward);
+                let out = cached(scenario, ACO, plant, 1, hz, FeedForward);
                 for (b, o) in base.metrics.segments.iter().flatten().zip(out.metrics.segments.iter().flatten()) {
                     let who = format!("{scenario} {plant} {hz} Hz {} t0 {}", b.axis, b.t0_s);
                     match (b.settling_s, o.settling_s) {
@@ -325,7 +328,7 @@ fn competent_ca_settles_every_paper_attitude_step_within_3_5_s_on_both_plants() 
     assert_eq!(scenario.controller.mrac, autopilot::core::control::MracConfig::competent());
     let mut bad = Vec::new();
     for plant in PLANTS {
-        let out = tests::run_scenario(&scenario, Ca, plant, 1, 500, FeedForward);
+        let out = tests::run_scenario(&scenario, CA, plant, 1, 500, FeedForward);
         assert!(!out.metrics.weights_at_bounds && !out.metrics.non_finite, "{plant}");
         let segments: Vec<_> = out.metrics.segments.iter().flatten().collect();
         assert_eq!(segments.len(), 9, "{plant}: roll, pitch and yaw at 0, 6 and 10 s");
@@ -343,7 +346,7 @@ fn competent_ca_settles_every_paper_attitude_step_within_3_5_s_on_both_plants() 
             }
         }
     }
-    let paper = att(Ca, "mismatch");
+    let paper = att(CA, "mismatch");
     assert_eq!(segment(&paper, "yaw", 6.0).settling_s, None, "the paper's CA: mismatch yaw at 6 s never settles");
     assert!(bad.is_empty(), "competent CA on paper-attitude:\n{}", bad.join("\n"));
 }
@@ -354,8 +357,8 @@ fn competent_ca_settles_every_paper_attitude_step_within_3_5_s_on_both_plants() 
 #[test]
 fn competent_ca_halves_the_papers_cross_track_on_the_fast_figure_8_with_the_jerk() {
     use sitl::scenario::ReferenceMode::FeedForwardJerk;
-    let competent = tests::run_scenario(&competent_ca("figure8-fast.toml"), Ca, "mismatch", 1, 500, FeedForwardJerk);
-    let paper = cached("figure8-fast", Ca, "mismatch", 1, 500, FeedForwardJerk);
+    let competent = tests::run_scenario(&competent_ca("figure8-fast.toml"), CA, "mismatch", 1, 500, FeedForwardJerk);
+    let paper = cached("figure8-fast", CA, "mismatch", 1, 500, FeedForwardJerk);
     let rms = |out: &RunOutput| out.metrics.track.as_ref().expect("a track run").cross_track_rms_m;
     let (c, p) = (rms(&competent), rms(&paper));
     assert!(c < 0.5 * p, "competent CA {c:.3} m vs paper's CA {p:.3} m");
@@ -372,7 +375,7 @@ fn with_the_roll_pitch_freezes_acting_every_baseline_roll_and_pitch_settling_mis
     s.controller.mrac.freeze_roll_pitch = true;
     s.controller.pid.freeze_roll_pitch = true;
     let mut rows_outside = Vec::new();
-    for row in ATTITUDE_TABLE.iter().filter(|r| r.controller != Aco) {
+    for row in ATTITUDE_TABLE.iter().filter(|r| r.controller != ACO) {
         let out = tests::run_scenario(&s, row.controller, row.plant, 1, 500, FeedForward);
         for (seg, want) in table_segments(&out, true).iter().zip(row.steps).take(2) {
             let (got, want) = (seg.settling_s.unwrap_or(f64::INFINITY), want.settling_s.expect("the table's"));
@@ -389,7 +392,7 @@ fn with_the_roll_pitch_freezes_acting_every_baseline_roll_and_pitch_settling_mis
             rows_outside.push((row.plant, row.controller));
         }
     }
-    assert_eq!(rows_outside, [("mismatch", Ca), ("mismatch", Pid), ("nominal", Pid)], "rows outside the tolerances");
+    assert_eq!(rows_outside, [("mismatch", CA), ("mismatch", PID), ("nominal", PID)], "rows outside the tolerances");
 }
 
 /// The metric definitions checked on data they did not produce: applied to the prototype's own golden
@@ -401,7 +404,7 @@ fn metrics_of_the_golden_traces_give_the_prototypes_overshoots_to_the_printed_di
     use sitl::scenario::metrics::{StepSegment, step_metrics};
     let step = |axis, t0_s, t1_s, start, target| StepSegment { axis, t0_s, t1_s, start, target, wrap: axis == "yaw" };
     let mut bad = Vec::new();
-    for row in ATTITUDE_TABLE.iter().chain(TRANSLATION_TABLE).filter(|r| r.controller == Aco) {
+    for row in ATTITUDE_TABLE.iter().chain(TRANSLATION_TABLE).filter(|r| r.controller == ACO) {
         let attitude = row.worst_later_overshoot_pct.is_some();
         let file = if attitude { "att" } else { "pos" };
         let gold = golden(&format!("golden_ACO_paper_{file}_{}.csv", row.plant));

@@ -45,7 +45,7 @@ impl Default for VehicleConfig {
     fn default() -> Self {
         Self {
             sysid: 1,
-            controller: ControllerKind::Aco,
+            controller: ControllerKind::ACO,
             control: ControllerConfig::default(),
             estimator: EstimatorConfig::default(),
             commander: CommanderConfig::default(),

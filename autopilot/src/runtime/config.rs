@@ -428,7 +428,7 @@ mod tests {
         assert_eq!(c.serial_data_rate, 5760, "baud / 10 by default");
         assert_eq!(c.log_dir, Some(PathBuf::from("flights")));
         assert_eq!(c.state_dir, None);
-        assert_eq!((c.vehicle.controller, c.vehicle.estimator.source), (ControllerKind::Pid, EstimatorSource::Truth));
+        assert_eq!((c.vehicle.controller, c.vehicle.estimator.source), (ControllerKind::PID, EstimatorSource::Truth));
         let o =
             Overrides { plant: Some("udp://127.0.0.1:5000".into()), log_dir: Some("x".into()), ..Overrides::default() };
         let c = RuntimeConfig::resolve(file, 0, o).expect("valid");

@@ -175,7 +175,7 @@ fn default_plant() -> String {
 }
 
 fn default_controllers() -> Vec<ControllerKind> {
-    vec![ControllerKind::Aco, ControllerKind::Ca, ControllerKind::Pid]
+    vec![ControllerKind::ACO, ControllerKind::CA, ControllerKind::PID]
 }
 
 /// The built-in scenarios, one per experiment of the paper (plus the turbulence and fast figure-8 variants),

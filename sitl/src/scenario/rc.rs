@@ -182,7 +182,7 @@ mod tests {
     fn given_a_schedule_or_manual_settings_then_the_in_process_runner_refuses_and_says_where_to_fly_it() {
         for extra in ["[[rc]]\nat_s = 1.0\nlost = true\n", "[manual]\narm_gesture = false\n"] {
             let s = Scenario::from_toml("x", &with_rc(extra)).unwrap();
-            let opts = crate::scenario::runner::RunOptions::new(autopilot::core::control::ControllerKind::Aco);
+            let opts = crate::scenario::runner::RunOptions::new(autopilot::core::control::ControllerKind::ACO);
             let e = crate::scenario::runner::run(&s, &opts).unwrap_err().to_string();
             assert!(e.contains("sitl run --scenario"), "{e}");
         }
@@ -195,7 +195,7 @@ mod tests {
         );
         let s = Scenario::from_toml("x", &text).unwrap();
         let opts = crate::scenario::two_process::TwoProcessOptions {
-            controller: autopilot::core::control::ControllerKind::Aco,
+            controller: autopilot::core::control::ControllerKind::ACO,
             plant: None,
             seed: 1,
             instance: 0,

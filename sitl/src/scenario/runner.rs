@@ -475,7 +475,7 @@ mod tests {
 
     /// An ACO run that traces every tick.
     fn run_every_tick(s: &Scenario) -> RunOutput {
-        let opts = RunOptions { trace_hz: 500, ..RunOptions::new(ControllerKind::Aco) };
+        let opts = RunOptions { trace_hz: 500, ..RunOptions::new(ControllerKind::ACO) };
         run(s, &opts).unwrap()
     }
 
@@ -657,7 +657,7 @@ reference_modes = ["feed-forward"]
             serde_json::json!({"mass_kg": 5.3, "rotor_health": [1.0, 1.0, 0.8, 1.0]})
         );
         // `--plant` changes the preset, the overrides stay.
-        let opts = RunOptions { plant: Some("nominal".into()), ..RunOptions::new(ControllerKind::Aco) };
+        let opts = RunOptions { plant: Some("nominal".into()), ..RunOptions::new(ControllerKind::ACO) };
         assert_eq!(run(&s, &opts).unwrap().metrics.plant, "nominal+mass_kg=5.3+rotor_health=1,1,0.8,1");
     }
 

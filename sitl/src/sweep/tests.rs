@@ -179,7 +179,7 @@ fn the_summary_ranks_runs_that_never_recovered_last_and_counts_the_bound() {
         rows.push(Row {
             run: i as u64 * 3,
             case: i as u64,
-            controller: ControllerKind::Aco,
+            controller: ControllerKind::ACO,
             seed: 1,
             params: vec![],
             metrics,

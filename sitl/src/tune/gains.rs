@@ -3,7 +3,7 @@
 //! configuration, written as a `[controller]` block or a parameter file, and gain sets read back from one.
 
 use autopilot::core::config::VehicleConfig;
-use autopilot::core::control::{ControllerConfig, ControllerKind, LoopRates};
+use autopilot::core::control::{ControllerConfig, ControllerKind, LoopRates, registry};
 use autopilot::core::params::{Binding, PARAMS, ParamStore};
 use serde_json::Value;
 
@@ -53,11 +53,27 @@ impl Gain {
 /// The controller's `[controller]` table name.
 #[must_use]
 pub fn table_name(kind: ControllerKind) -> &'static str {
-    match kind {
-        ControllerKind::Aco => "aco",
-        ControllerKind::Ca => "mrac",
-        ControllerKind::Pid => "pid",
+    kind.table()
+}
+
+/// `config` with `kind`'s table filled in with its defaults where it has none (a controller outside the
+/// built-in three keeps its table in [`ControllerConfig::tables`], empty until something is set), so that
+/// every field of the controller can be found, checked and tuned by path.
+#[must_use]
+pub fn with_table_defaults(config: &ControllerConfig, kind: ControllerKind) -> ControllerConfig {
+    let mut out = config.clone();
+    if let Some(table) = out.tables.get_mut(kind.table()) {
+        for (key, value) in kind.ty().default_table() {
+            table.entry(key).or_insert(value);
+        }
+    } else {
+        // A typed section (the built-in controllers') is always written out; a table only when set.
+        let written = serde_json::to_value(&out).ok().is_some_and(|v| v.get(kind.table()).is_some());
+        if !written {
+            out.tables.insert(kind.table().to_owned(), kind.ty().default_table());
+        }
     }
+    out
 }
 
 /// The value at `path` of a JSON tree.
@@ -271,10 +287,14 @@ fn carrying_params(gain: &Gain) -> Result<Vec<&'static str>, TuneError> {
     let [lo, hi] = gain.bounds;
     // A value other than the start, within the bounds, to see which parameters move with the gain.
     let probe = if gain.start < hi { 0.5 * (gain.start + hi) } else { 0.5 * (lo + gain.start) };
-    let control = with_gains(&base.control, std::slice::from_ref(gain), &[probe]).map_err(TuneError::Invalid)?;
+    let start = match gain.path.first().and_then(|t| registry::by_table(t)) {
+        Some(kind) => with_table_defaults(&base.control, kind),
+        None => base.control.clone(),
+    };
+    let control = with_gains(&start, std::slice::from_ref(gain), &[probe]).map_err(TuneError::Invalid)?;
     let moved = VehicleConfig { control, ..base.clone() };
     let mut names = Vec::new();
-    for d in PARAMS {
+    for d in *PARAMS {
         let Binding::Config { get, .. } = d.binding else { continue };
         if get(&base).to_bits() == get(&moved).to_bits() {
             continue;
@@ -346,16 +366,14 @@ impl GainSet {
         }
         let block =
             root.get("controller").and_then(Value::as_object).ok_or_else(|| err("no [controller] block".into()))?;
-        let kinds: Vec<ControllerKind> =
-            ControllerKind::ALL.into_iter().filter(|k| block.contains_key(table_name(*k))).collect();
+        let all = registry::all();
+        let kinds: Vec<ControllerKind> = all.iter().copied().filter(|k| block.contains_key(table_name(*k))).collect();
         let [controller] = kinds[..] else {
-            return Err(err(
-                "the [controller] block must hold exactly one of [controller.aco], [controller.mrac] (CA), \
-                            [controller.pid]"
-                    .into(),
-            ));
+            let tables: Vec<String> = all.iter().map(|k| format!("[controller.{}] ({k})", k.table())).collect();
+            return Err(err(format!("the [controller] block must hold exactly one of {}", tables.join(", "))));
         };
-        let defaults = serde_json::to_value(ControllerConfig::default()).map_err(|e| err(e.to_string()))?;
+        let defaults = serde_json::to_value(with_table_defaults(&ControllerConfig::default(), controller))
+            .map_err(|e| err(e.to_string()))?;
         check_known(&Value::Object(block.clone()), &defaults, "controller").map_err(err)?;
         let config = merge(&defaults, &Value::Object(block.clone()));
         let config: ControllerConfig = serde_json::from_value(config).map_err(|e| err(e.to_string()))?;

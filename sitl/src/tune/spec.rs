@@ -5,11 +5,11 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use autopilot::core::control::{ControllerConfig, ControllerKind, LoopRates};
+use autopilot::core::control::{ControllerConfig, ControllerKind, GainScale, LoopRates, TunableGain};
 use serde::Deserialize;
 use serde_json::Value;
 
-use super::gains::{Gain, check_known, merge, parse_gain, table_name};
+use super::gains::{Gain, check_known, merge, parse_gain, table_name, with_table_defaults};
 use crate::plant::{InitialState, Plant};
 use crate::scenario::reference::ReferenceSpec;
 use crate::scenario::runner;
@@ -57,6 +57,21 @@ pub(super) struct GainFile {
     pub(super) scale: Scale,
     #[serde(default)]
     pub(super) start: Option<f64>,
+}
+
+impl From<&TunableGain> for GainFile {
+    fn from(g: &TunableGain) -> Self {
+        Self {
+            name: g.name.to_owned(),
+            axes: (!g.axes.is_empty()).then(|| g.axes.to_vec()),
+            bounds: g.bounds,
+            scale: match g.scale {
+                GainScale::Linear => Scale::Linear,
+                GainScale::Log => Scale::Log,
+            },
+            start: None,
+        }
+    }
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -139,6 +154,10 @@ struct SpecFile {
     /// Settings every candidate flies with, under its gains: a `[base.<table>]` of the spec's controller.
     #[serde(default)]
     base: Option<Value>,
+    /// The gains to search; none: the ones the controller declares ([`ControllerType::gains`]).
+    ///
+    /// [`ControllerType::gains`]: autopilot::core::control::ControllerType::gains
+    #[serde(default)]
     gain: Vec<GainFile>,
     train: Vec<RunFile>,
     #[serde(default)]
@@ -275,11 +294,16 @@ impl Tune {
         }
         rates.validate().map_err(|e| TuneError::Invalid(format!("rate_hz: {e}")))?;
         let (base, base_overrides) = parse_base(spec.base.as_ref(), spec.controller, rates)?;
-        if spec.gain.is_empty() {
-            return invalid("no [[gain]]: name at least one gain to tune".into());
+        let declared: Vec<GainFile> = spec.controller.ty().gains().iter().map(GainFile::from).collect();
+        let gain_files = if spec.gain.is_empty() { &declared } else { &spec.gain };
+        if gain_files.is_empty() {
+            return invalid(format!(
+                "no [[gain]], and {} declares no tunable gains: name at least one gain to tune",
+                spec.controller
+            ));
         }
         let mut gains = Vec::new();
-        for g in &spec.gain {
+        for g in gain_files {
             let gain = parse_gain(g, spec.controller, rates, &base)?;
             if gains.iter().any(|o: &Gain| o.path == gain.path && overlap(&o.axes, &gain.axes)) {
                 return invalid(format!("[[gain]] {} is given twice", gain.label));
@@ -350,13 +374,14 @@ fn parse_base(
     controller: ControllerKind,
     rates: LoopRates,
 ) -> Result<(ControllerConfig, Value), TuneError> {
-    let Some(base) = base else { return Ok((ControllerConfig::default(), Value::Object(serde_json::Map::new()))) };
+    let defaults_config = with_table_defaults(&ControllerConfig::default(), controller);
+    let Some(base) = base else { return Ok((defaults_config, Value::Object(serde_json::Map::new()))) };
     let table = table_name(controller);
     let root = base.as_object().ok_or_else(|| TuneError::Invalid("[base] must be a table".into()))?;
     if let Some(key) = root.keys().find(|k| *k != table) {
         return invalid(format!("[base.{key}]: the base of a {controller} tuning is its [base.{table}] alone"));
     }
-    let defaults = serde_json::to_value(ControllerConfig::default()).map_err(|e| TuneError::Invalid(e.to_string()))?;
+    let defaults = serde_json::to_value(&defaults_config).map_err(|e| TuneError::Invalid(e.to_string()))?;
     check_known(base, &defaults, "base").map_err(TuneError::Invalid)?;
     let mut config: ControllerConfig =
         serde_json::from_value(merge(&defaults, base)).map_err(|e| TuneError::Invalid(format!("[base]: {e}")))?;

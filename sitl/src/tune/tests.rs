@@ -226,7 +226,7 @@ fn a_guard_rejects_a_candidate_with_a_known_bad_gain() {
     assert!(bad.penalised >= UNSAFE_COST, "{bad:?}");
     // The held-out report says the same of a gain file with that gain.
     let file = "[controller.aco]\nkp_pos_per_s = 3.0\nkv_vel_per_s = 0.5\n";
-    let sets = [GainSet::defaults(ControllerKind::Aco), GainSet::from_toml(file, "bad.toml").unwrap()];
+    let sets = [GainSet::defaults(ControllerKind::ACO), GainSet::from_toml(file, "bad.toml").unwrap()];
     let report = spec.evaluate_heldout(&sets, &pool(2));
     assert!(report[0].safe, "{:?}", report[0]);
     assert!(!report[1].safe);
@@ -371,13 +371,13 @@ fn a_bad_gain_file_is_refused_naming_what_is_wrong() {
     let e = error("[controller.aco]\nlpf_rotation_hz = 400.0\n");
     assert!(e.contains("lpf_rotation_hz"), "{e}");
     let ok = GainSet::from_toml("[controller.mrac]\nwn_att_radps = [6.0, 6.0, 2.5]\n", "ca.toml").unwrap();
-    assert_eq!(ok.controller, ControllerKind::Ca);
+    assert_eq!(ok.controller, ControllerKind::CA);
 }
 
 #[test]
 fn the_example_specs_load_with_a_300_evaluation_budget() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tunes");
-    for (name, controller) in [("aco", ControllerKind::Aco), ("ca", ControllerKind::Ca), ("pid", ControllerKind::Pid)] {
+    for (name, controller) in [("aco", ControllerKind::ACO), ("ca", ControllerKind::CA), ("pid", ControllerKind::PID)] {
         let spec = Tune::load(&dir.join(format!("{name}.toml"))).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!((spec.controller, spec.budget), (controller, 300), "{name}");
         assert!(!spec.guards.is_empty() && !spec.heldout.is_empty(), "{name}");

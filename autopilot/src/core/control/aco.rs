@@ -456,7 +456,7 @@ impl Controller for AcoController {
     }
 
     fn kind(&self) -> ControllerKind {
-        ControllerKind::Aco
+        ControllerKind::ACO
     }
 
     fn telemetry(&self) -> Vec<(&'static str, f64)> {

@@ -7,20 +7,21 @@
 //! the paper (1 right, 2 rear, 3 front, 4 left). The inner loops (attitude, rate, LMS) run on every call;
 //! the position loop runs on every `inner_hz / position_hz`-th call, starting with the first.
 
-use std::fmt;
-use std::str::FromStr;
+use std::collections::BTreeMap;
 
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 pub mod aco;
+mod builtin;
 pub mod distributor;
 pub mod filters;
 pub mod frames;
 pub mod lms;
 pub mod mrac;
 pub mod pid;
+pub mod registry;
 
 #[cfg(test)]
 mod toy_plant;
@@ -29,6 +30,7 @@ pub use aco::{AcoConfig, AcoController, AcoWeights};
 pub use distributor::ActuatorLimits;
 pub use mrac::{MracConfig, MracController};
 pub use pid::{PidConfig, PidController};
+pub use registry::{ControllerKind, ControllerType, GainScale, ParseControllerKindError, TunableGain};
 
 /// The controller's view of the vehicle. Frames: NED earth, FRD body; Euler angles ZYX.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -164,54 +166,6 @@ impl LoopRates {
     }
 }
 
-/// Which controller. Parsed from `aco`, `ca`, `pid`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum ControllerKind {
-    Aco,
-    Ca,
-    Pid,
-}
-
-impl ControllerKind {
-    /// Every kind, in the order the paper compares them.
-    pub const ALL: [Self; 3] = [Self::Aco, Self::Ca, Self::Pid];
-
-    /// The lowercase name used on the command line and in files.
-    #[must_use]
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Self::Aco => "aco",
-            Self::Ca => "ca",
-            Self::Pid => "pid",
-        }
-    }
-}
-
-impl fmt::Display for ControllerKind {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.as_str())
-    }
-}
-
-/// An unknown controller name.
-#[derive(Debug, Clone, PartialEq, Eq, Error)]
-#[error("unknown controller `{0}` (expected aco, ca or pid)")]
-pub struct ParseControllerKindError(pub String);
-
-impl FromStr for ControllerKind {
-    type Err = ParseControllerKindError;
-
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s.trim().to_ascii_lowercase().as_str() {
-            "aco" => Ok(Self::Aco),
-            "ca" | "mrac" => Ok(Self::Ca),
-            "pid" => Ok(Self::Pid),
-            _ => Err(ParseControllerKindError(s.to_owned())),
-        }
-    }
-}
-
 /// The nominal model the controllers are designed on (spec A.3): the paper's quadrotor.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -292,7 +246,9 @@ pub trait Controller: Send {
     fn attitude_setpoint_rad(&self) -> Vector3<f64>;
 }
 
-/// Everything needed to build any of the three controllers.
+/// Everything needed to build any registered controller: the loop rates, the built-in controllers'
+/// typed sections (their parameters bind to these fields at the indices ground stations have cached) and
+/// every other controller's table, by table name (`[controller.se3]`), read by that controller alone.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(default)]
 pub struct ControllerConfig {
@@ -300,6 +256,10 @@ pub struct ControllerConfig {
     pub aco: AcoConfig,
     pub mrac: MracConfig,
     pub pid: PidConfig,
+    /// The tables of the controllers registered beside the built-in ones, by table name. A table no
+    /// registered controller owns is refused by [`ControllerConfig::validate`].
+    #[serde(flatten)]
+    pub tables: BTreeMap<String, toml::Table>,
 }
 
 /// Why a [`ControllerConfig`] cannot be used.
@@ -313,58 +273,52 @@ pub enum ConfigError {
     NotPositive { name: &'static str, field: &'static str, value: f64 },
     #[error("{name}.{field} = {value} must be finite and >= 0 (0: off)")]
     Negative { name: &'static str, field: &'static str, value: f64 },
+    #[error("[{table}]: {message}")]
+    Table { table: String, message: String },
+    #[error("[{table}] is no registered controller's table (registered: {registered})")]
+    UnknownTable { table: String, registered: String },
 }
 
 impl ControllerConfig {
-    /// Check the loop rates, the LMS filter cutoffs against the inner rate and the nominal model.
+    /// Check the loop rates, then every registered controller's part (a table that is not there is its
+    /// defaults), and that every table belongs to a registered controller.
     ///
     /// # Errors
     /// The first [`ConfigError`] found.
     pub fn validate(&self) -> Result<(), ConfigError> {
         self.rates.validate()?;
-        let max_hz = 0.45 * f64::from(self.rates.inner_hz);
-        for (name, value_hz) in
-            [("aco.lpf_translation_hz", self.aco.lpf_translation_hz), ("aco.lpf_rotation_hz", self.aco.lpf_rotation_hz)]
-        {
-            if !(value_hz > 0.0 && value_hz < max_hz) {
-                return Err(ConfigError::FilterCutoff { name, value_hz, max_hz, inner_hz: self.rates.inner_hz });
-            }
+        for kind in registry::all() {
+            kind.ty().validate(self)?;
         }
-        for (name, airframe) in [
-            ("aco.airframe", &self.aco.airframe),
-            ("mrac.airframe", &self.mrac.airframe),
-            ("pid.airframe", &self.pid.airframe),
-        ] {
-            let [ix, iy, iz] = airframe.inertia_kgm2;
-            for (what, value) in [
-                ("mass_kg", airframe.mass_kg),
-                ("inertia_kgm2", ix.min(iy).min(iz)),
-                ("arm_m", airframe.arm_m),
-                ("yaw_moment_m", airframe.yaw_moment_m),
-                ("rotor_tau_s", airframe.rotor_tau_s),
-                ("gravity_mps2", airframe.gravity_mps2),
-            ] {
-                if !(value.is_finite() && value > 0.0) {
-                    return Err(ConfigError::NotPositive { name, field: what, value });
-                }
-            }
+        if let Some(table) = self.tables.keys().find(|t| registry::by_table(t).is_none()) {
+            return Err(ConfigError::UnknownTable { table: table.clone(), registered: registry::names() });
         }
-        for (field, value) in [
-            ("wi_att_radps", self.mrac.wi_att_radps),
-            ("wi_pos_radps", self.mrac.wi_pos_radps),
-            ("e_mod_sigma", self.mrac.e_mod_sigma),
-        ] {
-            if !(value.is_finite() && value >= 0.0) {
-                return Err(ConfigError::Negative { name: "mrac", field, value });
-            }
+        Ok(())
+    }
+
+    /// A controller's table read as its typed configuration `T`: `T`'s defaults under what the table sets.
+    /// `T` should be `#[serde(default, deny_unknown_fields)]`, so a misspelt key is refused.
+    ///
+    /// # Errors
+    /// [`ConfigError::Table`] when the table does not read as a `T`.
+    pub fn section<T: serde::de::DeserializeOwned + Default>(&self, table: &str) -> Result<T, ConfigError> {
+        match self.tables.get(table) {
+            None => Ok(T::default()),
+            Some(t) => toml::Value::Table(t.clone()).try_into().map_err(|e: toml::de::Error| ConfigError::Table {
+                table: table.to_owned(),
+                message: e.message().to_owned(),
+            }),
         }
-        if !(self.aco.alpha_ref_radps2.is_finite() && self.aco.alpha_ref_radps2 > 0.0) {
-            return Err(ConfigError::NotPositive {
-                name: "aco",
-                field: "alpha_ref_radps2",
-                value: self.aco.alpha_ref_radps2,
-            });
-        }
+    }
+
+    /// Writes a controller's typed configuration as its table.
+    ///
+    /// # Errors
+    /// [`ConfigError::Table`] when `value` does not serialise as a TOML table.
+    pub fn set_section<T: Serialize>(&mut self, table: &str, value: &T) -> Result<(), ConfigError> {
+        let t = toml::Table::try_from(value)
+            .map_err(|e| ConfigError::Table { table: table.to_owned(), message: e.to_string() })?;
+        self.tables.insert(table.to_owned(), t);
         Ok(())
     }
 }
@@ -375,11 +329,7 @@ impl ControllerConfig {
 /// [`ConfigError`] when the configuration is unusable (see [`ControllerConfig::validate`]).
 pub fn try_new_controller(kind: ControllerKind, config: &ControllerConfig) -> Result<Box<dyn Controller>, ConfigError> {
     config.validate()?;
-    Ok(match kind {
-        ControllerKind::Aco => Box::new(AcoController::new(&config.aco, config.rates)),
-        ControllerKind::Ca => Box::new(MracController::new(&config.mrac, config.rates)),
-        ControllerKind::Pid => Box::new(PidController::new(&config.pid, config.rates)),
-    })
+    kind.ty().build(config)
 }
 
 /// Build a controller.
@@ -552,7 +502,7 @@ mod tests {
         tilted.euler_rad.x = 0.1;
         let r = Reference::position(Vector3::new(0.5, 0.0, -2.0), 0.0);
         let hover = Airframe::default().hover_pwm_us();
-        for kind in ControllerKind::ALL {
+        for kind in registry::all() {
             for bad in poisoned_inputs(&good) {
                 let mut c = new_controller(kind, &ControllerConfig::default());
                 assert_eq!(c.update(&bad, &r), [hover; 4], "{kind}: first tick");
@@ -579,7 +529,7 @@ mod tests {
         let input = hover_input(Vector3::new(0.0, 0.0, -1.0), 0.0);
         let limits = distributor::ActuatorLimits::default();
         let hover_n = Airframe::default().hover_rotor_lift_n() * 4.0;
-        for kind in ControllerKind::ALL {
+        for kind in registry::all() {
             for frac in [0.2, 0.46, 0.8] {
                 let mut c = new_controller(kind, &ControllerConfig::default());
                 let r = Reference { collective_frac: Some(frac), ..Reference::attitude(Vector3::zeros(), -2.0) };
@@ -623,20 +573,11 @@ mod tests {
         };
         let other_rates =
             ControllerConfig { rates: LoopRates { inner_hz: 1000, position_hz: 50 }, ..ControllerConfig::default() };
-        for kind in ControllerKind::ALL {
+        for kind in registry::all() {
             let plain = run(kind, None);
             assert_eq!(plain, run(kind, Some(&ControllerConfig::default())), "{kind}");
             assert_eq!(plain, run(kind, Some(&other_rates)), "{kind}: rates are not applied live");
         }
-    }
-
-    #[test]
-    fn given_kind_names_when_parsed_and_displayed_then_round_trip() {
-        for k in ControllerKind::ALL {
-            assert_eq!(k.to_string().parse::<ControllerKind>(), Ok(k));
-        }
-        assert_eq!("ACO".parse::<ControllerKind>(), Ok(ControllerKind::Aco));
-        assert!("lqr".parse::<ControllerKind>().is_err());
     }
 
     #[test]
@@ -654,7 +595,7 @@ mod tests {
         ));
         let cfg =
             ControllerConfig { rates: LoopRates { inner_hz: 500, position_hz: 7 }, ..ControllerConfig::default() };
-        assert!(matches!(try_new_controller(ControllerKind::Aco, &cfg), Err(ConfigError::LoopRates(_))));
+        assert!(matches!(try_new_controller(ControllerKind::ACO, &cfg), Err(ConfigError::LoopRates(_))));
     }
 
     #[test]
@@ -699,13 +640,12 @@ mod tests {
             (cfg.rates, false, false)
         );
         assert!((back.pid.limits.rotor_min_n - cfg.pid.limits.rotor_min_n).abs() < 1e-12);
-        assert_eq!(serde_json::to_string(&ControllerKind::Ca).expect("kind"), "\"ca\"");
     }
 
     #[test]
     fn given_each_kind_when_built_then_reports_its_kind() {
         let cfg = ControllerConfig::default();
-        for k in ControllerKind::ALL {
+        for k in registry::all() {
             assert_eq!(new_controller(k, &cfg).kind(), k);
         }
     }

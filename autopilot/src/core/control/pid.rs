@@ -243,7 +243,7 @@ impl Controller for PidController {
     }
 
     fn kind(&self) -> ControllerKind {
-        ControllerKind::Pid
+        ControllerKind::PID
     }
 
     fn telemetry(&self) -> Vec<(&'static str, f64)> {

@@ -591,7 +591,7 @@ mod tests {
     /// table's axis order.
     #[test]
     fn given_each_controller_when_the_weights_are_emitted_then_every_vector_carries_its_telemetry() {
-        for (kind, expected) in [(ControllerKind::Aco, 5), (ControllerKind::Ca, 8), (ControllerKind::Pid, 2)] {
+        for (kind, expected) in [(ControllerKind::ACO, 5), (ControllerKind::CA, 8), (ControllerKind::PID, 2)] {
             let controller = new_controller(kind, &ControllerConfig::default());
             let values = controller.telemetry();
             let messages = adaptive_weights(1_500_000, controller.as_ref());
@@ -608,7 +608,7 @@ mod tests {
             }
         }
         // The mass estimate starts at the nominal mass on every axis.
-        let aco = new_controller(ControllerKind::Aco, &ControllerConfig::default());
+        let aco = new_controller(ControllerKind::ACO, &ControllerConfig::default());
         let m_est = adaptive_weights(0, aco.as_ref())
             .into_iter()
             .find_map(|m| match m {

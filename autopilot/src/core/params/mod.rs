@@ -310,7 +310,7 @@ impl ParamStore {
     /// Every parameter of the vehicle at its default.
     #[must_use]
     pub fn defaults() -> Self {
-        Self::with_defaults(PARAMS)
+        Self::with_defaults(*PARAMS)
     }
 
     /// The values `config` holds (rounded to f32; store-only parameters at their defaults). Values are
@@ -318,7 +318,7 @@ impl ParamStore {
     /// several fields (the airframe of the three controllers, PID_VEL_I_NE), the first is read.
     #[must_use]
     pub fn from_config(config: &VehicleConfig) -> Self {
-        Self::from_fn(PARAMS, |_, d| match d.binding {
+        Self::from_fn(*PARAMS, |_, d| match d.binding {
             Binding::Config { get, .. } => get(config) as f32,
             Binding::StoreOnly => d.default,
         })
@@ -610,7 +610,7 @@ mod tests {
     #[test]
     fn given_the_table_when_checked_then_names_ranges_defaults_and_texts_are_well_formed() {
         let mut names = std::collections::HashSet::new();
-        for d in PARAMS {
+        for d in *PARAMS {
             assert!(names.insert(d.name), "{} declared twice", d.name);
             assert!(!d.name.is_empty() && d.name.len() <= 16, "{}: at most 16 characters", d.name);
             assert!(d.name.starts_with(|c: char| c.is_ascii_uppercase()), "{}", d.name);
@@ -742,7 +742,7 @@ mod tests {
         assert_eq!(store.set_index(store.len(), 1.0), Err(ParamError::UnknownIndex { index: store.len() }));
         // Every range error of the table fits a STATUSTEXT, even for awkward values, and so do the type
         // refusals with the longest type names.
-        for d in PARAMS {
+        for d in *PARAMS {
             let e = d.check(-(d.max.abs() + 1.0) * 1.000_001_2).expect_err(d.name).to_string();
             assert!(e.len() <= 50, "{e}");
             let (long, wide) = (MavParamType::MAV_PARAM_TYPE_UINT64, MavParamType::MAV_PARAM_TYPE_UINT16);
@@ -837,7 +837,7 @@ mod tests {
             assert!(md.contains(&format!("## {}\n", group.title())), "{group:?}");
             assert!(PARAMS.iter().any(|d| d.group == group), "{group:?} is empty");
         }
-        for d in PARAMS {
+        for d in *PARAMS {
             assert_eq!(md.matches(&format!("| `{}` |", d.name)).count(), 1, "{}", d.name);
         }
         assert!(md.contains("| `LOOP_INNER_HZ` | INT32 | 500 | 50 | 2000 | Hz | yes |"));

@@ -249,7 +249,7 @@ impl FlightLogger {
         let when = UtcTime::from_unix_us(wall_us);
         let telemetry = vehicle.controller().telemetry();
         let telemetry_names: Vec<&'static str> = telemetry.iter().map(|(n, _)| *n).collect();
-        let aco = vehicle.controller().kind() == ControllerKind::Aco;
+        let aco = vehicle.controller().kind() == ControllerKind::ACO;
         let mut topics = Vec::new();
         let mut intervals_us = Vec::new();
         for (name, interval) in TOPICS {

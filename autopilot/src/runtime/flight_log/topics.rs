@@ -439,7 +439,7 @@ mod tests {
         assert_eq!(field_name("ca.roll.k1"), "roll_k1");
         assert_eq!(field_name("plain"), "plain");
         // Every controller's telemetry gives distinct, plain field names.
-        for kind in [ControllerKind::Aco, ControllerKind::Ca, ControllerKind::Pid] {
+        for kind in [ControllerKind::ACO, ControllerKind::CA, ControllerKind::PID] {
             let c = crate::core::control::new_controller(kind, &VehicleConfig::default().control);
             let names: Vec<String> = c.telemetry().iter().map(|(n, _)| field_name(n)).collect();
             let unique: std::collections::HashSet<&String> = names.iter().collect();

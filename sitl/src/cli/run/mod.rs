@@ -59,7 +59,7 @@ pub(crate) fn run(args: &RunArgs) -> Result<()> {
         }
         let scenario = Scenario::load(name)?;
         let controller =
-            args.controller.unwrap_or_else(|| scenario.controllers.first().copied().unwrap_or(ControllerKind::Aco));
+            args.controller.unwrap_or_else(|| scenario.controllers.first().copied().unwrap_or(ControllerKind::ACO));
         let estimator = match args.estimator.as_deref() {
             None => None,
             Some("truth") => Some(EstimatorSource::Truth),

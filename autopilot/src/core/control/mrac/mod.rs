@@ -253,7 +253,7 @@ impl Controller for MracController {
     }
 
     fn kind(&self) -> ControllerKind {
-        ControllerKind::Ca
+        ControllerKind::CA
     }
 
     fn telemetry(&self) -> Vec<(&'static str, f64)> {

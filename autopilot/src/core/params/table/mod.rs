@@ -8,6 +8,8 @@
 //! the table (the ACO, the baselines, the shared controller settings, the commander, the navigator,
 //! telemetry); `SECTIONS` lists the parts in index order.
 
+use std::sync::LazyLock;
+
 use super::ParamDef;
 
 /// A live REAL32 parameter on one f64 config field (its name a literal, or built with `concat!`).
@@ -153,11 +155,19 @@ const fn concatenated<const N: usize>(sections: &[&[ParamDef]]) -> [ParamDef; N]
     out
 }
 
-/// The table as one array.
+/// The core's table as one array.
 static TABLE: [ParamDef; total_len(SECTIONS)] = concatenated(SECTIONS);
 
-/// Every parameter, in `param_index` order.
-pub static PARAMS: &[ParamDef] = &TABLE;
+/// Every parameter, in `param_index` order: the core's table, then each registered controller's own
+/// ([`ControllerType::params`](crate::core::control::ControllerType::params)) in the registry's order.
+/// Built at first use: a controller registered after that has no parameters.
+pub static PARAMS: LazyLock<&'static [ParamDef]> = LazyLock::new(|| {
+    let mut all = TABLE.to_vec();
+    for kind in crate::core::control::registry::all() {
+        all.extend_from_slice(kind.ty().params());
+    }
+    Vec::leak(all)
+});
 
 #[cfg(test)]
 mod tests {
