@@ -346,7 +346,7 @@ pub fn new_controller(kind: ControllerKind, config: &ControllerConfig) -> Box<dy
 
 /// True when every number the controller reads this tick is finite (the sanitising gate).
 #[must_use]
-pub(crate) fn inputs_finite(input: &ControlInput, reference: &Reference) -> bool {
+pub fn inputs_finite(input: &ControlInput, reference: &Reference) -> bool {
     let vecs_finite = [
         &input.pos_ned_m,
         &input.vel_ned_mps,
@@ -370,7 +370,7 @@ pub(crate) fn inputs_finite(input: &ControlInput, reference: &Reference) -> bool
 /// else the vertical thrust `vertical_n` (N) of its position loop, tilt-compensated
 /// ([`distributor::collective_thrust_n`]) when `tilt_compensate` and taken as it is otherwise.
 #[must_use]
-pub(crate) fn commanded_collective_n(
+pub fn commanded_collective_n(
     reference: &Reference,
     vertical_n: f64,
     euler_rad: &Vector3<f64>,
@@ -389,7 +389,7 @@ pub(crate) fn commanded_collective_n(
 /// The attitude setpoint (phi, theta, psi) a position loop leaves: the reference's own in attitude-only
 /// mode, else the one extracted from the limited thrust vector and the reference yaw.
 #[must_use]
-pub(crate) fn attitude_setpoint_rad(reference: &Reference, limited: &distributor::LimitedThrust) -> Vector3<f64> {
+pub fn attitude_setpoint_rad(reference: &Reference, limited: &distributor::LimitedThrust) -> Vector3<f64> {
     match reference.attitude_rad {
         Some(att) => att,
         None => distributor::attitude_from_thrust(limited, reference.yaw_rad),
@@ -400,7 +400,7 @@ pub(crate) fn attitude_setpoint_rad(reference: &Reference, limited: &distributor
 /// position loop runs on every `inner_hz / position_hz`-th tick, starting with the first, and on the first
 /// tick with finite inputs if that came later.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct LoopClock {
+pub struct LoopClock {
     /// Inner-loop period Δ (s).
     pub dt_s: f64,
     /// Position-loop period (s).
@@ -443,7 +443,7 @@ impl LoopClock {
 /// The output a controller holds between ticks: the PWM commands (µs) it gave last, repeated while its
 /// inputs are not finite, and the distributor's saturation report on them, which the baselines freeze on.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct HeldOutput {
+pub struct HeldOutput {
     pub saturation: distributor::MixerSaturation,
     pub pwm_us: [f64; 4],
 }
@@ -483,7 +483,7 @@ impl HeldOutput {
 
 /// Clip each component of `v` to `[-limit_i, limit_i]`.
 #[must_use]
-pub(crate) fn clip_abs(v: &Vector3<f64>, limit: &[f64; 3]) -> Vector3<f64> {
+pub fn clip_abs(v: &Vector3<f64>, limit: &[f64; 3]) -> Vector3<f64> {
     Vector3::new(v.x.clamp(-limit[0], limit[0]), v.y.clamp(-limit[1], limit[1]), v.z.clamp(-limit[2], limit[2]))
 }
 

@@ -46,11 +46,13 @@ pub enum ParamGroup {
     Navigator,
     Telemetry,
     Radio,
+    /// The parameters of the controllers registered beside the built-in ones, each its own.
+    Controllers,
 }
 
 impl ParamGroup {
     /// Every group, in the order of the docs.
-    pub const ALL: [Self; 9] = [
+    pub const ALL: [Self; 10] = [
         Self::Aco,
         Self::Loop,
         Self::Airframe,
@@ -60,6 +62,7 @@ impl ParamGroup {
         Self::Navigator,
         Self::Radio,
         Self::Telemetry,
+        Self::Controllers,
     ];
 
     /// The section title.
@@ -75,6 +78,7 @@ impl ParamGroup {
             Self::Navigator => "Navigator",
             Self::Telemetry => "Telemetry",
             Self::Radio => "Radio and manual control",
+            Self::Controllers => "Other controllers",
         }
     }
 
@@ -106,6 +110,10 @@ impl ParamGroup {
                 "The pilot's input (`manual::ManualConfig`): the radio's channel map and calibration, the \
                  source of the sticks, their loss and its failsafe, the arming gestures and the mode switch, \
                  under PX4's names."
+            }
+            Self::Controllers => {
+                "The controllers registered beside ACO, CA and PID (`control::registry`), each declaring its \
+                 own (`ControllerType::params`); they follow the core's table, in the registry's order."
             }
         }
     }
