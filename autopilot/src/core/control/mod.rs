@@ -63,6 +63,13 @@ pub struct Reference {
     /// Direct thrust (offboard attitude with thrust): when set, the collective is this normalized thrust
     /// ([`distributor::ActuatorLimits::collective_from_frac_n`], 0-1) instead of the D loop's demand.
     pub collective_frac: Option<f64>,
+    /// Body rates (FRD, rad/s): the rate level (Acro, offboard body rates, a learned policy's
+    /// collective thrust and body rates). Alone (no `attitude_rad`), the position and attitude loops
+    /// are off and the rate loop tracks these rates, with `collective_frac` as the thrust (the hover
+    /// thrust when it is None). With `attitude_rad`, they are the attitude loop's rate feed-forward.
+    /// Only a controller whose type [`ControllerType::flies_rates`] takes it; the vehicle refuses the
+    /// others before they see one.
+    pub rate_frd_radps: Option<Vector3<f64>>,
 }
 
 impl Reference {
@@ -77,6 +84,7 @@ impl Reference {
             yaw_rad,
             attitude_rad: None,
             collective_frac: None,
+            rate_frd_radps: None,
         }
     }
 
@@ -91,7 +99,26 @@ impl Reference {
             yaw_rad: euler_rad.z,
             attitude_rad: Some(euler_rad),
             collective_frac: None,
+            rate_frd_radps: None,
         }
+    }
+
+    /// The rate level: body rates (FRD, rad/s) with a normalized collective thrust (0-1), yaw and
+    /// position unused (the yaw kept for logs).
+    #[must_use]
+    pub fn rates(rate_frd_radps: Vector3<f64>, collective_frac: f64, yaw_rad: f64) -> Self {
+        Self {
+            yaw_rad,
+            collective_frac: Some(collective_frac),
+            rate_frd_radps: Some(rate_frd_radps),
+            ..Self::position(Vector3::zeros(), yaw_rad)
+        }
+    }
+
+    /// True when this is the rate level alone (rates without an attitude).
+    #[must_use]
+    pub fn is_rates_only(&self) -> bool {
+        self.rate_frd_radps.is_some() && self.attitude_rad.is_none()
     }
 }
 
@@ -363,6 +390,7 @@ pub fn inputs_finite(input: &ControlInput, reference: &Reference) -> bool {
         && reference.yaw_rad.is_finite()
         && reference.attitude_rad.is_none_or(|a| a.iter().all(|x| x.is_finite()))
         && reference.collective_frac.is_none_or(f64::is_finite)
+        && reference.rate_frd_radps.is_none_or(|w| w.iter().all(|x| x.is_finite()))
 }
 
 /// The collective thrust (N) a controller commands this tick: the thrust asked for directly

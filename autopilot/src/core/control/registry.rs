@@ -70,6 +70,12 @@ pub trait ControllerType: Sync + Send + 'static {
     fn params(&self) -> &'static [ParamDef] {
         &[]
     }
+    /// Whether it flies the rate level ([`Reference::rate_frd_radps`](super::Reference::rate_frd_radps)):
+    /// Acro, offboard body rates and a policy's rate actions need it, and are refused for a controller
+    /// without it.
+    fn flies_rates(&self) -> bool {
+        false
+    }
     /// The gains `sitl tune` searches when a tuning spec names none.
     fn gains(&self) -> &'static [TunableGain] {
         &[]
@@ -113,6 +119,12 @@ impl ControllerKind {
     #[must_use]
     pub fn table(self) -> &'static str {
         self.0.table()
+    }
+
+    /// Whether it flies the rate level ([`ControllerType::flies_rates`]).
+    #[must_use]
+    pub fn flies_rates(self) -> bool {
+        self.0.flies_rates()
     }
 }
 
