@@ -38,6 +38,8 @@ pub enum ManualMode {
     /// Sticks to horizontal velocity and yaw rate, throttle stick to climb rate; the position held when
     /// centred.
     Position,
+    /// Sticks to body rates (`MC_ACRO_*`), throttle stick to thrust; nothing levels the attitude.
+    Acro,
 }
 
 /// Where a [`Intent::Hold`] holds.

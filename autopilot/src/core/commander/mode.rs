@@ -32,6 +32,8 @@ pub enum FlightMode {
     Manual,
     /// STABILIZED: sticks to attitude and yaw rate, throttle stick to thrust.
     Stabilized,
+    /// ACRO: sticks to body rates, throttle stick to thrust; the attitude is not levelled.
+    Acro,
 }
 
 impl FlightMode {
@@ -42,6 +44,7 @@ impl FlightMode {
             Self::Manual | Self::Stabilized => Some(ManualMode::Stabilized),
             Self::Altitude => Some(ManualMode::Altitude),
             Self::Position => Some(ManualMode::Position),
+            Self::Acro => Some(ManualMode::Acro),
             _ => None,
         }
     }
@@ -66,6 +69,7 @@ impl fmt::Display for FlightMode {
             Self::Offboard => "Offboard",
             Self::Manual => "Manual",
             Self::Stabilized => "Stabilized",
+            Self::Acro => "Acro",
         })
     }
 }

@@ -77,9 +77,11 @@ impl Commander {
                 FlightMode::ReturnToLaunch => self.apply(now, Request::ReturnToLaunch),
                 FlightMode::Offboard => self.apply(now, Request::Offboard),
                 FlightMode::Hold => self.hold(now),
-                FlightMode::Manual | FlightMode::Stabilized | FlightMode::Altitude | FlightMode::Position => {
-                    self.manual(now, mode)
-                }
+                FlightMode::Manual
+                | FlightMode::Stabilized
+                | FlightMode::Altitude
+                | FlightMode::Position
+                | FlightMode::Acro => self.manual(now, mode),
             },
             Request::ReturnToLaunch => match state {
                 State::Rtl => Ok(()),

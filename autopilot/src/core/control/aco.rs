@@ -417,22 +417,31 @@ impl Controller for AcoController {
         self.step_translation_lms(input, thrust_est_n);
         // 3. Rotation LMS (the update itself is skipped on the first tick).
         self.step_rotation_lms(input, &moment_est_nm);
-        // 4. Position loop every `pos_divider`-th tick (and on the first good one).
-        if self.clock.position_loop_due() {
+        // 4. Position loop every `pos_divider`-th tick (and on the first good one); not at the rate level.
+        let rates_only = reference.is_rates_only();
+        if self.clock.position_loop_due() && !rates_only {
             self.step_position_loop(input, reference);
         }
         if let Some(att) = reference.attitude_rad {
             self.attitude_sp_rad = att;
+        } else if rates_only {
+            // The rate level holds no attitude: the setpoint follows the vehicle, for logs.
+            self.attitude_sp_rad = input.euler_rad;
         }
-        // 5. Collective (or the thrust asked for directly).
-        self.collective_n =
-            commanded_collective_n(reference, self.vertical_thrust_n, &input.euler_rad, &self.cfg.limits, true);
+        // 5. Collective (or the thrust asked for directly; hover at the rate level without one).
+        let vertical_n = if rates_only { a.mass_kg * a.gravity_mps2 } else { self.vertical_thrust_n };
+        self.collective_n = commanded_collective_n(reference, vertical_n, &input.euler_rad, &self.cfg.limits, true);
         // 6. Attitude (Eqs 22-24).
         let eta = &input.euler_rad;
         let sp = &self.attitude_sp_rad;
         let e_eta = Vector3::new(sp.x - eta.x, sp.y - eta.y, wrap_pi(sp.z - eta.z));
         let eta_dot_d = Vector3::from(self.cfg.k_att_per_s).component_mul(&e_eta);
-        self.rate_sp_radps = clip_abs(&(euler_rates_to_body(eta) * eta_dot_d), &self.cfg.rate_limit_radps);
+        let rate_sp = match (rates_only, reference.rate_frd_radps) {
+            // The rate level: the body rates asked for, the attitude loop off.
+            (true, Some(rates)) => rates,
+            (_, feed_forward) => euler_rates_to_body(eta) * eta_dot_d + feed_forward.unwrap_or_default(),
+        };
+        self.rate_sp_radps = clip_abs(&rate_sp, &self.cfg.rate_limit_radps);
         // 7. Rate loop (Eq 9 inverted through c_j, d_j and the gyroscopic term).
         let omega = &input.rate_frd_radps;
         let alpha_d = Vector3::from(self.cfg.k_rate_per_s).component_mul(&(self.rate_sp_radps - omega));

@@ -72,6 +72,10 @@ impl ControllerType for Aco {
     fn build(&self, config: &ControllerConfig) -> Result<Box<dyn Controller>, ConfigError> {
         Ok(Box::new(AcoController::new(&config.aco, config.rates)))
     }
+    /// Its rate loop (Eq 9 inverted) takes the body rates in place of the attitude loop's.
+    fn flies_rates(&self) -> bool {
+        true
+    }
     /// The gains `sitl/tunes/aco.toml` searches: the cascade's and the LMS adaptation rates.
     fn gains(&self) -> &'static [TunableGain] {
         &[
@@ -149,6 +153,10 @@ impl ControllerType for Pid {
     }
     fn build(&self, config: &ControllerConfig) -> Result<Box<dyn Controller>, ConfigError> {
         Ok(Box::new(PidController::new(&config.pid, config.rates)))
+    }
+    /// Its rate PI takes the body rates in place of the attitude P's.
+    fn flies_rates(&self) -> bool {
+        true
     }
     /// The gains `sitl/tunes/pid.toml` searches: the cascade's, tilt and yaw apart.
     fn gains(&self) -> &'static [TunableGain] {

@@ -191,11 +191,15 @@ impl Controller for PidController {
             self.clock.advance();
             return self.held.pwm_us;
         }
-        if self.clock.position_loop_due() {
+        let rates_only = reference.is_rates_only();
+        if self.clock.position_loop_due() && !rates_only {
             self.step_position_loop(input, reference);
         }
         if let Some(att) = reference.attitude_rad {
             self.attitude_sp_rad = att;
+        } else if rates_only {
+            // The rate level holds no attitude: the setpoint follows the vehicle, for logs.
+            self.attitude_sp_rad = input.euler_rad;
         }
         let c = &self.cfg;
 
@@ -206,7 +210,12 @@ impl Controller for PidController {
         if q_e.w < 0.0 {
             q_e = -q_e;
         }
-        let rate_sp = 2.0 * Vector3::from(c.k_att_per_s).component_mul(&q_e.imag());
+        let rate_sp = match (rates_only, reference.rate_frd_radps) {
+            (true, Some(rates)) => rates,
+            (_, feed_forward) => {
+                2.0 * Vector3::from(c.k_att_per_s).component_mul(&q_e.imag()) + feed_forward.unwrap_or_default()
+            }
+        };
         self.rate_sp_radps = clip_abs(&rate_sp, &c.rate_limit_radps);
 
         // Rate PI; the integrator of an axis the distributor saturated at the last output is frozen.
@@ -226,12 +235,13 @@ impl Controller for PidController {
         // In attitude-only mode there is no thrust vector to take the norm of: the vertical demand is
         // tilt-compensated as for the other controllers (the prototype's PID yaw settling, 3.89 / 4.67 s,
         // is reproduced only with it).
+        let vertical_n = if rates_only { c.airframe.mass_kg * c.airframe.gravity_mps2 } else { self.collective_n };
         let collective_n = commanded_collective_n(
             reference,
-            self.collective_n,
+            vertical_n,
             &input.euler_rad,
             &c.limits,
-            reference.attitude_rad.is_some(),
+            reference.attitude_rad.is_some() || rates_only,
         );
         self.clock.advance();
         self.held.distribute(collective_n, &self.moment_cmd_nm, &c.airframe, &c.limits);

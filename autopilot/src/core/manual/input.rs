@@ -125,7 +125,7 @@ impl ManualConfig {
 /// The flight mode of PX4's COM_FLTMODE number `n`, or the refusal's words.
 ///
 /// # Errors
-/// The STATUSTEXT for a mode this vehicle does not fly (ACRO, or a number not a mode).
+/// The STATUSTEXT for a number that is not a mode this vehicle flies.
 pub fn fltmode_flight_mode(n: i32) -> Result<FlightMode, &'static str> {
     Ok(match n {
         0 => FlightMode::Manual,
@@ -134,7 +134,7 @@ pub fn fltmode_flight_mode(n: i32) -> Result<FlightMode, &'static str> {
         3 => FlightMode::Mission,
         4 => FlightMode::Hold,
         5 => FlightMode::ReturnToLaunch,
-        6 => return Err("Mode not supported: ACRO takes no rate setpoints"),
+        6 => FlightMode::Acro,
         7 => FlightMode::Offboard,
         8 => FlightMode::Stabilized,
         10 => FlightMode::Takeoff,
@@ -144,7 +144,7 @@ pub fn fltmode_flight_mode(n: i32) -> Result<FlightMode, &'static str> {
 }
 
 /// PX4's COM_FLTMODE numbers this vehicle flies: 0 Manual, 1 Altitude, 2 Position, 3 Mission, 4 Hold,
-/// 5 Return, 7 Offboard, 8 Stabilized, 10 Takeoff, 11 Land (6 Acro is refused when selected).
+/// 5 Return, 6 Acro, 7 Offboard, 8 Stabilized, 10 Takeoff, 11 Land.
 pub const FLTMODES_FLOWN: [i32; 11] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 10, 11];
 
 /// Something the pilot did with a switch or the sticks, once, as it happened.

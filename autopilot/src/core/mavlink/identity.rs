@@ -50,6 +50,7 @@ pub const fn px4_mode(mode: FlightMode) -> (u8, u8) {
         FlightMode::Offboard => (m::OFFBOARD, 0),
         FlightMode::Manual => (m::MANUAL, 0),
         FlightMode::Stabilized => (m::STABILIZED, 0),
+        FlightMode::Acro => (m::ACRO, 0),
     }
 }
 
@@ -72,7 +73,7 @@ pub const fn custom_mode(mode: FlightMode) -> u32 {
 pub fn base_mode(mode: FlightMode, armed: bool) -> MavModeFlag {
     use MavModeFlag as F;
     let mode_flags = match mode {
-        FlightMode::Manual => F::MAV_MODE_FLAG_MANUAL_INPUT_ENABLED,
+        FlightMode::Manual | FlightMode::Acro => F::MAV_MODE_FLAG_MANUAL_INPUT_ENABLED,
         FlightMode::Stabilized | FlightMode::Altitude => {
             F::MAV_MODE_FLAG_MANUAL_INPUT_ENABLED | F::MAV_MODE_FLAG_STABILIZE_ENABLED
         }
@@ -120,7 +121,7 @@ impl Px4Mode {
             (m::AUTO, a::READY) => Self::Unsupported { name: "AUTO READY", reason: "use Hold" },
             (m::OFFBOARD, _) => Self::Supported(FlightMode::Offboard),
             (m::MANUAL, _) => Self::Supported(FlightMode::Manual),
-            (m::ACRO, _) => Self::Unsupported { name: "ACRO", reason: "takes no rate setpoints" },
+            (m::ACRO, _) => Self::Supported(FlightMode::Acro),
             (m::STABILIZED, _) => Self::Supported(FlightMode::Stabilized),
             _ => Self::Unknown,
         }
@@ -204,7 +205,9 @@ fn heartbeat_data(commander: &CommanderOutput) -> HEARTBEAT_DATA {
 mod tests {
     use super::*;
 
-    const ALL: [FlightMode; 8] = [
+    const ALL: [FlightMode; 10] = [
+        FlightMode::Stabilized,
+        FlightMode::Acro,
         FlightMode::Altitude,
         FlightMode::Position,
         FlightMode::Takeoff,
@@ -226,6 +229,7 @@ mod tests {
         assert_eq!(custom_mode(FlightMode::Offboard), 0x0006_0000);
         assert_eq!(custom_mode(FlightMode::Mission), 0x0404_0000);
         assert_eq!(custom_mode(FlightMode::ReturnToLaunch), 0x0504_0000);
+        assert_eq!(custom_mode(FlightMode::Acro), 0x0005_0000);
     }
 
     #[test]
@@ -238,7 +242,7 @@ mod tests {
 
     #[test]
     fn given_modes_not_flown_when_decoded_then_they_are_named_not_supported() {
-        assert!(matches!(Px4Mode::decode(5, 0), Px4Mode::Unsupported { name: "ACRO", .. }));
+        assert_eq!(Px4Mode::decode(5, 0), Px4Mode::Supported(FlightMode::Acro));
         assert_eq!(Px4Mode::decode(1, 0), Px4Mode::Supported(FlightMode::Manual));
         assert_eq!(Px4Mode::decode(7, 0), Px4Mode::Supported(FlightMode::Stabilized));
         assert!(matches!(Px4Mode::decode(4, 1), Px4Mode::Unsupported { name: "AUTO READY", .. }));

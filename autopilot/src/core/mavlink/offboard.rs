@@ -11,7 +11,9 @@
 //! Euler angles) and, unless THROTTLE_IGNORE is set, a normalized collective thrust (0 = every rotor at
 //! its 1000 µs lift, 1 = at its 2000 µs lift; hover is about 0.46 on the paper's airframe), as PX4 takes
 //! it. With THROTTLE_IGNORE the altitude is held where attitude control began (the paper's attitude-only
-//! mode). Body-rate targets (ATTITUDE_IGNORE) are refused.
+//! mode). With ATTITUDE_IGNORE (bit 7) it gives body rates (FRD rad/s; a rate whose BODY_*_RATE_IGNORE
+//! bit is set is 0) and the thrust: the rate level, as PX4's offboard rates (MAVSDK's
+//! `set_attitude_rate`). With an attitude, rates not ignored are its rate feed-forward.
 
 use ::mavlink::dialects::common::{AttitudeTargetTypemask, MavFrame, MavMessage, PositionTargetTypemask};
 use nalgebra::{Quaternion, Rotation3, UnitQuaternion, Vector3};
@@ -111,16 +113,32 @@ pub fn decode(sysid: u8, msg: &MavMessage, ctx: &OffboardContext) -> Option<Resu
             if !addressed_to_us(sysid, m.target_system, 0) {
                 return None;
             }
-            if m.type_mask.contains(AttitudeTargetTypemask::ATTITUDE_TARGET_TYPEMASK_ATTITUDE_IGNORE) {
-                return Some(Err("Offboard: body-rate targets not supported".into()));
+            use AttitudeTargetTypemask as T;
+            let rate_bits = [
+                (T::ATTITUDE_TARGET_TYPEMASK_BODY_ROLL_RATE_IGNORE, m.body_roll_rate),
+                (T::ATTITUDE_TARGET_TYPEMASK_BODY_PITCH_RATE_IGNORE, m.body_pitch_rate),
+                (T::ATTITUDE_TARGET_TYPEMASK_BODY_YAW_RATE_IGNORE, m.body_yaw_rate),
+            ];
+            let rates_given = rate_bits.iter().any(|(bit, _)| !m.type_mask.contains(*bit));
+            let rates =
+                Vector3::from(rate_bits.map(|(bit, r)| if m.type_mask.contains(bit) { 0.0 } else { f64::from(r) }));
+            if !rates.iter().all(|r| r.is_finite()) {
+                return Some(Err("Offboard: body rates not finite".into()));
             }
-            let [w, x, y, z] = m.q.map(f64::from);
-            let q = Quaternion::new(w, x, y, z);
-            if !(q.norm() > 0.5 && q.coords.iter().all(|c| c.is_finite())) {
-                return Some(Err("Offboard: invalid attitude quaternion".into()));
-            }
-            let (roll_rad, pitch_rad, yaw_rad) = UnitQuaternion::new_normalize(q).euler_angles();
-            let euler = Vector3::new(roll_rad, pitch_rad, yaw_rad);
+            let euler = if m.type_mask.contains(T::ATTITUDE_TARGET_TYPEMASK_ATTITUDE_IGNORE) {
+                if !rates_given {
+                    return Some(Err("Offboard: attitude and rates both ignored".into()));
+                }
+                None
+            } else {
+                let [w, x, y, z] = m.q.map(f64::from);
+                let q = Quaternion::new(w, x, y, z);
+                if !(q.norm() > 0.5 && q.coords.iter().all(|c| c.is_finite())) {
+                    return Some(Err("Offboard: invalid attitude quaternion".into()));
+                }
+                let (roll_rad, pitch_rad, yaw_rad) = UnitQuaternion::new_normalize(q).euler_angles();
+                Some(Vector3::new(roll_rad, pitch_rad, yaw_rad))
+            };
             let thrust_frac = if m.type_mask.contains(AttitudeTargetTypemask::ATTITUDE_TARGET_TYPEMASK_THROTTLE_IGNORE)
             {
                 None
@@ -131,7 +149,12 @@ pub fn decode(sysid: u8, msg: &MavMessage, ctx: &OffboardContext) -> Option<Resu
                 }
                 Some(thrust)
             };
-            Some(Ok(OffboardSetpoint { attitude_rad: Some(euler), thrust_frac, ..OffboardSetpoint::default() }))
+            Some(Ok(OffboardSetpoint {
+                attitude_rad: euler,
+                thrust_frac,
+                rate_frd_radps: rates_given.then_some(rates),
+                ..OffboardSetpoint::default()
+            }))
         }
         _ => None,
     }
@@ -191,6 +214,7 @@ fn position_target(
         yaw_rate_radps,
         attitude_rad: None,
         thrust_frac: None,
+        rate_frd_radps: None,
     })
 }
 
@@ -296,7 +320,36 @@ mod tests {
         for bad in [-0.1, 1.5, f32::NAN, f32::INFINITY] {
             assert!(ours(attitude_target(7, bad)).is_err(), "thrust {bad} refused");
         }
-        // Body rates only (ATTITUDE_IGNORE, 128) are refused.
-        assert!(ours(attitude_target(128, 0.5)).is_err());
+        // Attitude and every rate ignored: nothing to fly.
+        assert!(ours(attitude_target(128 | 7, 0.5)).is_err());
+    }
+
+    /// MAVSDK's `set_attitude_rate` (ATTITUDE_IGNORE, 128): body rates (FRD rad/s) with the thrust, no
+    /// attitude; an ignored rate is 0. With an attitude and rates not ignored, the rates ride along as its
+    /// feed-forward.
+    #[test]
+    fn given_a_body_rate_target_then_rates_and_thrust_without_attitude() {
+        let ctx = OffboardContext::default();
+        let rate_target = |mask: u8, rates: [f32; 3]| {
+            MavMessage::SET_ATTITUDE_TARGET(SET_ATTITUDE_TARGET_DATA {
+                body_roll_rate: rates[0],
+                body_pitch_rate: rates[1],
+                body_yaw_rate: rates[2],
+                ..match attitude_target(mask, 0.46) {
+                    MavMessage::SET_ATTITUDE_TARGET(d) => d,
+                    _ => unreachable!("an attitude target"),
+                }
+            })
+        };
+        let sp = decode(1, &rate_target(128, [0.5, -0.25, 0.1]), &ctx).expect("ours").expect("valid");
+        assert_eq!(sp.attitude_rad, None);
+        let r = sp.rate_frd_radps.expect("rates");
+        assert!((r - Vector3::new(0.5, -0.25, 0.1)).norm() < 1e-6, "{r:?}");
+        assert_eq!(sp.thrust_frac.map(|t| (t * 100.0).round()), Some(46.0));
+        let sp = decode(1, &rate_target(128 | 4, [0.5, -0.25, 0.1]), &ctx).expect("ours").expect("valid");
+        assert_eq!(sp.rate_frd_radps.map(|r| r.z), Some(0.0), "yaw rate ignored: 0");
+        let sp = decode(1, &rate_target(0, [0.5, 0.0, 0.0]), &ctx).expect("ours").expect("valid");
+        assert!(sp.attitude_rad.is_some() && sp.rate_frd_radps.is_some(), "attitude with its feed-forward");
+        assert!(decode(1, &rate_target(128, [f32::NAN, 0.0, 0.0]), &ctx).expect("ours").is_err());
     }
 }

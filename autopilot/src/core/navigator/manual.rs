@@ -17,6 +17,11 @@
 //!   (`MPC_ACC_HOR_MAX`, `MPC_JERK_MAX`) and its position integrates it, so releasing the sticks brakes to
 //!   a hold at the jerk-limited stopping point; vertical as Altitude.
 //!
+//! - **Acro**: roll, pitch and yaw sticks, shaped by `MC_ACRO_EXPO` (`MC_ACRO_EXPO_Y` for yaw; PX4's
+//!   super-expo is not applied), to body rates of up to `MC_ACRO_R_MAX`, `MC_ACRO_P_MAX`, `MC_ACRO_Y_MAX`
+//!   (pitch stick forward: nose down); the throttle stick is the collective, directly (0-1, as PX4's
+//!   Acro); nothing levels the attitude. Only a controller with a rate loop flies it.
+//!
 //! On the ground (landed) the motors idle until the sticks ask to leave it: throttle above centre plus
 //! the dead zone (Altitude, Position) or above 0.1 (Stabilized). The reference never goes more than
 //! `land_below_ground_m` below the ground, so a descent on the ground does not wind the controller up.
@@ -56,6 +61,16 @@ pub struct ManualFlightConfig {
     pub z_expo: f64,
     /// Expo of the yaw stick (0-1; MPC_YAW_EXPO).
     pub yaw_expo: f64,
+    /// Acro: roll rate at full stick (deg/s; MC_ACRO_R_MAX).
+    pub acro_roll_max_degps: f64,
+    /// Acro: pitch rate at full stick (deg/s; MC_ACRO_P_MAX).
+    pub acro_pitch_max_degps: f64,
+    /// Acro: yaw rate at full stick (deg/s; MC_ACRO_Y_MAX).
+    pub acro_yaw_max_degps: f64,
+    /// Acro: expo of the roll and pitch sticks (0-1; MC_ACRO_EXPO).
+    pub acro_expo: f64,
+    /// Acro: expo of the yaw stick (0-1; MC_ACRO_EXPO_Y).
+    pub acro_yaw_expo: f64,
 }
 
 impl Default for ManualFlightConfig {
@@ -72,6 +87,11 @@ impl Default for ManualFlightConfig {
             xy_expo: 0.6,
             z_expo: 0.6,
             yaw_expo: 0.6,
+            acro_roll_max_degps: 180.0,
+            acro_pitch_max_degps: 180.0,
+            acro_yaw_max_degps: 80.0,
+            acro_expo: 0.69,
+            acro_yaw_expo: 0.69,
         }
     }
 }
@@ -85,6 +105,9 @@ impl ManualFlightConfig {
             ("manual.vel_manual_mps", self.vel_manual_mps),
             ("manual.acc_hor_max_mps2", self.acc_hor_max_mps2),
             ("manual.jerk_max_mps3", self.jerk_max_mps3),
+            ("manual.acro_roll_max_degps", self.acro_roll_max_degps),
+            ("manual.acro_pitch_max_degps", self.acro_pitch_max_degps),
+            ("manual.acro_yaw_max_degps", self.acro_yaw_max_degps),
         ];
         if let Some((f, v)) = positive.into_iter().find(|(_, v)| !(v.is_finite() && *v > 0.0)) {
             return Some((f, v, "positive"));
@@ -99,6 +122,8 @@ impl ManualFlightConfig {
             ("manual.xy_expo", self.xy_expo),
             ("manual.z_expo", self.z_expo),
             ("manual.yaw_expo", self.yaw_expo),
+            ("manual.acro_expo", self.acro_expo),
+            ("manual.acro_yaw_expo", self.acro_yaw_expo),
         ];
         if let Some((f, v)) = unit.into_iter().find(|(_, v)| !(v.is_finite() && (0.0..1.0).contains(v))) {
             return Some((f, v, "in [0, 1)"));
@@ -190,7 +215,7 @@ impl ManualFlight {
         // Shaped throttle about centre: > 0 climbs.
         let climb = expo_deadzone(2.0 * s.throttle - 1.0, cfg.z_expo, cfg.hold_dz);
         let leave_ground = match mode {
-            ManualMode::Stabilized => s.throttle > STABILIZED_LIFTOFF_THROTTLE,
+            ManualMode::Stabilized | ManualMode::Acro => s.throttle > STABILIZED_LIFTOFF_THROTTLE,
             ManualMode::Altitude | ManualMode::Position => climb > 0.0,
         };
         if input.landed && !leave_ground {
@@ -200,6 +225,19 @@ impl ManualFlight {
                 self.yaw_sp_rad = input.yaw_rad;
             }
             return None;
+        }
+        if mode == ManualMode::Acro {
+            // The next mode starts from the vehicle's motion and heading.
+            self.motion = Motion3 {
+                pos_ned_m: input.pos_ned_m,
+                vel_ned_mps: input.vel_ned_mps,
+                acc_ned_mps2: Vector3::zeros(),
+                jerk_ned_mps3: Vector3::zeros(),
+            };
+            if input.yaw_rad.is_finite() {
+                self.yaw_sp_rad = input.yaw_rad;
+            }
+            return Some(Reference::rates(acro_rates_radps(&s, cfg), s.throttle.clamp(0.0, 1.0), self.yaw_sp_rad));
         }
         self.yaw_sp_rad = wrap_pi(self.yaw_sp_rad + yaw_rate * dt_s);
         let tilt = tilt_rad(&s, cfg);
@@ -302,6 +340,17 @@ fn tilt_rad(s: &Sticks, cfg: &ManualFlightConfig) -> Vector2<f64> {
         v /= v.norm();
     }
     v * cfg.tilt_max_deg.to_radians()
+}
+
+/// Acro's body rates (FRD, rad/s) of the sticks: each stick through its expo (no dead zone), times its
+/// `MC_ACRO_*_MAX`; pitch stick forward (positive) is nose down (negative pitch rate).
+#[must_use]
+pub fn acro_rates_radps(s: &Sticks, cfg: &ManualFlightConfig) -> Vector3<f64> {
+    Vector3::new(
+        expo_deadzone(s.roll, cfg.acro_expo, 0.0) * cfg.acro_roll_max_degps.to_radians(),
+        -expo_deadzone(s.pitch, cfg.acro_expo, 0.0) * cfg.acro_pitch_max_degps.to_radians(),
+        expo_deadzone(s.yaw, cfg.acro_yaw_expo, 0.0) * cfg.acro_yaw_max_degps.to_radians(),
+    )
 }
 
 /// PX4's MPC_THR_CURVE 0: throttle stick 0 -> MPC_MANTHR_MIN, 0.5 -> MPC_THR_HOVER, 1 -> 1, linear between.

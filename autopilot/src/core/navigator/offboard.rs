@@ -8,7 +8,9 @@
 //! - A position with velocity (and acceleration) is a trajectory the sender shapes: tracked as given,
 //!   with its feed-forward.
 //! - A velocity alone moves a carrot from the vehicle's position, at most 1 m ahead of it.
-//! - An attitude holds the altitude where attitude control began, or with a thrust sets the collective.
+//! - An attitude holds the altitude where attitude control began, or with a thrust sets the collective;
+//!   body rates with it are its rate feed-forward.
+//! - Body rates alone are the rate level: the rates with the thrust (hover thrust without one).
 //!
 //! Yaw is the setpoint's, or integrated from its yaw rate, or held.
 
@@ -33,8 +35,10 @@ pub struct OffboardSetpoint {
     /// Attitude (ZYX Euler rad); without `thrust_frac` the altitude is held where offboard attitude
     /// control began.
     pub attitude_rad: Option<Vector3<f64>>,
-    /// Normalized collective thrust 0-1 with an attitude (SET_ATTITUDE_TARGET.thrust).
+    /// Normalized collective thrust 0-1 with an attitude or body rates (SET_ATTITUDE_TARGET.thrust).
     pub thrust_frac: Option<f64>,
+    /// Body rates (FRD rad/s): alone, the rate level; with an attitude, its feed-forward.
+    pub rate_frd_radps: Option<Vector3<f64>>,
 }
 
 /// Offboard state. See the module docs.
@@ -79,7 +83,22 @@ impl Offboard {
             let pos_d_m = *self.attitude_hold_d_m.get_or_insert(input.pos_ned_m.z);
             p.last = None;
             self.target = None;
-            return Reference { collective_frac: sp.thrust_frac, ..Reference::attitude(euler_rad, pos_d_m) };
+            return Reference {
+                collective_frac: sp.thrust_frac,
+                rate_frd_radps: sp.rate_frd_radps,
+                ..Reference::attitude(euler_rad, pos_d_m)
+            };
+        }
+        if let Some(rates) = sp.rate_frd_radps {
+            // The rate level: nothing held but the rates; the next attitude starts from here.
+            self.attitude_hold_d_m = None;
+            p.last = None;
+            self.target = None;
+            return Reference {
+                collective_frac: sp.thrust_frac,
+                rate_frd_radps: Some(rates),
+                ..Reference::position(input.pos_ned_m, input.yaw_rad)
+            };
         }
         self.attitude_hold_d_m = None;
         let yaw = match (sp.yaw_rad, sp.yaw_rate_radps) {

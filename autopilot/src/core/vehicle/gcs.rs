@@ -9,6 +9,7 @@ use nalgebra::Vector3;
 
 use super::{ShellEffect, Vehicle, weights_interval_us};
 use crate::core::commander::{Facts, FlightMode, Request};
+use crate::core::control::ControllerKind;
 use crate::core::estimator::EstimatorState;
 use crate::core::manual::PilotAction;
 use crate::core::manual::input::fltmode_flight_mode;
@@ -100,6 +101,10 @@ impl Vehicle {
     fn apply(&mut self, now_us: u64, mut replies: Vec<MavMessage>, effect: Effect) -> Vec<MavMessage> {
         match effect {
             Effect::Offboard(sp) => {
+                if sp.rate_frd_radps.is_some() && !self.config.controller.flies_rates() {
+                    replies.extend(self.offboard.refuse(no_rate_loop("Offboard body rates", self.config.controller)));
+                    return replies;
+                }
                 match sp.pos_ned_m.map(|p| self.check_setpoint(&p)) {
                     Some(Err(why)) => replies.extend(self.offboard.refuse(format!("Offboard: setpoint {why}"))),
                     _ => {
@@ -148,6 +153,9 @@ impl Vehicle {
     fn request(&mut self, now_us: u64, facts: Facts, req: Request) -> Result<(), String> {
         if matches!(req, Request::Mission | Request::SetMode(FlightMode::Mission)) {
             self.check_mission()?;
+        }
+        if req == Request::SetMode(FlightMode::Acro) && !self.config.controller.flies_rates() {
+            return Err(no_rate_loop("ACRO", self.config.controller));
         }
         self.commander.request(now_us, facts, req).map_err(|r| r.to_string())
     }
@@ -446,4 +454,10 @@ impl Vehicle {
     pub fn take_effects(&mut self) -> Vec<ShellEffect> {
         std::mem::take(&mut self.effects)
     }
+}
+
+/// The refusal of a rate-level request (`what`: Acro, offboard body rates) for a controller without a
+/// rate loop.
+fn no_rate_loop(what: &str, controller: ControllerKind) -> String {
+    format!("{what} refused: controller {controller} has no rate loop")
 }

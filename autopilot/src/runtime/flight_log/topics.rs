@@ -91,6 +91,7 @@ pub const fn px4_nav_state(mode: FlightMode) -> u8 {
         FlightMode::Land => 18,
         FlightMode::Manual => 0,
         FlightMode::Stabilized => 15,
+        FlightMode::Acro => 10,
     }
 }
 

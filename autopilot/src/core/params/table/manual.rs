@@ -108,7 +108,7 @@ macro_rules! fltmode {
             description: concat!(
                 "Mode of the mode switch's slot ",
                 $n,
-                ": -1 none, 0 Manual, 1 Altitude, 2 Position, 3 Mission, 4 Hold, 5 Return, 7 Offboard, 8 Stabilized, 10 Takeoff, 11 Land (6 Acro is refused)."
+                ": -1 none, 0 Manual, 1 Altitude, 2 Position, 3 Mission, 4 Hold, 5 Return, 6 Acro, 7 Offboard, 8 Stabilized, 10 Takeoff, 11 Land."
             ),
             binding: Binding::Config {
                 get: |c| f64::from(c.manual.fltmodes[$i]),
@@ -346,4 +346,53 @@ pub(super) const MANUAL_FLIGHT: &[ParamDef] = &[
         navigator.manual.z_expo
     ),
     real!(Navigator, "MPC_YAW_EXPO", 0.6, [0.0, 0.99], "norm", "Expo of the yaw stick.", navigator.manual.yaw_expo),
+];
+
+/// Acro's stick rates and expo (appended).
+pub(super) const ACRO: &[ParamDef] = &[
+    real!(
+        Navigator,
+        "MC_ACRO_R_MAX",
+        180.0,
+        [10.0, 200.0],
+        "deg/s",
+        "Acro: roll rate at full roll stick (at most the controllers' 3.5 rad/s rate limit).",
+        navigator.manual.acro_roll_max_degps
+    ),
+    real!(
+        Navigator,
+        "MC_ACRO_P_MAX",
+        180.0,
+        [10.0, 200.0],
+        "deg/s",
+        "Acro: pitch rate at full pitch stick (at most the controllers' 3.5 rad/s rate limit).",
+        navigator.manual.acro_pitch_max_degps
+    ),
+    real!(
+        Navigator,
+        "MC_ACRO_Y_MAX",
+        80.0,
+        [10.0, 85.0],
+        "deg/s",
+        "Acro: yaw rate at full yaw stick (at most the controllers' 1.5 rad/s yaw rate limit).",
+        navigator.manual.acro_yaw_max_degps
+    ),
+    real!(
+        Navigator,
+        "MC_ACRO_EXPO",
+        0.69,
+        [0.0, 0.99],
+        "",
+        "Acro: expo of the roll and pitch sticks, (1 - e) x + e x³ (PX4's super-expo is not applied).",
+        navigator.manual.acro_expo
+    ),
+    real!(
+        Navigator,
+        "MC_ACRO_EXPO_Y",
+        0.69,
+        [0.0, 0.99],
+        "",
+        "Acro: expo of the yaw stick.",
+        navigator.manual.acro_yaw_expo
+    ),
 ];

@@ -126,6 +126,7 @@ const SECTIONS: &[&[ParamDef]] = &[
     manual::MANUAL_FLIGHT,
     manual::RADIO_CALIBRATION,
     commander::FAULTS,
+    manual::ACRO,
 ];
 
 /// How many parameters the sections hold together.
@@ -307,7 +308,8 @@ mod tests {
 
     #[test]
     fn given_the_table_when_listed_then_every_parameter_keeps_its_param_index() {
-        let names: Vec<&str> = PARAMS.iter().map(|d| d.name).collect();
+        let names: Vec<&str> = TABLE.iter().map(|d| d.name).collect();
+        let acro = ["MC_ACRO_R_MAX", "MC_ACRO_P_MAX", "MC_ACRO_Y_MAX", "MC_ACRO_EXPO", "MC_ACRO_EXPO_Y"];
         let faults = [
             "SYS_FAILURE_EN",
             "COM_POS_FS_DELAY",
@@ -322,7 +324,13 @@ mod tests {
             .map(|s| (*s).to_owned())
             .chain(rc_calibration_names())
             .chain(faults.iter().map(|s| (*s).to_owned()))
+            .chain(acro.iter().map(|s| (*s).to_owned()))
             .collect();
         assert_eq!(names, expected);
+        // The registered controllers' own parameters follow the core's, in the registry's order.
+        let guests: Vec<&str> =
+            crate::core::control::registry::all().iter().flat_map(|k| k.ty().params().iter().map(|d| d.name)).collect();
+        let all: Vec<&str> = PARAMS.iter().map(|d| d.name).collect();
+        assert_eq!(all, [names, guests].concat());
     }
 }
