@@ -3,6 +3,7 @@
 
 pub mod repo;
 pub mod rig;
+pub mod sticks;
 
 use autopilot::core::control::{ControllerKind, LoopRates};
 use sitl::scenario::runner::{self, RunOptions, RunOutput};

@@ -20,6 +20,7 @@ use super::distributor::{ActuatorLimits, LimitedThrust, MixerSaturation, limit_t
 use super::filters::LowPass2Vec3;
 use super::frames::{body_z_in_ned, euler_rates_to_body, rotation_ned_frd, wrap_pi};
 use super::lms::{LmsBounds, LmsChannel};
+use super::rate_level::RateShaper;
 use super::{
     Airframe, ControlInput, Controller, ControllerKind, HeldOutput, LoopClock, LoopRates, Reference,
     attitude_setpoint_rad, clip_abs, commanded_collective_n, inputs_finite, tilt_lead_mps2,
@@ -131,6 +132,10 @@ pub struct AcoWeights {
     pub mass_est_kg: [f64; 3],
 }
 
+/// The gain (1/s) on the angle the rate loop has missed at the rate level ([`RateShaper`]): the ACO's
+/// rate loop has no integrator of its own.
+const RATE_LEVEL_ANGLE_GAIN_PER_S: f64 = 1.0;
+
 /// The ACO controller (spec A.4).
 #[derive(Debug, Clone)]
 pub struct AcoController {
@@ -170,6 +175,8 @@ pub struct AcoController {
     collective_n: f64,
     moment_cmd_nm: Vector3<f64>,
     rate_sp_radps: Vector3<f64>,
+    /// The rate level's setpoint shaping (reset while an attitude is flown).
+    rate_shaper: RateShaper,
     held: HeldOutput,
 }
 
@@ -222,6 +229,7 @@ impl AcoController {
             collective_n: a.mass_kg * g,
             moment_cmd_nm: Vector3::zeros(),
             rate_sp_radps: Vector3::zeros(),
+            rate_shaper: RateShaper::default(),
             held: HeldOutput::hover(&a),
             cfg,
         }
@@ -437,9 +445,18 @@ impl Controller for AcoController {
         let e_eta = Vector3::new(sp.x - eta.x, sp.y - eta.y, wrap_pi(sp.z - eta.z));
         let eta_dot_d = Vector3::from(self.cfg.k_att_per_s).component_mul(&e_eta);
         let rate_sp = match (rates_only, reference.rate_frd_radps) {
-            // The rate level: the body rates asked for, the attitude loop off.
-            (true, Some(rates)) => rates,
-            (_, feed_forward) => euler_rates_to_body(eta) * eta_dot_d + feed_forward.unwrap_or_default(),
+            // The rate level: the body rates asked for, shaped for the rate loop; the attitude loop off.
+            (true, Some(rates)) => {
+                let (k, dt) = (&self.cfg.k_rate_per_s, self.clock.dt_s);
+                self.rate_shaper
+                    .shape(&rates, &input.rate_frd_radps, k, RATE_LEVEL_ANGLE_GAIN_PER_S, dt)
+                    .setpoint_frd_radps
+            }
+            (_, feed_forward) => {
+                self.rate_shaper.reset();
+                let from_attitude = euler_rates_to_body(eta) * eta_dot_d;
+                feed_forward.map_or(from_attitude, |ff| from_attitude + ff)
+            }
         };
         self.rate_sp_radps = clip_abs(&rate_sp, &self.cfg.rate_limit_radps);
         // 7. Rate loop (Eq 9 inverted through c_j, d_j and the gyroscopic term).

@@ -21,6 +21,7 @@ pub mod frames;
 pub mod lms;
 pub mod mrac;
 pub mod pid;
+pub mod rate_level;
 pub mod registry;
 
 #[cfg(test)]

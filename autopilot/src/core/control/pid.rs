@@ -17,6 +17,7 @@ use serde::{Deserialize, Serialize};
 
 use super::distributor::{ActuatorLimits, LimitedThrust, limit_thrust_vector};
 use super::frames::quaternion_from_euler;
+use super::rate_level::RateShaper;
 use super::{
     Airframe, ControlInput, Controller, ControllerKind, HeldOutput, LoopClock, LoopRates, Reference,
     attitude_setpoint_rad, clip_abs, commanded_collective_n, inputs_finite, tilt_lead_mps2,
@@ -92,6 +93,8 @@ pub struct PidController {
     collective_n: f64,
     attitude_sp_rad: Vector3<f64>,
     rate_sp_radps: Vector3<f64>,
+    /// The rate level's setpoint shaping (reset while an attitude is flown).
+    rate_shaper: RateShaper,
     moment_cmd_nm: Vector3<f64>,
     last_limit: Option<LimitedThrust>,
     held: HeldOutput,
@@ -109,6 +112,7 @@ impl PidController {
             collective_n: mg,
             attitude_sp_rad: Vector3::zeros(),
             rate_sp_radps: Vector3::zeros(),
+            rate_shaper: RateShaper::default(),
             moment_cmd_nm: Vector3::zeros(),
             last_limit: None,
             held: HeldOutput::hover(&config.airframe),
@@ -210,10 +214,18 @@ impl Controller for PidController {
         if q_e.w < 0.0 {
             q_e = -q_e;
         }
-        let rate_sp = match (rates_only, reference.rate_frd_radps) {
-            (true, Some(rates)) => rates,
+        // The rate level: the body rates asked for, shaped for the rate loop (its integrator against the
+        // low-passed request); the attitude loop off.
+        let (rate_sp, integral_sp) = match (rates_only, reference.rate_frd_radps) {
+            (true, Some(rates)) => {
+                let shaped =
+                    self.rate_shaper.shape(&rates, &input.rate_frd_radps, &c.k_rate_per_s, 0.0, self.clock.dt_s);
+                (shaped.setpoint_frd_radps, Some(shaped.lowpassed_frd_radps))
+            }
             (_, feed_forward) => {
-                2.0 * Vector3::from(c.k_att_per_s).component_mul(&q_e.imag()) + feed_forward.unwrap_or_default()
+                self.rate_shaper.reset();
+                let from_attitude = 2.0 * Vector3::from(c.k_att_per_s).component_mul(&q_e.imag());
+                (feed_forward.map_or(from_attitude, |ff| from_attitude + ff), None)
             }
         };
         self.rate_sp_radps = clip_abs(&rate_sp, &c.rate_limit_radps);
@@ -223,6 +235,7 @@ impl Controller for PidController {
         let e_w = self.rate_sp_radps - input.rate_frd_radps;
         self.moment_cmd_nm =
             inertia.component_mul(&Vector3::from(c.k_rate_per_s).component_mul(&e_w)) + self.rate_integral_nm;
+        let e_w = integral_sp.map_or(e_w, |sp| clip_abs(&sp, &c.rate_limit_radps) - input.rate_frd_radps);
         let sat = self.held.saturation;
         for (j, saturated) in sat.freeze_axes(c.freeze_roll_pitch).into_iter().enumerate() {
             if !saturated {

@@ -102,7 +102,7 @@ impl Vehicle {
         match effect {
             Effect::Offboard(sp) => {
                 if sp.rate_frd_radps.is_some() && !self.config.controller.flies_rates() {
-                    replies.extend(self.offboard.refuse(no_rate_loop("Offboard body rates", self.config.controller)));
+                    replies.extend(self.offboard.refuse(no_rate_loop("Offboard rates", self.config.controller)));
                     return replies;
                 }
                 match sp.pos_ned_m.map(|p| self.check_setpoint(&p)) {
@@ -459,5 +459,5 @@ impl Vehicle {
 /// The refusal of a rate-level request (`what`: Acro, offboard body rates) for a controller without a
 /// rate loop.
 fn no_rate_loop(what: &str, controller: ControllerKind) -> String {
-    format!("{what} refused: controller {controller} has no rate loop")
+    format!("{what} refused: {controller} has no rate loop")
 }
