@@ -42,6 +42,17 @@ pub(crate) fn plots(
             ];
             plot::time_panels(&written_file("attitude"), &title("Attitude (paper Fig. 5)"), &panels, &runs)?;
         }
+        ReferenceSpec::Rates { .. } => {
+            // The trace keeps the attitude, the integral of the rates flown: a rate step is a ramp.
+            let runs: Vec<Run<'_>> =
+                outputs.iter().zip(&labels).map(|(o, l)| Run { label: l, trace: &o.trace }).collect();
+            let panels = [
+                Panel::new("roll (rad)", "roll", None, 1.0),
+                Panel::new("pitch (rad)", "pitch", None, 1.0),
+                Panel::new("yaw (rad)", "yaw", None, 1.0),
+            ];
+            plot::time_panels(&written_file("rates"), &title("Body-rate steps (attitude flown)"), &panels, &runs)?;
+        }
         ReferenceSpec::Position { .. } if scenario.metrics.contains(&MetricKind::Gust) => {
             let traces: Vec<_> = outputs.iter().map(|o| with_horizontal_error(&o.trace)).collect();
             let runs: Vec<Run<'_>> = traces.iter().zip(&labels).map(|(t, l)| Run { label: l, trace: t }).collect();

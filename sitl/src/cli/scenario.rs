@@ -150,9 +150,14 @@ pub(crate) fn run_stem(out: &RunOutput, mode: ReferenceMode, scenario: &Scenario
     format!("{}_{}{}_seed{}_{}hz", m.controller, file_label(&m.plant), mode, m.seed, m.rate_hz)
 }
 
-/// The unit of a step metric's axis: attitude axes in rad, position axes (n, e, d) in m.
+/// The unit of a step metric's axis: attitude axes in rad, body rates (p, q, r) in rad/s, position axes
+/// (n, e, d) in m.
 pub(crate) fn axis_unit(axis: &str) -> &'static str {
-    if matches!(axis, "roll" | "pitch" | "yaw") { "rad" } else { "m" }
+    match axis {
+        "roll" | "pitch" | "yaw" => "rad",
+        "p" | "q" | "r" => "rad/s",
+        _ => "m",
+    }
 }
 
 pub(crate) fn summary(out: &RunOutput) -> String {

@@ -198,6 +198,7 @@ pub const BUILT_INS: &[(&str, &str)] = &[
     ("payload-step-10", include_str!("../../scenarios/payload-step-10.toml")),
     ("figure8-rotor80", include_str!("../../scenarios/figure8-rotor80.toml")),
     ("figure8-rotor90", include_str!("../../scenarios/figure8-rotor90.toml")),
+    ("rate-steps", include_str!("../../scenarios/rate-steps.toml")),
 ];
 
 impl Scenario {

@@ -1,4 +1,5 @@
-//! Reference generators for scenarios: step schedules (position or attitude) and a waypoint track.
+//! Reference generators for scenarios: step schedules (position, attitude or body rates) and a waypoint
+//! track.
 //!
 //! In: simulated time `t_s`, monotonically non-decreasing. Out: an `autopilot` [`Reference`] (NED, metres,
 //! radians; feed-forward velocity and acceleration for tracks, and for position steps that carry it).
@@ -27,6 +28,14 @@ pub use super::path::{PathKind, SplinePath, TrackPath};
 pub struct AttitudeStep {
     pub t_s: f64,
     pub euler_rad: [f64; 3],
+}
+
+/// One step of a body-rate schedule (the rate level): from `t_s` on, turn at `rate_frd_radps` (FRD).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RateStep {
+    pub t_s: f64,
+    pub rate_frd_radps: [f64; 3],
 }
 
 /// One step of a position schedule: from `t_s` on, hold `pos_ned_m` with heading `yaw_rad`, handing the
@@ -109,6 +118,12 @@ pub enum ReferenceSpec {
         steps: Vec<PositionStep>,
     },
     Track(TrackSpec),
+    /// The rate level: scripted body rates with a constant collective thrust (0-1, normalized as offboard
+    /// thrust); position and attitude are not controlled. Only a controller with a rate loop flies it.
+    Rates {
+        thrust_frac: f64,
+        steps: Vec<RateStep>,
+    },
 }
 
 /// Read by hand rather than as serde's internally tagged enum, which buffers the table and so loses the
@@ -130,12 +145,22 @@ impl<'de> Deserialize<'de> for ReferenceSpec {
         struct PositionTable {
             steps: Vec<PositionStep>,
         }
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct RatesTable {
+            thrust_frac: f64,
+            steps: Vec<RateStep>,
+        }
 
         let mut table = toml::Table::deserialize(deserializer)?;
         let kind = match table.remove("kind") {
             Some(toml::Value::String(kind)) => kind,
             Some(other) => return Err(D::Error::custom(format!("reference.kind must be a string, got {other}"))),
-            None => return Err(D::Error::custom("reference.kind is missing: \"attitude\", \"position\" or \"track\"")),
+            None => {
+                return Err(D::Error::custom(
+                    "reference.kind is missing: \"attitude\", \"position\", \"track\" or \"rates\"",
+                ));
+            }
         };
         let body = toml::Value::Table(table);
         let keyed = |e: toml::de::Error| {
@@ -153,8 +178,12 @@ impl<'de> Deserialize<'de> for ReferenceSpec {
                 Ok(Self::Position { steps })
             }
             "track" => Ok(Self::Track(body.try_into().map_err(keyed)?)),
+            "rates" => {
+                let RatesTable { thrust_frac, steps } = body.try_into().map_err(keyed)?;
+                Ok(Self::Rates { thrust_frac, steps })
+            }
             other => Err(D::Error::custom(format!(
-                "unknown reference kind `{other}`, expected `attitude`, `position` or `track`"
+                "unknown reference kind `{other}`, expected `attitude`, `position`, `track` or `rates`"
             ))),
         }
     }
@@ -201,6 +230,18 @@ impl ReferenceSpec {
                     return Err(invalid("position step acc_ned_mps2 must be finite"));
                 }
             }
+            Self::Rates { thrust_frac, steps } => {
+                check_times(&mut steps.iter().map(|s| s.t_s))?;
+                if steps.iter().any(|s| !finite(&s.rate_frd_radps)) {
+                    return Err(invalid("rate steps must be finite"));
+                }
+                if steps.iter().any(|s| s.rate_frd_radps.iter().any(|r| r.abs() > 3.0)) {
+                    return Err(invalid("rate steps must keep every body rate within 3 rad/s (the rate limits)"));
+                }
+                if !(0.0..=1.0).contains(thrust_frac) {
+                    return Err(invalid("rates thrust_frac must be in [0, 1] (normalized collective)"));
+                }
+            }
             Self::Track(track) => {
                 if track.waypoints_ne_m.len() < 3 {
                     return Err(invalid("a track needs at least 3 waypoints"));
@@ -243,6 +284,7 @@ pub enum ReferenceGen {
     Attitude { pos_d_m: f64, steps: Vec<AttitudeStep> },
     Position { steps: Vec<PositionStep> },
     Track(Box<TrackGen>),
+    Rates { thrust_frac: f64, steps: Vec<RateStep> },
 }
 
 impl ReferenceGen {
@@ -253,6 +295,9 @@ impl ReferenceGen {
             ReferenceSpec::Attitude { pos_d_m, steps } => Self::Attitude { pos_d_m: *pos_d_m, steps: steps.clone() },
             ReferenceSpec::Position { steps } => Self::Position { steps: steps.clone() },
             ReferenceSpec::Track(track) => Self::Track(Box::new(TrackGen::new(track, mode))),
+            ReferenceSpec::Rates { thrust_frac, steps } => {
+                Self::Rates { thrust_frac: *thrust_frac, steps: steps.clone() }
+            }
         }
     }
 
@@ -271,6 +316,10 @@ impl ReferenceGen {
                 reference
             }
             Self::Track(track) => track.at(t_s),
+            Self::Rates { thrust_frac, steps } => {
+                let s = active(steps, t_s, |s| s.t_s);
+                Reference::rates(Vector3::from(s.rate_frd_radps), *thrust_frac, 0.0)
+            }
         }
     }
 }

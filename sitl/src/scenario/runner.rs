@@ -10,7 +10,7 @@ use std::fmt::Write as _;
 use std::time::Instant;
 
 use autopilot::core::control::distributor::{MOTOR_PWM_MAX_US, MOTOR_PWM_MIN_US};
-use autopilot::core::control::{ControlInput, ControllerKind, LoopRates, new_controller};
+use autopilot::core::control::{ControlInput, ControllerKind, LoopRates, try_new_controller};
 use nalgebra::{Vector2, Vector3};
 use serde::Serialize;
 
@@ -165,6 +165,9 @@ struct Series {
     euler: [Vec<f64>; 3],
     ref_pos: [Vec<f64>; 3],
     ref_euler: [Vec<f64>; 3],
+    /// Body rates (FRD rad/s) and their reference: recorded for a rates scenario only.
+    rate: [Vec<f64>; 3],
+    ref_rate: [Vec<f64>; 3],
     progress_m: Vec<f64>,
 }
 
@@ -223,10 +226,16 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
             rates.inner_hz
         )));
     }
+    if matches!(scenario.reference, ReferenceSpec::Rates { .. }) && !opts.controller.flies_rates() {
+        return Err(ScenarioError::Controller(format!(
+            "scenario `{}` flies the rate level, and controller {} has no rate loop",
+            scenario.name, opts.controller
+        )));
+    }
     let mut controller_config = scenario.controller.clone();
     controller_config.rates = rates;
-    controller_config.rates.validate().map_err(|e| ScenarioError::Controller(e.to_string()))?;
-    let mut controller = new_controller(opts.controller, &controller_config);
+    let mut controller = try_new_controller(opts.controller, &controller_config)
+        .map_err(|e| ScenarioError::Controller(e.to_string()))?;
 
     let config = lockstep_plant_config(scenario, opts.plant.as_deref())?;
     let plant_name = scenario.plant_label(opts.plant.as_deref());
@@ -289,6 +298,12 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
         }
         if let ReferenceGen::Track(track) = &mut reference {
             series.progress_m.push(track.progress_m(t_s));
+        }
+        if let Some(ref_rate) = r.rate_frd_radps {
+            for i in 0..3 {
+                series.rate[i].push(truth.rate_frd_radps[i]);
+                series.ref_rate[i].push(ref_rate[i]);
+            }
         }
         if (k * u64::from(trace_hz)) % u64::from(rates.inner_hz) == 0 {
             let sp = controller.attitude_setpoint_rad();
@@ -426,6 +441,13 @@ fn step_metrics(scenario: &Scenario, s: &Series) -> (Vec<SegmentMetrics>, BTreeM
             refs: &s.ref_pos,
             starts: scenario.initial.pos_ned_m,
             schedule: steps.iter().map(|st| (st.t_s, st.pos_ned_m)).collect(),
+        },
+        ReferenceSpec::Rates { steps, .. } => StepAxes {
+            names: ["p", "q", "r"],
+            values: &s.rate,
+            refs: &s.ref_rate,
+            starts: scenario.initial.rate_frd_radps,
+            schedule: steps.iter().map(|st| (st.t_s, st.rate_frd_radps)).collect(),
         },
         ReferenceSpec::Track(_) => return (Vec::new(), BTreeMap::new()),
     };

@@ -183,7 +183,9 @@ pub fn autopilot_config(
                 vehicle.estimator.gps_hgt_noise_m = PAPER_GPS_SIGMA_M * 1.5;
             }
         }
-        ReferenceSpec::Attitude { .. } => return Err(TwoProcessError::NotHover(scenario.name.clone())),
+        ReferenceSpec::Attitude { .. } | ReferenceSpec::Rates { .. } => {
+            return Err(TwoProcessError::NotHover(scenario.name.clone()));
+        }
     }
     if let Some(manual) = scenario.manual {
         vehicle.manual = manual;

@@ -69,6 +69,7 @@ pub const THRUST_TO_WEIGHT: [&str; 2] = ["max_thrust_to_weight", "min_thrust_to_
 fn step_rms_columns(scenario: &Scenario) -> [&'static str; 3] {
     match scenario.reference {
         ReferenceSpec::Attitude { .. } => ["rms_roll_rad", "rms_pitch_rad", "rms_yaw_rad"],
+        ReferenceSpec::Rates { .. } => ["rms_p_radps", "rms_q_radps", "rms_r_radps"],
         _ => ["rms_n_m", "rms_e_m", "rms_d_m"],
     }
 }
@@ -77,6 +78,7 @@ fn step_rms_columns(scenario: &Scenario) -> [&'static str; 3] {
 fn step_integral_columns(scenario: &Scenario) -> [&'static str; 2] {
     match scenario.reference {
         ReferenceSpec::Attitude { .. } => ["steps_iae_rad_s", "steps_itae_rad_s2"],
+        ReferenceSpec::Rates { .. } => ["steps_iae_rad", "steps_itae_rad_s"],
         _ => ["steps_iae_m_s", "steps_itae_m_s2"],
     }
 }
@@ -114,6 +116,7 @@ pub fn metric_values(scenario: &Scenario, thrust_to_weight: [f64; 2], m: &RunMet
         let rms = m.rms.as_ref();
         let axes = match scenario.reference {
             ReferenceSpec::Attitude { .. } => ["roll", "pitch", "yaw"],
+            ReferenceSpec::Rates { .. } => ["p", "q", "r"],
             _ => ["n", "e", "d"],
         };
         v.extend(axes.iter().map(|a| rms.and_then(|r| r.get(a).copied())));
