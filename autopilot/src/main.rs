@@ -36,7 +36,7 @@ struct Cli {
     instance: u16,
     #[arg(long, value_enum)]
     estimator: Option<Estimator>,
-    /// Controller: aco, ca or pid.
+    /// Controller: any registered name (`sitl controllers` lists them).
     #[arg(long)]
     controller: Option<ControllerKind>,
     /// Directory for `.tlog` logs of the ground-station traffic (none if omitted).
@@ -86,6 +86,8 @@ fn main() -> ExitCode {
 }
 
 fn run(cli: Cli) -> Result<()> {
+    // A controller name registered twice is refused before anything runs.
+    autopilot::core::control::registry::check()?;
     let file = match &cli.config {
         Some(path) => ConfigFile::load(path)?,
         None => ConfigFile::default(),

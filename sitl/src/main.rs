@@ -60,11 +60,19 @@ enum Command {
     /// SIGINT or SIGTERM.
     #[cfg(unix)]
     Line(LineArgs),
+    /// List the registered controllers: the names every command takes, their `[controller]` table,
+    /// whether they fly the rate level (Acro, offboard body rates, `rates` scenarios), and what they are.
+    Controllers,
 }
 
 fn main() -> ExitCode {
     autopilot::cli::init_logging();
-    let result = match Cli::parse().command {
+    let command = Cli::parse().command;
+    // A controller name registered twice is refused before anything runs.
+    if let Err(e) = autopilot::core::control::registry::check() {
+        return autopilot::cli::exit("sitl", Err(e.into()));
+    }
+    let result = match command {
         Command::Scenario(args) => cli::scenario::scenario(&args),
         Command::Serve(args) => cli::serve::serve(&args),
         Command::Run(args) => cli::run::run(&args),
@@ -73,6 +81,23 @@ fn main() -> ExitCode {
         Command::Tune(args) => cli::tune::tune(&args),
         #[cfg(unix)]
         Command::Line(args) => cli::line::line(&args),
+        Command::Controllers => {
+            print!("{}", controllers_table());
+            Ok(())
+        }
     };
     autopilot::cli::exit("sitl", result)
+}
+
+/// The registered controllers, one line each: name (aliases), table, rate level, summary.
+fn controllers_table() -> String {
+    use autopilot::core::control::registry;
+    let mut out = String::from("name      table     rates  summary\n");
+    for kind in registry::all() {
+        let ty = kind.ty();
+        let name = std::iter::once(ty.name()).chain(ty.aliases().iter().copied()).collect::<Vec<_>>().join("|");
+        let rates = if kind.flies_rates() { "yes" } else { "no" };
+        out.push_str(&format!("{name:<9} {:<9} {rates:<6} {}\n", kind.table(), ty.summary()));
+    }
+    out
 }

@@ -391,3 +391,33 @@ fn serve_stopped_by_ctrl_c_ends_with_the_radio_summary_line() {
     assert!(child.wait().expect("serve exits").success(), "{rest}");
     assert!(rest.contains("sitl: radio: 0 RC_CHANNELS sent; RC input: 0 datagrams taken, 0 dropped"), "{rest}");
 }
+
+/// Every tool takes any registered controller name; an unknown one is one line listing the registered
+/// names, and `sitl controllers` lists them with their table and whether they fly the rate level.
+#[test]
+fn an_unknown_controller_is_one_line_listing_the_registered_names() {
+    let listed = sitl(&["controllers"]);
+    assert!(listed.status.success());
+    let text = String::from_utf8(listed.stdout).unwrap();
+    for line in ["aco       aco       yes", "ca|mrac   mrac      no", "pid       pid       yes"] {
+        assert!(text.contains(line), "{line} in\n{text}");
+    }
+    let names: Vec<&str> =
+        text.lines().skip(1).filter_map(|l| l.split_whitespace().next()?.split('|').next()).collect();
+    let expected = format!("unknown controller `lqr` (registered: {})", names.join(", "));
+    for args in [&["scenario", "gust-hover", "--controller", "aco,lqr"][..], &["run", "--controller", "lqr"][..]] {
+        let o = sitl(args);
+        assert!(!o.status.success(), "{args:?}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        let first = err.lines().next().unwrap_or("");
+        assert!(first.contains(&expected), "{args:?}: {err}");
+    }
+    let dir = temp_dir("unknown-controller");
+    let spec = dir.join("sweep.toml");
+    std::fs::write(&spec, "name = \"s\"\nscenario = \"gust-hover\"\ncontrollers = [\"lqr\"]\nseed = 1\n").unwrap();
+    let o = sitl(&["sweep", spec.to_str().unwrap(), "--out", dir.to_str().unwrap()]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.contains(&expected), "{err}");
+}

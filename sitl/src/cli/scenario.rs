@@ -23,7 +23,8 @@ pub(crate) struct ScenarioArgs {
     /// List the built-in scenarios and exit.
     #[arg(long)]
     pub(crate) list: bool,
-    /// Controllers, comma-separated (aco, ca, pid); default: the scenario's own list.
+    /// Controllers, comma-separated, any registered name (`sitl controllers` lists them); default: the
+    /// scenario's own list.
     #[arg(long, value_delimiter = ',')]
     pub(crate) controller: Vec<ControllerKind>,
     /// Airframe preset (nominal, mismatch); default: the scenario's.

@@ -26,7 +26,7 @@ pub(crate) struct RunArgs {
     /// Autopilot estimator (fused, truth).
     #[arg(long, value_parser = ["fused", "truth"])]
     pub(crate) estimator: Option<String>,
-    /// Autopilot controller (aco, ca, pid).
+    /// Autopilot controller: any registered name (`sitl controllers` lists them).
     #[arg(long)]
     pub(crate) controller: Option<ControllerKind>,
     /// Autopilot `.tlog` directory.
