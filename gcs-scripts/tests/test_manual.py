@@ -2,7 +2,7 @@
 (its own example's order: the sticks streaming before `start_position_control`, arm, Position mode, climb
 with the throttle stick, forward and back with the pitch stick, land with the throttle low), `aco-sticks
 --script` and `aco-sticks --keyboard` (on a pseudo-terminal) as a user runs them, and the refusals: a
-manual mode or arming without manual control, Acro, and the failsafe when the sticks stop in the air.
+manual mode (Acro included) or arming without manual control, and the failsafe when the sticks stop in the air.
 The autopilot runs with `--estimator truth`, so LOCAL_POSITION_NED is the plant's truth: every flight is
 judged on where the vehicle really was.
 
@@ -435,7 +435,7 @@ def pilot(sitl):
     return vehicle
 
 
-def test_manual_modes_and_arming_without_manual_control_and_acro_are_refused_with_their_reasons(run_sitl):
+def test_manual_modes_acro_included_and_arming_without_manual_control_are_refused_with_their_reasons(run_sitl):
     vehicle = pilot(run_sitl("4"))
     wait_ready(vehicle)
     loss_s = Params(vehicle, 1).get("COM_RC_LOSS_T")
@@ -450,12 +450,17 @@ def test_manual_modes_and_arming_without_manual_control_and_acro_are_refused_wit
 
     # No manual control ever: each manual mode is refused by name, and the mode stays.
     before = vehicle.px4_mode()
-    for main, name in ((PX4_MAIN_POSCTL, "Position"), (2, "Altitude"), (7, "Stabilized"), (1, "Manual")):
+    manual_modes = (
+        (PX4_MAIN_POSCTL, "Position"),
+        (2, "Altitude"),
+        (7, "Stabilized"),
+        (1, "Manual"),
+        (PX4_MAIN_ACRO, "Acro"),
+    )
+    for main, name in manual_modes:
         assert refused(main, f"{name} denied: no manual control") == mavlink.MAV_RESULT_DENIED, name
     assert vehicle.px4_mode() == before
-    # Acro is refused whatever the sticks do.
     vehicle.sticks = CENTRED
-    assert refused(PX4_MAIN_ACRO, "Mode not supported: ACRO takes no rate setpoints") == mavlink.MAV_RESULT_DENIED
     # With the sticks flowing Position is taken; once they stop, arming in it is refused.
     vehicle.set_px4_mode(PX4_MAIN_POSCTL, 0, "Position mode")
     vehicle.sticks = None

@@ -151,12 +151,12 @@ fn given_no_manual_control_then_manual_modes_and_arming_in_them_are_refused_in_w
         "Arming denied: no manual control",
     );
     assert!(!rig.vehicle.commander().armed());
-    // Acro stays refused.
+    // Acro is a manual mode like the others: refused without manual control.
     refused_in_words(
         &mut rig,
         MavCmd::MAV_CMD_DO_SET_MODE,
         [1.0, 5.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-        "Mode not supported: ACRO takes no rate setpoints",
+        "Acro denied: no manual control",
     );
 }
 
