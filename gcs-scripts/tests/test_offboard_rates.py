@@ -13,6 +13,7 @@ import math
 import random
 import time
 import warnings
+from typing import Any
 
 from sitl_harness import connect, first, start_sitl
 
@@ -47,7 +48,7 @@ def test_offboard_body_rates_by_pymavlink_at_real_time_roll_and_come_back_on_the
         vehicle.require("ATTITUDE at 100 Hz", mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 30, 10_000)
         takeoff(vehicle, 5.0, ground)
         hover = Params(vehicle, 1).get("MPC_THR_HOVER")
-        att = {"roll": math.nan, "rates": (math.nan,) * 3}
+        att: dict[str, Any] = {"roll": math.nan, "rates": (math.nan,) * 3}
 
         def on_attitude(msg):
             if msg.get_type() == "ATTITUDE":
@@ -108,7 +109,7 @@ async def mavsdk_rate_sequence(instance, truth):
         "health (global position, home, armable)",
     )
     await drone.telemetry.set_rate_attitude_euler(100.0)
-    state = {"now_s": 0.0, "roll": math.nan, "rates": (math.nan,) * 3, "mode": None, "z": None}
+    state: dict[str, Any] = {"now_s": 0.0, "roll": math.nan, "rates": (math.nan,) * 3, "mode": None, "z": None}
 
     async def watch(stream, update):
         async for value in stream:
