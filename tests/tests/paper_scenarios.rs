@@ -36,7 +36,7 @@ fn later_worst_overshoot(out: &RunOutput) -> f64 {
 
 fn check_equivalence(row: &ReferenceRow, out: &RunOutput, attitude: bool) -> Vec<String> {
     let mut bad = Vec::new();
-    let who = format!("{} {} {:?}", out.metrics.scenario, row.plant, row.controller);
+    let who = format!("{} {} {}", out.metrics.scenario, row.plant, row.controller.as_str().to_uppercase());
     for (seg, want) in table_segments(out, attitude).iter().zip(row.steps) {
         if (seg.overshoot_pct - want.overshoot_pct).abs() > 1.0 {
             bad.push(format!(
@@ -103,7 +103,7 @@ fn printed_cells() -> Vec<(String, String, String)> {
         let axes: &[&str] = if attitude { &["roll", "pitch", "yaw"] } else { &["n", "e", "d up", "d down"] };
         for row in table {
             let out = if attitude { att(row.controller, row.plant) } else { trans(row.controller, row.plant) };
-            let who = format!("{} {} {:?}", out.metrics.scenario, row.plant, row.controller);
+            let who = format!("{} {} {}", out.metrics.scenario, row.plant, row.controller.as_str().to_uppercase());
             for ((seg, want), axis) in table_segments(&out, attitude).iter().zip(row.steps).zip(axes) {
                 cells.push((
                     format!("{who} {axis} overshoot %"),
@@ -379,7 +379,7 @@ fn with_the_roll_pitch_freezes_acting_every_baseline_roll_and_pitch_settling_mis
         let out = tests::run_scenario(&s, row.controller, row.plant, 1, 500, FeedForward);
         for (seg, want) in table_segments(&out, true).iter().zip(row.steps).take(2) {
             let (got, want) = (seg.settling_s.unwrap_or(f64::INFINITY), want.settling_s.expect("the table's"));
-            println!("frozen {} {:?} {}: settling {got:.3} s against {want:.2} s", row.plant, row.controller, seg.axis);
+            println!("frozen {} {} {}: settling {got:.3} s against {want:.2} s", row.plant, row.controller, seg.axis);
             assert!(
                 (got - want).abs() > 0.2,
                 "{} {:?} {}: {got:.3} s against {want} s",
