@@ -79,7 +79,9 @@ fn given_do_set_mode_with_the_armed_bit_when_decoded_then_only_a_mode_request() 
 fn given_px4_modes_this_vehicle_does_not_fly_when_asked_then_refused_in_words() {
     let ctx = CommandContext::default();
     let base = f32::from(MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED.bits());
-    for (main, sub, text) in [(9.0, 9.0, "Mode not supported: main 9 sub 9")] {
+    for (main, sub, text) in
+        [(9.0, 9.0, "Mode not supported: main 9 sub 9"), (4.0, 1.0, "Mode not supported: AUTO READY use Hold")]
+    {
         let msg = long(MavCmd::MAV_CMD_DO_SET_MODE, [base, main, sub, 0.0, 0.0, 0.0, 0.0], 1, 0);
         let cmd = decode_command(1, &GCS, &msg, &ctx).expect("for us");
         assert_eq!(cmd.effect, CommandEffect::Deny(text.to_owned()));
