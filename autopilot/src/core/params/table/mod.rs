@@ -322,6 +322,9 @@ mod tests {
             .map(|s| (*s).to_owned())
             .chain(rc_calibration_names())
             .chain(faults.iter().map(|s| (*s).to_owned()))
+            .chain(
+                crate::core::control::registry::all().iter().flat_map(|k| k.ty().params()).map(|d| d.name.to_owned()),
+            )
             .collect();
         assert_eq!(names, expected);
     }
