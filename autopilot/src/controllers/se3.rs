@@ -37,6 +37,14 @@
 //! ([`Reference::is_rates_only`]): `eR = 0` (`Rd = R`), `Ωd` the reference rates, the collective
 //! `collective_frac` (hover when None), no integration; attitude with rates: the rates are `Ωd`.
 //!
+//! **Near the thrust ceiling** up to three quarters of the vertical demand above the weight the vehicle
+//! holds yields to the horizontal one before the shared limiter runs (`yield_vertical_excess`); below the
+//! weight, and for a large climb demand, the vertical keeps its priority.
+//!
+//! **Equation numbers** are those of the CDC 2010 proceedings as implementations commonly cite them (eR 10,
+//! eΩ 11, f 15, M 16; the position errors, `b3d` and `Rd` in the order of its Section IV); the arXiv
+//! version (1003.2005) numbers differ. They were not checked against a copy of the paper here.
+//!
 //! Not finite inputs: hover PWM on the first tick, then the last good command, no state moved
 //! ([`HeldOutput`]). [`Se3Controller::reconfigure`] takes new gains, limits and model and keeps the
 //! integrators, projected onto the new bounds.
@@ -64,8 +72,8 @@ pub const TABLE: &str = "se3";
 /// The default gains, shared by [`Se3Config::default`] and the parameter table.
 pub(crate) mod defaults {
     pub const KX_PER_S2: f64 = 4.0;
-    pub const KV_PER_S: f64 = 3.0;
-    pub const KI_POS_PER_S3: f64 = 4.0;
+    pub const KV_PER_S: f64 = 3.5;
+    pub const KI_POS_PER_S3: f64 = 2.0;
     pub const POS_INT_MAX_MPS2: f64 = 3.0;
     pub const POS_INT_ZONE_M: f64 = 0.3;
     pub const KR_PER_S2: f64 = 45.0;
@@ -306,12 +314,13 @@ impl Se3Controller {
     }
 }
 
-/// The thrust-force vector `u` (N, NED) with the part of its vertical demand above the weight it holds
-/// (`weight_n`, N: m̄ (g + the D integral)) given up, as far as needed, to the horizontal demand (tilt
-/// limited) when the two together exceed `T_hi`. The shared limiter ([`limit_thrust_vector`]) gives the
-/// vertical priority over all of its range; near the thrust ceiling (the heavy plant hovers at 95 % of
-/// `T_hi`) a climb demand of a few newtons, noise included, would then take the whole horizontal demand
-/// away and the desired frame would snap upright. Below the weight, the vertical keeps its priority.
+/// The thrust-force vector `u` (N, NED) with up to three quarters of its vertical demand above the weight
+/// it holds (`weight_n`, N: m̄ (g + the D integral)) given up to the horizontal demand (tilt limited) when
+/// the two together exceed `T_hi`. The shared limiter ([`limit_thrust_vector`]) gives the vertical priority over
+/// all of its range; near the thrust ceiling (the heavy plant hovers at 95 % of `T_hi`) a climb demand of
+/// a few newtons, noise included, would then take the whole horizontal demand away and the desired frame
+/// would snap upright. A large climb demand (a take-off, a climb step) still takes the whole ceiling
+/// first, as in the shared limiter, and so does anything below the weight.
 fn yield_vertical_excess(u_ned_n: &Vector3<f64>, weight_n: f64, limits: &ActuatorLimits) -> Vector3<f64> {
     let up = -u_ned_n.z;
     let horizontal = u_ned_n.x.hypot(u_ned_n.y).min(up.max(0.0) * limits.tilt_max_rad.tan());
@@ -319,7 +328,8 @@ fn yield_vertical_excess(u_ned_n: &Vector3<f64>, weight_n: f64, limits: &Actuato
     if up <= weight_n || room <= 0.0 || up * up <= room {
         return *u_ned_n;
     }
-    Vector3::new(u_ned_n.x, u_ned_n.y, -room.sqrt().max(weight_n))
+    let kept = weight_n + 0.25 * (up - weight_n);
+    Vector3::new(u_ned_n.x, u_ned_n.y, -room.sqrt().max(kept))
 }
 
 impl Controller for Se3Controller {
