@@ -4,7 +4,7 @@
 //! Judged on the plant's truth.
 
 use autopilot::core::commander::FlightMode;
-use autopilot::core::control::ControllerKind;
+use autopilot::core::control::{ControllerKind, registry};
 use autopilot::core::manual::{Sticks, expo_deadzone};
 use autopilot::core::mavlink::common::{
     AttitudeTargetTypemask, MavCmd, MavMessage, MavResult, SET_ATTITUDE_TARGET_DATA,
@@ -20,6 +20,13 @@ const STABILIZED: f32 = 7.0;
 const ACRO: f32 = 5.0;
 const OFFBOARD: f32 = 6.0;
 const POSITION: f32 = 3.0;
+
+/// Every registered controller that flies the rate level (ACO, PID and SE3 when this was written).
+fn with_rate_loop() -> Vec<ControllerKind> {
+    let kinds: Vec<ControllerKind> = registry::all().into_iter().filter(|k| k.flies_rates()).collect();
+    assert!(kinds.len() >= 3, "{kinds:?}");
+    kinds
+}
 
 fn rate_truth(rig: &Rig) -> Vector3<f64> {
     rig.plant.truth().rate_frd_radps
@@ -43,7 +50,7 @@ fn hovering_in_acro(kind: ControllerKind) -> (Rig, Sticks) {
 /// come back by itself.
 #[test]
 fn given_acro_when_the_roll_stick_steps_to_half_then_the_roll_rate_follows_and_centred_sticks_hold_the_attitude() {
-    for kind in [ControllerKind::ACO, ControllerKind::PID] {
+    for kind in with_rate_loop() {
         let (mut rig, hover) = hovering_in_acro(kind);
         let cfg = rig.vehicle.config().navigator.manual;
         let want_radps = cfg.acro_roll_max_degps.to_radians() * expo_deadzone(0.5, cfg.acro_expo, 0.0);
@@ -124,7 +131,7 @@ fn stream(rig: &mut Rig, seconds: f64, target: &MavMessage, mut each: impl FnMut
 /// 0.03 rad/s (over the second half of that second). The acceptance sequence of the issue, on the truth.
 #[test]
 fn given_offboard_body_rates_when_rolled_and_back_then_the_truth_follows() {
-    for kind in [ControllerKind::ACO, ControllerKind::PID] {
+    for kind in with_rate_loop() {
         let mut rig = hovering_by_hand_with(kind, POSITION);
         let hover = rig.vehicle.config().navigator.manual.thr_hover as f32;
         stream(&mut rig, 1.0, &rate_target([0.0; 3], hover), |_| {});

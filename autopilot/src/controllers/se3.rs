@@ -34,7 +34,8 @@
 //! **Every reference form**: attitude-only (`attitude_rad`): N and E off (their integrals cleared), `Rd`
 //! from the reference's Euler angles, the D loop holds `pos_ned_m.z` with a tilt-compensated collective;
 //! direct thrust (`collective_frac`): [`commanded_collective_n`]; the rate level alone
-//! ([`Reference::is_rates_only`]): `eR = 0` (`Rd = R`), `Ωd` the reference rates, the collective
+//! ([`Reference::is_rates_only`]): `eR = 0` (`Rd = R`), `Ωd` the reference rates shaped for the `kΩ`
+//! loop (`control::rate_level`, as ACO's and PID's), the collective
 //! `collective_frac` (hover when None), no integration; attitude with rates: the rates are `Ωd`.
 //!
 //! **Near the thrust ceiling** up to three quarters of the vertical demand above the weight the vehicle
@@ -54,6 +55,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::core::control::distributor::{ActuatorLimits, LimitedThrust, limit_thrust_vector};
 use crate::core::control::frames::rotation_ned_frd;
+use crate::core::control::rate_level::RateShaper;
 use crate::core::control::registry::{ControllerType, TunableGain};
 use crate::core::control::{
     Airframe, ConfigError, ControlInput, Controller, ControllerConfig, ControllerKind, HeldOutput, LoopClock,
@@ -215,6 +217,8 @@ pub struct Se3Controller {
     /// `Rd` and `Ωd` of the last position tick.
     rd: Matrix3<f64>,
     omega_d_radps: Vector3<f64>,
+    /// The rate level's request shaped for the `kΩ` loop (the shared lead-lag and missed angle).
+    rate_shaper: RateShaper,
     /// What the last tick computed, for telemetry.
     e_r_rad: Vector3<f64>,
     e_w_radps: Vector3<f64>,
@@ -234,6 +238,7 @@ impl Se3Controller {
             last_limit: None,
             rd: Matrix3::identity(),
             omega_d_radps: Vector3::zeros(),
+            rate_shaper: RateShaper::default(),
             e_r_rad: Vector3::zeros(),
             e_w_radps: Vector3::zeros(),
             collective_n: config.airframe.mass_kg * config.airframe.gravity_mps2,
@@ -345,12 +350,20 @@ impl Controller for Se3Controller {
         let c = &self.cfg;
         let r = rotation_ned_frd(&input.euler_rad);
         let (rd, omega_d) = if rates_only {
-            (r, reference.rate_frd_radps.unwrap_or_default())
+            // The rates through the shared shaping for a rate loop of gain kΩ, with the missed angle
+            // fed back at 1/s (the law has no rate integrator at the rate level).
+            let k_w = [c.kw_per_s, c.kw_per_s, c.kw_yaw_per_s];
+            let asked = reference.rate_frd_radps.unwrap_or_default();
+            let shaped = self.rate_shaper.shape(&asked, &input.rate_frd_radps, &k_w, 1.0, self.clock.dt_s);
+            (r, shaped.setpoint_frd_radps)
         } else if let Some(att) = reference.attitude_rad {
             (rotation_ned_frd(&att), reference.rate_frd_radps.unwrap_or_default())
         } else {
             (self.rd, self.omega_d_radps)
         };
+        if !rates_only {
+            self.rate_shaper.reset();
+        }
         if reference.attitude_rad.is_some() || rates_only {
             self.rd = rd;
             self.omega_d_radps = omega_d;

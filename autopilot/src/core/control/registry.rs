@@ -205,8 +205,13 @@ pub enum RegistryError {
 }
 
 /// The controllers built into the autopilot, in the order listings show them. One line per controller.
-pub static BUILT_IN: &[&dyn ControllerType] =
-    &[&super::builtin::ACO, &super::builtin::CA, &super::builtin::PID, &crate::controllers::se3::SE3];
+#[rustfmt::skip]
+pub static BUILT_IN: &[&dyn ControllerType] = &[
+    &super::builtin::ACO,
+    &super::builtin::CA,
+    &super::builtin::PID,
+    &crate::controllers::se3::SE3,
+];
 
 /// Controllers registered at run time, after the built-in ones.
 static REGISTERED: RwLock<Vec<&'static dyn ControllerType>> = RwLock::new(Vec::new());
