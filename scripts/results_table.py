@@ -50,7 +50,8 @@ def main():
     out = []
     w = out.append
     plants = ["mismatch", "nominal"]
-    ctrls = ["aco", "ca", "pid"]
+    # The paper's three, then any other controller the runs flew (SE3), in this order.
+    ctrls = [c for c in ["aco", "ca", "pid", "se3"] if any(key[2] == c for key in by)]
 
     w("**Paper attitude scenario** (overshoot % / 2 % settling s; noise-free, truth-fed)\n")
     w("| plant | ctrl | roll | pitch | yaw | worst OS on the 6 s / 10 s steps (%) | max sse (rad) | RMS r/p/y (rad) |")
@@ -94,7 +95,7 @@ def main():
         po = one("figure8", "mismatch", c, "position-only")["track"]
         w(f"| {c.upper()} | {ff['cross_track_rms_m']:.3f} / {ff['cross_track_max_m']:.3f} | {ff['alt_rms_m']:.4f} | {po['cross_track_rms_m']:.3f} / {po['cross_track_max_m']:.3f} |")
 
-    w("\n**Figure-8 at 0.9 m/s** (`figure8-fast`: mismatch plant, sensor noise on; the jerk lets ACO and PID lead their tilt, CA has no feed-forward)\n")
+    w("\n**Figure-8 at 0.9 m/s** (`figure8-fast`: mismatch plant, sensor noise on; the jerk lets ACO and PID lead their tilt and gives SE3 its desired angular velocity, CA has no feed-forward)\n")
     w("| ctrl | feed-forward: cross-track RMS / max (m) | with jerk: cross-track RMS / max (m) | altitude RMS, with jerk (m) |")
     w("|---|---|---|---|")
     for c in ctrls:
@@ -321,7 +322,7 @@ def tuned_tables(dirs):
             f"{step(sets, 'paper-attitude')} |"
         )
     a = tuned.get("aco")
-    bases = [b for b in ("ca", "pid") if b in {r[0] for r in rows}]
+    bases = [b for b in ("ca", "pid", "se3") if b in {r[0] for r in rows}]
 
     def cells(metric, unit):
         def cell(sets):
