@@ -16,6 +16,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
+use autopilot::core::control::ControllerKind;
 use autopilot::core::plant_link::FrameDecoder;
 use autopilot::runtime::ports::InstancePorts;
 use clap::Args;
@@ -42,6 +43,9 @@ pub(crate) struct BenchArgs {
     /// total CPU; PASS or FAIL against p99 1.2 s and 20 ms.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=255))]
     pub(crate) vehicles: Option<u16>,
+    /// The autopilot's controller: any registered name (`sitl controllers`); default the autopilot's.
+    #[arg(long)]
+    pub(crate) controller: Option<ControllerKind>,
 }
 
 /// `sitl bench`.
@@ -145,6 +149,7 @@ fn bench_once(
     pacing: Pacing,
     duration_s: f64,
     gcs: bool,
+    controller: Option<ControllerKind>,
     stop: &AtomicBool,
 ) -> Result<(launch::LaunchReport, u64, u64)> {
     let (plant_port, _, qgc_port, _) = instance_ports(n)?;
@@ -165,6 +170,9 @@ fn bench_once(
         "--state-dir".into(),
         "off".into(),
     ];
+    if let Some(kind) = controller {
+        args.extend(["--controller".into(), kind.as_str().into()]);
+    }
     let _config = if gcs {
         None
     } else {
@@ -192,7 +200,7 @@ fn bench_one(args: &BenchArgs) -> Result<()> {
         InstancePorts::of(n)?.qgc_udp
     );
     for gcs in [true, false] {
-        let (r, messages, _) = bench_once(n, Pacing::Lockstep, args.sim_s, gcs, &stop)?;
+        let (r, messages, _) = bench_once(n, Pacing::Lockstep, args.sim_s, gcs, args.controller, &stop)?;
         println!(
             "  lockstep, {}: {:.1} sim s in {:.2} s wall = {:.1}x real time, {:.0} steps/s, {:.1} us per step; CPU \
              per step: autopilot {:.1} us, plant {:.1} us (both poll while waiting); {} telemetry messages received",
@@ -210,7 +218,8 @@ fn bench_one(args: &BenchArgs) -> Result<()> {
     if args.realtime_s <= 0.0 {
         return Ok(());
     }
-    let (r, messages, bytes) = bench_once(n, Pacing::RealTime { speed: 1.0 }, args.realtime_s, true, &stop)?;
+    let (r, messages, bytes) =
+        bench_once(n, Pacing::RealTime { speed: 1.0 }, args.realtime_s, true, args.controller, &stop)?;
     println!(
         "  real time: {:.1} s: CPU autopilot {:.2} % of a core, plant {:.2} %; telemetry {:.1} messages/s, {:.2} kB/s",
         r.wall_s,
