@@ -405,7 +405,11 @@ fn an_unknown_controller_is_one_line_listing_the_registered_names() {
     let names: Vec<&str> =
         text.lines().skip(1).filter_map(|l| l.split_whitespace().next()?.split('|').next()).collect();
     let expected = format!("unknown controller `lqr` (registered: {})", names.join(", "));
-    for args in [&["scenario", "gust-hover", "--controller", "aco,lqr"][..], &["run", "--controller", "lqr"][..]] {
+    for args in [
+        &["scenario", "gust-hover", "--controller", "aco,lqr"][..],
+        &["run", "--controller", "lqr"][..],
+        &["bench", "--controller", "lqr"][..],
+    ] {
         let o = sitl(args);
         assert!(!o.status.success(), "{args:?}");
         let err = String::from_utf8_lossy(&o.stderr);
