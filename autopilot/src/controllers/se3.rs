@@ -31,7 +31,7 @@
 //! directly, no separate rate cascade: `eR = ½ (Rdᵀ R - Rᵀ Rd)^∨` (Eq 10), `eΩ = Ω - Rᵀ Rd Ωd` (Eq 11),
 //! `M = J (-kR eR - kΩ eΩ - αI) + Ω × JΩ - J (Ω̂ RᵀRd Ωd - RᵀRd Ω̇d)` (Eq 16, gains per unit inertia: `kR`
 //! in 1/s², `kΩ` in 1/s, roll/pitch and yaw apart), `αI` the attitude integral (ECC 2013):
-//! `αI += kIR eR Δt`, saturated at `att_int_max_radps2` per axis and integrating only while that axis's
+//! `αI += kIR eR Δt` (yaw's `kIR` scaled by `kR,yaw/kR`: the same integral time on every axis), saturated at `att_int_max_radps2` per axis and integrating only while that axis's
 //! `|eR|` is within `att_int_zone_rad` (their `∫(eΩ + c2 eR)` taken as `∫eR`). The collective is
 //! `f = -u · R e3` (Eq 15), the thrust vector projected on the body axis.
 //!
@@ -408,10 +408,12 @@ impl Controller for Se3Controller {
         let e_w = rate_error(&r, &rd, &omega, &omega_d);
         if !rates_only {
             let max = c.att_int_max_radps2;
+            // The same integral time kR/kI on every axis: yaw's integral gain scaled as its kR.
+            let k_i = [c.ki_att_per_s3, c.ki_att_per_s3, c.ki_att_per_s3 * c.kr_yaw_per_s2 / c.kr_per_s2];
             for i in 0..3 {
                 if e_r[i].abs() <= c.att_int_zone_rad {
                     self.att_int_radps2[i] =
-                        (self.att_int_radps2[i] + c.ki_att_per_s3 * self.clock.dt_s * e_r[i]).max(-max).min(max);
+                        (self.att_int_radps2[i] + k_i[i] * self.clock.dt_s * e_r[i]).max(-max).min(max);
                 }
             }
         }
