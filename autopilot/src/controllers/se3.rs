@@ -11,7 +11,11 @@
 //! thrust vector moves no faster than the attitude can follow it, and the plant's position changes little
 //! in 10 ms): `ex = x - xd`, `ev = v - vd` (Eqs 6-7), the thrust-force vector
 //! `u = m̄ (-kx ex - kv ev - aI + ẍd - g e3)` (the bracket of Eqs 12 and 15, with the gains per unit mass:
-//! `kx` in 1/s², `kv` in 1/s), through the shared thrust-vector limiter (vertical priority, tilt at most
+//! `kx` in 1/s², `kv` in 1/s), written `kv (v_c - ev)` with `v_c = -(kx/kv) ex` so that the thrust left
+//! above the weight bounds it: a descent in `v_c` no faster than `√(2 b a_up |ex,z|)`, a horizontal speed
+//! no faster than `√(2 b a_h |ex,h|)` and the horizontal feedback at most `a_h` (`a_up = T_hi/m̄ - g - aI,z`,
+//! `a_h = √(T_hi² - W²)/m̄` the acceleration that holds the weight `W`, `b` = [`BRAKE_FRAC`]); the
+//! linear law is unchanged near the point. Then through the shared thrust-vector limiter (vertical priority, tilt at most
 //! `limits.tilt_max_rad`), then `b3d = -u/‖u‖` (Eq 12), `b1d` from the reference yaw,
 //! `Rd = [b2d × b3d, b2d, b3d]` with `b2d = b3d × b1d / ‖·‖` (Eq 13). `aI` is the position integral
 //! (ECC 2013): `aI += kI ex Δt`, each axis saturated at `pos_int_max_mps2`, and integrating only while its
@@ -27,7 +31,7 @@
 //! directly, no separate rate cascade: `eR = ½ (Rdᵀ R - Rᵀ Rd)^∨` (Eq 10), `eΩ = Ω - Rᵀ Rd Ωd` (Eq 11),
 //! `M = J (-kR eR - kΩ eΩ - αI) + Ω × JΩ - J (Ω̂ RᵀRd Ωd - RᵀRd Ω̇d)` (Eq 16, gains per unit inertia: `kR`
 //! in 1/s², `kΩ` in 1/s, roll/pitch and yaw apart), `αI` the attitude integral (ECC 2013):
-//! `αI += kIR eR Δt`, saturated at `att_int_max_radps2` per axis and integrating only while that axis's
+//! `αI += kIR eR Δt` (yaw's `kIR` scaled by `kR,yaw/kR`: the same integral time on every axis), saturated at `att_int_max_radps2` per axis and integrating only while that axis's
 //! `|eR|` is within `att_int_zone_rad` (their `∫(eΩ + c2 eR)` taken as `∫eR`). The collective is
 //! `f = -u · R e3` (Eq 15), the thrust vector projected on the body axis.
 //!
@@ -40,7 +44,8 @@
 //!
 //! **Near the thrust ceiling** up to three quarters of the vertical demand above the weight the vehicle
 //! holds yields to the horizontal one before the shared limiter runs (`yield_vertical_excess`); below the
-//! weight, and for a large climb demand, the vertical keeps its priority.
+//! weight, for a large climb demand, and while descending (braking towards the ground), the vertical keeps
+//! its priority.
 //!
 //! **Equation numbers** are those of the CDC 2010 proceedings as implementations commonly cite them (eR 10,
 //! eΩ 11, f 15, M 16; the position errors, `b3d` and `Rd` in the order of its Section IV); the arXiv
@@ -67,6 +72,11 @@ pub mod geometry;
 mod params;
 
 use geometry::{attitude_error, desired_frame, euler_of, hat, rate_error};
+
+/// The fraction of the upward acceleration left above the weight (`T_hi / m̄ - g - aI,z`) that a
+/// descent keeps for braking: the heavy plant hovers at 95 % of `T_hi`, and a linear PD would descend
+/// faster than it can stop (`v ≤ √(2 · this · margin · |ex,z|)`).
+const BRAKE_FRAC: f64 = 0.15;
 
 /// The table of `se3` in a `[controller]` block and in `[vehicle.control]`.
 pub const TABLE: &str = "se3";
@@ -288,10 +298,33 @@ impl Se3Controller {
                 v.y = 0.0;
             }
         }
-        let a = -c.kx_per_s2 * ex - c.kv_per_s * ev - self.pos_int_mps2 + acc_ff - Vector3::new(0.0, 0.0, g);
+        // `-kx ex - kv ev` as `kv (v_c - ev)` with `v_c = -(kx/kv) ex`, and a descent in `v_c` no faster
+        // than the thrust left above the weight can stop within the remaining error.
+        let mut v_c = -(c.kx_per_s2 / c.kv_per_s) * ex;
+        let weight_n = m * (g + self.pos_int_mps2.z);
+        let brake_mps2 = BRAKE_FRAC * (c.limits.thrust_hi_n - weight_n).max(0.0) / m;
+        v_c.z = v_c.z.min((2.0 * brake_mps2 * ex.z.abs()).sqrt());
+        let brake_h_mps2 = BRAKE_FRAC * (c.limits.thrust_hi_n.powi(2) - weight_n.powi(2)).max(0.0).sqrt() / m;
+        let (v_h, v_h_max) = (v_c.x.hypot(v_c.y), (2.0 * brake_h_mps2 * ex.x.hypot(ex.y)).sqrt());
+        if v_h > v_h_max {
+            v_c.x *= v_h_max / v_h;
+            v_c.y *= v_h_max / v_h;
+        }
+        let mut a_fb = c.kv_per_s * (v_c - ev);
+        let (a_h, a_h_max) = (a_fb.x.hypot(a_fb.y), brake_h_mps2 / BRAKE_FRAC);
+        if a_h > a_h_max {
+            a_fb.x *= a_h_max / a_h;
+            a_fb.y *= a_h_max / a_h;
+        }
+        let a = a_fb - self.pos_int_mps2 + acc_ff - Vector3::new(0.0, 0.0, g);
         let u = m * a;
-        let limited =
-            limit_thrust_vector(&yield_vertical_excess(&u, m * (g + self.pos_int_mps2.z), &c.limits), &c.limits);
+        // Braking a descent keeps the vertical priority: the ceiling is near the weight.
+        let shared = if input.vel_ned_mps.z > 0.2 {
+            u
+        } else {
+            yield_vertical_excess(&u, m * (g + self.pos_int_mps2.z), &c.limits)
+        };
+        let limited = limit_thrust_vector(&shared, &c.limits);
 
         // Integrate, except on an axis the limiter cut while the error pushes further that way.
         let excess = u - limited.force_ned_n;
@@ -375,10 +408,12 @@ impl Controller for Se3Controller {
         let e_w = rate_error(&r, &rd, &omega, &omega_d);
         if !rates_only {
             let max = c.att_int_max_radps2;
+            // The same integral time kR/kI on every axis: yaw's integral gain scaled as its kR.
+            let k_i = [c.ki_att_per_s3, c.ki_att_per_s3, c.ki_att_per_s3 * c.kr_yaw_per_s2 / c.kr_per_s2];
             for i in 0..3 {
                 if e_r[i].abs() <= c.att_int_zone_rad {
                     self.att_int_radps2[i] =
-                        (self.att_int_radps2[i] + c.ki_att_per_s3 * self.clock.dt_s * e_r[i]).max(-max).min(max);
+                        (self.att_int_radps2[i] + k_i[i] * self.clock.dt_s * e_r[i]).max(-max).min(max);
                 }
             }
         }
