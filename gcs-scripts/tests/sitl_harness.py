@@ -9,6 +9,7 @@ import signal
 import socket
 import subprocess
 import time
+import warnings
 from pathlib import Path
 
 import pytest
@@ -159,3 +160,27 @@ async def first(stream, cond=lambda _: True, what="telemetry", timeout_s=120.0):
         return await asyncio.wait_for(scan(), timeout_s)
     except TimeoutError:
         pytest.fail(f"MAVSDK: {what} not within {timeout_s:g} s of wall time")
+
+
+def mavsdk_module(name):
+    """A module of the mavsdk package (`mavsdk`, `mavsdk.offboard`), its 4.x rename warning silenced:
+    mavsdk 3.17.4 warns that the name moves to a new binding in 4.x; requirements.txt pins `mavsdk<4`."""
+    import importlib
+
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="The 'mavsdk' package has been renamed", category=FutureWarning)
+        return importlib.import_module(name)
+
+
+async def mavsdk_ready(instance):
+    """A MAVSDK System on the instance's API port, once connected and healthy (global position, home,
+    armable), with its own mavsdk_server on a random port so several tests run at once."""
+    drone = mavsdk_module("mavsdk").System(port=random.randint(50100, 50900))
+    await drone.connect(system_address=f"udpin://0.0.0.0:{api_port(instance)}")
+    await first(drone.core.connection_state(), lambda s: s.is_connected, "connection")
+    await first(
+        drone.telemetry.health(),
+        lambda h: h.is_global_position_ok and h.is_home_position_ok and h.is_armable,
+        "health (global position, home, armable)",
+    )
+    return drone

@@ -17,19 +17,17 @@ import asyncio
 import contextlib
 import math
 import os
-import random
 import re
 import select
 import signal
 import subprocess
 import sys
 import time
-import warnings
 from pathlib import Path
 from typing import Any
 
 import pytest
-from sitl_harness import connect, first, start_sitl
+from sitl_harness import connect, mavsdk_ready, start_sitl
 
 from aco_gcs import link
 from aco_gcs.flight import wait_ready
@@ -131,19 +129,7 @@ async def watch(stream, update):
 
 
 async def mavsdk_manual_flight(instance, disarm_land_s):
-    with warnings.catch_warnings():
-        # mavsdk 3.17.4 warns that the name moves to a new binding in 4.x; requirements.txt pins `mavsdk<4`.
-        warnings.filterwarnings("ignore", message="The 'mavsdk' package has been renamed", category=FutureWarning)
-        from mavsdk import System
-
-    drone = System(port=random.randint(50100, 50900))
-    await drone.connect(system_address=f"udpin://0.0.0.0:{link.api_port(instance)}")
-    await first(drone.core.connection_state(), lambda s: s.is_connected, "connection")
-    await first(
-        drone.telemetry.health(),
-        lambda h: h.is_global_position_ok and h.is_home_position_ok and h.is_armable,
-        "health (global position, home, armable)",
-    )
+    drone = await mavsdk_ready(instance)
     w = Watch()
     t = drone.telemetry
     tasks = [
