@@ -86,7 +86,7 @@ pub struct ParamName(pub [u8; 16]);
 impl<'a> Arbitrary<'a> for ParamName {
     fn arbitrary(u: &mut Unstructured<'a>) -> Result<Self> {
         if u.ratio(7_u8, 8)? {
-            let name = u.choose(PARAMS)?.name.as_bytes();
+            let name = u.choose(*PARAMS)?.name.as_bytes();
             let mut id = [0u8; 16];
             let n = name.len().min(16);
             id[..n].copy_from_slice(&name[..n]);
