@@ -446,7 +446,10 @@ def test_manual_modes_acro_included_and_arming_without_manual_control_are_refuse
     for main, name in manual_modes:
         assert refused(main, f"{name} denied: no manual control") == mavlink.MAV_RESULT_DENIED, name
     assert vehicle.px4_mode() == before
+    # The sticks start: a few of them must reach the vehicle before a manual mode is asked for.
     vehicle.sticks = CENTRED
+    started_s = vehicle.now_s()
+    vehicle.wait_until(2.0, "the sticks flowing", lambda: vehicle.now_s() - started_s > 0.3)
     # With the sticks flowing Position is taken; once they stop, arming in it is refused.
     vehicle.set_px4_mode(PX4_MAIN_POSCTL, 0, "Position mode")
     vehicle.sticks = None
