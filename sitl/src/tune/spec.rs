@@ -5,7 +5,7 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use autopilot::core::control::{ControllerConfig, ControllerKind, GainScale, LoopRates, TunableGain};
+use autopilot::core::control::{ControllerConfig, ControllerKind, LoopRates, TunableGain};
 use serde::Deserialize;
 use serde_json::Value;
 
@@ -35,16 +35,8 @@ pub(super) fn invalid<T>(message: String) -> Result<T, TuneError> {
     Err(TuneError::Invalid(message))
 }
 
-/// A gain's search scale between its bounds.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Scale {
-    /// Evenly in the value.
-    #[default]
-    Linear,
-    /// Evenly in the logarithm (the bounds must be > 0): for gains spanning decades.
-    Log,
-}
+/// A gain's search scale between its bounds: the one a controller declares its gains with.
+pub use autopilot::core::control::GainScale as Scale;
 
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -65,10 +57,7 @@ impl From<&TunableGain> for GainFile {
             name: g.name.to_owned(),
             axes: (!g.axes.is_empty()).then(|| g.axes.to_vec()),
             bounds: g.bounds,
-            scale: match g.scale {
-                GainScale::Linear => Scale::Linear,
-                GainScale::Log => Scale::Log,
-            },
+            scale: g.scale,
             start: None,
         }
     }

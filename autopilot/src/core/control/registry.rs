@@ -17,11 +17,14 @@ use thiserror::Error;
 use super::{ConfigError, Controller, ControllerConfig};
 use crate::core::params::ParamDef;
 
-/// How a tunable gain is searched: evenly in its value, or in its logarithm (gains spanning decades).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+/// How a tunable gain is searched between its bounds (a tuning spec's `scale`, linear by default).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum GainScale {
+    /// Evenly in the value.
+    #[default]
     Linear,
+    /// Evenly in the logarithm (the bounds must be > 0): for gains spanning decades.
     Log,
 }
 
