@@ -10,7 +10,9 @@ use std::fmt::Write as _;
 use std::time::Instant;
 
 use autopilot::core::control::distributor::{MOTOR_PWM_MAX_US, MOTOR_PWM_MIN_US};
-use autopilot::core::control::{ControlInput, ControllerKind, LoopRates, try_new_controller};
+use autopilot::core::control::{
+    ControlInput, Controller, ControllerConfig, ControllerKind, LoopRates, Reference, try_new_controller,
+};
 use nalgebra::{Vector2, Vector3};
 use serde::Serialize;
 
@@ -19,8 +21,8 @@ use super::metrics::{
 };
 use super::reference::{ReferenceGen, ReferenceMode, ReferenceSpec, TrackGen};
 use super::{MetricKind, OverrideValue, Scenario, ScenarioError};
-use crate::plant::sensors::NoisyState;
-use crate::plant::{AirframeConfig, GroundConfig, InitialState, Plant, PlantConfig, envelope};
+use crate::plant::sensors::{NoisyState, StateNoise};
+use crate::plant::{Airframe, AirframeConfig, GroundConfig, InitialState, Plant, PlantConfig, Truth, envelope};
 use crate::sim_params::{SimEvents, SimParamService};
 
 /// What varies between runs of one scenario.
@@ -211,84 +213,257 @@ pub fn control_input(state: &NoisyState) -> ControlInput {
 /// # Errors
 /// A bad plant preset or override, or loop rates the controllers cannot run at.
 pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, ScenarioError> {
-    let wall_start = Instant::now();
-    if !scenario.rc.is_empty() || scenario.manual.is_some() {
-        return Err(ScenarioError::Invalid(
-            "[[rc]] and [manual] are for the autopilot: the in-process runner flies the controller alone; fly the \
-             scenario with `sitl run --scenario`"
-                .into(),
-        ));
-    }
-    let rates = opts.rates;
-    if rates.inner_hz == 0 || 1_000_000 % rates.inner_hz != 0 {
-        return Err(ScenarioError::Invalid(format!(
-            "rate {} Hz must divide 1 MHz (the plant clock is in microseconds)",
-            rates.inner_hz
-        )));
-    }
-    if matches!(scenario.reference, ReferenceSpec::Rates { .. }) && !opts.controller.flies_rates() {
-        return Err(ScenarioError::Controller(format!(
-            "scenario `{}` flies the rate level, and controller {} has no rate loop",
-            scenario.name, opts.controller
-        )));
-    }
-    let mut controller_config = scenario.controller.clone();
-    controller_config.rates = rates;
-    let mut controller = try_new_controller(opts.controller, &controller_config)
-        .map_err(|e| ScenarioError::Controller(e.to_string()))?;
+    let mut runner = Runner::new(scenario, opts)?;
+    while runner.step() {}
+    runner.finish()
+}
 
-    let config = lockstep_plant_config(scenario, opts.plant.as_deref())?;
-    let plant_name = scenario.plant_label(opts.plant.as_deref());
-    let init = &scenario.initial;
-    let initial = InitialState {
-        pos_ned_m: Vector3::from(init.pos_ned_m),
-        vel_ned_mps: Vector3::from(init.vel_ned_mps),
-        euler_rad: Vector3::from(init.euler_rad),
-        rate_frd_radps: Vector3::from(init.rate_frd_radps),
-        rotor_lift_n: None,
-    };
-    let mut effort = EffortAccumulator::new(config.airframe.hover_pwm_us(), [MOTOR_PWM_MIN_US, MOTOR_PWM_MAX_US]);
-    let airframe_before = config.airframe.clone();
-    let mut plant = Plant::new(config, &initial, opts.seed)?;
-    // A scenario's timed SIM_ parameter sets, through a SIM_ parameter service of system 1 as the plant
-    // server's would go (none fire without `[[event]]`).
-    let mut events = SimEvents::new(scenario.sim_events()?);
-    let mut sim = SimParamService::new(1, &plant);
-    let noise = scenario.state_noise()?;
-    let mut reference = ReferenceGen::new(&scenario.reference, opts.mode);
+/// What the controller saw and was asked at the last tick, and the plant's truth after it.
+#[derive(Debug, Clone, Copy)]
+pub struct TickState {
+    /// The plant's true state now.
+    pub truth: Truth,
+    /// The state the controller saw at the last tick (truth, or truth plus the scenario's noise).
+    pub seen: ControlInput,
+    /// The reference of the last tick.
+    pub reference: Reference,
+    /// The PWM commanded at the last tick (µs).
+    pub pwm_us: [f64; 4],
+}
 
-    let dt_us = u64::from(1_000_000 / rates.inner_hz);
-    let ticks = (scenario.duration_s * f64::from(rates.inner_hz)).round() as u64;
-    let trace_hz = opts.trace_hz.clamp(1, rates.inner_hz);
-    let telemetry_names: Vec<&'static str> = controller.telemetry().iter().map(|(n, _)| *n).collect();
-    let mut trace = Trace {
-        columns: CORE_COLUMNS.iter().chain(&telemetry_names).map(|s| (*s).to_owned()).collect(),
-        rows: Vec::new(),
-    };
-    let mut series = Series::default();
-    let n = usize::try_from(ticks).unwrap_or(0);
-    series.t.reserve(n);
-    for v in series.pos.iter_mut().chain(&mut series.euler).chain(&mut series.ref_pos).chain(&mut series.ref_euler) {
-        v.reserve(n);
+/// A lockstep run that advances one control tick at a time ([`run`] steps one to its end): the
+/// scenario's plant, its events, its reference and a controller, with the run's metrics and trace
+/// collected as it goes. The controller is a registered type's ([`Runner::new`]) or any
+/// [`Controller`] the caller built ([`Runner::with_controller`], e.g. one written in Python).
+pub struct Runner {
+    scenario: Scenario,
+    label: String,
+    seed: u64,
+    rates: LoopRates,
+    mode: ReferenceMode,
+    controller: Box<dyn Controller>,
+    controller_config: ControllerConfig,
+    plant: Plant,
+    airframe_before: Airframe,
+    plant_name: String,
+    events: SimEvents,
+    sim: SimParamService,
+    noise: StateNoise,
+    reference: ReferenceGen,
+    dt_us: u64,
+    ticks: u64,
+    k: u64,
+    trace_hz: u32,
+    trace: Trace,
+    series: Series,
+    effort: EffortAccumulator,
+    non_finite: bool,
+    last: Option<(ControlInput, Reference, [f64; 4])>,
+    wall_start: Instant,
+}
+
+impl Runner {
+    /// A run of `scenario` with the registered controller `opts.controller`, at tick 0.
+    ///
+    /// # Errors
+    /// As [`run`].
+    pub fn new(scenario: &Scenario, opts: &RunOptions) -> Result<Self, ScenarioError> {
+        if matches!(scenario.reference, ReferenceSpec::Rates { .. }) && !opts.controller.flies_rates() {
+            return Err(ScenarioError::Controller(format!(
+                "scenario `{}` flies the rate level, and controller {} has no rate loop",
+                scenario.name, opts.controller
+            )));
+        }
+        let config = Self::controller_config(scenario, opts)?;
+        let controller =
+            try_new_controller(opts.controller, &config).map_err(|e| ScenarioError::Controller(e.to_string()))?;
+        Self::with_controller(scenario, opts, controller, &opts.controller.to_string())
     }
-    let mut non_finite = false;
 
-    for k in 0..ticks {
+    /// The controller configuration a run of `scenario` builds its controller from: the scenario's
+    /// `[controller]` at `opts.rates`.
+    ///
+    /// # Errors
+    /// Loop rates the plant clock cannot hold.
+    pub fn controller_config(scenario: &Scenario, opts: &RunOptions) -> Result<ControllerConfig, ScenarioError> {
+        let rates = opts.rates;
+        if rates.inner_hz == 0 || 1_000_000 % rates.inner_hz != 0 {
+            return Err(ScenarioError::Invalid(format!(
+                "rate {} Hz must divide 1 MHz (the plant clock is in microseconds)",
+                rates.inner_hz
+            )));
+        }
+        let mut config = scenario.controller.clone();
+        config.rates = rates;
+        Ok(config)
+    }
+
+    /// A run of `scenario` flown by `controller`, reported under `label` (the metrics' `controller`);
+    /// `opts.controller` is not used.
+    ///
+    /// # Errors
+    /// As [`run`].
+    pub fn with_controller(
+        scenario: &Scenario,
+        opts: &RunOptions,
+        controller: Box<dyn Controller>,
+        label: &str,
+    ) -> Result<Self, ScenarioError> {
+        if !scenario.rc.is_empty() || scenario.manual.is_some() {
+            return Err(ScenarioError::Invalid(
+                "[[rc]] and [manual] are for the autopilot: the in-process runner flies the controller alone; fly \
+                 the scenario with `sitl run --scenario`"
+                    .into(),
+            ));
+        }
+        let controller_config = Self::controller_config(scenario, opts)?;
+        let rates = opts.rates;
+        let config = lockstep_plant_config(scenario, opts.plant.as_deref())?;
+        let plant_name = scenario.plant_label(opts.plant.as_deref());
+        let init = &scenario.initial;
+        let initial = InitialState {
+            pos_ned_m: Vector3::from(init.pos_ned_m),
+            vel_ned_mps: Vector3::from(init.vel_ned_mps),
+            euler_rad: Vector3::from(init.euler_rad),
+            rate_frd_radps: Vector3::from(init.rate_frd_radps),
+            rotor_lift_n: None,
+        };
+        let effort = EffortAccumulator::new(config.airframe.hover_pwm_us(), [MOTOR_PWM_MIN_US, MOTOR_PWM_MAX_US]);
+        let airframe_before = config.airframe.clone();
+        let plant = Plant::new(config, &initial, opts.seed)?;
+        // A scenario's timed SIM_ parameter sets, through a SIM_ parameter service of system 1 as the plant
+        // server's would go (none fire without `[[event]]`).
+        let events = SimEvents::new(scenario.sim_events()?);
+        let sim = SimParamService::new(1, &plant);
+        let noise = scenario.state_noise()?;
+        let reference = ReferenceGen::new(&scenario.reference, opts.mode);
+
+        let dt_us = u64::from(1_000_000 / rates.inner_hz);
+        let ticks = (scenario.duration_s * f64::from(rates.inner_hz)).round() as u64;
+        let trace_hz = opts.trace_hz.clamp(1, rates.inner_hz);
+        let telemetry_names: Vec<&'static str> = controller.telemetry().iter().map(|(n, _)| *n).collect();
+        let trace = Trace {
+            columns: CORE_COLUMNS.iter().chain(&telemetry_names).map(|s| (*s).to_owned()).collect(),
+            rows: Vec::new(),
+        };
+        let mut series = Series::default();
+        let n = usize::try_from(ticks).unwrap_or(0);
+        series.t.reserve(n);
+        for v in series.pos.iter_mut().chain(&mut series.euler).chain(&mut series.ref_pos).chain(&mut series.ref_euler)
+        {
+            v.reserve(n);
+        }
+        Ok(Self {
+            scenario: scenario.clone(),
+            label: label.to_owned(),
+            seed: opts.seed,
+            rates,
+            mode: opts.mode,
+            controller,
+            controller_config,
+            plant,
+            airframe_before,
+            plant_name,
+            events,
+            sim,
+            noise,
+            reference,
+            dt_us,
+            ticks,
+            k: 0,
+            trace_hz,
+            trace,
+            series,
+            effort,
+            non_finite: false,
+            last: None,
+            wall_start: Instant::now(),
+        })
+    }
+
+    /// Ticks run so far, and in the whole run.
+    #[must_use]
+    pub fn ticks(&self) -> (u64, u64) {
+        (self.k, self.ticks)
+    }
+
+    /// Simulated time (s).
+    #[must_use]
+    pub fn time_s(&self) -> f64 {
+        (self.k * self.dt_us) as f64 * 1e-6
+    }
+
+    /// The plant's truth now, with what the controller saw and was asked at the last tick (None before
+    /// the first).
+    #[must_use]
+    pub fn state(&self) -> Option<TickState> {
+        self.last.map(|(seen, reference, pwm_us)| TickState { truth: self.plant.truth(), seen, reference, pwm_us })
+    }
+
+    /// The trace so far.
+    #[must_use]
+    pub fn trace(&self) -> &Trace {
+        &self.trace
+    }
+
+    /// The plant, read-only.
+    #[must_use]
+    pub fn plant(&self) -> &Plant {
+        &self.plant
+    }
+
+    /// Sets a SIM_ parameter now, as a ground station's PARAM_SET on the SIM_ port would.
+    ///
+    /// # Errors
+    /// An unknown name or a value the parameter refuses; nothing changes then.
+    pub fn set_sim_param(&mut self, name: &str, value: f32) -> Result<(), String> {
+        self.sim.set(name, value, &mut self.plant).map(|_| ())
+    }
+
+    /// The controller configuration in use.
+    #[must_use]
+    pub fn controller_config_in_use(&self) -> &ControllerConfig {
+        &self.controller_config
+    }
+
+    /// Reconfigures the controller from the next tick ([`Controller::reconfigure`]: gains change, the
+    /// adaptive state stays). The loop rates cannot change during a run.
+    ///
+    /// # Errors
+    /// A configuration that does not validate, or that changes the loop rates; nothing changes then.
+    pub fn reconfigure_controller(&mut self, config: ControllerConfig) -> Result<(), ScenarioError> {
+        if config.rates != self.controller_config.rates {
+            return Err(ScenarioError::Controller("the loop rates are fixed for a run".into()));
+        }
+        config.validate().map_err(|e| ScenarioError::Controller(e.to_string()))?;
+        self.controller.reconfigure(&config);
+        self.controller_config = config;
+        Ok(())
+    }
+
+    /// One control tick: sample, control, record, integrate. False (and nothing done) once the run is over.
+    pub fn step(&mut self) -> bool {
+        if self.k >= self.ticks {
+            return false;
+        }
+        let (k, dt_us) = (self.k, self.dt_us);
         let t_s = (k * dt_us) as f64 * 1e-6;
-        let r = reference.at(t_s);
-        let truth = plant.truth();
-        let state = plant.sample_state_of(&truth, &noise);
-        let pwm_us = controller.update(&control_input(&state), &r);
-        non_finite |= pwm_us.iter().any(|p| !p.is_finite())
+        let r = self.reference.at(t_s);
+        let truth = self.plant.truth();
+        let state = self.plant.sample_state_of(&truth, &self.noise);
+        let input = control_input(&state);
+        let pwm_us = self.controller.update(&input, &r);
+        self.non_finite |= pwm_us.iter().any(|p| !p.is_finite())
             || !(truth
                 .pos_ned_m
                 .iter()
                 .chain(truth.vel_ned_mps.iter())
                 .chain(truth.euler_rad.iter())
                 .all(|v| v.is_finite()));
-        effort.add(&pwm_us, dt_us as f64 * 1e-6);
+        self.effort.add(&pwm_us, dt_us as f64 * 1e-6);
 
         let ref_euler = r.attitude_rad.unwrap_or_else(|| Vector3::new(0.0, 0.0, r.yaw_rad));
+        let series = &mut self.series;
         series.t.push(t_s);
         for i in 0..3 {
             series.pos[i].push(truth.pos_ned_m[i]);
@@ -296,7 +471,7 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
             series.ref_pos[i].push(r.pos_ned_m[i]);
             series.ref_euler[i].push(ref_euler[i]);
         }
-        if let ReferenceGen::Track(track) = &mut reference {
+        if let ReferenceGen::Track(track) = &mut self.reference {
             series.progress_m.push(track.progress_m(t_s));
         }
         if let Some(ref_rate) = r.rate_frd_radps {
@@ -305,8 +480,8 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
                 series.ref_rate[i].push(ref_rate[i]);
             }
         }
-        if (k * u64::from(trace_hz)) % u64::from(rates.inner_hz) == 0 {
-            let sp = controller.attitude_setpoint_rad();
+        if (k * u64::from(self.trace_hz)) % u64::from(self.rates.inner_hz) == 0 {
+            let sp = self.controller.attitude_setpoint_rad();
             let mut row = vec![t_s];
             row.extend(truth.pos_ned_m.iter());
             row.extend(truth.euler_rad.iter());
@@ -316,102 +491,118 @@ pub fn run(scenario: &Scenario, opts: &RunOptions) -> Result<RunOutput, Scenario
             row.extend(truth.vel_ned_mps.iter());
             row.extend(truth.wind_ned_mps.iter());
             row.extend(sp.iter());
-            row.extend(controller.telemetry().iter().map(|(_, v)| *v));
-            trace.rows.push(row);
+            row.extend(self.controller.telemetry().iter().map(|(_, v)| *v));
+            self.trace.rows.push(row);
         }
-        events.step(&mut sim, &mut plant, pwm_us, dt_us);
+        self.events.step(&mut self.sim, &mut self.plant, pwm_us, dt_us);
+        self.last = Some((input, r, pwm_us));
+        self.k += 1;
+        true
     }
 
-    if let Some(r) = events.refusals().first() {
-        return Err(ScenarioError::Invalid(format!(
-            "[[event]] at {} s: the plant refused {}: {}",
-            r.at_us as f64 * 1e-6,
-            r.name,
-            r.reason
-        )));
-    }
-    let sim_s = ticks as f64 * dt_us as f64 * 1e-6;
-    let mut m = RunMetrics {
-        scenario: scenario.name.clone(),
-        controller: opts.controller.to_string(),
-        plant: plant_name,
-        airframe_overrides: scenario.airframe_overrides(),
-        seed: opts.seed,
-        rate_hz: rates.inner_hz,
-        reference_mode: matches!(scenario.reference, ReferenceSpec::Track(_)).then(|| opts.mode.to_string()),
-        segments: None,
-        rms: None,
-        gust: None,
-        track: None,
-        fault: None,
-        weights_at_bounds: controller.weights_at_bounds(),
-        non_finite,
-        pwm_activity_us: effort.pwm_activity_us(),
-        effort: effort.metrics(),
-        sim_s,
-        wall_s: 0.0,
-        realtime_factor: 0.0,
-    };
-    if scenario.metrics.contains(&MetricKind::Steps) {
-        let (segments, rms) = step_metrics(scenario, &series);
-        m.segments = Some(segments);
-        m.rms = Some(rms);
-    }
-    if scenario.metrics.contains(&MetricKind::Gust) {
-        let gust = scenario.wind.gust.as_ref().expect("validated: the gust metric has a gust");
-        let windows = &scenario.metric_windows;
-        m.gust = Some(metrics::hover_gust_metrics(
-            &series.t,
-            &series.pos,
-            &series.ref_pos,
-            gust.onset_s,
-            gust.release_s,
-            windows,
-        ));
-    }
-    if scenario.metrics.contains(&MetricKind::Fault) {
-        m.fault = Some(metrics::fault_metrics(
-            &series.t,
-            &series.pos,
-            &series.ref_pos,
-            &series.euler,
-            &series.ref_euler,
-            scenario.fault_onset_s(),
-            metrics::FaultPhysics {
-                envelope: envelope::hover_envelope(&airframe_before),
-                max_payload_within_limiter_kg: envelope::max_payload_within_limiter_kg(&airframe_before),
-                feasibility: envelope::feasibility(&plant.config().airframe),
-            },
-        ));
-    }
-    if let (true, ReferenceSpec::Track(spec)) = (scenario.metrics.contains(&MetricKind::Track), &scenario.reference) {
-        let track = TrackGen::new(spec, opts.mode);
-        let (t0, t1) = (spec.start_s, track.end_s());
-        let mut cross = Vec::new();
-        let mut alt = Vec::new();
-        let mut t_on_track_s = Vec::new();
-        // The vehicle's own nearest point is followed along the path (it moves a few mm per tick), so a
-        // point near the crossing stays on its branch; the first is sought near the reference.
-        let mut nearest_s: Option<f64> = None;
-        for k in 0..series.t.len() {
-            if series.t[k] < t0 || series.t[k] > t1 {
-                continue;
-            }
-            let p = Vector2::new(series.pos[0][k], series.pos[1][k]);
-            let (d, s) = match nearest_s {
-                Some(s) => track.path.nearest_near(p, s, 0.05),
-                None => track.path.nearest_near(p, series.progress_m[k], 0.5),
-            };
-            nearest_s = Some(s);
-            cross.push(d);
-            alt.push(series.pos[2][k] - series.ref_pos[2][k]);
-            t_on_track_s.push(series.t[k]);
+    /// The run's metrics over the ticks run so far (all of them after the last [`Runner::step`]) and its
+    /// trace.
+    ///
+    /// # Errors
+    /// A scenario `[[event]]` the plant refused.
+    pub fn finish(mut self) -> Result<RunOutput, ScenarioError> {
+        if let Some(r) = self.events.refusals().first() {
+            return Err(ScenarioError::Invalid(format!(
+                "[[event]] at {} s: the plant refused {}: {}",
+                r.at_us as f64 * 1e-6,
+                r.name,
+                r.reason
+            )));
         }
-        m.track = Some(metrics::track_metrics(&t_on_track_s, &cross, &alt));
+        let trace = std::mem::take(&mut self.trace);
+        let Self { scenario, series, effort, controller, plant, airframe_before, .. } = &self;
+        let sim_s = self.k as f64 * self.dt_us as f64 * 1e-6;
+        let mut m = RunMetrics {
+            scenario: scenario.name.clone(),
+            controller: self.label.clone(),
+            plant: self.plant_name.clone(),
+            airframe_overrides: scenario.airframe_overrides(),
+            seed: self.seed,
+            rate_hz: self.rates.inner_hz,
+            reference_mode: matches!(scenario.reference, ReferenceSpec::Track(_)).then(|| self.mode.to_string()),
+            segments: None,
+            rms: None,
+            gust: None,
+            track: None,
+            fault: None,
+            weights_at_bounds: controller.weights_at_bounds(),
+            non_finite: self.non_finite,
+            pwm_activity_us: effort.pwm_activity_us(),
+            effort: effort.metrics(),
+            sim_s,
+            wall_s: 0.0,
+            realtime_factor: 0.0,
+        };
+        if series.t.is_empty() {
+            return Err(ScenarioError::Invalid("the run has not run a tick: step it first".into()));
+        }
+        if scenario.metrics.contains(&MetricKind::Steps) {
+            let (segments, rms) = step_metrics(scenario, series);
+            m.segments = Some(segments);
+            m.rms = Some(rms);
+        }
+        if scenario.metrics.contains(&MetricKind::Gust) {
+            let gust = scenario.wind.gust.as_ref().expect("validated: the gust metric has a gust");
+            let windows = &scenario.metric_windows;
+            m.gust = Some(metrics::hover_gust_metrics(
+                &series.t,
+                &series.pos,
+                &series.ref_pos,
+                gust.onset_s,
+                gust.release_s,
+                windows,
+            ));
+        }
+        if scenario.metrics.contains(&MetricKind::Fault) {
+            m.fault = Some(metrics::fault_metrics(
+                &series.t,
+                &series.pos,
+                &series.ref_pos,
+                &series.euler,
+                &series.ref_euler,
+                scenario.fault_onset_s(),
+                metrics::FaultPhysics {
+                    envelope: envelope::hover_envelope(airframe_before),
+                    max_payload_within_limiter_kg: envelope::max_payload_within_limiter_kg(airframe_before),
+                    feasibility: envelope::feasibility(&plant.config().airframe),
+                },
+            ));
+        }
+        if let (true, ReferenceSpec::Track(spec)) = (scenario.metrics.contains(&MetricKind::Track), &scenario.reference)
+        {
+            let track = TrackGen::new(spec, self.mode);
+            let (t0, t1) = (spec.start_s, track.end_s());
+            let mut cross = Vec::new();
+            let mut alt = Vec::new();
+            let mut t_on_track_s = Vec::new();
+            // The vehicle's own nearest point is followed along the path (it moves a few mm per tick), so a
+            // point near the crossing stays on its branch; the first is sought near the reference.
+            let mut nearest_s: Option<f64> = None;
+            for k in 0..series.t.len() {
+                if series.t[k] < t0 || series.t[k] > t1 {
+                    continue;
+                }
+                let p = Vector2::new(series.pos[0][k], series.pos[1][k]);
+                let (d, s) = match nearest_s {
+                    Some(s) => track.path.nearest_near(p, s, 0.05),
+                    None => track.path.nearest_near(p, series.progress_m[k], 0.5),
+                };
+                nearest_s = Some(s);
+                cross.push(d);
+                alt.push(series.pos[2][k] - series.ref_pos[2][k]);
+                t_on_track_s.push(series.t[k]);
+            }
+            m.track = Some(metrics::track_metrics(&t_on_track_s, &cross, &alt));
+        }
+        m.wall_s = self.wall_start.elapsed().as_secs_f64();
+        m.realtime_factor = if m.wall_s > 0.0 { sim_s / m.wall_s } else { f64::INFINITY };
+        Ok(RunOutput { metrics: m, trace })
     }
-    m.wall_s = wall_start.elapsed().as_secs_f64();
-    m.realtime_factor = if m.wall_s > 0.0 { sim_s / m.wall_s } else { f64::INFINITY };
-    Ok(RunOutput { metrics: m, trace })
 }
 
 /// The three axes a step schedule moves: their names, recorded values and references, initial values,

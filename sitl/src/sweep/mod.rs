@@ -483,13 +483,26 @@ impl Sweep {
 /// A run that cannot start (a bad plant or rate).
 pub fn run_metric_values(scenario: &Scenario, opts: &RunOptions) -> Result<Vec<Option<f64>>, ScenarioError> {
     let out = runner::run(scenario, opts)?;
+    metric_values_of(scenario, opts, &out.metrics)
+}
+
+/// A finished run's metrics in [`table::metric_columns`] order (a run flown by any controller, e.g. one
+/// built outside the registry).
+///
+/// # Errors
+/// A bad plant preset or override.
+pub fn metric_values_of(
+    scenario: &Scenario,
+    opts: &RunOptions,
+    metrics: &runner::RunMetrics,
+) -> Result<Vec<Option<f64>>, ScenarioError> {
     let airframe = runner::plant_config(scenario, opts.plant.as_deref())?.airframe;
     let weight_n = airframe.mass_kg * airframe.gravity_mps2;
     let thrust_to_weight = [MOTOR_PWM_MAX_US, MOTOR_PWM_MIN_US].map(|pwm_us| {
         airframe.rotor_health.iter().map(|h| h * lift_from_pwm_n(pwm_us)).sum::<f64>() * airframe.thrust_scale
             / weight_n
     });
-    Ok(table::metric_values(scenario, thrust_to_weight, &out.metrics))
+    Ok(table::metric_values(scenario, thrust_to_weight, metrics))
 }
 
 /// A scenario named in a spec: a built-in, or a file relative to the spec's directory.
