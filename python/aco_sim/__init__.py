@@ -13,11 +13,13 @@ Reference and quick start: docs/python.md.
 
 from __future__ import annotations
 
-from typing import Any, Callable, Dict, Optional, Sequence, Union
+from collections.abc import Sequence
+from typing import Any, Callable, Union
 
 import numpy as np
 
 from . import _native
+from . import envs as envs  # registers the Gymnasium environments
 from ._native import ControlInput, Reference, Sim
 
 __all__ = [
@@ -33,12 +35,12 @@ __all__ = [
 Controller = Union[str, Callable[[ControlInput, Reference], Sequence[float]]]
 
 
-def scenarios() -> Dict[str, str]:
+def scenarios() -> dict[str, str]:
     """The built-in scenarios: name -> description."""
     return dict(_native.scenarios())
 
 
-def controllers() -> Dict[str, Dict[str, Any]]:
+def controllers() -> dict[str, dict[str, Any]]:
     """The registered controllers: name -> {"summary", "table", "flies_rates"}."""
     return dict(_native.controllers())
 
@@ -47,13 +49,13 @@ def run_scenario(
     scenario: str,
     controller: Controller = "aco",
     *,
-    plant: Optional[str] = None,
+    plant: str | None = None,
     seed: int = 1,
-    mode: Optional[str] = None,
+    mode: str | None = None,
     rate_hz: int = 500,
     action: str = "pwm",
     rate_controller: str = "aco",
-) -> Dict[str, Any]:
+) -> dict[str, Any]:
     """Flies ``scenario`` once and returns its metrics (the dict ``sitl scenario --json`` prints).
 
     ``controller`` is a registered name or a callable ``(input, reference) -> action`` called every control
@@ -77,10 +79,7 @@ def run_scenario(
 
 def sweep(
     path: str, controller: Controller, *, action: str = "pwm", rate_controller: str = "aco"
-) -> Dict[str, np.ndarray]:
+) -> dict[str, np.ndarray]:
     """Flies every case of a sweep file (``sitl sweep``'s format) with ``controller``; returns the table as
     columns {name: array}: ``case``, ``seed``, the varied values, then ``sitl sweep``'s metric columns."""
     return dict(_native.sweep_native(path, controller, action, rate_controller))
-
-
-from . import envs as envs  # noqa: E402  (registers the Gymnasium environments)

@@ -7,8 +7,6 @@ nominal model -> rotor lifts (inverse of the paper's Eq 27) -> PWM (Eq 10).
 
 from __future__ import annotations
 
-from typing import List
-
 # The nominal model (autopilot's Airframe::default).
 MASS_KG = 5.2
 GRAVITY_MPS2 = 9.81
@@ -47,7 +45,7 @@ class PdHover:
         self.kd_rate_per_s = kd_rate_per_s
         self.tilt_max_rad = tilt_max_rad
 
-    def __call__(self, inp, ref) -> List[float]:
+    def __call__(self, inp, ref) -> list[float]:
         p, v = inp.pos_ned_m.tolist(), inp.vel_ned_mps.tolist()
         rp, rv, ra = ref.pos_ned_m.tolist(), ref.vel_ned_mps.tolist(), ref.acc_ned_mps2.tolist()
         kp, kd = self.kp_pos_per_s2, self.kd_vel_per_s

@@ -4,6 +4,7 @@ numbers as the law's Rust twin, the rate action, and a sweep."""
 from __future__ import annotations
 
 import math
+
 import numpy as np
 import pytest
 

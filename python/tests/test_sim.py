@@ -19,8 +19,17 @@ def without_wall_clock(metrics: dict) -> dict:
 
 def test_sim_metrics_equal_the_cli_json_field_by_field(sitl_bin, tmp_path):
     cli = subprocess.run(
-        [str(sitl_bin), "scenario", "gust-hover", "--controller", "aco", "--json", "--no-plots"]
-        + ["--out", str(tmp_path)],
+        [
+            str(sitl_bin),
+            "scenario",
+            "gust-hover",
+            "--controller",
+            "aco",
+            "--json",
+            "--no-plots",
+            "--out",
+            str(tmp_path),
+        ],
         check=True,
         capture_output=True,
         text=True,
@@ -105,7 +114,7 @@ def test_a_scenario_file_loads_with_the_cli_parser(tmp_path):
     path = tmp_path / "short.toml"
     path.write_text(
         'name = "short"\nduration_s = 2.0\nplant = "nominal"\nmetrics = ["steps"]\n'
-        '[initial]\npos_ned_m = [0.0, 0.0, -2.0]\n'
+        "[initial]\npos_ned_m = [0.0, 0.0, -2.0]\n"
         '[reference]\nkind = "position"\nsteps = [{ t_s = 0.0, pos_ned_m = [0.5, 0.0, -2.0] }]\n'
     )
     m = aco_sim.Sim(str(path), controller="aco").run()
