@@ -249,7 +249,7 @@ impl Prepared {
     pub fn new(config: &EnvConfig) -> Result<Self, GymError> {
         let invalid = |m: String| Err(GymError::Config(m));
         let hz = config.policy_hz;
-        if hz == 0 || INNER_HZ % hz != 0 {
+        if hz == 0 || !INNER_HZ.is_multiple_of(hz) {
             return invalid(format!("policy_hz = {hz} must divide the {INNER_HZ} Hz inner rate"));
         }
         if !(config.episode_s.is_finite() && config.episode_s > 0.0 && config.episode_s <= 3600.0) {
