@@ -2,6 +2,7 @@
 //! and controller, then observation, reward, termination).
 
 use std::f64::consts::{PI, TAU};
+use std::sync::Arc;
 
 use autopilot::core::control::{Controller, Reference, try_new_controller};
 use nalgebra::{UnitQuaternion, Vector3};
@@ -10,6 +11,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::GymError;
 use super::config::{ActionMode, INNER_DT_US, LOOKAHEAD_S, Observe, Prepared, Task, TrackPath};
+use super::track::Track;
 use crate::plant::rigid_body::attitude_from_euler;
 use crate::plant::sensors::NoisyState;
 use crate::plant::{InitialState, Plant, StateNoise, Truth};
@@ -48,14 +50,20 @@ pub(super) struct StepOut {
     pub truncated: bool,
 }
 
+/// What the vehicle is asked to follow.
+enum Target {
+    /// The hover's position steps.
+    Steps(ReferenceGen),
+    /// The track, with its look-ahead.
+    Track(Track),
+}
+
 /// One environment between resets.
 pub(super) struct Env {
     plant: Plant,
     /// None for `motors`.
     controller: Option<Box<dyn Controller>>,
-    reference: ReferenceGen,
-    /// The reference evaluated [`LOOKAHEAD_S`] ahead (track only).
-    ahead: Option<ReferenceGen>,
+    target: Target,
     noise: StateNoise,
     /// The noisy state sampled for the last observation: the controller's input at the next tick.
     pending: Option<NoisyState>,
@@ -139,17 +147,28 @@ impl Env {
         {
             scenario.reference = ReferenceSpec::Track(random_track(&mut rng, base));
         }
-        let mut reference = ReferenceGen::new(&scenario.reference, ReferenceMode::FeedForward);
-        let r0 = reference.at(0.0);
         let mut end_s = cfg.episode_s;
-        if let ReferenceGen::Track(track) = &reference
-            && cfg.track_path == TrackPath::Random
-        {
-            end_s = end_s.min(track.end_s() + TRACK_SETTLE_S);
-        }
-        let ahead = (cfg.task == Task::Track).then(|| reference.clone());
-        let mut initial = InitialState { pos_ned_m: r0.pos_ned_m, ..InitialState::default() };
-        initial.euler_rad.z = r0.yaw_rad;
+        let (target, start_pos, start_yaw) = match &scenario.reference {
+            ReferenceSpec::Track(spec) => {
+                let path = match (&p.shared_path, cfg.track_path) {
+                    (Some(path), TrackPath::Figure8) => Arc::clone(path),
+                    _ => Track::path(spec),
+                };
+                let mut track = Track::new(spec, path);
+                if cfg.track_path == TrackPath::Random {
+                    end_s = end_s.min(track.end_s() + TRACK_SETTLE_S);
+                }
+                let start = track.at(0.0, LOOKAHEAD_S).0;
+                (Target::Track(track), start, spec.yaw_rad)
+            }
+            spec => {
+                let mut steps = ReferenceGen::new(spec, ReferenceMode::FeedForward);
+                let r0 = steps.at(0.0);
+                (Target::Steps(steps), r0.pos_ned_m, r0.yaw_rad)
+            }
+        };
+        let mut initial = InitialState { pos_ned_m: start_pos, ..InitialState::default() };
+        initial.euler_rad.z = start_yaw;
         if cfg.randomize_start {
             initial.pos_ned_m += Vector3::new(start[0], start[1], start[2]);
             initial.euler_rad += Vector3::new(start[3], start[4], start[5]);
@@ -166,8 +185,7 @@ impl Env {
         let mut env = Self {
             plant,
             controller,
-            reference,
-            ahead,
+            target,
             noise,
             pending: None,
             end_us: (end_s * 1e6).round() as u64,
@@ -260,11 +278,12 @@ impl Env {
     /// state, sampled now and kept as the controller's next input).
     fn observe(&mut self, p: &Prepared, truth: &Truth, obs: &mut [f32]) {
         let t_s = truth.time_us as f64 * 1e-6;
-        let r = self.reference.at(t_s);
-        self.ref_pos = r.pos_ned_m;
-        self.ref_vel = r.vel_ned_mps;
-        if let Some(ahead) = &mut self.ahead {
-            self.ahead_pos = ahead.at(t_s + LOOKAHEAD_S).pos_ned_m;
+        match &mut self.target {
+            Target::Steps(steps) => {
+                let r = steps.at(t_s);
+                (self.ref_pos, self.ref_vel) = (r.pos_ned_m, r.vel_ned_mps);
+            }
+            Target::Track(track) => (self.ref_pos, self.ref_vel, self.ahead_pos) = track.at(t_s, t_s + LOOKAHEAD_S),
         }
         let noisy = if self.controller.is_some() || p.config.observe == Observe::Estimate {
             Some(self.plant.sample_state_of(truth, &self.noise))
@@ -288,7 +307,7 @@ impl Env {
         for (k, v) in q.iter().chain(rate.iter()).enumerate() {
             obs[6 + k] = *v as f32;
         }
-        if self.ahead.is_some() {
+        if matches!(self.target, Target::Track(_)) {
             let ahead = self.ahead_pos - self.ref_pos;
             for (k, v) in self.ref_vel.iter().chain(ahead.iter()).enumerate() {
                 obs[13 + k] = *v as f32;
@@ -314,15 +333,17 @@ impl Env {
         }
     }
 
-    /// Bytes this env holds beside its own struct: the controller and the reference generators' heap.
+    /// Bytes this env holds beside its own struct: the controller, the hover's steps or the track's path
+    /// when it is its own (not shared), and the plant's pack of GPS samples in flight (none here).
     pub fn heap_bytes(&self) -> usize {
         let controller = self.controller.as_ref().map_or(0, |c| std::mem::size_of_val(&**c));
-        let reference = |r: &ReferenceGen| match r {
-            ReferenceGen::Track(t) => std::mem::size_of_val(&**t) + 200 * 8 * 4,
-            ReferenceGen::Position { steps } => std::mem::size_of_val(steps.as_slice()),
-            _ => 0,
+        let target = match &self.target {
+            Target::Steps(ReferenceGen::Position { steps }) => std::mem::size_of_val(steps.as_slice()),
+            Target::Steps(_) => 0,
+            Target::Track(t) if t.shared() => 0,
+            Target::Track(t) => t.path_bytes(),
         };
-        controller + reference(&self.reference) + self.ahead.as_ref().map_or(0, reference)
+        controller + target
     }
 }
 

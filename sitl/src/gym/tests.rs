@@ -325,9 +325,34 @@ fn given_the_random_track_then_each_reset_draws_its_own_path_and_the_observation
 }
 
 #[test]
+fn given_the_figure8_then_the_reference_and_look_ahead_are_the_scenario_track_s_exactly() {
+    use crate::scenario::reference::{ReferenceGen, ReferenceMode};
+    let config = EnvConfig::new(Task::Track, ActionMode::Velocity);
+    let spec = crate::scenario::Scenario::load("figure8").unwrap().reference;
+    let (mut now, mut ahead) =
+        (ReferenceGen::new(&spec, ReferenceMode::FeedForward), ReferenceGen::new(&spec, ReferenceMode::FeedForward));
+    let mut env = VecEnv::new(config, 2, true).unwrap();
+    let mut out = Out::new(&env);
+    env.reset(2, &mut out.obs).unwrap();
+    for k in 0..400 {
+        let t = env.truth(1);
+        let (r, a) = (now.at(t.time_s), ahead.at(t.time_s + LOOKAHEAD_S));
+        assert_eq!((t.ref_pos_ned_m, t.ref_vel_ned_mps), (r.pos_ned_m.into(), r.vel_ned_mps.into()), "step {k}");
+        let expected: Vec<f32> = (0..3).map(|c| (a.pos_ned_m[c] - r.pos_ned_m[c]) as f32).collect();
+        assert_eq!(out.obs[19 + 16..19 + 19], expected[..], "step {k}");
+        out.step(&mut env, &[0.0; 8]).unwrap();
+        assert!(!out.terminated[1], "step {k}: {:?}", env.truth(1));
+    }
+    assert!(env.truth(1).ref_vel_ned_mps[0].hypot(env.truth(1).ref_vel_ned_mps[1]) > 0.1, "it moved");
+}
+
+#[test]
 fn an_env_is_small() {
-    let env = VecEnv::new(EnvConfig::new(Task::Track, ActionMode::Ctbr), 1, true).unwrap();
-    let (size, heap) = env.env_bytes();
-    println!("env: {size} B struct, ~{heap} B heap");
-    assert!(size + heap < 64 * 1024, "{size} + {heap}");
+    for path in [TrackPath::Figure8, TrackPath::Random] {
+        let config = EnvConfig { track_path: path, ..EnvConfig::new(Task::Track, ActionMode::Ctbr) };
+        let env = VecEnv::new(config, 2, true).unwrap();
+        let (size, heap) = env.env_bytes();
+        println!("{path}: env {size} B struct, ~{heap} B heap");
+        assert!(size + heap < 64 * 1024, "{path}: {size} + {heap}");
+    }
 }
