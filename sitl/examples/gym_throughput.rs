@@ -1,6 +1,6 @@
 //! Throughput of `sitl::gym::VecEnv`: env steps per second for a batch, per action mode, with a
 //! hover-ish constant action (no policy cost). `cargo run --release -p sitl --example gym_throughput --
-//! [num_envs] [steps] [modes,comma-separated] [threads]`.
+//! [num_envs] [steps] [modes,comma-separated] [threads] [hover|track]`.
 
 use std::time::Instant;
 
@@ -16,7 +16,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     for mode in modes.split(',') {
         let action: ActionMode = mode.parse()?;
-        let config = EnvConfig::new(Task::Hover, action);
+        let task: Task = args.get(5).map_or("hover", String::as_str).parse()?;
+        let config = EnvConfig::new(task, action);
         let d = config.obs_dim();
         let mut env = VecEnv::new(config, n, true)?;
         let (size, heap) = env.env_bytes();
@@ -28,6 +29,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let actions: Vec<f32> = (0..n).flat_map(|_| act).collect();
         let (mut obs, mut rew) = (vec![0.0; n * d], vec![0.0; n]);
         let (mut term, mut trunc, mut now) = (vec![false; n], vec![false; n], vec![false; n]);
+        let t0 = Instant::now();
+        for seed in 0..5 {
+            env.reset(seed, &mut obs)?;
+        }
+        let reset_us = t0.elapsed().as_secs_f64() * 1e6 / (5 * n) as f64;
         env.reset(1, &mut obs)?;
         let t0 = Instant::now();
         let mut resets = 0;
@@ -37,7 +43,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         let wall = t0.elapsed().as_secs_f64();
         println!(
-            "{mode:>9}: N={n} x {steps} steps in {wall:.3} s: {:.0} env steps/s ({resets} autoresets); env struct {size} B, heap ~{heap} B",
+            "{task} {mode:>9}: N={n} x {steps} steps in {wall:.3} s: {:.0} env steps/s ({resets} autoresets, {reset_us:.1} µs of wall per env reset); env struct {size} B, heap ~{heap} B",
             (n * steps) as f64 / wall
         );
     }

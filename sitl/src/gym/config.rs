@@ -113,8 +113,8 @@ pub struct EnvConfig {
     pub controller: ControllerKind,
     /// Policy steps per simulated second; must divide the 500 Hz inner rate. Default 100.
     pub policy_hz: u32,
-    /// Truncation time (s). Hover: 10. Track figure-8: the scenario's 36; random: an upper bound of 40
-    /// (each episode also ends 2 s after its path's reference comes to rest).
+    /// Truncation time (s). Hover: 10. Track: 36, the figure-8 scenario's; a random path's episode also
+    /// ends 2 s after its reference comes to rest (at most ~34 s).
     pub episode_s: f64,
     /// Track only.
     pub track_path: TrackPath,

@@ -10,7 +10,7 @@
 //! - **Track-v0** (`track`): follow the prefiltered reference of a closed path at 1.5 m with its
 //!   feed-forward. `figure8`: the built-in `figure8` scenario's track (36 s). `random`: 5-8 waypoints at
 //!   increasing angles around the origin, 0.5-1.5 m out (within ±1.5 m), a periodic spline flown once at
-//!   0.3-0.6 m/s from 1 s; truncated 2 s after its reference comes to rest, or at `episode_s` (40 s).
+//!   0.3-0.6 m/s from 1 s; truncated 2 s after its reference comes to rest, or at `episode_s` (36 s).
 //!
 //! Default randomization per reset ([`default_randomize`], the sweep's [`Param`]s and
 //! [`Distribution`]s): mass ×[0.93, 1.02] (the rotors' 11.3-14.5 N leave little

@@ -347,6 +347,32 @@ fn given_the_figure8_then_the_reference_and_look_ahead_are_the_scenario_track_s_
 }
 
 #[test]
+fn given_estimate_or_truth_observations_then_the_flight_is_the_same_and_only_the_noise_differs() {
+    let estimate = ctbr_estimate();
+    let truth = EnvConfig { observe: Observe::Truth, ..estimate.clone() };
+    let (mut a, mut b) = (VecEnv::new(truth.clone(), 2, true).unwrap(), VecEnv::new(estimate, 2, true).unwrap());
+    let (mut oa, mut ob) = (Out::new(&a), Out::new(&b));
+    a.reset(5, &mut oa.obs).unwrap();
+    b.reset(5, &mut ob.obs).unwrap();
+    let mut largest = [0.0_f32; 13];
+    for k in 0..100 {
+        let act = actions(&truth, 2, k);
+        oa.step(&mut a, &act).unwrap();
+        ob.step(&mut b, &act).unwrap();
+        assert_eq!(a.truth(0), b.truth(0), "step {k}: the controller saw the same noisy state");
+        assert_eq!(oa.reward, ob.reward, "the reward is the truth's");
+        for c in 0..13 {
+            largest[c] = largest[c].max((oa.obs[c] - ob.obs[c]).abs());
+        }
+    }
+    // The paper's noise: 0.02 m, 0.05 m/s, 0.005 rad, 0.01 rad/s (1 sigma); 100 samples stay within 5 sigma.
+    let sigma = [0.02, 0.02, 0.02, 0.05, 0.05, 0.05, 0.005, 0.005, 0.005, 0.005, 0.01, 0.01, 0.01];
+    for c in 0..13 {
+        assert!(largest[c] > 0.0 && largest[c] < 5.0 * sigma[c], "component {c}: {}", largest[c]);
+    }
+}
+
+#[test]
 fn an_env_is_small() {
     for path in [TrackPath::Figure8, TrackPath::Random] {
         let config = EnvConfig { track_path: path, ..EnvConfig::new(Task::Track, ActionMode::Ctbr) };
