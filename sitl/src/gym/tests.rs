@@ -361,14 +361,14 @@ fn given_estimate_or_truth_observations_then_the_flight_is_the_same_and_only_the
         ob.step(&mut b, &act).unwrap();
         assert_eq!(a.truth(0), b.truth(0), "step {k}: the controller saw the same noisy state");
         assert_eq!(oa.reward, ob.reward, "the reward is the truth's");
-        for c in 0..13 {
-            largest[c] = largest[c].max((oa.obs[c] - ob.obs[c]).abs());
+        for (c, l) in largest.iter_mut().enumerate() {
+            *l = l.max((oa.obs[c] - ob.obs[c]).abs());
         }
     }
     // The paper's noise: 0.02 m, 0.05 m/s, 0.005 rad, 0.01 rad/s (1 sigma); 100 samples stay within 5 sigma.
     let sigma = [0.02, 0.02, 0.02, 0.05, 0.05, 0.05, 0.005, 0.005, 0.005, 0.005, 0.01, 0.01, 0.01];
-    for c in 0..13 {
-        assert!(largest[c] > 0.0 && largest[c] < 5.0 * sigma[c], "component {c}: {}", largest[c]);
+    for (c, (l, s)) in largest.iter().zip(sigma).enumerate() {
+        assert!(*l > 0.0 && *l < 5.0 * s, "component {c}: {l}");
     }
 }
 
