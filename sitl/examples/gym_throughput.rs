@@ -1,5 +1,5 @@
 //! Throughput of `sitl::gym::VecEnv`: env steps per second for a batch, per action mode, with a
-//! hover-ish constant action (no policy cost). `cargo run --release -p sitl --example gym_throughput --
+//! constant action near the mismatch plant's hover (no policy cost). `cargo run --release -p sitl --example gym_throughput --
 //! [num_envs] [steps] [modes,comma-separated] [threads] [hover|track]`.
 
 use std::time::Instant;
@@ -22,8 +22,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut env = VecEnv::new(config, n, true)?;
         let (size, heap) = env.env_bytes();
         let act = match action {
-            ActionMode::Motors => [0.47_f32; 4],
-            ActionMode::Ctbr | ActionMode::Attitude => [0.45, 0.0, 0.0, 0.0],
+            ActionMode::Motors => [0.6_f32; 4],
+            ActionMode::Ctbr | ActionMode::Attitude => [0.65, 0.0, 0.0, 0.0],
             ActionMode::Velocity => [0.0; 4],
         };
         let actions: Vec<f32> = (0..n).flat_map(|_| act).collect();
