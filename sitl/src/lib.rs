@@ -1,6 +1,7 @@
 //! The SITL side: the paper's quadrotor plant (`plant`), pure and deterministic, and the paper's
 //! experiments run against it, one at a time (`scenario`) or swept over plants, winds and seeds (`sweep`).
 
+pub mod gym;
 pub mod launch;
 pub mod link;
 pub mod pacer;
