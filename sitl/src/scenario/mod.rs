@@ -40,6 +40,7 @@ pub mod plot;
 pub mod rc;
 pub mod reference;
 pub mod runner;
+mod steps;
 pub mod two_process;
 
 use std::collections::BTreeMap;
