@@ -6,6 +6,7 @@
 //! a `RuntimeError` naming the call that failed ([`guard`]).
 
 mod control;
+mod env;
 mod example_pd;
 mod params;
 mod sim;
@@ -78,6 +79,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<sim::Sim>()?;
     m.add_class::<control::Input>()?;
     m.add_class::<control::Ref>()?;
+    m.add_class::<env::VecEnv>()?;
     m.add_function(wrap_pyfunction!(sim::sweep_native, m)?)?;
     m.add_function(wrap_pyfunction!(panic_for_test, m)?)?;
     Ok(())

@@ -118,7 +118,11 @@ impl Param {
         }
     }
 
-    pub(crate) fn parse(name: &str) -> Result<Self, SweepError> {
+    /// The parameter named `name` in a `[vary]` table.
+    ///
+    /// # Errors
+    /// An unknown name, listing the known ones.
+    pub fn parse(name: &str) -> Result<Self, SweepError> {
         Self::ALL.iter().find(|(_, n)| *n == name).map(|(p, _)| *p).ok_or_else(|| {
             let known: Vec<&str> = Self::ALL.iter().map(|(_, n)| *n).collect();
             SweepError::Invalid(format!("[vary] has unknown key `{name}` (known: {})", known.join(", ")))
