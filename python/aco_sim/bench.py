@@ -93,7 +93,7 @@ def main() -> None:
             sps = bench_rotorpy.steps_per_second(n, args.seconds)
             print(f"{'rotorpy cmd_motor_speeds':<24} {n:>6} {sps:>14,.0f} {sps / 100:>12,.0f}")
     elif not args.no_rotorpy:
-        print("# RotorPy is not installed (pip install rotorpy torch torchdiffeq roma opt-einsum stable-baselines3)")
+        print("# RotorPy's batched environment is not installed (pip install './python[rotorpy]')")
     for action in actions:
         print(
             f"memory per environment ({action}): {bytes_per_env(action) / 1024:.1f} KiB "
