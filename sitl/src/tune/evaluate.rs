@@ -166,8 +166,8 @@ pub(super) fn guard_of(violation: &str) -> String {
     format!("{set}: {metric}")
 }
 
-/// One gain set's held-out results: per set its report metrics (means over the runs; `None` where some
-/// run's event never came) and every broken guard.
+/// One gain set's held-out results: per set its report metrics, the mean over the runs and the worst run
+/// (`None` where some run's event never came), and every broken guard.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct HeldOut {
     pub gains: String,
@@ -181,7 +181,11 @@ pub struct HeldOut {
 pub struct HeldOutSet {
     pub name: String,
     pub runs: usize,
-    pub metrics: BTreeMap<String, Option<f64>>,
+    /// Per report metric, the mean over the set's runs.
+    pub mean: BTreeMap<String, Option<f64>>,
+    /// Per report metric, the worst of the set's runs: the largest value, or the smallest for a metric
+    /// where more is better ([`more_is_better`]).
+    pub worst: BTreeMap<String, Option<f64>>,
     /// Every run's row: (plant, seed, metric values in `metrics`' report order).
     #[serde(skip)]
     pub rows: Vec<(String, u64, Vec<Option<f64>>)>,
@@ -223,17 +227,14 @@ impl Tune {
                     }
                     next += 1;
                 }
-                let metrics = set
-                    .report
-                    .iter()
-                    .enumerate()
-                    .map(|(k, &i)| {
-                        let values: Option<Vec<f64>> = rows.iter().map(|r| r.2[k]).collect();
-                        let mean = values.filter(|v| !v.is_empty()).map(|v| v.iter().sum::<f64>() / v.len() as f64);
-                        (set.columns[i].clone(), mean)
-                    })
-                    .collect();
-                sets.push(HeldOutSet { name: set.name.clone(), runs: rows.len(), metrics, rows });
+                let (mut mean, mut worst) = (BTreeMap::new(), BTreeMap::new());
+                for (k, &i) in set.report.iter().enumerate() {
+                    let name = &set.columns[i];
+                    let (m, w) = mean_and_worst(name, rows.iter().map(|r| r.2[k]).collect());
+                    mean.insert(name.clone(), m);
+                    worst.insert(name.clone(), w);
+                }
+                sets.push(HeldOutSet { name: set.name.clone(), runs: rows.len(), mean, worst, rows });
             }
             out.push(HeldOut {
                 gains: gains.label.clone(),
@@ -245,4 +246,25 @@ impl Tune {
         }
         out
     }
+}
+
+/// A metric's mean over runs and its worst run; both `None` when there is no run or some run's event never
+/// came (an absent value is the worst, and has no mean).
+#[must_use]
+pub fn mean_and_worst(metric: &str, values: Option<Vec<f64>>) -> (Option<f64>, Option<f64>) {
+    match values {
+        Some(v) if !v.is_empty() => {
+            let pick = if more_is_better(metric) { f64::min } else { f64::max };
+            (Some(v.iter().sum::<f64>() / v.len() as f64), v.iter().copied().reduce(pick))
+        }
+        _ => (None, None),
+    }
+}
+
+/// Whether more of a metric is better (the time spent within a band, the thrust-to-weight ratios): its
+/// worst run is then the smallest value. Every other report metric (errors, overshoot, settling and
+/// recovery times, integrals) is worse when larger.
+#[must_use]
+pub fn more_is_better(metric: &str) -> bool {
+    metric.contains("_within_") || metric.starts_with("thrust_to_weight")
 }

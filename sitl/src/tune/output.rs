@@ -221,17 +221,19 @@ impl Summary {
     }
 }
 
-/// The held-out report as a table: per gain set and held-out set its report metrics, then the verdict.
+/// The held-out report as a table: per gain set and held-out set its report metrics, each the mean over
+/// the set's runs with the worst run beside it, then the verdict.
 #[must_use]
 pub fn heldout_table(results: &[HeldOut]) -> String {
     let mut s = String::new();
     for r in results {
         let _ = writeln!(s, "{} [{}]: {}", r.gains, r.controller, if r.safe { "safe" } else { "UNSAFE" });
         for set in &r.sets {
+            let value = |v: &Option<f64>| v.map_or_else(|| "never".to_owned(), |v| format!("{v:.4}"));
             let metrics: Vec<String> = set
-                .metrics
+                .mean
                 .iter()
-                .map(|(m, v)| format!("{m} {}", v.map_or_else(|| "never".to_owned(), |v| format!("{v:.4}"))))
+                .map(|(m, v)| format!("{m} {} (worst {})", value(v), value(&set.worst[m])))
                 .collect();
             let _ = writeln!(s, "  {:28} {}", set.name, metrics.join("  "));
         }
