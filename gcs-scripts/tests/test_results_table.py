@@ -61,11 +61,16 @@ def test_half_overshoot_and_faster_is_not_met_on_the_papers_roll_pitch_numbers_a
     assert rt.rule_half_overshoot_and_faster([((1.0, 1.0), (4.0, 1.5))]) == NOT_MET
 
 
-def test_lower_leaves_out_baselines_without_safe_gains_and_never_meets_without_aco():
+def test_lower_is_never_met_over_a_baseline_without_safe_gains_nor_without_aco():
     assert rt.rule_lower(0.5, [0.9, 0.7]) == MET
     assert rt.rule_lower(0.8, [0.9, 0.7]) == NOT_MET
-    assert rt.rule_lower(0.5, [None, 0.7]) == MET
-    assert rt.rule_lower(0.5, [None, None]) == "no tuned baseline"
+    # A baseline without safe gains cannot be beaten or lost to: the claim "against each" is not judged,
+    # never met over the others alone.
+    assert rt.rule_lower(0.5, [None, 0.7]) == rt.NOT_JUDGED
+    assert rt.rule_lower(0.5, [None, None]) == rt.NOT_JUDGED
+    # Beaten by a baseline that has gains: not met, whatever the missing one would do.
+    assert rt.rule_lower(0.8, [None, 0.7]) == NOT_MET
+    assert rt.rule_lower(0.5, []) == "no tuned baseline"
     assert rt.rule_lower(None, [0.9]) == NOT_MET
 
 
