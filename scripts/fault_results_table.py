@@ -94,6 +94,14 @@ def rule_boundary(aco_loss, baseline_losses):
     return _settle(aco_loss, baseline_losses, lambda a, b: a is not None and (b is None or a > b))
 
 
+def beaten_by_some(rule, aco, baselines):
+    """Whether some baseline (present) wins `rule` against ACO alone: ACO is worse there, not merely tied.
+    `rule(x, [y])` is the comparison rule with the roles swapped."""
+    if aco is MISSING:
+        return False
+    return any(rule(b, [aco]) == MET for b in baselines if b is not MISSING)
+
+
 def rule_inside(feasibility, verdict):
     """A fault the airframe cannot hold with every moment balanced (`feasibility` not "full": roll and pitch
     only, or infeasible) is no controller's verdict: NO_VERDICT, whatever `verdict` the metrics give."""
@@ -336,7 +344,8 @@ class Doc:
                 detail = f"ACO {cell(vals[0], d, kind)} vs " + " / ".join(
                     f"{c.upper()} {cell(v, d, kind)}" for c, v in zip(cols[1:], vals[1:], strict=True)
                 )
-                self.verdicts.append((gains, s, name, verdict, detail))
+                beaten = beaten_by_some(lambda x, ys, k=kind, d=d: judge(k, x, ys, d), vals[0], vals[1:])
+                self.verdicts.append((gains, s, name, verdict, detail, beaten))
                 self.w(f"| {header(name, unit)} | " + " | ".join(cell(v, d, kind) for v in vals) + f" | {verdict} |")
             self.w()
         self.w(f"Outside the envelope, {gains}:")
@@ -350,7 +359,7 @@ class Doc:
                 if (s, c) in runs
             )
             verdict = rule_inside(self.feasibility(s), MET)
-            self.verdicts.append((gains, s, "every metric", verdict, ""))
+            self.verdicts.append((gains, s, "every metric", verdict, "", False))
             self.w(f"| `{s}` ({self.magnitude(s)}) | {FEASIBILITY[self.feasibility(s)]} | {lost} | {verdict} |")
         self.w()
 
@@ -386,7 +395,8 @@ class Doc:
                 f"{c.upper()} {cell(p, 3, 'lower')}" for (c, _), p in zip(sweeps[1:], peaks[1:], strict=True)
             )
             loss = 100 * (1 - float(h))
-            self.verdicts.append((gains, f"sweep at {loss:.1f} % lost", "mean peak error", verdict, detail))
+            beaten = beaten_by_some(lambda x, ys: rule_lower(x, ys, 3), peaks[0], peaks[1:])
+            self.verdicts.append((gains, f"sweep at {loss:.1f} % lost", "mean peak error", verdict, detail, beaten))
             self.w(f"| {h} ({loss:.1f} %) | {FEASIBILITY[feas]} | " + " | ".join(cells) + f" | {verdict} |")
         self.w()
 
@@ -420,12 +430,15 @@ class Doc:
         same = " (the same for all)" if len(set(present)) == 1 and len(present) > 1 else ""
         v1 = rule_more(counts[0], counts[1:])
         v2 = rule_boundary(bounds[0], bounds[1:])
-        self.verdicts.append((gains, "sweep", "runs within 0.3 m inside the full envelope", v1, within_cells))
-        self.verdicts.append((gains, "sweep", "largest loss held in every run", v2, bound_cells + same))
+        b1 = beaten_by_some(rule_more, counts[0], counts[1:])
+        b2 = beaten_by_some(rule_boundary, bounds[0], bounds[1:])
+        self.verdicts.append((gains, "sweep", "runs within 0.3 m inside the full envelope", v1, within_cells, b1))
+        self.verdicts.append((gains, "sweep", "largest loss held in every run", v2, bound_cells + same, b2))
         self.w(f"| runs within 0.3 m inside the full envelope (of {inside_n} each), {gains} | {within_cells} | {v1} |")
         self.w(f"| largest loss every run keeps control up to, {gains} | {bound_cells}{same} | {v2} |")
 
-    # -- the headline
+    # -- the headline: every comparison ACO does not win is either level (no baseline better at the printed
+    # digits) or worse (some baseline better), and every worse one is named.
     def headline(self, gains):
         mine = [v for v in self.verdicts if v[0] == gains and v[3] != NO_VERDICT]
         met = [v for v in mine if v[3] == MET]
@@ -440,13 +453,17 @@ class Doc:
         def item(v):
             return f"{v[1]} {v[2]} ({v[4]})" if v[4] else f"{v[1]} {v[2]}"
 
+        worse = [v for v in not_met if v[5]]
+        tied = [v for v in not_met if not v[5]]
         text = (
             f"Inside the envelope ACO is better than each {gains} baseline on {len(met)} of {len(mine)} "
             "comparisons (every metric of every experiment, each sweep loss's mean peak and the sweep's two "
-            "claims)"
+            f"claims), level with the best of them on {len(tied)}"
         )
-        if not_met:
-            text += "; it is not better on: " + "; ".join(item(v) for v in not_met)
+        if worse:
+            text += f", and worse than some baseline on {len(worse)}: " + "; ".join(item(v) for v in worse)
+        else:
+            text += ", and worse than none"
         if not_judged:
             text += f"; {len(not_judged)} not judged (a baseline has no tuned gains)"
         return text + "."

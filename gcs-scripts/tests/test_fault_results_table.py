@@ -85,3 +85,20 @@ def test_every_rule_has_a_docstring():
     for name in dir(ft):
         if name.startswith("rule_"):
             assert getattr(ft, name).__doc__, name
+
+
+def test_a_comparison_not_won_is_worse_only_when_some_baseline_beats_aco():
+    def lower(x, ys):
+        return ft.rule_lower(x, ys, 3)
+
+    # payload-step-5's peak tilt: CA and PID both lower, so ACO is worse, not level.
+    assert ft.beaten_by_some(lower, 0.012, [0.008, 0.009])
+    # Level at the printed digits with the best baseline: not met, and not worse.
+    assert ft.rule_lower(0.0121, [0.0124, 0.020]) == NOT_MET
+    assert not ft.beaten_by_some(lower, 0.0121, [0.0124, 0.020])
+    # A missing baseline beats nobody; a missing ACO is beaten by nobody (it is not judged at all).
+    assert not ft.beaten_by_some(lower, 0.012, [MISSING, 0.020])
+    assert not ft.beaten_by_some(lower, MISSING, [0.001])
+    # Flags: the same outcome is level; the better outcome on a baseline's side is worse.
+    assert not ft.beaten_by_some(lambda x, ys: ft.rule_flag(x, ys, True), True, [True, True])
+    assert ft.beaten_by_some(lambda x, ys: ft.rule_flag(x, ys, True), False, [True, False])
