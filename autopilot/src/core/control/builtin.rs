@@ -149,7 +149,28 @@ impl ControllerType for Pid {
         table_of(&super::PidConfig::default())
     }
     fn validate(&self, config: &ControllerConfig) -> Result<(), ConfigError> {
-        check_airframe("pid.airframe", &config.pid.airframe)
+        check_airframe("pid.airframe", &config.pid.airframe)?;
+        let pid = &config.pid;
+        for (field, value) in [
+            ("krd_rate_s[0]", pid.krd_rate_s[0]),
+            ("krd_rate_s[1]", pid.krd_rate_s[1]),
+            ("krd_rate_s[2]", pid.krd_rate_s[2]),
+        ] {
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(ConfigError::Negative { name: "pid", field, value });
+            }
+        }
+        let max_hz = 0.45 * f64::from(config.rates.inner_hz);
+        let value_hz = pid.rate_d_cutoff_hz;
+        if !(value_hz.is_finite() && value_hz > 0.0 && value_hz < max_hz) {
+            return Err(ConfigError::FilterCutoff {
+                name: "pid.rate_d_cutoff_hz",
+                value_hz,
+                max_hz,
+                inner_hz: config.rates.inner_hz,
+            });
+        }
+        Ok(())
     }
     fn build(&self, config: &ControllerConfig) -> Result<Box<dyn Controller>, ConfigError> {
         Ok(Box::new(PidController::new(&config.pid, config.rates)))

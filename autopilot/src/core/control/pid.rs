@@ -6,8 +6,10 @@
 //! through the shared limiter, `T = ‖u‖`, attitude extraction. Every tick: quaternion attitude P
 //! (`omega_d = 2 Kη ⊙ q_e,xyz`, `q_e = q⁻¹ ⊗ q_d`, `q_e,w ≥ 0`), the rate clip, rate PI
 //! (`M = Ī ⊙ (Kω e_ω + Kri ∫e_ω)`, |I torque| ≤ 0.3 N·m, frozen per saturated axis), and the shared
-//! distributor (Eqs 26-27) and lift curve (Eq 10). The derivative gains Kvd and Krd are 0 in the spec
-//! and are not implemented.
+//! distributor (Eqs 26-27) and lift curve (Eq 10). The spec's derivative gains Kvd and Krd are 0; the
+//! competent PID (`[base.pid]` of `sitl/tunes/pid.toml`, PX4's multicopter rate controller) adds a rate D
+//! on the measurement, `- Ī ⊙ Krd ⊙ dω/dt` with dω/dt low-passed at `rate_d_cutoff_hz` (PX4's
+//! IMU_DGYRO_CUTOFF), and freezes the roll and pitch integrators under saturation (`freeze_roll_pitch`).
 //!
 //! [`PidController::reconfigure`] takes new gains, limits and nominal model while flying and keeps the
 //! integrators (clamped to new, tighter limits).
@@ -58,6 +60,11 @@ pub struct PidConfig {
     /// [`MixerSaturation::freeze_axes`](super::distributor::MixerSaturation::freeze_axes)); the yaw
     /// integrator is always frozen under saturation.
     pub freeze_roll_pitch: bool,
+    /// Rate derivative gains Krd (s), FRD, on the measured rate (not the error, so a setpoint step does not
+    /// kick): 0 in the spec and by default.
+    pub krd_rate_s: [f64; 3],
+    /// Cutoff of the first-order low-pass on the measured rate's derivative (Hz).
+    pub rate_d_cutoff_hz: f64,
 }
 
 impl Default for PidConfig {
@@ -77,6 +84,8 @@ impl Default for PidConfig {
             rate_integral_max_nm: 0.3,
             rate_limit_radps: [3.5, 3.5, 1.5],
             freeze_roll_pitch: false,
+            krd_rate_s: [0.0; 3],
+            rate_d_cutoff_hz: 30.0,
         }
     }
 }
@@ -96,6 +105,9 @@ pub struct PidController {
     /// The rate level's setpoint shaping (reset while an attitude is flown).
     rate_shaper: RateShaper,
     moment_cmd_nm: Vector3<f64>,
+    /// The measured rate at the last tick and the low-passed derivative (rad/s²) the rate D acts on.
+    rate_prev_frd_radps: Option<Vector3<f64>>,
+    rate_dot_frd_radps2: Vector3<f64>,
     last_limit: Option<LimitedThrust>,
     held: HeldOutput,
 }
@@ -114,6 +126,8 @@ impl PidController {
             rate_sp_radps: Vector3::zeros(),
             rate_shaper: RateShaper::default(),
             moment_cmd_nm: Vector3::zeros(),
+            rate_prev_frd_radps: None,
+            rate_dot_frd_radps2: Vector3::zeros(),
             last_limit: None,
             held: HeldOutput::hover(&config.airframe),
             cfg: config.clone(),
@@ -235,6 +249,18 @@ impl Controller for PidController {
         let e_w = self.rate_sp_radps - input.rate_frd_radps;
         self.moment_cmd_nm =
             inertia.component_mul(&Vector3::from(c.k_rate_per_s).component_mul(&e_w)) + self.rate_integral_nm;
+        // Rate D on the measurement (off at the spec's Krd = 0, which leaves the moment bit for bit).
+        if let Some(prev) = self.rate_prev_frd_radps {
+            let dt = self.clock.dt_s;
+            let alpha = dt / (dt + 1.0 / (std::f64::consts::TAU * c.rate_d_cutoff_hz));
+            let raw = (input.rate_frd_radps - prev) / dt;
+            self.rate_dot_frd_radps2 += (raw - self.rate_dot_frd_radps2) * alpha;
+        }
+        self.rate_prev_frd_radps = Some(input.rate_frd_radps);
+        if c.krd_rate_s.iter().any(|k| *k != 0.0) {
+            self.moment_cmd_nm -=
+                inertia.component_mul(&Vector3::from(c.krd_rate_s).component_mul(&self.rate_dot_frd_radps2));
+        }
         let e_w = integral_sp.map_or(e_w, |sp| clip_abs(&sp, &c.rate_limit_radps) - input.rate_frd_radps);
         let sat = self.held.saturation;
         for (j, saturated) in sat.freeze_axes(c.freeze_roll_pitch).into_iter().enumerate() {
@@ -478,5 +504,41 @@ mod tests {
         assert!((last.euler_rad - sp).abs().max() < 0.01, "{}", last.euler_rad);
         assert!(max_after(&tr, 0.0, |s| s.input.euler_rad.x) < 0.2 * 1.15, "roll overshoot");
         assert!((last.pos_ned_m.z + 2.0).abs() < 0.2, "altitude {}", last.pos_ned_m.z);
+    }
+
+    #[test]
+    fn the_rate_d_acts_on_the_measured_rate_and_is_off_by_default() {
+        use crate::core::control::Reference;
+        let hold = Reference::attitude(Vector3::zeros(), -3.0);
+        let input = |p_radps: f64| ControlInput {
+            pos_ned_m: Vector3::new(0.0, 0.0, -3.0),
+            vel_ned_mps: Vector3::zeros(),
+            euler_rad: Vector3::zeros(),
+            rate_frd_radps: Vector3::new(p_radps, 0.0, 0.0),
+            specific_force_frd_mps2: Vector3::new(0.0, 0.0, -9.81),
+        };
+        let fly = |krd: f64| {
+            let cfg = PidConfig { krd_rate_s: [krd, krd, 0.0], ..PidConfig::default() };
+            let mut c = PidController::new(&cfg, LoopRates::default());
+            c.update(&input(0.0), &hold);
+            // The roll rate rises: the D term opposes the rise with a negative roll moment.
+            c.update(&input(0.2), &hold);
+            c.moment_cmd_nm.x
+        };
+        let (without, with) = (fly(0.0), fly(0.05));
+        assert!(with < without - 1e-3, "D on the measurement opposes a rising rate: {with} vs {without}");
+        // A setpoint change alone does not kick it: the derivative is of the measurement, not the error.
+        let cfg = PidConfig { krd_rate_s: [0.05, 0.05, 0.0], ..PidConfig::default() };
+        let mut c = PidController::new(&cfg, LoopRates::default());
+        c.update(&input(0.0), &hold);
+        c.update(&input(0.0), &Reference::attitude(Vector3::new(0.3, 0.0, 0.0), -3.0));
+        assert_eq!(c.rate_dot_frd_radps2, Vector3::zeros());
+        // A negative gain or a cutoff past the loop's reach is refused when set.
+        let mut config = crate::core::control::ControllerConfig::default();
+        config.pid.krd_rate_s = [0.0, -0.1, 0.0];
+        assert!(config.validate().unwrap_err().to_string().contains("krd_rate_s[1]"));
+        config.pid.krd_rate_s = [0.0; 3];
+        config.pid.rate_d_cutoff_hz = 400.0;
+        assert!(config.validate().unwrap_err().to_string().contains("pid.rate_d_cutoff_hz"));
     }
 }
