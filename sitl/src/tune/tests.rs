@@ -377,7 +377,13 @@ fn a_bad_gain_file_is_refused_naming_what_is_wrong() {
 #[test]
 fn the_example_specs_load_with_a_300_evaluation_budget() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tunes");
-    for (name, controller) in [("aco", ControllerKind::ACO), ("ca", ControllerKind::CA), ("pid", ControllerKind::PID)] {
+    let specs = [
+        ("aco", ControllerKind::ACO),
+        ("ca", ControllerKind::CA),
+        ("pid", ControllerKind::PID),
+        ("pid-paper", ControllerKind::PID),
+    ];
+    for (name, controller) in specs {
         let spec = Tune::load(&dir.join(format!("{name}.toml"))).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!((spec.controller, spec.budget), (controller, 300), "{name}");
         assert!(!spec.guards.is_empty() && !spec.heldout.is_empty(), "{name}");
