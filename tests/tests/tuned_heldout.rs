@@ -30,12 +30,11 @@ fn every_committed_tuning_flies_its_held_out_report_again_exactly() {
     for ctrl in ["aco", "ca", "pid", "se3"] {
         let Some((committed, flown)) = reflown(ctrl) else { continue };
         if committed != flown {
-            let diff = committed
-                .lines()
-                .zip(flown.lines())
-                .enumerate()
-                .find(|(_, (a, b))| a != b)
-                .map_or_else(|| "the lengths differ".to_owned(), |(i, (a, b))| format!("line {}: {a} -> {b}", i + 1));
+            let diff =
+                committed.lines().zip(flown.lines()).enumerate().find(|(_, (a, b))| a != b).map_or_else(
+                    || "the lengths differ".to_owned(),
+                    |(i, (a, b))| format!("line {}: {a} -> {b}", i + 1),
+                );
             panic!(
                 "docs/tuning/{ctrl}/heldout.json no longer matches its gains flown again ({diff}): rerun \
                  scripts/reproduce and commit what it writes"

@@ -230,11 +230,8 @@ pub fn heldout_table(results: &[HeldOut]) -> String {
         let _ = writeln!(s, "{} [{}]: {}", r.gains, r.controller, if r.safe { "safe" } else { "UNSAFE" });
         for set in &r.sets {
             let value = |v: &Option<f64>| v.map_or_else(|| "never".to_owned(), |v| format!("{v:.4}"));
-            let metrics: Vec<String> = set
-                .mean
-                .iter()
-                .map(|(m, v)| format!("{m} {} (worst {})", value(v), value(&set.worst[m])))
-                .collect();
+            let metrics: Vec<String> =
+                set.mean.iter().map(|(m, v)| format!("{m} {} (worst {})", value(v), value(&set.worst[m]))).collect();
             let _ = writeln!(s, "  {:28} {}", set.name, metrics.join("  "));
         }
         for v in &r.violations {
