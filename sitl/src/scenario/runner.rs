@@ -593,7 +593,7 @@ impl Runner {
             // The cross-track error of every sample from the start on (the corners metric's runs on past the
             // track's end); NaN before.
             let mut cross_all = vec![f64::NAN; series.t.len()];
-            for k in 0..series.t.len() {
+            for (k, cross_k) in cross_all.iter_mut().enumerate() {
                 if series.t[k] < t0 {
                     continue;
                 }
@@ -603,7 +603,7 @@ impl Runner {
                     None => track.path.nearest_near(p, series.progress_m[k], 0.5),
                 };
                 nearest_s = Some(s);
-                cross_all[k] = d;
+                *cross_k = d;
                 if series.t[k] > t1 {
                     continue;
                 }
