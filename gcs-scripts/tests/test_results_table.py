@@ -89,3 +89,27 @@ def test_tunings_under_different_budgets_or_seeds_are_refused_not_compared(tmp_p
     (tmp_path / "pid" / "result.json").write_text(json.dumps(result))
     with pytest.raises(SystemExit, match="differ in budget or seeds"):
         rt.tuned_tables(dirs)
+
+
+def test_corners_needs_aco_no_worse_at_every_turning_point_and_is_not_met_on_our_figure8():
+    # docs/results.md's first corners, feed-forward: ACO runs 0.17 m past a corner CA cuts.
+    assert rt.rule_corners([(0.170, 1.70), (0.014, 0.0)], [(0.0, None), (0.027, 0.07)]) == NOT_MET
+    # ACO overshoots less but returns later at one point: not met.
+    assert rt.rule_corners([(0.02, 1.0), (0.02, 2.0)], [(0.10, 1.5), (0.10, 1.5)]) == NOT_MET
+    # ACO never back where CA is: not met; CA never back where ACO is: ACO sooner.
+    assert rt.rule_corners([(0.02, None)], [(0.10, 9.0)]) == NOT_MET
+    assert rt.rule_corners([(0.02, 1.0), (0.005, 0.0)], [(0.10, None), (0.002, 0.0)]) == MET
+    assert rt.rule_corners([], []) == rt.NOT_JUDGED
+    assert rt.rule_corners([(0.0, 0.0)], [(0.0, 0.0), (0.0, 0.0)]) == rt.NOT_JUDGED
+
+
+def test_pulse_recovery_needs_aco_within_5_s_every_time_and_ca_8_s_median_and_is_not_met_on_our_hover():
+    # docs/results.md's hover: everyone back within about a second.
+    assert rt.rule_pulse_recovery([1.08, 0.0, 1.15, 0.0], [0.33, 0.02, 0.46, 0.41]) == NOT_MET
+    assert rt.rule_pulse_recovery([4.0, 3.0, 2.0], [8.5, 9.0, 2.0]) == MET
+    assert rt.rule_pulse_recovery([4.0, 5.5, 2.0], [8.5, 9.0, 9.0]) == NOT_MET
+    assert rt.rule_pulse_recovery([4.0, None], [9.0, 9.0]) == NOT_MET
+    # CA never back counts as slower than 8 s.
+    assert rt.rule_pulse_recovery([4.0, 3.0], [None, None]) == MET
+    assert rt.rule_pulse_recovery([0.0, 0.0], [0.0, 0.0]) == rt.NOT_JUDGED
+    assert rt.rule_pulse_recovery([], [1.0]) == rt.NOT_JUDGED

@@ -21,6 +21,7 @@ pub mod envelope;
 pub mod faults;
 pub mod ground;
 pub mod payload;
+pub mod pulses;
 pub mod radio;
 pub mod rigid_body;
 pub mod rotor;
@@ -40,6 +41,7 @@ pub use envelope::{Feasibility, HoverEnvelope, hover_envelope};
 pub use faults::{Fault, FaultError, LinkFaults, Sensor, SensorFaults};
 pub use ground::GroundConfig;
 pub use payload::Payload;
+pub use pulses::{Pulse, PulseTrainConfig};
 pub use radio::{Radio, RcSchedule};
 pub use rigid_body::RigidBodyState;
 pub use sensors::{BaroSample, GpsSample, NoisyState, SensorConfig, SensorSample, Sensors, StateNoise};
@@ -81,6 +83,8 @@ pub mod stream {
     pub const GYRO_GARBAGE: u64 = 16;
     /// Which sensor datagrams the plant link loses (SIM_LINK_LOSS, applied by the plant link).
     pub const LINK_LOSS: u64 = 17;
+    /// The crosswind pulse train's draws (`[wind.pulses]`, `plant::pulses`), at construction only.
+    pub const WIND_PULSES: u64 = 18;
 }
 
 /// The generator of stream `stream` of plant seed `seed`.

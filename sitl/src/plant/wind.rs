@@ -11,6 +11,9 @@
 //!   low-altitude Dryden model (first-order equivalent, see [`dryden_low_altitude`]), optionally scaled by
 //!   the gust profile s(t).
 //!
+//! - a train of 1-cos crosswind pulses of random amplitude, width and spacing (`[wind.pulses]`, see
+//!   [`super::pulses`]), drawn once from its own stream.
+//!
 //! [`BEAUFORT`] gives the Beaufort scale 0..8; `beaufort = n` in the config sets the gust amplitude (or,
 //! without a gust, the steady wind speed) to the middle of that force's range.
 //!
@@ -25,6 +28,7 @@ use serde::Deserialize;
 
 use super::PlantError;
 use super::airframe::{finite, non_negative, positive};
+use super::pulses::{Pulse, PulseTrain, PulseTrainConfig};
 
 /// One row of the Beaufort scale: mean wind speed range at 10 m (m/s, WMO).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -164,6 +168,8 @@ pub struct WindConfig {
     pub gust: Option<GustConfig>,
     /// Turbulence; `None` = none.
     pub turbulence: Option<TurbulenceConfig>,
+    /// A train of crosswind pulses; `None` = none.
+    pub pulses: Option<PulseTrainConfig>,
 }
 
 /// A resolved, validated gust.
@@ -360,6 +366,7 @@ struct CoeffCache {
 pub struct Wind {
     steady_ned_mps: Vector3<f64>,
     gust: Option<Gust>,
+    pulses: Option<PulseTrain>,
     turbulence: Option<Turbulence>,
     /// Unit-variance Gauss-Markov states; the turbulence is σ ⊙ this (⊙ s(t)), so σ may change at run
     /// time (Dryden follows h, W20 and V) without a transient in the variance.
@@ -373,7 +380,9 @@ pub struct Wind {
 }
 
 impl Wind {
-    /// A wind field from its configuration, drawing from `rng` (the plant's wind stream) only.
+    /// A wind field from its configuration, drawing from `rng` (the plant's wind stream) only; a pulse
+    /// train draws its pulses from `rng`'s seed on stream [`super::stream::WIND_PULSES`] (so `rng` must be
+    /// fresh: the plant's `stream_rng(seed, stream::WIND)`, nothing drawn yet).
     ///
     /// # Errors
     /// [`PlantError::InvalidValue`] for any invalid value (see [`Gust::from_config`]; non-finite steady
@@ -408,9 +417,18 @@ impl Wind {
             }
         };
         let turbulence = config.turbulence.as_ref().map(|t| Turbulence::from_config(t, gust.is_some())).transpose()?;
+        let pulses = match &config.pulses {
+            Some(p) => {
+                let mut pulse_rng = rng.clone();
+                pulse_rng.set_stream(super::stream::WIND_PULSES);
+                Some(PulseTrain::new(p, pulse_rng)?)
+            }
+            None => None,
+        };
         let mut wind = Self {
             steady_ned_mps,
             gust,
+            pulses,
             turbulence: None,
             unit_state: Vector3::zeros(),
             rng,
@@ -438,10 +456,21 @@ impl Wind {
         Vector3::from(n)
     }
 
-    /// Steady + gust (m/s NED) at plant time `t_s`, without turbulence.
+    /// Steady + gust + pulses (m/s NED) at plant time `t_s`, without turbulence.
     #[must_use]
     pub fn mean_ned_mps(&self, t_s: f64) -> Vector3<f64> {
-        self.steady_ned_mps + self.gust.map_or_else(Vector3::zeros, |g| g.velocity_ned_mps(t_s))
+        let mean = self.steady_ned_mps + self.gust.map_or_else(Vector3::zeros, |g| g.velocity_ned_mps(t_s));
+        // Added only with a train, so a wind without one keeps its bits (even the sign of a zero).
+        match &self.pulses {
+            Some(train) => mean + train.velocity_ned_mps(t_s),
+            None => mean,
+        }
+    }
+
+    /// The pulses of the `[wind.pulses]` train, in time order (empty without one).
+    #[must_use]
+    pub fn pulses(&self) -> &[Pulse] {
+        self.pulses.as_ref().map_or(&[], PulseTrain::pulses)
     }
 
     /// The gust profile s(t) at `t_s` (0 without a gust).

@@ -156,7 +156,7 @@ pub fn time_within(t: &[f64], abs_err: &[f64], band: f64) -> f64 {
 
 /// The time from `t0` until `|e|` stays within `band` for the rest of the window: `Some(0)` if it never
 /// leaves, `None` if it is still outside at the window's last sample.
-fn time_to_stay_within(t: &[f64], abs_err: &[f64], t0: f64, band: f64) -> Option<f64> {
+pub(crate) fn time_to_stay_within(t: &[f64], abs_err: &[f64], t0: f64, band: f64) -> Option<f64> {
     match abs_err.iter().rposition(|&e| e > band || !e.is_finite()) {
         None => Some(0.0),
         Some(last) if last + 1 < abs_err.len() => Some(t[last + 1] - t0),

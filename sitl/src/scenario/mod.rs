@@ -11,7 +11,7 @@
 //! state_noise = "none"            # "none" | "paper": white noise on the state the controller sees
 //! state_noise_scale = 1.0         # multiplies the noise's sigmas (>= 0)
 //! ground = true                   # the plant's ground contact at D = 0
-//! metrics = ["steps"]             # any of "steps", "gust", "track", "fault"
+//! metrics = ["steps"]             # any of "steps", "gust", "track", "fault", "corners", "pulses"
 //! controllers = ["aco", "ca", "pid"]  # the default set when `--controller` is not given
 //! [initial]                       # optional; at rest at the origin with hover lift by default
 //! pos_ned_m = [0.0, 0.0, -3.0]
@@ -23,7 +23,7 @@
 //! pos_d_m = -3.0
 //! steps = [{ t_s = 0.0, euler_rad = [0.0, 0.0, 0.0] }]
 //! [airframe]                      # optional overrides of the preset's values (e.g. mass_kg = 5.3)
-//! [wind]                          # optional: gust, turbulence, steady wind (the plant's WindConfig)
+//! [wind]                          # optional: gust, turbulence, steady wind, pulses (the plant's WindConfig)
 //! [controller]                    # optional overrides of the controllers' configuration
 //! [metric_windows]                # optional: step_sse_s, gust_steady_s, gust_peak_s, gust_rms_s
 //! [[event]]                       # optional, any number: SIM_ parameters set at a plant time
@@ -33,6 +33,7 @@
 
 #[cfg(test)]
 pub(crate) mod fixtures;
+pub mod flight;
 pub mod gcs;
 pub mod metrics;
 pub mod path;
@@ -93,6 +94,10 @@ pub enum MetricKind {
     Track,
     /// What a fault did, from its onset (the first `[[event]]`, or 0) to the end ([`metrics::FaultMetrics`]).
     Fault,
+    /// A polyline track's turning points: overshoot and return to the path ([`flight::CornerMetrics`]).
+    Corners,
+    /// A hover's recovery after each pulse of `[wind.pulses]` ([`flight::PulseMetrics`]).
+    Pulses,
 }
 
 /// An `[airframe]` override's value in the metrics JSON: a number, or an array for vector keys.
@@ -181,7 +186,8 @@ fn default_controllers() -> Vec<ControllerKind> {
 
 /// The built-in scenarios, one per experiment of the paper (plus the turbulence and fast figure-8 variants),
 /// and the fault experiments: a rotor's thrust lost, a payload added (the magnitudes and ones inside
-/// the airframe's envelope), the figure-8 on a weak rotor.
+/// the airframe's envelope), the figure-8 on a weak rotor; and the paper's real flights (its Section 6):
+/// the figure-8 point by point and the hover under a train of pulses.
 pub const BUILT_INS: &[(&str, &str)] = &[
     ("paper-attitude", include_str!("../../scenarios/paper-attitude.toml")),
     ("paper-translation", include_str!("../../scenarios/paper-translation.toml")),
@@ -200,6 +206,8 @@ pub const BUILT_INS: &[(&str, &str)] = &[
     ("figure8-rotor80", include_str!("../../scenarios/figure8-rotor80.toml")),
     ("figure8-rotor90", include_str!("../../scenarios/figure8-rotor90.toml")),
     ("rate-steps", include_str!("../../scenarios/rate-steps.toml")),
+    ("paper-flight-figure8", include_str!("../../scenarios/paper-flight-figure8.toml")),
+    ("paper-flight-hover", include_str!("../../scenarios/paper-flight-hover.toml")),
 ];
 
 impl Scenario {
@@ -237,7 +245,9 @@ impl Scenario {
             return Err(ScenarioError::Invalid(format!("duration_s must be in (0, 3600], got {}", self.duration_s)));
         }
         if self.metrics.is_empty() {
-            return Err(ScenarioError::Invalid("metrics must name at least one of steps, gust, track, fault".into()));
+            return Err(ScenarioError::Invalid(
+                "metrics must name at least one of steps, gust, track, fault, corners, pulses".into(),
+            ));
         }
         self.reference.validate()?;
         self.rc_schedule()?;
@@ -265,6 +275,19 @@ impl Scenario {
         }
         if self.metrics.contains(&MetricKind::Gust) && self.wind.gust.is_none() {
             return Err(ScenarioError::Invalid("the gust metric needs a [wind.gust]".into()));
+        }
+        let polyline = matches!(&self.reference, ReferenceSpec::Track(t) if t.path == PathKind::Polyline);
+        if self.metrics.contains(&MetricKind::Corners) && !(polyline && self.metrics.contains(&MetricKind::Track)) {
+            return Err(ScenarioError::Invalid(
+                "the corners metric needs a track with path = \"polyline\" and the track metric".into(),
+            ));
+        }
+        if self.metrics.contains(&MetricKind::Pulses)
+            && (self.wind.pulses.is_none() || !matches!(self.reference, ReferenceSpec::Position { .. }))
+        {
+            return Err(ScenarioError::Invalid(
+                "the pulses metric needs a [wind.pulses] and a position reference".into(),
+            ));
         }
         let init = &self.initial;
         if [init.pos_ned_m, init.vel_ned_mps, init.euler_rad, init.rate_frd_radps]
@@ -496,6 +519,21 @@ mod tests {
         assert_eq!(spec(&Scenario::from_toml("f", &poly).unwrap()), PathKind::Polyline);
         let e = Scenario::from_toml("f", &poly.replace("polyline", "bezier")).unwrap_err().to_string();
         assert!(e.contains("path") && e.contains("polyline"), "{e}");
+    }
+
+    #[test]
+    fn given_corners_or_pulses_without_what_they_judge_then_the_scenario_is_refused() {
+        let figure8 = BUILT_INS.iter().find(|b| b.0 == "paper-flight-figure8").unwrap().1;
+        let e = Scenario::from_toml("f", &figure8.replace("path = \"polyline\"\n", "")).unwrap_err().to_string();
+        assert!(e.contains("corners") && e.contains("polyline"), "{e}");
+        let e = Scenario::from_toml("f", &figure8.replace("[\"track\", \"corners\"]", "[\"corners\"]")).unwrap_err();
+        assert!(e.to_string().contains("track"), "{e}");
+        let hover = BUILT_INS.iter().find(|b| b.0 == "paper-flight-hover").unwrap().1;
+        let calm = hover.split("[wind.pulses]").next().unwrap();
+        let e = Scenario::from_toml("h", calm).unwrap_err().to_string();
+        assert!(e.contains("[wind.pulses]"), "{e}");
+        let s = Scenario::from_toml("h", hover).unwrap();
+        assert_eq!((s.ground, s.initial.pos_ned_m[2]), (true, 0.0), "the hover rises from the ground");
     }
 
     #[test]

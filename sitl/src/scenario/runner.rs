@@ -16,6 +16,7 @@ use autopilot::core::control::{
 use nalgebra::{Vector2, Vector3};
 use serde::Serialize;
 
+use super::flight::{self, CornerMetrics, PulseMetrics};
 use super::metrics::{self, EffortAccumulator, EffortMetrics, FaultMetrics, GustMetrics, SegmentMetrics, TrackMetrics};
 use super::reference::{ReferenceGen, ReferenceMode, ReferenceSpec, TrackGen};
 use super::{MetricKind, OverrideValue, Scenario, ScenarioError};
@@ -76,6 +77,12 @@ pub struct RunMetrics {
     /// What the scenario's fault did (the `fault` metric).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fault: Option<FaultMetrics>,
+    /// A polyline track's turning points (the `corners` metric).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub corners: Option<CornerMetrics>,
+    /// The recovery after each wind pulse (the `pulses` metric).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pulses: Option<PulseMetrics>,
     pub weights_at_bounds: bool,
     pub non_finite: bool,
     /// Mean |PWM change| per tick over the run and rotors (us): actuator activity.
@@ -528,6 +535,8 @@ impl Runner {
             gust: None,
             track: None,
             fault: None,
+            corners: None,
+            pulses: None,
             weights_at_bounds: controller.weights_at_bounds(),
             non_finite: self.non_finite,
             pwm_activity_us: effort.pwm_activity_us(),
@@ -581,8 +590,11 @@ impl Runner {
             // The vehicle's own nearest point is followed along the path (it moves a few mm per tick), so a
             // point near the crossing stays on its branch; the first is sought near the reference.
             let mut nearest_s: Option<f64> = None;
-            for k in 0..series.t.len() {
-                if series.t[k] < t0 || series.t[k] > t1 {
+            // The cross-track error of every sample from the start on (the corners metric's runs on past the
+            // track's end); NaN before.
+            let mut cross_all = vec![f64::NAN; series.t.len()];
+            for (k, cross_k) in cross_all.iter_mut().enumerate() {
+                if series.t[k] < t0 {
                     continue;
                 }
                 let p = Vector2::new(series.pos[0][k], series.pos[1][k]);
@@ -591,11 +603,33 @@ impl Runner {
                     None => track.path.nearest_near(p, series.progress_m[k], 0.5),
                 };
                 nearest_s = Some(s);
+                *cross_k = d;
+                if series.t[k] > t1 {
+                    continue;
+                }
                 cross.push(d);
                 alt.push(series.pos[2][k] - series.ref_pos[2][k]);
                 t_on_track_s.push(series.t[k]);
             }
             m.track = Some(metrics::track_metrics(&t_on_track_s, &cross, &alt));
+            if scenario.metrics.contains(&MetricKind::Corners) {
+                let (t, pos, progress) = (&series.t, &series.pos, &series.progress_m);
+                m.corners = Some(flight::corner_metrics(
+                    t,
+                    &pos[0],
+                    &pos[1],
+                    progress,
+                    &cross_all,
+                    &spec.waypoints_ne_m,
+                    spec.laps,
+                ));
+            }
+        }
+        if scenario.metrics.contains(&MetricKind::Pulses) {
+            let (pos, reference) = (&series.pos, &series.ref_pos);
+            let err_xy: Vec<f64> =
+                (0..series.t.len()).map(|k| (pos[0][k] - reference[0][k]).hypot(pos[1][k] - reference[1][k])).collect();
+            m.pulses = Some(flight::pulse_metrics(&series.t, &err_xy, plant.wind().pulses()));
         }
         m.wall_s = self.wall_start.elapsed().as_secs_f64();
         m.realtime_factor = if m.wall_s > 0.0 { sim_s / m.wall_s } else { f64::INFINITY };
