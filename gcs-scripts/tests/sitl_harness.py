@@ -184,3 +184,29 @@ async def mavsdk_ready(instance):
         "health (global position, home, armable)",
     )
     return drone
+
+
+def assert_generated_doc(generator, doc, tmp_path):
+    """Runs `scripts/GENERATOR SITL OUT` and requires its stdout to be `docs/DOC` byte for byte: a hand edit, a
+    stale table or a changed generator fails, naming the first lines that differ."""
+    run = subprocess.run(
+        [str(ROOT / "scripts" / generator), str(binary("sitl")), str(tmp_path)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
+    assert run.returncode == 0, run.stderr[-3000:]
+    committed = (ROOT / "docs" / doc).read_text()
+    generated = run.stdout
+    if generated != committed:
+        diff = [
+            f"line {i + 1}:\n  docs:      {a[:300]}\n  generated: {b[:300]}"
+            for i, (a, b) in enumerate(zip(committed.splitlines(), generated.splitlines(), strict=False))
+            if a != b
+        ]
+        raise AssertionError(
+            f"docs/{doc} is stale or was edited by hand (regenerate it with scripts/reproduce):\n"
+            + "\n".join(diff[:10])
+            + (f"\n({len(committed.splitlines())} lines in docs, {len(generated.splitlines())} generated)")
+        )

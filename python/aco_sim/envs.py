@@ -34,6 +34,17 @@ def _native_env(task: str, num_envs: int, autoreset: bool, **kwargs: Any) -> _na
     return _native.VecEnv(task, num_envs=num_envs, autoreset=autoreset, **kwargs)
 
 
+def _spaces(native: _native.VecEnv) -> tuple[spaces.Box, spaces.Box]:
+    """One environment's observation space (float32, unbounded) and action space (float32, the mode's bounds)."""
+    observation = spaces.Box(-np.inf, np.inf, shape=(native.obs_dim,), dtype=np.float32)
+    action = spaces.Box(
+        np.asarray(native.action_low, dtype=np.float32),
+        np.asarray(native.action_high, dtype=np.float32),
+        dtype=np.float32,
+    )
+    return observation, action
+
+
 def _check_actions(actions: Any, shape: tuple[int, ...]) -> np.ndarray:
     """Actions as a C-contiguous float32 array of `shape`; a wrong shape or a non-float dtype is refused."""
     a = np.asarray(actions)
@@ -100,13 +111,7 @@ class AcoEnv(gymnasium.Env):
             raise ValueError("aco_sim environments do not render; see docs/python.md for plotting the trace")
         self._native = _native_env(task, 1, False, **kwargs)
         self._functions = _Functions(reward_fn, termination_fn)
-        d = self._native.obs_dim
-        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(d,), dtype=np.float32)
-        self.action_space = spaces.Box(
-            np.asarray(self._native.action_low, dtype=np.float32),
-            np.asarray(self._native.action_high, dtype=np.float32),
-            dtype=np.float32,
-        )
+        self.observation_space, self.action_space = _spaces(self._native)
         self.obs_names = list(self._native.obs_names)
         self._obs: np.ndarray | None = None
 
@@ -152,13 +157,7 @@ class AcoVectorEnv(VectorEnv):
         self._native = _native_env(task, num_envs, True, **kwargs)
         self._functions = _Functions(reward_fn, termination_fn)
         self.num_envs = num_envs
-        d = self._native.obs_dim
-        self.single_observation_space = spaces.Box(-np.inf, np.inf, shape=(d,), dtype=np.float32)
-        self.single_action_space = spaces.Box(
-            np.asarray(self._native.action_low, dtype=np.float32),
-            np.asarray(self._native.action_high, dtype=np.float32),
-            dtype=np.float32,
-        )
+        self.single_observation_space, self.single_action_space = _spaces(self._native)
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_space = batch_space(self.single_action_space, num_envs)
         self.obs_names = list(self._native.obs_names)
