@@ -358,7 +358,8 @@ fn tune_writes_the_same_files_on_one_thread_and_two_and_evaluate_flies_them_held
     let report: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
     assert_eq!(report.as_array().map(Vec::len), Some(2), "{report}");
     assert_eq!(report[1]["gains"], "pid (defaults)");
-    assert!(report[0]["sets"][0]["metrics"]["gust_peak_m"].as_f64().is_some(), "{report}");
+    assert!(report[0]["sets"][0]["mean"]["gust_peak_m"].as_f64().is_some(), "{report}");
+    assert!(report[0]["sets"][0]["worst"]["gust_peak_m"].as_f64().is_some(), "{report}");
     assert!(out.join("heldout.csv").exists());
     // A bad spec fails before any run, naming the key.
     std::fs::write(&spec, TUNE_SPEC.replace("pid.kp_pos_per_s", "pid.kp_position")).unwrap();
