@@ -11,6 +11,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use sitl::scenario::runner::{RunOptions, RunOutput, Runner, Trace};
 use sitl::scenario::{ReferenceMode, Scenario};
+use sitl::sim_params::SIM_PARAMS;
 use sitl::sweep::Sweep;
 
 use crate::control::{Action, ErrorSlot, PyController};
@@ -284,13 +285,12 @@ impl Sim {
                 .as_mut()
                 .ok_or_else(|| PyRuntimeError::new_err("the run has finished; parameters can no longer change"))?;
             if name.starts_with("SIM_") {
-                return runner.set_sim_param(name, value as f32).map_err(|e| {
-                    if e.contains("unknown") || e.contains("no parameter") {
-                        PyKeyError::new_err(e)
-                    } else {
-                        PyValueError::new_err(e)
-                    }
-                });
+                if !SIM_PARAMS.iter().any(|d| d.name == name) {
+                    return Err(PyKeyError::new_err(format!(
+                        "unknown parameter {name} (the SIM_ table: docs/faults.md)"
+                    )));
+                }
+                return runner.set_sim_param(name, value as f32).map_err(PyValueError::new_err);
             }
             let config = params::with_controller_param(runner.controller_config_in_use(), name, value)?;
             runner.reconfigure_controller(config).map_err(|e| PyValueError::new_err(e.to_string()))

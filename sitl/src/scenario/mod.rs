@@ -51,7 +51,9 @@ use autopilot::core::control::{ControllerConfig, ControllerKind};
 use autopilot::core::manual::ManualConfig;
 use serde::{Deserialize, Serialize};
 
-use crate::plant::{AirframeConfig, StateNoise, WindConfig};
+use nalgebra::Vector3;
+
+use crate::plant::{AirframeConfig, InitialState, StateNoise, WindConfig};
 use crate::sim_params::events::{self, EventSpec, SimEvent};
 pub use metrics::MetricWindows;
 pub use path::PathKind;
@@ -116,6 +118,20 @@ pub struct InitialSpec {
     pub vel_ned_mps: [f64; 3],
     pub euler_rad: [f64; 3],
     pub rate_frd_radps: [f64; 3],
+}
+
+impl InitialSpec {
+    /// The plant's initial state: this position, velocity, attitude and rates, the rotors at hover lift.
+    #[must_use]
+    pub fn state(&self) -> InitialState {
+        InitialState {
+            pos_ned_m: Vector3::from(self.pos_ned_m),
+            vel_ned_mps: Vector3::from(self.vel_ned_mps),
+            euler_rad: Vector3::from(self.euler_rad),
+            rate_frd_radps: Vector3::from(self.rate_frd_radps),
+            rotor_lift_n: None,
+        }
+    }
 }
 
 /// A scenario, as read from its TOML file.

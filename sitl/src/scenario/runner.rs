@@ -21,7 +21,7 @@ use super::metrics::{self, EffortAccumulator, EffortMetrics, FaultMetrics, GustM
 use super::reference::{ReferenceGen, ReferenceMode, ReferenceSpec, TrackGen};
 use super::{MetricKind, OverrideValue, Scenario, ScenarioError};
 use crate::plant::sensors::{NoisyState, StateNoise};
-use crate::plant::{Airframe, AirframeConfig, GroundConfig, InitialState, Plant, PlantConfig, Truth, envelope};
+use crate::plant::{Airframe, AirframeConfig, GroundConfig, Plant, PlantConfig, Truth, envelope};
 use crate::sim_params::{SimEvents, SimParamService};
 
 /// What varies between runs of one scenario.
@@ -325,14 +325,7 @@ impl Runner {
         let rates = opts.rates;
         let config = lockstep_plant_config(scenario, opts.plant.as_deref())?;
         let plant_name = scenario.plant_label(opts.plant.as_deref());
-        let init = &scenario.initial;
-        let initial = InitialState {
-            pos_ned_m: Vector3::from(init.pos_ned_m),
-            vel_ned_mps: Vector3::from(init.vel_ned_mps),
-            euler_rad: Vector3::from(init.euler_rad),
-            rate_frd_radps: Vector3::from(init.rate_frd_radps),
-            rotor_lift_n: None,
-        };
+        let initial = scenario.initial.state();
         let effort = EffortAccumulator::new(config.airframe.hover_pwm_us(), [MOTOR_PWM_MIN_US, MOTOR_PWM_MAX_US]);
         let airframe_before = config.airframe.clone();
         let plant = Plant::new(config, &initial, opts.seed)?;
@@ -519,6 +512,9 @@ impl Runner {
                 r.reason
             )));
         }
+        if self.series.t.is_empty() {
+            return Err(ScenarioError::Invalid("the run has not run a tick: step it first".into()));
+        }
         let trace = std::mem::take(&mut self.trace);
         let Self { scenario, series, effort, controller, plant, airframe_before, .. } = &self;
         let sim_s = self.k as f64 * self.dt_us as f64 * 1e-6;
@@ -545,9 +541,6 @@ impl Runner {
             wall_s: 0.0,
             realtime_factor: 0.0,
         };
-        if series.t.is_empty() {
-            return Err(ScenarioError::Invalid("the run has not run a tick: step it first".into()));
-        }
         if scenario.metrics.contains(&MetricKind::Steps) {
             let (segments, rms) = super::steps::step_metrics(scenario, series);
             m.segments = Some(segments);
@@ -643,6 +636,7 @@ mod tests {
     use nalgebra::Vector2;
 
     use super::*;
+    use crate::plant::InitialState;
     use crate::scenario::MetricWindows;
     use crate::scenario::path::{PathKind, TrackPath};
 

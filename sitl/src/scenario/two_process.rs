@@ -320,14 +320,7 @@ fn run_hover(
         .into());
     }
     let config = plant_config(scenario, opts.plant.as_deref())?;
-    let init = &scenario.initial;
-    let initial = InitialState {
-        pos_ned_m: Vector3::from(init.pos_ned_m),
-        vel_ned_mps: Vector3::from(init.vel_ned_mps),
-        euler_rad: Vector3::from(init.euler_rad),
-        rate_frd_radps: Vector3::from(init.rate_frd_radps),
-        rotor_lift_n: None,
-    };
+    let initial = scenario.initial.state();
     let plant = Plant::new(config, &initial, opts.seed).map_err(ScenarioError::from)?;
     let noise = scenario.state_noise()?;
     let truth_noise = (scenario.state_noise == StateNoiseKind::Paper).then_some(noise);
