@@ -46,10 +46,12 @@ mod control_stage;
 mod gcs;
 mod io;
 mod motor_test;
+mod plan_view;
 
 use control_stage::ControlStage;
 pub use io::{LogSnapshot, ShellEffect, VehicleInputs, VehicleOutputs};
 use motor_test::MotorTest;
+pub use plan_view::PlanView;
 
 /// The motor command range (µs): one definition, the distributor's.
 pub use crate::core::control::distributor::{MOTOR_PWM_MAX_US, MOTOR_PWM_MIN_US};
