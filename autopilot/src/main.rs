@@ -66,6 +66,11 @@ struct Cli {
     /// Stop when standard input closes (how `sitl run` keeps its autopilot from outliving it).
     #[arg(long, hide = true)]
     stop_on_stdin_eof: bool,
+    /// Send the view stream (the estimate, setpoints, motors, battery, mode, controller telemetry, plan
+    /// and STATUSTEXTs, as JSON datagrams at 50 Hz of vehicle time) to this UDP address; `sitl run
+    /// --view` sets it (docs/view.md).
+    #[arg(long, value_name = "ADDR")]
+    view_udp: Option<std::net::SocketAddr>,
 }
 
 fn main() -> ExitCode {
@@ -101,6 +106,7 @@ fn run(cli: Cli) -> Result<()> {
         signing_key_file: cli.signing_key_file,
     };
     let mut config = RuntimeConfig::resolve(file, cli.instance, overrides)?;
+    config.view_udp = cli.view_udp;
     if let Some(e) = cli.estimator {
         config.vehicle.estimator.source = match e {
             Estimator::Fused => EstimatorSource::Fused,

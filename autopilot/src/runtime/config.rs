@@ -231,6 +231,8 @@ pub struct RuntimeConfig {
     /// `--rate HZ`: the plant's sample rate, which `runtime::run` sets as LOOP_INNER_HZ (and LOOP_POS_HZ,
     /// `plant_link::budget::position_rate_hz`) in the vehicle and over the kept parameters; `None`: their own.
     pub plant_rate_hz: Option<u32>,
+    /// Where the view stream goes (`--view-udp`, see [`crate::runtime::view`]); `None`: nowhere.
+    pub view_udp: Option<SocketAddr>,
 }
 
 /// What the command line adds to (and overrides in) the file.
@@ -337,6 +339,7 @@ impl RuntimeConfig {
             state_dir,
             signing_key_file: overrides.signing_key_file.or(file.gcs.signing_key_file),
             plant_rate_hz: None,
+            view_udp: None,
         })
     }
 }

@@ -16,6 +16,7 @@ use crate::runtime::flight_log::FlightLogger;
 use crate::runtime::frame::{self, LinkCounters};
 use crate::runtime::link::{Destination, Incoming, LinkId, Outgoing};
 use crate::runtime::signing::LinkSigning;
+use crate::runtime::view::ViewTap;
 
 /// Wall time the step's telemetry may wait before it is handed to the ground-station links. Handing each
 /// message over on its own wakes the tokio thread every time, which in lockstep (about 5000 messages per
@@ -39,6 +40,8 @@ pub struct GcsOutputs {
     pub secure: Vec<bool>,
     /// The onboard ULog's sampler (off by default).
     pub flight_log: FlightLogger,
+    /// The view stream's tap (off unless `--view-udp`).
+    pub view: ViewTap,
 }
 
 /// Broadcast STATUSTEXTs allowed per second of vehicle time, on average.
@@ -155,6 +158,7 @@ impl GcsFanout {
         // The flight log keeps every text, those the limiter holds back from the ground stations too.
         if let MavMessage::STATUSTEXT(text) = &message {
             self.out.flight_log.text(now_us, text.severity, text.text.to_str().unwrap_or(""));
+            self.out.view.text(now_us, text.severity, text.text.to_str().unwrap_or(""));
         }
         if let (Destination::All, MavMessage::STATUSTEXT(text)) = (to, &message)
             && !self.texts.allow(now_us, text.id != 0 && text.chunk_seq > 0)

@@ -28,6 +28,7 @@ pub mod udp;
 pub mod ulog;
 pub mod utc;
 pub mod vehicle_host;
+pub mod view;
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -84,6 +85,12 @@ pub enum RuntimeError {
     /// The plant stream does not fit the serial line (the one line of `LinkBudget::refusal`).
     #[error("the plant link does not fit its line: {0}")]
     LinkBudget(String),
+    #[error("cannot open the view stream to {to}: {source}")]
+    View {
+        to: std::net::SocketAddr,
+        #[source]
+        source: std::io::Error,
+    },
 }
 
 fn wall_us() -> u64 {
@@ -272,8 +279,15 @@ pub async fn run(mut config: RuntimeConfig) -> Result<PlantLinkStats, RuntimeErr
         }
         None => (flight_log::FlightLogger::off(), None),
     };
+    let view = match config.view_udp {
+        Some(to) => {
+            tracing::info!(%to, "the view stream goes to udp {to}");
+            view::ViewTap::to(to, config.instance).map_err(|source| RuntimeError::View { to, source })?
+        }
+        None => view::ViewTap::off(),
+    };
     let outputs =
-        GcsOutputs { links: out_links, tlog: tlog_tx, counters, signing: signing.clone(), secure, flight_log };
+        GcsOutputs { links: out_links, tlog: tlog_tx, counters, signing: signing.clone(), secure, flight_log, view };
     let mut plant_task = tokio::task::spawn_blocking(move || {
         plant_link::run(plant.as_mut(), vehicle, persisted, in_rx, outputs, &plant_stop)
     });

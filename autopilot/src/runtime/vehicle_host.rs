@@ -231,6 +231,7 @@ impl VehicleHost {
                 }
                 if let Some(vehicle) = self.vehicle.as_ref() {
                     self.gcs.out.flight_log.end_step(now_us, vehicle);
+                    self.gcs.out.view.end_step(now_us, vehicle);
                 }
                 self.apply_effects();
                 return Ok(Some(PlantReply {
