@@ -366,8 +366,8 @@ pub struct SwarmReport {
 /// Step every plant of a swarm in lockstep with its autopilot, on one thread and one clock: each tick sends
 /// every plant's sensors first, then collects every reply and steps that plant, so the autopilots compute
 /// at the same time. Runs until `duration_us` of plant time (`None`: no limit) or until `stop` is set, or
-/// until an autopilot exits; then stops every child. `on_tick` is called with the plant time after each
-/// tick.
+/// until an autopilot exits; then stops every child. `on_tick` is called with the plant time and the
+/// servers (their plants) after each tick.
 ///
 /// # Errors
 /// The first link error, or [`LaunchError::AutopilotExited`] naming no vehicle (the message carries the
@@ -377,7 +377,7 @@ pub fn run_swarm(
     children: Vec<AutopilotChild>,
     duration_us: Option<u64>,
     stop: &AtomicBool,
-    mut on_tick: impl FnMut(u64) + Send,
+    mut on_tick: impl FnMut(u64, &[PlantServer<UdpTransport>]) + Send,
 ) -> Result<SwarmReport, LaunchError> {
     let halt = AtomicBool::new(false);
     let mut children = children;
@@ -424,7 +424,7 @@ pub fn run_swarm(
                 if first.is_none() {
                     first = Some(Instant::now());
                 }
-                on_tick(servers.first().map_or(0, |s| s.plant().time_us()));
+                on_tick(servers.first().map_or(0, |s| s.plant().time_us()), servers);
             }
         });
         let mut exit = None;

@@ -13,3 +13,4 @@ pub mod serial_line;
 pub mod sim_params;
 pub mod sweep;
 pub mod tune;
+pub mod view;

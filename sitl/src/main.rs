@@ -63,6 +63,9 @@ enum Command {
     /// List the registered controllers: the names every command takes, their `[controller]` table,
     /// whether they fly the rate level (Acro, offboard body rates, `rates` scenarios), and what they are.
     Controllers,
+    /// Open an autopilot's ULog flight log in the live view's viewer (Rerun): the estimate, setpoints,
+    /// motors, battery, ACO weights, modes and messages (docs/view.md).
+    View(cli::view::ViewFileArgs),
 }
 
 fn main() -> ExitCode {
@@ -79,6 +82,7 @@ fn main() -> ExitCode {
         Command::Bench(args) => cli::bench::run(&args),
         Command::Sweep(args) => cli::sweep::sweep(&args),
         Command::Tune(args) => cli::tune::tune(&args),
+        Command::View(args) => cli::view::view(&args),
         #[cfg(unix)]
         Command::Line(args) => cli::line::line(&args),
         Command::Controllers => {

@@ -11,3 +11,4 @@ pub(crate) mod scenario;
 pub(crate) mod serve;
 pub(crate) mod sweep;
 pub(crate) mod tune;
+pub(crate) mod view;

@@ -12,8 +12,12 @@ use sitl::scenario::reference::ReferenceMode;
 use sitl::scenario::runner::{self, RunOptions, RunOutput};
 use sitl::scenario::{BUILT_INS, Scenario, file_label};
 
+use sitl::view::scenario::{meta_frame, run_viewed};
+use sitl::view::{Delivery, Viewer};
+
 use super::common::{fmt_seconds, gust_track_lines, write_atomically};
 use super::plots::plots;
+use super::view::{ViewArgs, finish_viewer, start_viewer};
 
 #[derive(Args)]
 pub(crate) struct ScenarioArgs {
@@ -51,6 +55,21 @@ pub(crate) struct ScenarioArgs {
     /// Skip the PNG plots.
     #[arg(long)]
     pub(crate) no_plots: bool,
+    /// The runs in the view (every controller overlaid on one time axis) or recorded (`--record`).
+    #[command(flatten)]
+    pub(crate) view: ViewArgs,
+}
+
+/// The view's name of a run: the controller's, with the seed and reference mode when there are several.
+fn source(controller: ControllerKind, seed: u64, mode: ReferenceMode, several: (bool, bool)) -> String {
+    let mut src = controller.to_string();
+    if several.0 {
+        src += &format!("-seed{seed}");
+    }
+    if several.1 {
+        src += &format!("-{mode}");
+    }
+    src
 }
 
 pub(crate) fn parse_seeds(text: &str) -> Result<Vec<u64>> {
@@ -93,6 +112,27 @@ pub(crate) fn scenario(args: &ScenarioArgs) -> Result<()> {
     };
     let total: usize =
         scenarios.iter().map(|s| seeds.len() * s.reference_modes().len() * controllers_of(s).len()).sum();
+    let view_opts = args.view.options()?;
+    let viewer = match &view_opts {
+        Some(opts) => {
+            if scenarios.len() > 1 {
+                bail!("--view and --record show one scenario at a time; name one");
+            }
+            Some(start_viewer(opts, Delivery::Complete, &format!("scenario {}", names.join(" ")))?)
+        }
+        None => None,
+    };
+    let sender = viewer.as_ref().map(Viewer::sender);
+    if let (Some(sender), Some(scenario)) = (&sender, scenarios.first()) {
+        let several = (seeds.len() > 1, scenario.reference_modes().len() > 1);
+        let mut sources = Vec::new();
+        for &seed in &seeds {
+            for mode in scenario.reference_modes() {
+                sources.extend(controllers_of(scenario).into_iter().map(|c| source(c, seed, mode, several)));
+            }
+        }
+        sender.send(&meta_frame(scenario, &sources));
+    }
     let mut progress = Progress::new("sitl scenario", total as u64, "runs");
     let mut done = 0;
     let stdout = std::io::stdout();
@@ -112,7 +152,13 @@ pub(crate) fn scenario(args: &ScenarioArgs) -> Result<()> {
                         mode,
                         trace_hz: args.trace_hz,
                     };
-                    let out = runner::run(scenario, &opts)?;
+                    let out = match &sender {
+                        Some(sender) => {
+                            let several = (seeds.len() > 1, scenario.reference_modes().len() > 1);
+                            run_viewed(scenario, &opts, &source(controller, seed, mode, several), sender)?
+                        }
+                        None => runner::run(scenario, &opts)?,
+                    };
                     let stem = run_stem(&out, mode, scenario);
                     let csv = dir.join(format!("{stem}.csv"));
                     write_atomically(&csv, out.trace.to_csv().as_bytes())?;
@@ -142,6 +188,10 @@ pub(crate) fn scenario(args: &ScenarioArgs) -> Result<()> {
         }
     }
     progress.finish();
+    drop(sender);
+    if let (Some(viewer), Some(opts)) = (viewer, &view_opts) {
+        finish_viewer(viewer, opts)?;
+    }
     Ok(())
 }
 

@@ -410,6 +410,21 @@ impl Runner {
         &self.plant
     }
 
+    /// The controller, read-only (its telemetry, its attitude setpoint).
+    #[must_use]
+    pub fn controller(&self) -> &dyn Controller {
+        self.controller.as_ref()
+    }
+
+    /// The reference's positions over the next `horizon_s` seconds (from now, `n` points), from a copy
+    /// of its generator, so the run is not touched.
+    #[must_use]
+    pub fn ahead_ned_m(&self, horizon_s: f64, n: usize) -> Vec<Vector3<f64>> {
+        let mut reference = self.reference.clone();
+        let now_s = self.time_s();
+        (0..n).map(|i| reference.at(now_s + horizon_s * i as f64 / n.max(1) as f64).pos_ned_m).collect()
+    }
+
     /// Sets a SIM_ parameter now, as a ground station's PARAM_SET on the SIM_ port would.
     ///
     /// # Errors

@@ -321,7 +321,7 @@ pub(super) fn bench_swarm(args: &BenchArgs, count: u16) -> Result<()> {
             halt.store(true, Ordering::Relaxed);
             m
         });
-        let swarm = launch::run_swarm(&mut servers, children, None, &halt, |t_us| {
+        let swarm = launch::run_swarm(&mut servers, children, None, &halt, |t_us, _| {
             plant_time_us.store(t_us, Ordering::Relaxed);
         });
         swarm_done.store(true, Ordering::Relaxed);

@@ -11,6 +11,7 @@ use sitl::link::PlantServer;
 use sitl::progress::Progress;
 use sitl::scenario::Scenario;
 use sitl::scenario::two_process::{self, TwoProcessOptions};
+use sitl::view::{TruthSampler, VehiclePlacement, truth_frame};
 
 use crate::cli::common::{
     bind_rc_in, bind_sim_params, describe_pacing, describe_rc_in, duration_us, faults_summary, fmt_seconds,
@@ -19,12 +20,14 @@ use crate::cli::common::{
 
 mod args;
 mod swarm;
+mod view;
 
 pub(crate) use args::RunArgs;
 pub(crate) use swarm::start_swarm;
 
 use args::{autopilot_args, check_autopilot_config, run_link_config};
 use swarm::run_swarm;
+use view::start_view;
 
 pub(crate) fn run(args: &RunArgs) -> Result<()> {
     if args.count > 1 {
@@ -32,6 +35,12 @@ pub(crate) fn run(args: &RunArgs) -> Result<()> {
             bail!("--rc-in-port is for one vehicle: a swarm's plants take no radio");
         }
         return run_swarm(args);
+    }
+    if args.scenario.is_some() && args.view.options()?.is_some() {
+        bail!(
+            "--view and --record draw a live run; a scenario is drawn by `sitl scenario NAME --view` (every \
+             controller overlaid)"
+        );
     }
     if args.scenario.is_some() && (args.plant.config.is_some() || args.plant.pacing_given() || args.duration.is_some())
     {
@@ -86,6 +95,11 @@ pub(crate) fn run(args: &RunArgs) -> Result<()> {
 
     let (plant, pacing) = args.plant.build(realistic_plant_config())?;
     let duration = duration_us(args.duration)?;
+    let view_opts = args.view.options()?;
+    let src = format!("v{n}");
+    let placement =
+        VehiclePlacement { map: plant.config().sensors.home.origin(), start_ned_m: plant.truth().pos_ned_m };
+    let view = start_view(view_opts.as_ref(), &format!("instance {n}"), vec![(src.clone(), placement)])?;
     let listen = format!("127.0.0.1:{plant_port}");
     let (sim_params, sim_port) = bind_sim_params(n, &plant)?;
     let rc_port = args.plant.rc_in_port(n);
@@ -96,7 +110,10 @@ pub(crate) fn run(args: &RunArgs) -> Result<()> {
     if let Some(port) = rc_in {
         server.set_rc_in(port);
     }
-    let ap_args = autopilot_args(args, n, &listen, args.state_dir.as_ref().map(OsString::from));
+    let mut ap_args = autopilot_args(args, n, &listen, args.state_dir.as_ref().map(OsString::from));
+    if let Some(v) = &view {
+        ap_args.extend(["--view-udp".into(), v.forwarder.addr().to_string().into()]);
+    }
     let child = AutopilotChild::spawn(&autopilot, &ap_args)?;
     eprintln!(
         "sitl: instance {n} running {}{}; plant on udp {listen}, SIM_ parameters on udp 127.0.0.1:{sim_port} \
@@ -116,10 +133,18 @@ pub(crate) fn run(args: &RunArgs) -> Result<()> {
         Some(us) => Progress::new(&format!("sitl: instance {n}"), us.div_ceil(1_000_000), "sim s"),
         None => Progress::hidden(0),
     };
+    let truth_to = view.as_ref().map(|v| v.sender.clone());
+    let mut sampler = TruthSampler::default();
     let report = launch::run_with_child(&mut server, child, duration, &stop, |plant, _| {
         progress.set(plant.time_us() / 1_000_000);
+        if let Some(to) = &truth_to
+            && sampler.due(plant.time_us())
+        {
+            to.send(&truth_frame(&src, &plant.truth()));
+        }
     });
     progress.finish();
+    drop(truth_to);
     let report = report?;
     let l = &report.link;
     eprintln!(
@@ -140,6 +165,9 @@ pub(crate) fn run(args: &RunArgs) -> Result<()> {
     }
     if let Some(line) = faults_summary(l) {
         eprintln!("{line}");
+    }
+    if let (Some(v), Some(opts)) = (view, &view_opts) {
+        v.finish(opts)?;
     }
     Ok(())
 }

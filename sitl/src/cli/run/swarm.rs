@@ -10,8 +10,10 @@ use sitl::launch::{self, AutopilotChild};
 use sitl::link::{PlantServer, UdpTransport};
 use sitl::plant::{InitialState, Plant};
 use sitl::progress::Progress;
+use sitl::view::{TruthSampler, VehiclePlacement, truth_frame};
 
 use super::args::{RunArgs, autopilot_args, check_autopilot_config, run_link_config};
+use super::view::start_view;
 use crate::cli::common::{bind_sim_params, describe_pacing, duration_us, realistic_plant_config};
 
 /// Where swarm vehicle `k` of `count` starts: on a square grid `spacing_m` apart, rows north, columns east
@@ -27,6 +29,16 @@ pub(crate) fn grid_position_ned_m(k: u16, count: u16, spacing_m: f64) -> nalgebr
 pub(crate) fn start_swarm(
     args: &RunArgs,
     log_filter: Option<&str>,
+) -> Result<(Vec<PlantServer<UdpTransport>>, Vec<AutopilotChild>)> {
+    start_swarm_viewed(args, log_filter, |_| Ok(None))
+}
+
+/// [`start_swarm`], with `view` given every vehicle's source and placement before the autopilots start
+/// and answering the address they send their view stream to, if any.
+fn start_swarm_viewed(
+    args: &RunArgs,
+    log_filter: Option<&str>,
+    view: impl FnOnce(Vec<(String, VehiclePlacement)>) -> Result<Option<std::net::SocketAddr>>,
 ) -> Result<(Vec<PlantServer<UdpTransport>>, Vec<AutopilotChild>)> {
     let (first, count) = (args.instance, args.count);
     let last = first
@@ -56,13 +68,32 @@ pub(crate) fn start_swarm(
             .with_context(|| format!("binding {listen}"))?;
         server.set_sim_port(sim_params);
         servers.push(server);
+    }
+    let placements = servers
+        .iter()
+        .zip(first..=last)
+        .map(|(server, n)| {
+            let plant = server.plant();
+            (
+                format!("v{n}"),
+                VehiclePlacement { map: plant.config().sensors.home.origin(), start_ned_m: plant.truth().pos_ned_m },
+            )
+        })
+        .collect();
+    let view_udp = view(placements)?;
+    for n in first..=last {
+        let ports = InstancePorts::of(n)?;
+        let listen = format!("127.0.0.1:{}", ports.plant_udp);
         // Each vehicle keeps its own state: a directory given for the swarm holds one per instance.
         let state_dir = match args.state_dir.as_deref().map(str::trim) {
             Some("off") => Some(OsString::from("off")),
             Some(dir) => Some(Path::new(dir).join(format!("i{n}")).into_os_string()),
             None => None,
         };
-        let ap_args = autopilot_args(args, n, &listen, state_dir);
+        let mut ap_args = autopilot_args(args, n, &listen, state_dir);
+        if let Some(addr) = view_udp {
+            ap_args.extend(["--view-udp".into(), addr.to_string().into()]);
+        }
         children.push(AutopilotChild::spawn_with(&autopilot, &ap_args, log_filter)?);
     }
     Ok((servers, children))
@@ -72,7 +103,12 @@ pub(crate) fn start_swarm(
 pub(crate) fn run_swarm(args: &RunArgs) -> Result<()> {
     let duration = duration_us(args.duration)?;
     let stop = launch::ctrl_c_flag();
-    let (mut servers, children) = start_swarm(args, None)?;
+    let view_opts = args.view.options()?;
+    let mut live = None;
+    let (mut servers, children) = start_swarm_viewed(args, None, |placements| {
+        live = start_view(view_opts.as_ref(), &format!("a swarm of {}", args.count), placements)?;
+        Ok(live.as_ref().map(|v| v.forwarder.addr()))
+    })?;
     let (first, count, pacing) = (args.instance, args.count, args.plant.pacing());
     let last = first + (count - 1);
     let api: Vec<String> =
@@ -95,8 +131,21 @@ pub(crate) fn run_swarm(args: &RunArgs) -> Result<()> {
         Some(us) => Progress::new("sitl: swarm", us.div_ceil(1_000_000), "sim s"),
         None => Progress::hidden(0),
     };
-    let report = launch::run_swarm(&mut servers, children, duration, &stop, |t_us| progress.set(t_us / 1_000_000));
+    let truth_to = live.as_ref().map(|v| v.sender.clone());
+    let sources: Vec<String> = (first..=last).map(|n| format!("v{n}")).collect();
+    let mut sampler = TruthSampler::default();
+    let report = launch::run_swarm(&mut servers, children, duration, &stop, |t_us, servers| {
+        progress.set(t_us / 1_000_000);
+        if let Some(to) = &truth_to
+            && sampler.due(t_us)
+        {
+            for (server, src) in servers.iter().zip(&sources) {
+                to.send(&truth_frame(src, &server.plant().truth()));
+            }
+        }
+    });
     progress.finish();
+    drop(truth_to);
     let report = report?;
     let steps: u64 = report.vehicles.iter().map(|v| v.steps).sum();
     let sim_s = report.vehicles.first().map_or(0.0, |v| v.sim_s);
@@ -111,5 +160,8 @@ pub(crate) fn run_swarm(args: &RunArgs) -> Result<()> {
         if report.wall_s > 0.0 { sim_s / report.wall_s } else { 0.0 },
         report.vehicles.first().and_then(|v| v.plant_cpu_s).unwrap_or(f64::NAN),
     );
+    if let (Some(v), Some(opts)) = (live, &view_opts) {
+        v.finish(opts)?;
+    }
     Ok(())
 }
