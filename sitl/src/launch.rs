@@ -65,8 +65,8 @@ impl std::fmt::Display for InstancePort {
 
 /// The ports instance `n` binds ([`InstancePorts`]): the plant's (UDP 4560+N) and its SIM_ parameters'
 /// (UDP 19550+N), and with `autopilot` the autopilot's own UDP (18570+N) and TCP (5760+N) ports, as `sitl
-/// run` starts it. The ports it sends to (14550, the API port 14540+N) are the ground stations' and not
-/// among them.
+/// run` starts it. The ports it sends to (14550, the API port 14540+N, and with `--hawkeye` Hawkeye's
+/// 19410+N) are the ground stations' and viewers' and not among them.
 ///
 /// # Errors
 /// [`LaunchError::InstanceOutOfRange`] above the largest instance.

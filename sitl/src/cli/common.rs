@@ -6,9 +6,10 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
-use autopilot::runtime::ports::InstancePorts;
+use autopilot::runtime::ports::{HAWKEYE_MAX_INSTANCE, InstancePorts};
 use clap::Args;
 use sitl::link::Pacing;
+use sitl::link::hawkeye::HawkeyeSender;
 use sitl::link::rc::{RC_IN_PORT, RcInPort};
 use sitl::plant::{Airframe, InitialState, Plant, PlantConfig, SensorConfig};
 use sitl::scenario::metrics::{GustMetrics, TrackMetrics};
@@ -40,6 +41,11 @@ pub(crate) struct PlantArgs {
     /// sent to the autopilot as RC_CHANNELS at 50 Hz. Default 5501 + instance; 0 = off.
     #[arg(long, value_name = "PORT")]
     pub(crate) rc_in_port: Option<u16>,
+    /// Send the plant's true state to PX4's Hawkeye 3D viewer: MAVLink 2 HIL_STATE_QUATERNION (system N+1,
+    /// component 51) to UDP 127.0.0.1:19410+N, instance N (each vehicle of a swarm to its own port), at
+    /// 50 Hz of simulated time. Nobody listening is fine: the sends are dropped, the plant never waits.
+    #[arg(long)]
+    pub(crate) hawkeye: bool,
 }
 
 impl PlantArgs {
@@ -67,6 +73,36 @@ impl PlantArgs {
     /// `--speed` or `--lockstep`; without either, real time.
     pub(crate) fn pacing(&self) -> Pacing {
         if self.lockstep { Pacing::Lockstep } else { self.speed.unwrap_or(REAL_TIME) }
+    }
+
+    /// With `--hawkeye`, that instance `n` (the last of a swarm) has a Hawkeye port clear of every other
+    /// port: checked before anything starts.
+    ///
+    /// # Errors
+    /// An instance past [`HAWKEYE_MAX_INSTANCE`] (its Hawkeye port is another instance's SIM_ port).
+    pub(crate) fn check_hawkeye(&self, n: u16) -> Result<()> {
+        if self.hawkeye && n > HAWKEYE_MAX_INSTANCE {
+            bail!(
+                "--hawkeye: instance {n}'s Hawkeye port 19410+{n} would be instance {}'s SIM_ parameter port; \
+                 Hawkeye ports are clear for instances 0..={HAWKEYE_MAX_INSTANCE}",
+                n - HAWKEYE_MAX_INSTANCE - 1
+            );
+        }
+        Ok(())
+    }
+
+    /// With `--hawkeye`, the sender of instance `n`'s truth to 127.0.0.1:19410+n, from `plant`'s time.
+    ///
+    /// # Errors
+    /// As [`PlantArgs::check_hawkeye`], or the socket's error.
+    pub(crate) fn hawkeye_sender(&self, n: u16, plant: &Plant) -> Result<Option<HawkeyeSender>> {
+        if !self.hawkeye {
+            return Ok(None);
+        }
+        self.check_hawkeye(n)?;
+        let ports = InstancePorts::of(n)?;
+        let to = std::net::SocketAddr::from(([127, 0, 0, 1], ports.hawkeye_udp));
+        Ok(Some(HawkeyeSender::new(to, ports.system_id, plant.time_us()).with_context(|| format!("--hawkeye: {to}"))?))
     }
 
     /// The RC input port of instance `n`: `--rc-in-port`, else [`RC_IN_PORT`] + n; `None` when 0 (off).
@@ -223,6 +259,21 @@ pub(crate) fn radio_summary<T: sitl::link::Transport>(server: &sitl::link::Plant
             server.stats().rc_sent,
             rc.accepted,
             rc.dropped
+        )
+    })
+}
+
+/// The Hawkeye closing line of a run or a serve (`sitl: hawkeye: N HIL_STATE_QUATERNION sent to ADDR, F
+/// refused`), when `--hawkeye` sent.
+pub(crate) fn hawkeye_summary<T: sitl::link::Transport>(server: &sitl::link::PlantServer<T>) -> Option<String> {
+    server.hawkeye().map(|h| {
+        let s = server.stats();
+        format!(
+            "sitl: hawkeye: {} HIL_STATE_QUATERNION sent to udp {}, {} refused (no viewer listening, or a full \
+             buffer)",
+            s.hawkeye_sent,
+            h.destination(),
+            s.hawkeye_failed
         )
     })
 }

@@ -9,8 +9,8 @@ use sitl::link::{LinkConfig, Pacing, PlantServer, Transport, UdpTransport};
 use std::time::Duration;
 
 use super::common::{
-    PlantArgs, bind_rc_in, bind_sim_params, describe_pacing, describe_rc_in, faults_summary, instance_ports,
-    radio_summary, realistic_plant_config,
+    PlantArgs, bind_rc_in, bind_sim_params, describe_pacing, describe_rc_in, faults_summary, hawkeye_summary,
+    instance_ports, radio_summary, realistic_plant_config,
 };
 
 #[derive(Args)]
@@ -75,6 +75,7 @@ pub(crate) fn serve(args: &ServeArgs) -> Result<()> {
     if args.listen.is_none() && args.serial.is_none() {
         launch::check_instance_free(args.instance, false)?;
     }
+    args.plant.check_hawkeye(args.instance)?;
     let (plant, pacing) = args.plant.build(realistic_plant_config())?;
     let free_run_speed = match (args.free_run, pacing) {
         (false, _) => None,
@@ -113,7 +114,11 @@ pub(crate) fn serve(args: &ServeArgs) -> Result<()> {
     let stop = launch::ctrl_c_flag();
     let (sim_params, sim_port) = bind_sim_params(args.instance, &plant)?;
     let rc_in = bind_rc_in(rc_port)?;
-    let (steps, radio, faults) = if let Some((device, baud)) = serial {
+    let hawkeye = args.plant.hawkeye_sender(args.instance, &plant)?;
+    if let Some(h) = &hawkeye {
+        eprintln!("sitl: the plant's truth to Hawkeye on udp {} (50 Hz of sim time)", h.destination());
+    }
+    let (steps, radio, faults, viewer) = if let Some((device, baud)) = serial {
         let transport = SerialTransport::open(&device, baud, poll).with_context(|| format!("opening {device}"))?;
         eprintln!(
             "sitl: plant on serial {device} at {baud} baud, running {}; SIM_ parameters on udp \
@@ -126,8 +131,11 @@ pub(crate) fn serve(args: &ServeArgs) -> Result<()> {
         if let Some(port) = rc_in {
             server.set_rc_in(port);
         }
+        if let Some(h) = hawkeye {
+            server.set_hawkeye(h);
+        }
         let steps = serve_steps(&mut server, free_run_speed, &stop)?;
-        (steps, radio_summary(&server), faults_summary(&server.stats()))
+        (steps, radio_summary(&server), faults_summary(&server.stats()), hawkeye_summary(&server))
     } else {
         let port = instance_ports(args.instance)?.0;
         let listen = args.listen.clone().unwrap_or_else(|| format!("127.0.0.1:{port}"));
@@ -139,6 +147,9 @@ pub(crate) fn serve(args: &ServeArgs) -> Result<()> {
         if let Some(port) = rc_in {
             server.set_rc_in(port);
         }
+        if let Some(h) = hawkeye {
+            server.set_hawkeye(h);
+        }
         eprintln!(
             "sitl: plant listening on udp {listen}, running {}; SIM_ parameters on udp 127.0.0.1:{sim_port}; {}; \
              waiting for an autopilot",
@@ -146,10 +157,10 @@ pub(crate) fn serve(args: &ServeArgs) -> Result<()> {
             describe_rc_in(rc_port)
         );
         let steps = serve_steps(&mut server, free_run_speed, &stop)?;
-        (steps, radio_summary(&server), faults_summary(&server.stats()))
+        (steps, radio_summary(&server), faults_summary(&server.stats()), hawkeye_summary(&server))
     };
     eprintln!("sitl: {steps} steps served");
-    for line in [radio, faults].into_iter().flatten() {
+    for line in [radio, faults, viewer].into_iter().flatten() {
         eprintln!("{line}");
     }
     Ok(())

@@ -105,6 +105,10 @@ pub struct LinkStats {
     pub held_steps: u64,
     /// `MAV_CMD_INJECT_FAILURE` commands received (each answered by one `COMMAND_ACK`).
     pub injections: u64,
+    /// `HIL_STATE_QUATERNION` datagrams the kernel took for the Hawkeye viewer (`--hawkeye`).
+    pub hawkeye_sent: u64,
+    /// Hawkeye datagrams the kernel refused (no viewer listening: ECONNREFUSED; a full buffer), dropped.
+    pub hawkeye_failed: u64,
     /// The frame decoder's counts (garbage, bad CRC, truncated, ...).
     pub decoder: DecoderStats,
 }

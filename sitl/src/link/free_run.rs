@@ -92,6 +92,7 @@ impl<T: Transport> PlantServer<T> {
             if let Some((hook, _)) = &mut self.hook {
                 hook.stepped(&self.plant);
             }
+            self.send_hawkeye();
             if self.hook.is_some() && self.stats.steps.is_multiple_of(HOOK_EVERY_STEPS) {
                 self.poll_hook(Instant::now())?;
             }

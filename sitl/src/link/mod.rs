@@ -47,7 +47,9 @@
 //! least every [`HOOK_WAIT_INTERVAL`] of wall time while the server waits (for the autopilot's reply, its
 //! first datagram, or the real-time pacing): never once per step, which would cost the lockstep loop a
 //! system call per step. After every step it is told the step happened ([`PlantHook::stepped`], no system
-//! call), so that it can sample the plant on plant time (the SIM_ port's truth stream).
+//! call), so that it can sample the plant on plant time (the SIM_ port's truth stream). With a
+//! [`hawkeye::HawkeyeSender`] ([`PlantServer::set_hawkeye`]) the server also sends the truth to PX4's
+//! Hawkeye viewer after the step that enters each 20 ms period of plant time, the SIM_ port's samples.
 
 use std::collections::VecDeque;
 use std::io;
@@ -66,6 +68,7 @@ use mavlink::dialects::common::{MavBatteryChargeState, MavCmd, MavMessage};
 mod config;
 mod fields;
 pub mod free_run;
+pub mod hawkeye;
 pub mod rc;
 mod sim;
 mod udp;
@@ -144,6 +147,8 @@ pub struct PlantServer<T: Transport> {
     rc_in: Option<rc::RcInPort>,
     /// The board's watchdog when running free (see [`free_run`]).
     watchdog: free_run::Watchdog,
+    /// The truth for PX4's Hawkeye viewer, when asked for (see [`hawkeye`]).
+    hawkeye: Option<hawkeye::HawkeyeSender>,
 }
 
 impl PlantServer<UdpTransport> {
@@ -179,6 +184,7 @@ impl<T: Transport> PlantServer<T> {
             hook: None,
             rc_in: None,
             watchdog: free_run::Watchdog::default(),
+            hawkeye: None,
         }
     }
 
@@ -425,6 +431,7 @@ impl<T: Transport> PlantServer<T> {
         if let Some((hook, _)) = &mut self.hook {
             hook.stepped(&self.plant);
         }
+        self.send_hawkeye();
         if self.hook.is_some() && self.stats.steps.is_multiple_of(HOOK_EVERY_STEPS) {
             self.poll_hook(Instant::now())?;
         }
@@ -799,6 +806,41 @@ mod tests {
         // Told of each step once, after it: the last at the plant's time after 200 steps of 2 ms.
         assert_eq!(steps.load(Ordering::Relaxed), 200);
         assert_eq!(last_step_us.load(Ordering::Relaxed), 400_000);
+    }
+
+    #[test]
+    fn given_hawkeye_then_the_server_sends_the_truth_every_20_ms_of_plant_time_and_counts_what_was_refused() {
+        // GIVEN a server with a Hawkeye viewer listening.
+        let viewer = UdpSocket::bind("127.0.0.1:0").expect("bind viewer");
+        viewer.set_read_timeout(Some(Duration::from_millis(200))).expect("timeout");
+        let mut server = PlantServer::bind_udp(hover_plant(), "127.0.0.1:0", LinkConfig::default()).expect("bind");
+        let to = viewer.local_addr().expect("addr");
+        server.set_hawkeye(hawkeye::HawkeyeSender::new(to, 1, 0).expect("sender"));
+        assert_eq!(server.hawkeye().map(hawkeye::HawkeyeSender::destination), Some(to));
+        let plant_addr = server.transport().local_addr().expect("addr");
+        let pwm = server.plant().config().airframe.hover_pwm_us();
+        // WHEN it runs 200 steps of 2 ms (of an autopilot's 400).
+        let ap = autopilot(plant_addr, 400, pwm, |_, _| {}, |_| false);
+        assert_eq!(server.run(Some(200), &AtomicBool::new(false)).expect("run"), 200);
+        // THEN the viewer got 20 HIL_STATE_QUATERNION at 20, 40, .. 400 ms, each the truth of its time.
+        let mut buf = [0_u8; 512];
+        let mut times = Vec::new();
+        while let Ok(n) = viewer.recv(&mut buf) {
+            for frame in FrameDecoder::new().decode_datagram(&buf[..n]) {
+                let MavMessage::HIL_STATE_QUATERNION(m) = frame.message else { panic!("{:?}", frame.message) };
+                times.push(m.time_usec);
+            }
+        }
+        assert_eq!(times, (1..=20).map(|k| k * 20_000).collect::<Vec<u64>>());
+        assert_eq!((server.stats().hawkeye_sent, server.stats().hawkeye_failed), (20, 0));
+
+        // AND with nobody listening the plant steps on; every sample is either sent or counted refused.
+        drop(viewer);
+        assert_eq!(server.run(Some(200), &AtomicBool::new(false)).expect("run with nobody listening"), 200);
+        ap.join().expect("autopilot");
+        let stats = server.stats();
+        assert_eq!(stats.hawkeye_sent + stats.hawkeye_failed, 40, "{stats:?}");
+        assert!(stats.hawkeye_failed >= 5, "ECONNREFUSED counted: {stats:?}");
     }
 
     #[test]

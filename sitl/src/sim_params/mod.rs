@@ -98,7 +98,9 @@ mod truth;
 pub use events::{EventSpec, SimEvent, SimEvents};
 pub use inject::{Injection, Refusal, failure_sets, request_of};
 pub use port::{HEARTBEAT_PERIOD, PEER_EXPIRY, SimParamLink, heartbeat};
-pub use truth::{TRUTH_PERIOD_US, TRUTH_RATE_HZ, TruthStream, sim_state, truth_messages};
+pub use truth::{
+    TRUTH_PERIOD_US, TRUTH_RATE_HZ, TruthPeriods, TruthStream, hil_state_quaternion, sim_state, truth_messages,
+};
 
 use autopilot::core::mavlink::failure::FailureRequest;
 use autopilot::core::mavlink::params::{Applied, ParamService, encode_value, param_value};

@@ -15,7 +15,7 @@ use sitl::view::{TruthSampler, VehiclePlacement, truth_frame};
 
 use crate::cli::common::{
     bind_rc_in, bind_sim_params, describe_pacing, describe_rc_in, duration_us, faults_summary, fmt_seconds,
-    gust_track_lines, instance_ports, radio_summary, realistic_plant_config,
+    gust_track_lines, hawkeye_summary, instance_ports, radio_summary, realistic_plant_config,
 };
 
 mod args;
@@ -42,6 +42,9 @@ pub(crate) fn run(args: &RunArgs) -> Result<()> {
              controller overlaid)"
         );
     }
+    if args.scenario.is_some() && args.plant.hawkeye {
+        bail!("--hawkeye is for `sitl run` and `sitl serve` plants; a --scenario runs its own plant without it");
+    }
     if args.scenario.is_some() && (args.plant.config.is_some() || args.plant.pacing_given() || args.duration.is_some())
     {
         bail!(
@@ -51,6 +54,7 @@ pub(crate) fn run(args: &RunArgs) -> Result<()> {
     }
     let n = args.instance;
     let (plant_port, ap_port, qgc_port, api_port) = instance_ports(n)?;
+    args.plant.check_hawkeye(n)?;
     let autopilot = launch::autopilot_binary()?;
     // Everything the command line names is checked before anything starts: a busy instance, an autopilot
     // configuration the autopilot would refuse, a scenario that does not load.
@@ -110,6 +114,13 @@ pub(crate) fn run(args: &RunArgs) -> Result<()> {
     if let Some(port) = rc_in {
         server.set_rc_in(port);
     }
+    if let Some(hawkeye) = args.plant.hawkeye_sender(n, server.plant())? {
+        eprintln!(
+            "sitl: instance {n}: the plant's truth to Hawkeye on udp {} (50 Hz of sim time)",
+            hawkeye.destination()
+        );
+        server.set_hawkeye(hawkeye);
+    }
     let mut ap_args = autopilot_args(args, n, &listen, args.state_dir.as_ref().map(OsString::from));
     if let Some(v) = &view {
         ap_args.extend(["--view-udp".into(), v.forwarder.addr().to_string().into()]);
@@ -160,10 +171,7 @@ pub(crate) fn run(args: &RunArgs) -> Result<()> {
         l.junk_datagrams,
         l.decoder.malformed(),
     );
-    if let Some(line) = radio_summary(&server) {
-        eprintln!("{line}");
-    }
-    if let Some(line) = faults_summary(l) {
+    for line in [radio_summary(&server), faults_summary(l), hawkeye_summary(&server)].into_iter().flatten() {
         eprintln!("{line}");
     }
     if let (Some(v), Some(opts)) = (view, &view_opts) {

@@ -48,6 +48,7 @@ fn start_swarm_viewed(
     if !(args.spacing.is_finite() && args.spacing > 0.0) {
         bail!("--spacing must be a positive number of metres, got {}", args.spacing);
     }
+    args.plant.check_hawkeye(last)?;
     let autopilot = launch::autopilot_binary()?;
     for n in first..=last {
         launch::check_instance_free(n, true)?;
@@ -67,6 +68,9 @@ fn start_swarm_viewed(
         let mut server = PlantServer::bind_udp(plant, listen.as_str(), run_link_config(args, pacing))
             .with_context(|| format!("binding {listen}"))?;
         server.set_sim_port(sim_params);
+        if let Some(hawkeye) = args.plant.hawkeye_sender(n, server.plant())? {
+            server.set_hawkeye(hawkeye);
+        }
         servers.push(server);
     }
     let placements = servers
@@ -127,6 +131,13 @@ pub(crate) fn run_swarm(args: &RunArgs) -> Result<()> {
         InstancePorts::of(first)?.sim_params_udp,
         InstancePorts::of(last)?.sim_params_udp,
     );
+    if args.plant.hawkeye {
+        eprintln!(
+            "sitl: swarm: the plants' truth to Hawkeye on udp {}..={} (50 Hz of sim time)",
+            InstancePorts::of(first)?.hawkeye_udp,
+            InstancePorts::of(last)?.hawkeye_udp
+        );
+    }
     let mut progress = match duration {
         Some(us) => Progress::new("sitl: swarm", us.div_ceil(1_000_000), "sim s"),
         None => Progress::hidden(0),
@@ -152,6 +163,11 @@ pub(crate) fn run_swarm(args: &RunArgs) -> Result<()> {
     let resends: u64 = report.vehicles.iter().map(|v| v.link.resends).sum();
     let malformed: u64 = report.vehicles.iter().map(|v| v.link.decoder.malformed()).sum();
     let autopilot_cpu_s: f64 = report.vehicles.iter().filter_map(|v| v.autopilot_cpu_s).sum();
+    if args.plant.hawkeye {
+        let sent: u64 = report.vehicles.iter().map(|v| v.link.hawkeye_sent).sum();
+        let refused: u64 = report.vehicles.iter().map(|v| v.link.hawkeye_failed).sum();
+        eprintln!("sitl: swarm: hawkeye: {sent} HIL_STATE_QUATERNION sent, {refused} refused (no viewer listening?)");
+    }
     eprintln!(
         "sitl: swarm of {count}: {sim_s:.1} sim s in {:.1} s wall ({:.1}x real time), {steps} plant steps in all; \
          CPU: plants {:.2} s in this process, autopilots {autopilot_cpu_s:.2} s together; plant links: {resends} \
