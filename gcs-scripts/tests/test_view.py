@@ -1,0 +1,203 @@
+"""The live-view bridge `python -m aco_gcs.view`: frames in, a Rerun recording out that Rerun's own reader
+finds every sample in (a malformed line skipped, not fatal), the .rrd under its final name only after a clean
+end, a ULog shown as frames, and the web viewer in headless Chromium drawing the orange quadrotor in 3D and
+plots whose time axis moves on (view_browser.check_live_view, which `sitl run --view`'s test reuses)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from aco_gcs.view_synth import frames
+
+SECONDS = 4.0
+RATE_HZ = 50.0
+ENV = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+
+
+def bridge(*args: str, stderr: Any = subprocess.PIPE) -> subprocess.Popen[str]:
+    return subprocess.Popen(
+        [sys.executable, "-m", "aco_gcs.view", *args],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=stderr,
+        text=True,
+        env=ENV,
+    )
+
+
+def read_rrd(path: Path) -> Any:
+    """The recording as one Arrow table on the `sim_time` index, read by Rerun's own server."""
+    import rerun as rr
+
+    with rr.server.Server(host="127.0.0.1", datasets={"d": [str(path)]}) as server:
+        client = server.client()  # held while the query runs (its context goes out of scope otherwise)
+        dataset = client.get_dataset("d")
+        frame = dataset.reader(index="sim_time")
+        return frame.to_arrow_table()
+
+
+def samples(table: Any, column: str) -> int:
+    col = table.column(column)
+    return col.length() - col.null_count
+
+
+def test_frames_become_a_recording_with_every_sample(tmp_path: Path) -> None:
+    rrd = tmp_path / "x.rrd"
+    lines = [json.dumps(f) for f in frames(["v0", "v1"], SECONDS, RATE_HZ)]
+    lines.insert(len(lines) // 2, '{"kind": "truth", "src": "v0", "t_us": ')  # cut short
+    lines.insert(10, '{"kind": "future_kind", "src": "v0", "t_us": 5, "whatever": [1]}')  # ignored
+    proc = bridge("--no-viewer", "--record", str(rrd))
+    out, err = proc.communicate("\n".join(lines) + "\n", timeout=120)
+    assert proc.returncode == 0, err
+    assert out.splitlines()[0] == f"ready {rrd}", out
+    assert "1 malformed line(s) skipped" in err, err
+    assert rrd.exists() and not rrd.with_name("x.rrd.tmp").exists()
+
+    table = read_rrd(rrd)
+    n = int(SECONDS * RATE_HZ) + 1  # every sample of both halves: the malformed line stopped nothing
+    for src in ("v0", "v1"):
+        assert samples(table, f"/world/{src}/truth:Transform3D:translation") == n
+        assert samples(table, f"/world/{src}/setpoint:Points3D:positions") == n
+        motors = table.column(f"/plots/motors/{src}:Scalars:scalars").drop_null().to_pylist()
+        assert len(motors) == n and all(len(m) == 4 for m in motors), "four motors, every sample"
+        assert samples(table, f"/plots/pos_err/{src}:Scalars:scalars") == n
+        assert samples(table, f"/events/{src}:TextLog:text") >= 3, "the events and the synthesised mode changes"
+    first = table.column("/world/v0/truth:Transform3D:translation").drop_null()[0].as_py()
+    assert first == [[0.0, 0.0, 0.0]], first
+
+
+def test_the_recording_gets_its_final_name_only_at_a_clean_end(tmp_path: Path) -> None:
+    rrd = tmp_path / "y.rrd"
+    tmp = tmp_path / "y.rrd.tmp"
+    proc = bridge("--no-viewer", "--record", str(rrd))
+    assert proc.stdin is not None and proc.stdout is not None
+    assert proc.stdout.readline().strip() == f"ready {rrd}"
+    for f in frames(["v0"], 1.0, RATE_HZ):
+        proc.stdin.write(json.dumps(f) + "\n")
+    proc.stdin.flush()
+    assert tmp.exists() and not rrd.exists(), "written under .tmp while running"
+    deadline = time.monotonic() + 30
+    while tmp.stat().st_size < 20_000 and time.monotonic() < deadline:  # the frames are in (a pause flushes)
+        time.sleep(0.1)
+    assert not rrd.exists()
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 0, err
+    assert rrd.exists() and not tmp.exists(), err
+    assert samples(read_rrd(rrd), "/world/v0/truth:Transform3D:translation") > 0, "flushed before the rename"
+
+
+def test_without_rerun_it_says_how_to_install_it(tmp_path: Path) -> None:
+    (tmp_path / "rerun").mkdir()
+    (tmp_path / "rerun" / "__init__.py").write_text("raise ImportError('no rerun here')\n")
+    env = {**ENV, "PYTHONPATH": f"{tmp_path}{os.pathsep}{ENV['PYTHONPATH']}"}
+    proc = subprocess.run(
+        [sys.executable, "-m", "aco_gcs.view", "--no-viewer", "--record", str(tmp_path / "z.rrd")],
+        input="",
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=60,
+    )
+    assert proc.returncode == 2
+    assert "pip install 'rerun-sdk[catalog]==0.41.0'" in proc.stderr
+
+
+def test_a_ulog_becomes_frames_and_a_recording(tmp_path: Path) -> None:
+    """Needs a ULog: $ACO_VIEW_ULOG, else one flown by `sitl run` (the binaries built by `cargo test`)."""
+    from aco_gcs.view_ulog import ulog_frames
+
+    path = os.environ.get("ACO_VIEW_ULOG")
+    if path is None:
+        from sitl_harness import start_sitl
+        from test_ulog import fly, ulogs
+
+        sitl = start_sitl(tmp_path, speed="10")
+        try:
+            fly(sitl)
+        finally:
+            sitl.stop()
+        path = str(ulogs(tmp_path / "state")[0])
+    fs = ulog_frames(path)
+    vehicle = [f for f in fs if f["kind"] == "vehicle"]
+    assert fs[0]["kind"] == "meta" and len(vehicle) > 100
+    assert [f["t_us"] for f in fs[1:]] == sorted(f["t_us"] for f in fs[1:])
+    assert {"Takeoff", "Hold", "Land"} <= {f["mode"] for f in vehicle}
+    assert min(f["pos_ned_m"][2] for f in vehicle if f["pos_ned_m"]) < vehicle[0]["pos_ned_m"][2] - 1.5, "took off"
+    assert any(f["pwm_us"] and f["pwm_us"][0] > 1300 for f in vehicle)
+    assert any("aco.c_r_x" in f["telemetry"] for f in vehicle)
+    assert any(f["kind"] == "event" for f in fs), "the logged messages"
+    rrd = tmp_path / "u.rrd"
+    proc = subprocess.run(
+        [sys.executable, "-m", "aco_gcs.view", "--ulog", path, "--no-viewer", "--record", str(rrd)],
+        capture_output=True,
+        text=True,
+        env=ENV,
+        timeout=120,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert samples(read_rrd(rrd), "/world/v0/truth:Transform3D:translation") == len(vehicle)
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def feed_in_real_time(proc: subprocess.Popen[str], stop: threading.Event, seconds: float = 300.0) -> None:
+    """Writes a take-off and hover of `v0` paced in real time until stop is set."""
+    assert proc.stdin is not None
+    start = time.monotonic()
+    try:
+        for f in frames(["v0"], seconds, RATE_HZ):
+            if stop.is_set():
+                break
+            ahead = f["t_us"] / 1e6 - (time.monotonic() - start)
+            if ahead > 0:
+                proc.stdin.flush()
+                stop.wait(ahead)
+            proc.stdin.write(json.dumps(f) + "\n")
+        proc.stdin.close()
+    except (BrokenPipeError, ValueError):
+        pass  # the bridge was stopped
+
+
+@pytest.mark.skipif(not Path("/usr/bin/chromium").exists(), reason="needs Debian's chromium and chromedriver")
+def test_the_web_viewer_shows_the_vehicle_and_moving_plots(tmp_path: Path) -> None:
+    from view_browser import check_live_view
+
+    web, grpc = free_port(), free_port()
+    log = tmp_path / "bridge.log"  # a file: nobody reads a pipe while the browser runs
+    with log.open("w") as f:
+        proc = bridge("--web", "--web-port", str(web), "--grpc-port", str(grpc), stderr=f)
+    stop = threading.Event()
+    feeder = threading.Thread(target=feed_in_real_time, args=(proc, stop), daemon=True)
+    try:
+        assert proc.stdout is not None
+        ready = proc.stdout.readline().split()
+        assert ready[:1] == ["ready"], ready
+        url = ready[1]
+        assert url.startswith(f"http://127.0.0.1:{web}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A{grpc}"), url
+        feeder.start()
+        view = check_live_view(url, tmp_path / "shots")
+        print(view)
+    finally:
+        stop.set()
+        if feeder.is_alive():
+            feeder.join(10)
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(60)
+        print(log.read_text()[-4000:])
+    assert proc.returncode == 0
