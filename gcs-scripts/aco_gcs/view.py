@@ -77,14 +77,17 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     return args
 
 
-def read_stdin(logger: FrameLogger) -> None:
-    """Feeds stdin's lines to the logger until EOF; sends the buffered rows whenever the input pauses."""
+def read_stdin(logger: FrameLogger, drain_s: float | None = None) -> None:
+    """Feeds stdin's lines to the logger until EOF; sends the buffered rows whenever the input pauses. With
+    `drain_s` (after SIGINT or SIGTERM): only what arrives within that long of the last line, then stops."""
     fd = sys.stdin.fileno()
     pending = b""
     while True:
-        ready, _, _ = select.select([fd], [], [], IDLE_FLUSH_S)
+        ready, _, _ = select.select([fd], [], [], IDLE_FLUSH_S if drain_s is None else drain_s)
         if not ready:
             logger.flush()
+            if drain_s is not None:
+                break
             continue
         chunk = os.read(fd, 1 << 16)
         if not chunk:
@@ -130,6 +133,7 @@ def main(argv: list[str] | None = None) -> int:
     uri = f"rerun+http://127.0.0.1:{args.grpc_port}/proxy"
     where = str(final)
     clean = False  # the recording gets its final name only when the bridge ends cleanly
+    logger: FrameLogger | None = None
     try:
         if args.viewer == "web":
             sinks.append(rr.GrpcServerSink(bind_ip="127.0.0.1", port=args.grpc_port))
@@ -166,6 +170,14 @@ def main(argv: list[str] | None = None) -> int:
     except Stop as e:
         print(f"aco-view: {e}: finishing", file=sys.stderr)
         clean = True
+        if logger is not None:
+            # What the stream still holds (its writer stops with us, Ctrl-C reaches the whole group) is
+            # kept, and every row handled is sent before the recording closes.
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+            if frames is None:
+                read_stdin(logger, drain_s=0.5)
+            logger.flush()
     finally:
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
         signal.signal(signal.SIGINT, signal.SIG_IGN)

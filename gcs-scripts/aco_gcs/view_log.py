@@ -257,7 +257,8 @@ class FrameLogger:
         rotors = [[a, a, -0.03], [-a, -a, -0.03], [a, -a, -0.03], [-a, a, -0.03]]
         arms = [[[a, a, 0.0], [-a, -a, 0.0]], [[a, -a, 0.0], [-a, a, 0.0]]]
         nose = [[[0.0, 0.0, 0.0], [ARM_M * 1.1, 0.0, 0.0]]]
-        bodies = [("truth", c, 0.025, 1.0)]
+        # Without a truth (a ULog) the estimate is the full-colour body.
+        bodies = [("estimate" if self.estimate_only else "truth", c, 0.025, 1.0)]
         if not self.estimate_only:
             bodies.append(("estimate", estimate_tint(c), 0.01, 0.8))
         for name, color, width, scale in bodies:
@@ -272,7 +273,7 @@ class FrameLogger:
                     centers=rotors,
                     colors=[color] * 4,
                     fill_mode=rr.components.FillMode.Solid
-                    if name == "truth"
+                    if width == bodies[0][2]
                     else rr.components.FillMode.MajorWireframe,
                 ),
                 static=True,
@@ -317,8 +318,8 @@ class FrameLogger:
                 self._trail_logged[src] = t
                 self._log_trail(src, t)
         if euler is not None:
-            path = f"plots/attitude/{src}/truth"
             what = "est" if self.estimate_only else "truth"
+            path = f"plots/attitude/{src}/{what}"
             self._series(path, src, [f"{src} roll {what}", f"{src} pitch {what}", f"{src} yaw {what}"])
             self._row(path, "scalars", t, [math.degrees(x) for x in euler])
 
@@ -349,7 +350,7 @@ class FrameLogger:
     def _vehicle(self, src: str, t: float, f: dict[str, Any]) -> None:
         pos = _vec3(f.get("pos_ned_m"))
         euler = _vec3(f.get("euler_rad"))
-        self._pose(src, t, "truth" if self.estimate_only else "estimate", pos, _quat(f.get("q_ned_frd")))
+        self._pose(src, t, "estimate", pos, _quat(f.get("q_ned_frd")))
         if self.estimate_only:
             self._track(src, t, pos, euler)
         sp = _vec3(f.get("sp_pos_ned_m"))
