@@ -246,7 +246,13 @@ pub fn plan_frame(src: &str, t_us: u64, plan: &PlanView, origin: Option<GeoOrigi
             .iter()
             .map(|(_, vertices)| vertices.iter().map(|v| [v.x, v.y]).collect())
             .collect(),
-        fence_circles_ne_m: plan.fence_circles_ne_m.iter().map(|(_, c, r)| [c.x, c.y, *r]).collect(),
+        // GF_MAX_HOR_DIST is drawn as the circle about home it is.
+        fence_circles_ne_m: plan
+            .fence_circles_ne_m
+            .iter()
+            .map(|(_, c, r)| [c.x, c.y, *r])
+            .chain(plan.fence_max_hor_m.zip(plan.home_ned_m).map(|(r, h)| [h.x, h.y, r]))
+            .collect(),
         fence_max_alt_m: plan.fence_max_d_m.map(|d| -d),
         rally_ned_m: plan.rally_ned_m.iter().map(arr3).collect(),
         origin: origin_of(origin),
