@@ -534,7 +534,7 @@ def blueprint() -> rrb.Blueprint:
         row_shares=[1, 1, 1, 1],
     )
     eye = rrb.EyeControls3D(
-        kind=rrb.Eye3DKind.Orbital, position=[-7.0, -4.0, -4.0], look_target=[0.0, 0.0, -1.0], eye_up=[0.0, 0.0, -1.0]
+        kind=rrb.Eye3DKind.Orbital, position=[-4.5, -3.0, -3.5], look_target=[0.0, 0.0, -1.5], eye_up=[0.0, 0.0, -1.0]
     )
     world = rrb.Spatial3DView(origin="world", name="3D (NED, up is up)", eye_controls=eye)
     return rrb.Blueprint(rrb.Horizontal(world, right, column_shares=[3, 2]), collapse_panels=True)
