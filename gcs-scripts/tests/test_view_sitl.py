@@ -64,7 +64,7 @@ def test_sitl_run_view_in_chromium_shows_the_vehicle_in_a_gust_and_plots_that_mo
         sim.require_set("SIM_GUST_DIR", 90.0)
         sim.require_set("SIM_GUST_ON", 1)
         flight.hold(vehicle, 3.0)
-        seen = check_live_view(url, tmp_path / "shots")
+        seen = check_live_view(url, tmp_path / "shots", timeout_s=120.0, airborne=True)
         print(
             f"live view: orange blob {seen.orange_px} px; in 2 s {seen.plot_changed_px} plot px and "
             f"{seen.tick_labels_changed_px} tick-label px changed ({seen.a}, {seen.b})"

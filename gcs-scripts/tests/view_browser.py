@@ -110,13 +110,17 @@ def chrome(profile_dir: Path):  # -> selenium.webdriver.Chrome
     return webdriver.Chrome(options=opts, service=Service(CHROMEDRIVER))
 
 
-def check_live_view(url: str, out_dir: Path | None = None, timeout_s: float = 60.0) -> LiveView:
+def check_live_view(url: str, out_dir: Path | None = None, timeout_s: float = 60.0, airborne: bool = False) -> LiveView:
     """Opens the web viewer at url while frames are flowing into it and asserts what a person would see (see
-    the module's docstring). Screenshots go to out_dir (a new temporary directory if None); when
-    $ACO_VIEW_SCREENSHOT names a path, screenshot A is also copied there."""
+    the module's docstring). With `airborne`, screenshot A waits until the viewer shows the vehicle in the
+    air: its topmost orange pixel above the 3D panel's middle, where the camera looks (1.5 m above the start
+    point), so a viewer still loading the run's first seconds is not taken for the flight. Screenshots go to
+    out_dir (a new temporary directory if None); when $ACO_VIEW_SCREENSHOT names a path, screenshot A is
+    also copied there."""
     out = Path(out_dir) if out_dir is not None else Path(tempfile.mkdtemp(prefix="aco-view-"))
     out.mkdir(parents=True, exist_ok=True)
     driver = chrome(Path(tempfile.mkdtemp(prefix="chromium-", dir=out)))
+    middle_y = (PANEL_3D[1] + PANEL_3D[3]) // 2
     try:
         # The window's size includes what headless Chromium keeps for its own chrome: the page gets exactly this.
         driver.execute_cdp_cmd(
@@ -127,15 +131,18 @@ def check_live_view(url: str, out_dir: Path | None = None, timeout_s: float = 60
         a_path, b_path = out / "view-a.png", out / "view-b.png"
         deadline = time.monotonic() + timeout_s
         orange: list[tuple[int, int]] = []
+        top_y = WINDOW[1]
         while time.monotonic() < deadline:
             driver.save_screenshot(str(a_path))
             orange = orange_mask(Image.open(a_path), PANEL_3D)
-            if largest_blob(orange) >= 40:
+            top_y = min((y for _, y in orange), default=WINDOW[1])
+            if largest_blob(orange) >= 40 and (not airborne or top_y < middle_y):
                 break
             time.sleep(1.0)
         a = Image.open(a_path)
         blob = largest_blob(orange)
         assert blob >= 40, f"no orange quadrotor in the 3D panel after {timeout_s:.0f} s ({len(orange)} px): {a_path}"
+        assert not airborne or top_y < middle_y, f"the view never showed the vehicle in the air: {a_path}"
         time.sleep(2.0)
         driver.save_screenshot(str(b_path))
         b = Image.open(b_path)
