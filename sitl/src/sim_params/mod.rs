@@ -999,7 +999,7 @@ mod tests {
     }
 
     /// A plant in the air away from home, moving, tilted and turning (motors running).
-    fn flying_plant() -> Plant {
+    pub(super) fn flying_plant() -> Plant {
         let start = InitialState {
             pos_ned_m: Vector3::new(120.5, -80.25, -30.0),
             vel_ned_mps: Vector3::new(1.5, -0.7, 0.3),

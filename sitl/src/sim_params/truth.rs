@@ -153,22 +153,13 @@ impl TruthStream {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::plant::{InitialState, PlantConfig};
     use autopilot::core::plant_link::{FrameDecoder, encode_frame_v2};
     use mavlink::{MavHeader, MavlinkVersion};
     use nalgebra::Vector3;
 
     /// A plant flying 0.5 s after a tumbling start far from home, in a steady 4 m/s east wind.
     fn flown_plant() -> Plant {
-        let start = InitialState {
-            pos_ned_m: Vector3::new(120.5, -80.25, -30.0),
-            vel_ned_mps: Vector3::new(1.5, -0.7, 0.3),
-            euler_rad: Vector3::new(0.1, -0.05, 1.2),
-            rate_frd_radps: Vector3::new(0.2, -0.1, 0.3),
-            ..InitialState::default()
-        };
-        let mut plant = Plant::new(PlantConfig::default(), &start, 1).expect("plant");
-        plant.set_motors_running(true);
+        let mut plant = super::super::tests::flying_plant();
         plant.wind_mut().set_steady_ned_mps(Vector3::new(0.0, 4.0, 0.0));
         for _ in 0..250 {
             plant.step([1600.0, 1550.0, 1500.0, 1450.0], 2000);
