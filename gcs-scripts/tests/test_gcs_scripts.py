@@ -31,6 +31,7 @@ SCRIPTS = [
     "ulog_plot",
     "sweep",
     "sticks",
+    "view",
 ]
 # Wall-clock limits of a script run (a hang guard: the scripts' own waits are on vehicle time).
 FLIGHT_WALL_S = 300
