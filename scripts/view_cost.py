@@ -66,7 +66,7 @@ def run(binary, vehicles, seconds, view, instance):
         deadline = time.monotonic() + seconds * 3 + 120
         while p.poll() is None and time.monotonic() < deadline:
             log.seek(0)
-            if view and "the run is over" in log.read():
+            if view and "the run ended" in log.read():
                 cpu = tree_cpu_s(proc)
                 os.killpg(p.pid, signal.SIGINT)
                 break

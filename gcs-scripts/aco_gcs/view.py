@@ -60,6 +60,13 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     )
     p.add_argument("--ulog", type=Path, help="show this ULog flight log (else: frames from stdin)")
     viewer = p.add_mutually_exclusive_group()
+    viewer.add_argument(
+        "--auto",
+        dest="viewer",
+        action="store_const",
+        const="auto",
+        help="the native viewer when there is a display ($DISPLAY or $WAYLAND_DISPLAY), else the web viewer (default)",
+    )
     viewer.add_argument("--web", dest="viewer", action="store_const", const="web", help="serve the web viewer")
     viewer.add_argument("--native", dest="viewer", action="store_const", const="native", help="spawn `rerun`")
     viewer.add_argument("--no-viewer", dest="viewer", action="store_const", const="none", help="record only")

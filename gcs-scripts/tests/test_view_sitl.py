@@ -6,7 +6,9 @@ reader with every 50 Hz sample of each controller's truth pose, setpoint and mot
 trace of the same run."""
 
 import csv
+import os
 import re
+import signal
 import socket
 import subprocess
 import time
@@ -211,3 +213,29 @@ def test_a_swarm_recorded_holds_every_vehicle_with_its_estimate_on_its_truth(tmp
         starts.append(truth[both[0]])
     # The grid: the second vehicle starts 3 m east of the first.
     assert abs(starts[1][1] - starts[0][1] - 3.0) < 0.05 and abs(starts[1][0] - starts[0][0]) < 0.05, starts
+
+
+def test_sitl_scenario_view_without_a_display_serves_the_web_viewer_until_ctrl_c(tmp_path):
+    # `--view` alone is `auto`: with no display, the web viewer, which stays up after the run until Ctrl-C.
+    web, grpc = free_tcp_ports(2)
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    args = [str(binary("sitl")), "scenario", "gust-hover", "--controller", "aco", "--no-plots", "--out", str(tmp_path)]
+    args += ["--view", "--view-web-port", str(web), "--view-grpc-port", str(grpc)]
+    log = tmp_path / "scenario.log"
+    with log.open("w") as err:
+        proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=err, env=env, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 300
+        while "the run ended; the view stays at" not in log.read_text():
+            assert proc.poll() is None, f"sitl scenario --view exited ({proc.returncode}): {log.read_text()[-3000:]}"
+            assert time.monotonic() < deadline, log.read_text()[-3000:]
+            time.sleep(0.2)
+        assert f"http://127.0.0.1:{web}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A{grpc}%2Fproxy" in log.read_text()
+        with socket.create_connection(("127.0.0.1", web), timeout=10) as s:
+            s.sendall(b"GET / HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n")
+            assert s.recv(64).startswith(b"HTTP/1."), "the web viewer is served after the run"
+        assert proc.poll() is None, "the view stays up until Ctrl-C"
+    finally:
+        os.killpg(proc.pid, signal.SIGINT)
+        proc.wait(60)
+    assert proc.returncode == 0, log.read_text()[-3000:]

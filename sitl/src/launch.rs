@@ -117,18 +117,44 @@ pub fn autopilot_binary() -> Result<PathBuf, LaunchError> {
     if path.exists() { Ok(path) } else { Err(LaunchError::NoAutopilot(path)) }
 }
 
-/// A flag set by the first Ctrl-C (SIGINT) this process receives.
+/// A flag set by the first Ctrl-C (SIGINT) this process receives. The handler is in place when this
+/// returns: a Ctrl-C from then on sets the flag and no longer ends the process.
 #[must_use]
 pub fn ctrl_c_flag() -> Arc<AtomicBool> {
     let flag = Arc::new(AtomicBool::new(false));
     let set = flag.clone();
+    let (ready_tx, ready_rx) = std::sync::mpsc::channel();
     std::thread::spawn(move || {
-        let Ok(rt) = tokio::runtime::Builder::new_current_thread().enable_io().build() else { return };
-        if rt.block_on(tokio::signal::ctrl_c()).is_ok() {
-            set.store(true, Ordering::Relaxed);
-        }
+        let Ok(rt) = tokio::runtime::Builder::new_current_thread().enable_io().build() else {
+            let _ = ready_tx.send(());
+            return;
+        };
+        rt.block_on(async {
+            // `ctrl_c()` registers its handler when first polled: poll it once before saying it is ready.
+            let mut ctrl_c = std::pin::pin!(tokio::signal::ctrl_c());
+            let first = futures_poll_once(ctrl_c.as_mut()).await;
+            let _ = ready_tx.send(());
+            let result = match first {
+                Some(r) => r,
+                None => ctrl_c.await,
+            };
+            if result.is_ok() {
+                set.store(true, Ordering::Relaxed);
+            }
+        });
     });
+    let _ = ready_rx.recv_timeout(Duration::from_secs(5));
     flag
+}
+
+/// Polls `fut` once: its output if it was ready, else None (it stays pinned for the caller to await).
+async fn futures_poll_once<F: std::future::Future + Unpin>(fut: F) -> Option<F::Output> {
+    let mut fut = fut;
+    std::future::poll_fn(|cx| match std::pin::Pin::new(&mut fut).poll(cx) {
+        std::task::Poll::Ready(out) => std::task::Poll::Ready(Some(out)),
+        std::task::Poll::Pending => std::task::Poll::Ready(None),
+    })
+    .await
 }
 
 /// An autopilot configuration file in the temporary directory for a run `sitl` launches with a

@@ -55,18 +55,19 @@ impl ViewArgs {
     }
 }
 
-/// Starts the view of `what` and says where it is.
+/// Starts the view of `what` and says where it is. From here Ctrl-C (which reaches the bridge too, and
+/// ends it cleanly) no longer ends this process at once, so it reports and exits as after a run.
 pub(crate) fn start_viewer(opts: &ViewerOptions, delivery: Delivery, what: &str) -> Result<Viewer> {
+    let stop = sitl::launch::ctrl_c_flag();
     let viewer = Viewer::start(opts, delivery)?;
+    drop(stop);
     eprintln!("sitl: the view of {what}: {}", viewer.url);
     Ok(viewer)
 }
 
-/// Ends the view: the stream closed, then (a served web view) until Ctrl-C.
+/// Ends the view: the stream closed, then (a served web view) until Ctrl-C. The bridge says that it
+/// keeps serving (a Ctrl-C that ended the run has ended it too).
 pub(crate) fn finish_viewer(viewer: Viewer, opts: &ViewerOptions) -> Result<()> {
-    if opts.kind == ViewerKind::Web || (opts.kind == ViewerKind::Auto && !has_display()) {
-        eprintln!("sitl: the run is over; the view stays at {} until Ctrl-C", viewer.url);
-    }
     let report = viewer.finish()?;
     if report.dropped > 0 {
         eprintln!("sitl: the view fell behind and dropped {} of {} frames", report.dropped, report.written);
@@ -75,10 +76,6 @@ pub(crate) fn finish_viewer(viewer: Viewer, opts: &ViewerOptions) -> Result<()> 
         eprintln!("sitl: recorded {} frames to {}", report.written, path.display());
     }
     Ok(())
-}
-
-fn has_display() -> bool {
-    ["DISPLAY", "WAYLAND_DISPLAY"].iter().any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()))
 }
 
 #[derive(Args)]

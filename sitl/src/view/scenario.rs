@@ -85,11 +85,14 @@ pub fn run_viewed(
     let mode = opts.mode.to_string();
     let mut sampler = TruthSampler::default();
     let mut next_ahead_us = 0;
+    let closed = || ScenarioError::Invalid("the view closed before the run ended".into());
     while runner.ticks().0 < runner.ticks().1 {
         let truth = runner.plant().truth();
         let due = sampler.due(truth.time_us);
         if due {
-            sender.send(&truth_frame(src, &truth));
+            if !sender.send(&truth_frame(src, &truth)) {
+                return Err(closed());
+            }
             if truth.time_us >= next_ahead_us {
                 next_ahead_us = truth.time_us + AHEAD_PERIOD_US;
                 let points_ned_m = runner.ahead_ned_m(AHEAD_HORIZON_S, AHEAD_POINTS).iter().map(arr3).collect();
