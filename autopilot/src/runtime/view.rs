@@ -14,6 +14,7 @@ use mavlink::dialects::common::MavSeverity;
 use nalgebra::{UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
+use crate::core::control::Controller;
 use crate::core::estimator::GeoOrigin;
 use crate::core::vehicle::{PlanView, Vehicle};
 
@@ -120,12 +121,34 @@ pub struct EventFrame {
     pub text: String,
 }
 
-fn arr3(v: &Vector3<f64>) -> [f64; 3] {
+/// A vector as the stream writes it.
+#[must_use]
+pub fn arr3(v: &Vector3<f64>) -> [f64; 3] {
     [v.x, v.y, v.z]
 }
 
-fn quat(q: &UnitQuaternion<f64>) -> [f64; 4] {
+/// A quaternion as the stream writes it: `[w, x, y, z]`.
+#[must_use]
+pub fn quat(q: &UnitQuaternion<f64>) -> [f64; 4] {
     [q.w, q.i, q.j, q.k]
+}
+
+/// A controller's telemetry as the stream writes it: its named values, the finite ones.
+#[must_use]
+pub fn telemetry_of(controller: &dyn Controller) -> BTreeMap<String, f64> {
+    controller.telemetry().into_iter().filter(|(_, v)| v.is_finite()).map(|(k, v)| (k.into(), v)).collect()
+}
+
+/// The stream's first frame: its title and its sources in colour order, at [`VIEW_PERIOD_US`].
+#[must_use]
+pub fn meta_frame(title: String, sources: Vec<String>) -> ViewFrame {
+    ViewFrame::Meta(MetaFrame {
+        src: sources.first().cloned().unwrap_or_default(),
+        t_us: 0,
+        title,
+        sources,
+        rate_hz: 1e6 / VIEW_PERIOD_US as f64,
+    })
 }
 
 fn shifted(p: &mut [f64; 3], d: &Vector3<f64>) {
@@ -200,13 +223,7 @@ fn origin_of(origin: Option<GeoOrigin>) -> Option<[f64; 3]> {
 pub fn vehicle_frame(src: &str, t_us: u64, vehicle: &Vehicle) -> VehicleFrame {
     let snap = vehicle.log_snapshot();
     let e = &snap.estimate;
-    let telemetry = vehicle
-        .controller()
-        .telemetry()
-        .into_iter()
-        .filter(|(_, v)| v.is_finite())
-        .map(|(k, v)| (k.into(), v))
-        .collect();
+    let telemetry = telemetry_of(vehicle.controller());
     let battery = snap.battery.sample;
     VehicleFrame {
         src: src.into(),

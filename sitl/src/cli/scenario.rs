@@ -12,7 +12,7 @@ use sitl::scenario::reference::ReferenceMode;
 use sitl::scenario::runner::{self, RunOptions, RunOutput};
 use sitl::scenario::{BUILT_INS, Scenario, file_label};
 
-use sitl::view::scenario::{meta_frame, run_viewed};
+use sitl::view::scenario::{run_viewed, scenario_meta_frame};
 use sitl::view::{Delivery, Viewer};
 
 use super::common::{fmt_seconds, gust_track_lines, write_atomically};
@@ -131,7 +131,7 @@ pub(crate) fn scenario(args: &ScenarioArgs) -> Result<()> {
                 sources.extend(controllers_of(scenario).into_iter().map(|c| source(c, seed, mode, several)));
             }
         }
-        sender.send(&meta_frame(scenario, &sources));
+        sender.send(&scenario_meta_frame(scenario, &sources));
     }
     let mut progress = Progress::new("sitl scenario", total as u64, "runs");
     let mut done = 0;

@@ -20,7 +20,8 @@ use std::time::Duration;
 
 use autopilot::core::estimator::GeoOrigin;
 pub use autopilot::runtime::view::{
-    AheadFrame, EventFrame, MetaFrame, PlanFrame, TruthFrame, VIEW_PERIOD_US, VehicleFrame, ViewFrame,
+    AheadFrame, EventFrame, MetaFrame, PlanFrame, TruthFrame, VIEW_PERIOD_US, VehicleFrame, ViewFrame, arr3,
+    meta_frame, quat, telemetry_of,
 };
 use nalgebra::Vector3;
 
@@ -323,19 +324,14 @@ impl Drop for Viewer {
     }
 }
 
-fn arr3(v: &Vector3<f64>) -> [f64; 3] {
-    [v.x, v.y, v.z]
-}
-
 /// The plant's truth as a frame of source `src`.
 #[must_use]
 pub fn truth_frame(src: &str, truth: &Truth) -> ViewFrame {
-    let q = truth.q_ned_frd;
     ViewFrame::Truth(TruthFrame {
         src: src.into(),
         t_us: truth.time_us,
         pos_ned_m: arr3(&truth.pos_ned_m),
-        q_ned_frd: [q.w, q.i, q.j, q.k],
+        q_ned_frd: quat(&truth.q_ned_frd),
         vel_ned_mps: arr3(&truth.vel_ned_mps),
         euler_rad: arr3(&truth.euler_rad),
         wind_ned_mps: arr3(&truth.wind_ned_mps),

@@ -5,7 +5,9 @@
 
 use autopilot::core::control::Controller;
 
-use super::{AheadFrame, MetaFrame, TruthSampler, VehicleFrame, ViewFrame, ViewSender, truth_frame};
+use super::{
+    AheadFrame, TruthSampler, VehicleFrame, ViewFrame, ViewSender, arr3, meta_frame, quat, telemetry_of, truth_frame,
+};
 use crate::plant::rigid_body::attitude_from_euler;
 use crate::scenario::runner::{RunOptions, RunOutput, Runner, TickState};
 use crate::scenario::{Scenario, ScenarioError};
@@ -17,18 +19,8 @@ const AHEAD_POINTS: usize = 31;
 
 /// The stream's first frame for a scenario flown by `sources` (one per run, in colour order).
 #[must_use]
-pub fn meta_frame(scenario: &Scenario, sources: &[String]) -> ViewFrame {
-    ViewFrame::Meta(MetaFrame {
-        src: sources.first().cloned().unwrap_or_default(),
-        t_us: 0,
-        title: format!("sitl scenario {}", scenario.name),
-        sources: sources.to_vec(),
-        rate_hz: 1e6 / super::VIEW_PERIOD_US as f64,
-    })
-}
-
-fn arr3(v: &nalgebra::Vector3<f64>) -> [f64; 3] {
-    [v.x, v.y, v.z]
+pub fn scenario_meta_frame(scenario: &Scenario, sources: &[String]) -> ViewFrame {
+    meta_frame(format!("sitl scenario {}", scenario.name), sources.to_vec())
 }
 
 /// What the controller saw and asked at the tick of time `t_us`, as a vehicle frame (`mode`: the
@@ -51,19 +43,14 @@ pub fn scenario_vehicle_frame(
         mode: mode.into(),
         pos_ned_m: arr3(&seen.pos_ned_m),
         vel_ned_mps: arr3(&seen.vel_ned_mps),
-        q_ned_frd: [q.w, q.i, q.j, q.k],
+        q_ned_frd: quat(&q),
         euler_rad: arr3(&seen.euler_rad),
         sp_pos_ned_m: Some(arr3(&state.reference.pos_ned_m)),
         sp_euler_rad: sp.iter().all(|v| v.is_finite()).then(|| arr3(&sp)),
         pwm_us: state.pwm_us,
         battery_v: None,
         battery_pct: None,
-        telemetry: controller
-            .telemetry()
-            .into_iter()
-            .filter(|(_, v)| v.is_finite())
-            .map(|(k, v)| (k.to_string(), v))
-            .collect(),
+        telemetry: telemetry_of(controller),
         origin: None,
     }
 }

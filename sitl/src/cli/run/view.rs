@@ -2,9 +2,7 @@
 //! truth and the forwarder of the autopilots' frames, started together and ended in order.
 
 use anyhow::Result;
-use sitl::view::{
-    Delivery, Forwarder, MetaFrame, VIEW_PERIOD_US, VehiclePlacement, ViewFrame, ViewSender, Viewer, ViewerOptions,
-};
+use sitl::view::{Delivery, Forwarder, VehiclePlacement, ViewSender, Viewer, ViewerOptions, meta_frame};
 
 use crate::cli::view::{finish_viewer, start_viewer};
 
@@ -25,13 +23,7 @@ pub(crate) fn start_view(
     let Some(opts) = opts else { return Ok(None) };
     let viewer = start_viewer(opts, Delivery::Live, what)?;
     let sender = viewer.sender();
-    sender.send(&ViewFrame::Meta(MetaFrame {
-        src: placements.first().map(|(s, _)| s.clone()).unwrap_or_default(),
-        t_us: 0,
-        title: format!("sitl run: {what}"),
-        sources: placements.iter().map(|(s, _)| s.clone()).collect(),
-        rate_hz: 1e6 / VIEW_PERIOD_US as f64,
-    }));
+    sender.send(&meta_frame(format!("sitl run: {what}"), placements.iter().map(|(s, _)| s.clone()).collect()));
     let forwarder = Forwarder::start(sender.clone(), placements)?;
     Ok(Some(LiveView { viewer, sender, forwarder }))
 }
