@@ -44,14 +44,21 @@ INSTALL_HINT = (
     "(or the whole venv: pip install -r gcs-scripts/requirements.txt, as scripts/test sets it up)"
 )
 IDLE_FLUSH_S = 0.1  # send the buffered rows when the input pauses this long
+STOP_DRAIN_S = 0.5  # after SIGINT or SIGTERM: keep reading while lines still come this often
 
 
-class Stop(Exception):
-    """SIGTERM or SIGINT: finish the recording and exit."""
+class StopFlag:
+    """SIGTERM or SIGINT: finish the recording and exit. The handler only records the signal; the loops look
+    at it. An exception raised from the handler would land in whatever code runs at that moment, and Rerun's
+    logging calls catch every `Exception` and turn it into a warning, so a Ctrl-C inside `rr.log` was lost
+    (the bridge then served on, and its recording was never finalized)."""
 
+    def __init__(self) -> None:
+        self.signal: str | None = None
 
-def _stop(signum: int, frame: FrameType | None) -> None:
-    raise Stop(signal.Signals(signum).name)
+    def __call__(self, signum: int, frame: FrameType | None) -> None:
+        if self.signal is None:
+            self.signal = signal.Signals(signum).name
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -84,16 +91,18 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     return args
 
 
-def read_stdin(logger: FrameLogger, drain_s: float | None = None) -> None:
-    """Feeds stdin's lines to the logger until EOF; sends the buffered rows whenever the input pauses. With
-    `drain_s` (after SIGINT or SIGTERM): only what arrives within that long of the last line, then stops."""
+def read_stdin(logger: FrameLogger, stop: StopFlag) -> None:
+    """Feeds stdin's lines to the logger until EOF; sends the buffered rows whenever the input pauses. Once
+    `stop` has a signal: only what arrives within STOP_DRAIN_S of the last line (the stream's writer stops
+    with us, Ctrl-C reaches the whole process group), then returns."""
     fd = sys.stdin.fileno()
     pending = b""
     while True:
-        ready, _, _ = select.select([fd], [], [], IDLE_FLUSH_S if drain_s is None else drain_s)
+        stopping = stop.signal is not None
+        ready, _, _ = select.select([fd], [], [], STOP_DRAIN_S if stopping else IDLE_FLUSH_S)
         if not ready:
             logger.flush()
-            if drain_s is not None:
+            if stopping:
                 break
             continue
         chunk = os.read(fd, 1 << 16)
@@ -127,8 +136,9 @@ def main(argv: list[str] | None = None) -> int:
             print(f"aco-view: cannot read the ULog {args.ulog}: {e}", file=sys.stderr)
             return 2
 
-    signal.signal(signal.SIGTERM, _stop)
-    signal.signal(signal.SIGINT, _stop)
+    stop = StopFlag()
+    signal.signal(signal.SIGTERM, stop)
+    signal.signal(signal.SIGINT, stop)
     rr.init(args.title, spawn=False)
     bp = blueprint()
     sinks: list[rr.FileSink | rr.GrpcServerSink | rr.GrpcSink] = []
@@ -140,7 +150,6 @@ def main(argv: list[str] | None = None) -> int:
     uri = f"rerun+http://127.0.0.1:{args.grpc_port}/proxy"
     where = str(final)
     clean = False  # the recording gets its final name only when the bridge ends cleanly
-    logger: FrameLogger | None = None
     try:
         if args.viewer == "web":
             sinks.append(rr.GrpcServerSink(bind_ip="127.0.0.1", port=args.grpc_port))
@@ -162,29 +171,23 @@ def main(argv: list[str] | None = None) -> int:
         start = time.process_time()
         if frames is not None:
             for frame in frames:
+                if stop.signal is not None:
+                    break
                 logger.handle(frame)
             logger.flush()
         else:
-            read_stdin(logger)
+            read_stdin(logger, stop)
         cpu = time.process_time() - start
         note = f", {logger.malformed} malformed line(s) skipped" if logger.malformed else ""
-        print(f"aco-view: end of input: {logger.frames} frames in {cpu:.2f} s of CPU{note}", file=sys.stderr)
-        clean = True
-        if args.viewer == "web" and not args.exit_at_eof:
+        ended = "end of input" if stop.signal is None else f"{stop.signal}, the input read"
+        print(f"aco-view: {ended}: {logger.frames} frames in {cpu:.2f} s of CPU{note}", file=sys.stderr)
+        if args.viewer == "web" and not args.exit_at_eof and stop.signal is None:
             print(f"aco-view: the run ended; the view stays at {where} until Ctrl-C", file=sys.stderr, flush=True)
-            while True:
-                time.sleep(3600)
-    except Stop as e:
-        print(f"aco-view: {e}: finishing", file=sys.stderr)
+            while stop.signal is None:
+                time.sleep(0.1)
+        if stop.signal is not None:
+            print(f"aco-view: {stop.signal}: finishing", file=sys.stderr)
         clean = True
-        if logger is not None:
-            # What the stream still holds (its writer stops with us, Ctrl-C reaches the whole group) is
-            # kept, and every row handled is sent before the recording closes.
-            signal.signal(signal.SIGTERM, signal.SIG_IGN)
-            signal.signal(signal.SIGINT, signal.SIG_IGN)
-            if frames is None:
-                read_stdin(logger, drain_s=0.5)
-            logger.flush()
     finally:
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
         signal.signal(signal.SIGINT, signal.SIG_IGN)

@@ -150,3 +150,53 @@ def test_a_ulog_becomes_frames_and_a_recording(tmp_path: Path) -> None:
     assert samples(table, "/world/v0/estimate:Transform3D:translation") == len(vehicle)
     assert not [c for c in table.column_names if "/truth" in c], "a flight log has no truth"
     assert samples(table, "/world/v0/setpoint:Points3D:positions") > 100
+
+
+# The bridge with a SIGINT sent to itself from inside Rerun's exception-catching context at the 40th `rr.log`:
+# where a real Ctrl-C lands when the bridge is busy logging.
+SIGINT_INSIDE_RERUN = """
+import os, signal, sys, time
+import rerun
+from rerun.error_utils import catch_and_log_exceptions
+calls = 0
+original = rerun.log
+def log(*args, **kwargs):
+    global calls
+    calls += 1
+    if calls == 40:
+        with catch_and_log_exceptions("injected"):
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)
+    return original(*args, **kwargs)
+rerun.log = log
+from aco_gcs.view import main
+sys.exit(main())
+"""
+
+
+def test_a_ctrl_c_inside_a_rerun_call_stops_the_bridge_and_finalizes_the_recording(tmp_path: Path) -> None:
+    """Rerun's logging calls turn any `Exception` raised inside them into a warning. CI once lost a Ctrl-C
+    there: the bridge served on, was killed, and its .rrd stayed .tmp. The stream's writer stays open here
+    (as `sitl` is until it stops), so the bridge ends only if it saw the signal."""
+    rrd = tmp_path / "z.rrd"
+    proc = subprocess.Popen(
+        [sys.executable, "-c", SIGINT_INSIDE_RERUN, "--no-viewer", "--record", str(rrd)],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=ENV,
+    )
+    assert proc.stdin is not None and proc.stdout is not None and proc.stderr is not None
+    try:
+        assert proc.stdout.readline().startswith("ready ")
+        for f in frames(["v0", "v1"], 2.0, RATE_HZ):
+            proc.stdin.write(json.dumps(f) + "\n")
+        proc.stdin.flush()
+        assert proc.wait(timeout=60) == 0
+    finally:
+        proc.kill()
+        proc.wait()
+    err = proc.stderr.read()
+    assert "SIGINT" in err and rrd.exists() and not rrd.with_name("z.rrd.tmp").exists(), err
+    assert samples(read_rrd(rrd), "/world/v0/truth:Transform3D:translation") > 0, err
