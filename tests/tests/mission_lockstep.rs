@@ -1,7 +1,8 @@
 //! The paper's figure-8 flown as a real mission, in-process through the whole vehicle core: the plant in
 //! lockstep, the fused estimator on GPS/IMU/mag/baro, the mission uploaded with the MAVLink mission
 //! protocol, started in AUTO MISSION, every item reported reached, and the track compared with the same
-//! spline the in-process figure-8 scenario flies. Also RTL and a mission that lands.
+//! spline the in-process figure-8 scenario flies. Also RTL, a mission that lands, offboard, and MAVSDK's
+//! waypoint and speed pairs, whose MISSION_CURRENT never steps back.
 
 use autopilot::core::estimator::EstimatorSource;
 use autopilot::core::mavlink::common::{MavCmd, MavMessage, MavResult};
@@ -387,4 +388,54 @@ fn given_takeoff_and_land_items_at_lat_lon_0_0_when_the_mission_is_flown_then_it
     assert_eq!(reached(&rig.take_messages()), vec![0, 1, 2], "every item reached in order");
     assert!((max_alt_m - 2.0).abs() < 0.1, "took off here to 2 m: {max_alt_m}");
     assert!((p.xy() - Vector2::new(3.0, 0.0)).norm() < 0.15 && p.z.abs() < 0.05, "landed at the waypoint: {p:?}");
+}
+
+/// MAVSDK's mission as its Mission plugin uploads it: each waypoint a NAV_WAYPOINT followed by a
+/// DO_CHANGE_SPEED, and its progress is the item of MISSION_CURRENT's seq. CI once saw that progress step
+/// back (4, 3, 4): when MISSION_CURRENT's stream was due in the step a waypoint was reached, the stream's
+/// message (already the next waypoint) went before the navigator's own MISSION_CURRENT for the speed item
+/// it passed on the way. Here the stream runs every step, so every arrival meets it.
+#[test]
+fn given_mavsdk_waypoint_and_speed_pairs_when_flown_then_mission_current_never_steps_back() {
+    let mut rig = hovering_rig();
+    // MISSION_CURRENT (id 42) every 2 ms: every step of the vehicle.
+    assert_eq!(
+        rig.command(MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL, [42.0, 2000.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    let corners = [[1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.0, 0.0]];
+    let mut items = Vec::new();
+    for ne in corners {
+        let (lat, lon) = at(&rig, ne);
+        let seq = items.len() as u16;
+        items.push(mission_item(seq, MavCmd::MAV_CMD_NAV_WAYPOINT, [0.0, 0.0, 0.0, NAN], lat, lon, 1.5));
+        let mut speed =
+            mission_item(seq + 1, MavCmd::MAV_CMD_DO_CHANGE_SPEED, [1.0, 0.5, -1.0, 0.0], f64::NAN, f64::NAN, 0.0);
+        speed.frame = autopilot::core::mavlink::common::MavFrame::MAV_FRAME_MISSION;
+        items.push(speed);
+    }
+    assert_eq!(rig.upload(&items), autopilot::core::mavlink::common::MavMissionResult::MAV_MISSION_ACCEPTED);
+    rig.take_messages();
+    assert_eq!(
+        rig.command(MavCmd::MAV_CMD_DO_SET_MODE, [1.0, 4.0, 4.0, 0.0, 0.0, 0.0, 0.0]),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    let start = rig.now_us;
+    while !reached(&rig.messages).contains(&7) {
+        assert!(rig.now_us - start < 60_000_000, "not finished within 60 s: reached {:?}", reached(&rig.messages));
+        rig.tick();
+    }
+    rig.run_s(1.0, |_| {});
+    let messages = rig.take_messages();
+    let current: Vec<u16> = messages
+        .iter()
+        .filter_map(|(_, m)| if let MavMessage::MISSION_CURRENT(c) = m { Some(c.seq) } else { None })
+        .collect();
+    assert!(current.len() > 1000, "the stream ran every step: {} messages", current.len());
+    let back: Vec<_> = current.windows(2).filter(|w| w[1] < w[0]).map(|w| (w[0], w[1])).collect();
+    assert!(back.is_empty(), "MISSION_CURRENT stepped back: {back:?}");
+    let mut seen = current.clone();
+    seen.dedup();
+    assert_eq!(seen, (0..8).collect::<Vec<u16>>(), "every item became current, in order");
+    assert_eq!(reached(&messages), (0..8).collect::<Vec<u16>>(), "every item reached, in order");
 }

@@ -398,19 +398,23 @@ impl Vehicle {
         let pwm_us = motor_test.unwrap_or(pwm_us);
         self.output = out;
         let events = std::mem::take(&mut self.output.events);
-        let due = self.mavlink.due_with_home(now_us, &events, home.map(|h| h.pos_ned_m));
-        let mut messages = due.messages(&self.snapshot(now_us, home.as_ref()), &events);
-        messages.extend(estimator_texts);
-        messages.extend(plant_text);
-        messages.extend(pilot_refusals);
-        messages.extend(self.missions.poll(now_us).messages);
-        messages.extend(self.param_service.due(&self.params));
+        // The navigator's events happened in this step before the snapshot is read, so they go first: a
+        // MISSION_CURRENT for an item passed on the way (a DO_CHANGE_SPEED) after the stream's one for the
+        // item after it would step a ground station's progress back (MAVSDK's did).
+        let mut messages = Vec::new();
         for event in self.navigator.take_events() {
             if let NavEvent::Current(seq) = event {
                 self.plan.set_current_seq(seq);
             }
             messages.push(nav_event_message(&event));
         }
+        let due = self.mavlink.due_with_home(now_us, &events, home.map(|h| h.pos_ned_m));
+        messages.extend(due.messages(&self.snapshot(now_us, home.as_ref()), &events));
+        messages.extend(estimator_texts);
+        messages.extend(plant_text);
+        messages.extend(pilot_refusals);
+        messages.extend(self.missions.poll(now_us).messages);
+        messages.extend(self.param_service.due(&self.params));
         if let Some(ack) = inputs.plant_ack {
             messages.extend(self.failures.on_plant_ack(ack));
         }
