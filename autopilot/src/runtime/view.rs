@@ -8,7 +8,7 @@
 //! listening, a full buffer) is counted and lost.
 
 use std::collections::BTreeMap;
-use std::net::{SocketAddr, UdpSocket};
+use std::net::{Ipv4Addr, Ipv6Addr, SocketAddr, UdpSocket};
 
 use mavlink::dialects::common::MavSeverity;
 use nalgebra::{UnitQuaternion, Vector3};
@@ -151,6 +151,25 @@ pub fn meta_frame(title: String, sources: Vec<String>) -> ViewFrame {
     })
 }
 
+/// A view sample every [`VIEW_PERIOD_US`]: the autopilot's vehicle frames on vehicle time, `sitl`'s truth
+/// frames on plant time. Call [`ViewSampler::due`] after each step; the first step is due.
+#[derive(Debug, Clone, Default)]
+pub struct ViewSampler {
+    next_us: u64,
+}
+
+impl ViewSampler {
+    /// Whether time `t_us` is due a sample (and then the next one is due at the next multiple of the
+    /// period, so a step that does not divide it still gives one sample per period).
+    pub fn due(&mut self, t_us: u64) -> bool {
+        if t_us < self.next_us {
+            return false;
+        }
+        self.next_us = t_us - t_us % VIEW_PERIOD_US + VIEW_PERIOD_US;
+        true
+    }
+}
+
 fn shifted(p: &mut [f64; 3], d: &Vector3<f64>) {
     for (x, dx) in p.iter_mut().zip(d.iter()) {
         *x += dx;
@@ -276,6 +295,23 @@ pub fn plan_frame(src: &str, t_us: u64, plan: &PlanView, origin: Option<GeoOrigi
     }
 }
 
+/// A nonblocking UDP socket on an ephemeral port, for sending to a viewer at `to` (the view stream's
+/// receiver, PX4's Hawkeye): bound to the loopback when `to` is on it, else to any address of its family.
+///
+/// # Errors
+/// The bind's or the socket option's error.
+pub fn viewer_socket(to: SocketAddr) -> std::io::Result<UdpSocket> {
+    let local: SocketAddr = match to {
+        SocketAddr::V4(a) if a.ip().is_loopback() => (Ipv4Addr::LOCALHOST, 0).into(),
+        SocketAddr::V4(_) => (Ipv4Addr::UNSPECIFIED, 0).into(),
+        SocketAddr::V6(a) if a.ip().is_loopback() => (Ipv6Addr::LOCALHOST, 0).into(),
+        SocketAddr::V6(_) => (Ipv6Addr::UNSPECIFIED, 0).into(),
+    };
+    let socket = UdpSocket::bind(local)?;
+    socket.set_nonblocking(true)?;
+    Ok(socket)
+}
+
 /// How many frames the tap sent and lost.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct ViewTapStats {
@@ -290,7 +326,7 @@ pub struct ViewTapStats {
 pub struct ViewTap {
     out: Option<(UdpSocket, SocketAddr)>,
     src: String,
-    next_vehicle_us: u64,
+    vehicle_sampler: ViewSampler,
     next_plan_check_us: u64,
     last_plan: Option<(u64, PlanFrame)>,
     stats: ViewTapStats,
@@ -308,11 +344,7 @@ impl ViewTap {
     /// # Errors
     /// The socket cannot be opened.
     pub fn to(to: SocketAddr, instance: u16) -> std::io::Result<Self> {
-        let bind: SocketAddr = if to.is_ipv6() { "[::]:0".parse() } else { "0.0.0.0:0".parse() }
-            .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidInput, e))?;
-        let socket = UdpSocket::bind(bind)?;
-        socket.set_nonblocking(true)?;
-        Ok(Self { out: Some((socket, to)), src: format!("v{instance}"), ..Self::default() })
+        Ok(Self { out: Some((viewer_socket(to)?, to)), src: format!("v{instance}"), ..Self::default() })
     }
 
     /// Frames sent and lost so far.
@@ -335,8 +367,7 @@ impl ViewTap {
         if self.out.is_none() {
             return;
         }
-        if now_us >= self.next_vehicle_us {
-            self.next_vehicle_us = now_us - now_us % VIEW_PERIOD_US + VIEW_PERIOD_US;
+        if self.vehicle_sampler.due(now_us) {
             let frame = ViewFrame::Vehicle(vehicle_frame(&self.src, now_us, vehicle));
             self.send(&frame);
         }
@@ -428,6 +459,18 @@ mod tests {
     fn given_an_unknown_kind_or_a_missing_field_then_the_line_is_refused() {
         assert!(serde_json::from_str::<ViewFrame>(r#"{"kind":"teapot","src":"v0","t_us":0}"#).is_err());
         assert!(serde_json::from_str::<ViewFrame>(r#"{"kind":"truth","src":"v0","t_us":0}"#).is_err());
+    }
+
+    #[test]
+    fn given_2_ms_steps_then_the_sampler_is_due_at_50_hz_and_once_per_period_at_any_step() {
+        let mut sampler = ViewSampler::default();
+        let due: Vec<u64> = (0..=500u64).map(|k| k * 2_000).filter(|&t| sampler.due(t)).collect();
+        assert_eq!(due.len(), 51, "0..=1 s at 50 Hz");
+        assert!(due.windows(2).all(|w| w[1] - w[0] == VIEW_PERIOD_US), "{due:?}");
+        // A step that does not divide the period still gives one sample per period.
+        let mut sampler = ViewSampler::default();
+        let due: Vec<u64> = (0..=125u64).map(|k| k * 8_000).filter(|&t| sampler.due(t)).collect();
+        assert_eq!(due.len(), 51, "{due:?}");
     }
 
     #[test]

@@ -18,6 +18,7 @@ use std::io;
 use std::net::{SocketAddr, UdpSocket};
 
 use autopilot::core::plant_link::encode_frame_v2;
+use autopilot::runtime::view::viewer_socket;
 use mavlink::MavHeader;
 use mavlink::dialects::common::MavMessage;
 
@@ -39,20 +40,14 @@ pub struct HawkeyeSender {
 
 impl HawkeyeSender {
     /// A sender to `to` (the viewer's `127.0.0.1:19410 + N`) for system `system_id`, its first sample
-    /// at the first multiple of [`TRUTH_PERIOD_US`] after plant time `now_us`. Binds an ephemeral port on
-    /// the loopback (or any address when `to` is elsewhere).
+    /// at the first multiple of [`TRUTH_PERIOD_US`] after plant time `now_us`, from a [`viewer_socket`]
+    /// connected to `to`.
     ///
     /// # Errors
-    /// The bind, connect or socket-option error.
+    /// The bind, socket-option or connect error.
     pub fn new(to: SocketAddr, system_id: u8, now_us: u64) -> io::Result<Self> {
-        let local: SocketAddr = match to {
-            SocketAddr::V4(a) if a.ip().is_loopback() => ([127, 0, 0, 1], 0).into(),
-            SocketAddr::V4(_) => ([0, 0, 0, 0], 0).into(),
-            SocketAddr::V6(_) => (std::net::Ipv6Addr::UNSPECIFIED, 0).into(),
-        };
-        let socket = UdpSocket::bind(local)?;
+        let socket = viewer_socket(to)?;
         socket.connect(to)?;
-        socket.set_nonblocking(true)?;
         Ok(Self { socket, to, system_id, periods: TruthPeriods::new(now_us), sequence: 0 })
     }
 

@@ -20,12 +20,12 @@ use std::time::Duration;
 
 use autopilot::core::estimator::GeoOrigin;
 pub use autopilot::runtime::view::{
-    AheadFrame, EventFrame, MetaFrame, PlanFrame, TruthFrame, VIEW_PERIOD_US, VehicleFrame, ViewFrame, arr3,
-    meta_frame, quat, telemetry_of,
+    AheadFrame, EventFrame, MetaFrame, PlanFrame, TruthFrame, VIEW_PERIOD_US, VehicleFrame, ViewFrame, ViewSampler,
+    arr3, meta_frame, quat, telemetry_of,
 };
 use nalgebra::Vector3;
 
-use crate::plant::Truth;
+use crate::plant::{Plant, Truth};
 
 pub mod scenario;
 
@@ -338,23 +338,6 @@ pub fn truth_frame(src: &str, truth: &Truth) -> ViewFrame {
     })
 }
 
-/// A truth frame every [`VIEW_PERIOD_US`] of plant time: call [`TruthSampler::due`] after each step.
-#[derive(Debug, Clone, Default)]
-pub struct TruthSampler {
-    next_us: u64,
-}
-
-impl TruthSampler {
-    /// Whether plant time `t_us` is due a sample (and then the next one is a period later).
-    pub fn due(&mut self, t_us: u64) -> bool {
-        if t_us < self.next_us {
-            return false;
-        }
-        self.next_us = t_us - t_us % VIEW_PERIOD_US + VIEW_PERIOD_US;
-        true
-    }
-}
-
 /// Where one vehicle's local frame sits in the plant's: the plant's geodetic map, and where the vehicle
 /// started (its local origin until the estimator latches one).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -364,6 +347,12 @@ pub struct VehiclePlacement {
 }
 
 impl VehiclePlacement {
+    /// Where `plant`'s vehicle sits: the plant's map (its home) and the vehicle's position now.
+    #[must_use]
+    pub fn of(plant: &Plant) -> Self {
+        Self { map: plant.config().sensors.home.origin(), start_ned_m: plant.truth().pos_ned_m }
+    }
+
     /// The plant-frame position of the local origin `origin` (lat, lon, alt), or the start without one.
     #[must_use]
     pub fn offset_ned_m(&self, origin: Option<[f64; 3]>) -> Vector3<f64> {

@@ -6,7 +6,7 @@
 use autopilot::core::control::Controller;
 
 use super::{
-    AheadFrame, TruthSampler, VehicleFrame, ViewFrame, ViewSender, arr3, meta_frame, quat, telemetry_of, truth_frame,
+    AheadFrame, VehicleFrame, ViewFrame, ViewSampler, ViewSender, arr3, meta_frame, quat, telemetry_of, truth_frame,
 };
 use crate::plant::rigid_body::attitude_from_euler;
 use crate::scenario::runner::{RunOptions, RunOutput, Runner, TickState};
@@ -70,7 +70,7 @@ pub fn run_viewed(
 ) -> Result<RunOutput, ScenarioError> {
     let mut runner = Runner::new(scenario, opts)?;
     let mode = opts.mode.to_string();
-    let mut sampler = TruthSampler::default();
+    let mut sampler = ViewSampler::default();
     let mut next_ahead_us = 0;
     let closed = || ScenarioError::Invalid("the view closed before the run ended".into());
     while runner.ticks().0 < runner.ticks().1 {

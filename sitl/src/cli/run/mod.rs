@@ -11,7 +11,7 @@ use sitl::link::PlantServer;
 use sitl::progress::Progress;
 use sitl::scenario::Scenario;
 use sitl::scenario::two_process::{self, TwoProcessOptions};
-use sitl::view::{TruthSampler, VehiclePlacement, truth_frame};
+use sitl::view::{VehiclePlacement, ViewSampler, truth_frame};
 
 use crate::cli::common::{
     bind_rc_in, bind_sim_params, describe_pacing, describe_rc_in, duration_us, faults_summary, fmt_seconds,
@@ -101,9 +101,8 @@ pub(crate) fn run(args: &RunArgs) -> Result<()> {
     let duration = duration_us(args.duration)?;
     let view_opts = args.view.options()?;
     let src = format!("v{n}");
-    let placement =
-        VehiclePlacement { map: plant.config().sensors.home.origin(), start_ned_m: plant.truth().pos_ned_m };
-    let view = start_view(view_opts.as_ref(), &format!("instance {n}"), vec![(src.clone(), placement)])?;
+    let placements = vec![(src.clone(), VehiclePlacement::of(&plant))];
+    let view = start_view(view_opts.as_ref(), &format!("instance {n}"), placements)?;
     let listen = format!("127.0.0.1:{plant_port}");
     let (sim_params, sim_port) = bind_sim_params(n, &plant)?;
     let rc_port = args.plant.rc_in_port(n);
@@ -145,7 +144,7 @@ pub(crate) fn run(args: &RunArgs) -> Result<()> {
         None => Progress::hidden(0),
     };
     let truth_to = view.as_ref().map(|v| v.sender.clone());
-    let mut sampler = TruthSampler::default();
+    let mut sampler = ViewSampler::default();
     let report = launch::run_with_child(&mut server, child, duration, &stop, |plant, _| {
         progress.set(plant.time_us() / 1_000_000);
         if let Some(to) = &truth_to

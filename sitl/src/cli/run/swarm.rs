@@ -10,7 +10,7 @@ use sitl::launch::{self, AutopilotChild};
 use sitl::link::{PlantServer, UdpTransport};
 use sitl::plant::{InitialState, Plant};
 use sitl::progress::Progress;
-use sitl::view::{TruthSampler, VehiclePlacement, truth_frame};
+use sitl::view::{VehiclePlacement, ViewSampler, truth_frame};
 
 use super::args::{RunArgs, autopilot_args, check_autopilot_config, run_link_config};
 use super::view::start_view;
@@ -76,13 +76,7 @@ fn start_swarm_viewed(
     let placements = servers
         .iter()
         .zip(first..=last)
-        .map(|(server, n)| {
-            let plant = server.plant();
-            (
-                format!("v{n}"),
-                VehiclePlacement { map: plant.config().sensors.home.origin(), start_ned_m: plant.truth().pos_ned_m },
-            )
-        })
+        .map(|(server, n)| (format!("v{n}"), VehiclePlacement::of(server.plant())))
         .collect();
     let view_udp = view(placements)?;
     for n in first..=last {
@@ -144,7 +138,7 @@ pub(crate) fn run_swarm(args: &RunArgs) -> Result<()> {
     };
     let truth_to = live.as_ref().map(|v| v.sender.clone());
     let sources: Vec<String> = (first..=last).map(|n| format!("v{n}")).collect();
-    let mut sampler = TruthSampler::default();
+    let mut sampler = ViewSampler::default();
     let report = launch::run_swarm(&mut servers, children, duration, &stop, |t_us, servers| {
         progress.set(t_us / 1_000_000);
         if let Some(to) = &truth_to
