@@ -7,7 +7,7 @@ use autopilot::core::estimator::{EstimatorSource, GeoOrigin};
 use autopilot::core::mavlink::common::{MavCmd, MavFrame, MavResult};
 use autopilot::core::mission::MissionItem;
 use autopilot::core::plan::geofence::{Fence, Rally};
-use autopilot::runtime::view::{ViewFrame, plan_frame, vehicle_frame};
+use autopilot::runtime::view::{plan_frame, vehicle_frame};
 use nalgebra::Vector3;
 use tests::rig::{Rig, mission_item};
 
@@ -113,9 +113,7 @@ fn given_a_mission_a_fence_and_rally_points_then_the_plan_frame_places_each_wher
     assert!(near(frame.rally_ned_m[0], [rally[0], rally[1], ground_d], 0.05), "{:?}", frame.rally_ned_m);
 
     // And the vehicle's own frame carries the same origin, so a viewer moves both alike.
-    let ViewFrame::Vehicle(v) = ViewFrame::Vehicle(vehicle_frame("v0", rig.now_us, &rig.vehicle)) else {
-        unreachable!()
-    };
+    let v = vehicle_frame("v0", rig.now_us, &rig.vehicle);
     assert_eq!(v.origin, frame.origin);
     assert!(v.armed);
 }

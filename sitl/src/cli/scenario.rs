@@ -60,13 +60,14 @@ pub(crate) struct ScenarioArgs {
     pub(crate) view: ViewArgs,
 }
 
-/// The view's name of a run: the controller's, with the seed and reference mode when there are several.
-fn source(controller: ControllerKind, seed: u64, mode: ReferenceMode, several: (bool, bool)) -> String {
+/// The view's name of a run of `scenario` flown with `seeds`: the controller's, with the seed and the
+/// reference mode when there are several.
+fn source(scenario: &Scenario, seeds: &[u64], controller: ControllerKind, seed: u64, mode: ReferenceMode) -> String {
     let mut src = controller.to_string();
-    if several.0 {
+    if seeds.len() > 1 {
         src += &format!("-seed{seed}");
     }
-    if several.1 {
+    if scenario.reference_modes().len() > 1 {
         src += &format!("-{mode}");
     }
     src
@@ -124,11 +125,10 @@ pub(crate) fn scenario(args: &ScenarioArgs) -> Result<()> {
     };
     let sender = viewer.as_ref().map(Viewer::sender);
     if let (Some(sender), Some(scenario)) = (&sender, scenarios.first()) {
-        let several = (seeds.len() > 1, scenario.reference_modes().len() > 1);
         let mut sources = Vec::new();
         for &seed in &seeds {
             for mode in scenario.reference_modes() {
-                sources.extend(controllers_of(scenario).into_iter().map(|c| source(c, seed, mode, several)));
+                sources.extend(controllers_of(scenario).into_iter().map(|c| source(scenario, &seeds, c, seed, mode)));
             }
         }
         sender.send(&scenario_meta_frame(scenario, &sources));
@@ -154,8 +154,7 @@ pub(crate) fn scenario(args: &ScenarioArgs) -> Result<()> {
                     };
                     let out = match &sender {
                         Some(sender) => {
-                            let several = (seeds.len() > 1, scenario.reference_modes().len() > 1);
-                            run_viewed(scenario, &opts, &source(controller, seed, mode, several), sender)?
+                            run_viewed(scenario, &opts, &source(scenario, &seeds, controller, seed, mode), sender)?
                         }
                         None => runner::run(scenario, &opts)?,
                     };

@@ -118,7 +118,7 @@ pub(crate) fn serve(args: &ServeArgs) -> Result<()> {
     if let Some(h) = &hawkeye {
         eprintln!("sitl: the plant's truth to Hawkeye on udp {} (50 Hz of sim time)", h.destination());
     }
-    let (steps, radio, faults, viewer) = if let Some((device, baud)) = serial {
+    let (steps, radio, faults, hawkeye_line) = if let Some((device, baud)) = serial {
         let transport = SerialTransport::open(&device, baud, poll).with_context(|| format!("opening {device}"))?;
         eprintln!(
             "sitl: plant on serial {device} at {baud} baud, running {}; SIM_ parameters on udp \
@@ -160,7 +160,7 @@ pub(crate) fn serve(args: &ServeArgs) -> Result<()> {
         (steps, radio_summary(&server), faults_summary(&server.stats()), hawkeye_summary(&server))
     };
     eprintln!("sitl: {steps} steps served");
-    for line in [radio, faults, viewer].into_iter().flatten() {
+    for line in [radio, faults, hawkeye_line].into_iter().flatten() {
         eprintln!("{line}");
     }
     Ok(())

@@ -121,7 +121,6 @@ pub(crate) fn run_link_config(args: &RunArgs, pacing: Pacing) -> LinkConfig {
 /// `state_dir` when one is to be passed.
 pub(crate) fn autopilot_args(args: &RunArgs, n: u16, listen: &str, state_dir: Option<OsString>) -> Vec<OsString> {
     let mut ap_args: Vec<OsString> = vec!["--plant".into(), format!("udp://{listen}").into()];
-
     ap_args.extend(["-i".into(), n.to_string().into()]);
     if let Some(estimator) = &args.estimator {
         ap_args.extend(["--estimator".into(), estimator.into()]);
