@@ -57,19 +57,11 @@ def seconds(log, data):
 
 def euler_deg(q):
     """(roll, pitch, yaw) in degrees of quaternion arrays (w, x, y, z), ZYX as the autopilot's."""
-    w, x, y, z = q
-    roll = [
-        math.degrees(math.atan2(2 * (a * b + c * d), 1 - 2 * (b * b + c * c)))
-        for a, b, c, d in zip(w, x, y, z, strict=True)
-    ]
-    pitch = [
-        math.degrees(math.asin(max(-1.0, min(1.0, 2 * (a * c - d * b))))) for a, b, c, d in zip(w, x, y, z, strict=True)
-    ]
-    yaw = [
-        math.degrees(math.atan2(2 * (a * d + b * c), 1 - 2 * (c * c + d * d)))
-        for a, b, c, d in zip(w, x, y, z, strict=True)
-    ]
-    return roll, pitch, yaw
+    import numpy as np
+
+    from .view_ulog import euler_of_quat
+
+    return tuple(np.degrees(euler_of_quat(np.stack([np.asarray(c, dtype=np.float64) for c in q], axis=1))).T)
 
 
 def run(args):
